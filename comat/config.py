@@ -1,0 +1,138 @@
+"""Frozen config dataclasses (one schema per concern) and YAML loading that rejects unknown keys.
+
+Every field has a docstring; YAML presets hold values only. ``load(cls, mapping)`` builds a
+config from a dict, raising on unknown keys with the list of valid ones, and on wrongly typed
+values; ``to_dict`` gives the resolved config that every run writes next to its results.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+from comat import constants as C
+
+__all__ = ["SafetyConfig", "SimConfig", "load", "load_yaml", "to_dict"]
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """MuJoCo world settings for one dynamics tier."""
+
+    tier: str = "wheels"
+    """``"wheels"`` (free chassis on friction-driven wheels) or ``"unicycle"`` (planar joints)."""
+    substeps: int | None = None
+    """Physics steps per 0.033 s control tick; None = the tier's default (README, "Physics")."""
+    profile: str = C.DEFAULT_PROFILE.name
+    """Robot generation: ``"gritsbot"`` (axle 0.105 m) or ``"gternal"`` (axle 0.11 m)."""
+
+    def __post_init__(self) -> None:
+        from comat.mjcf.robot import TIERS
+
+        if self.tier not in TIERS:
+            raise ValueError(f"SimConfig.tier must be one of {TIERS}, got {self.tier!r}")
+        if self.profile not in C.PROFILES:
+            raise ValueError(f"SimConfig.profile must be one of {sorted(C.PROFILES)}, got {self.profile!r}")
+        if self.substeps is not None and (
+            isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1
+        ):
+            raise ValueError(
+                "SimConfig.substeps must be a positive integer (the physics timestep is "
+                f"{C.CONTROL_DT_S} s / substeps, so it always divides the tick), got {self.substeps!r}"
+            )
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    """Control-barrier-function filter settings (DESIGN §4, README "Safety filter")."""
+
+    safety_distance_m: float = C.SAFETY_DISTANCE_M
+    """Minimum distance d_s kept between the robots' projected points."""
+    projection_distance_m: float = C.PROJECTION_DISTANCE_M
+    """How far ahead of the axle the barrier's point sits."""
+    boundary_margin_m: float = C.BOUNDARY_MARGIN_M
+    """Projected points stay this far inside the arena."""
+    barrier_gain: float = 10.0
+    """γ (1/s) of the pair rows ḣ >= -γ·h, h = ‖p_i - p_j‖² - d_s²; γ·0.033 s < 1 keeps the
+    zero-order-hold tick safe."""
+    boundary_gain: float = 10.0
+    """γ (1/s) of the boundary rows."""
+    wheel_speed_fraction: float = 0.999
+    """Fraction of the 12.5 rad/s wheel limit the filtered command may use, so solver
+    tolerance never produces a Robotarium actuator error."""
+    eps: float = 1e-6
+    """OSQP absolute and relative tolerance."""
+    max_iter: int = 4000
+    """OSQP iteration limit; reaching it triggers the fallback."""
+    feasibility_tol: float = 1e-5
+    """A solution violating any row by more than this (m/s, or m²/s for pair rows) is rejected."""
+    strict: bool = False
+    """Raise :class:`comat.safety.InfeasibleError` instead of braking when a team's QP fails."""
+
+    def __post_init__(self) -> None:
+        for name in ("safety_distance_m", "projection_distance_m", "barrier_gain", "boundary_gain", "eps"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"SafetyConfig.{name} must be a positive finite number, got {value!r}")
+        if not 0 <= self.boundary_margin_m < 0.9:
+            raise ValueError(f"SafetyConfig.boundary_margin_m must be in [0, 0.9) m, got {self.boundary_margin_m!r}")
+        if not 0 < self.wheel_speed_fraction <= 1:
+            raise ValueError(
+                f"SafetyConfig.wheel_speed_fraction must be in (0, 1], got {self.wheel_speed_fraction!r}"
+            )
+        if self.barrier_gain * C.CONTROL_DT_S >= 1 or self.boundary_gain * C.CONTROL_DT_S >= 1:
+            raise ValueError(
+                f"SafetyConfig gains must satisfy gain * {C.CONTROL_DT_S} s < 1 to stay safe between ticks, "
+                f"got barrier_gain={self.barrier_gain}, boundary_gain={self.boundary_gain}"
+            )
+
+
+def _check_type(owner: str, name: str, hint: Any, value: Any) -> Any:
+    origin = typing.get_origin(hint)
+    options = typing.get_args(hint) if origin in (typing.Union, types.UnionType) else (hint,)
+    for opt in options:
+        if opt is type(None) and value is None:
+            return value
+        if opt is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        if opt in (int, str, bool) and type(value) is opt:
+            return value
+        if dataclasses.is_dataclass(opt) and isinstance(value, dict):
+            return load(opt, value, prefix=f"{owner}.{name}")
+    raise TypeError(f"{owner}.{name} must be {hint}, got {value!r} ({type(value).__name__})")
+
+
+def load(cls: type[T], mapping: dict[str, Any] | None, prefix: str | None = None) -> T:
+    """Build ``cls`` from a mapping; unknown keys and wrong types raise with the valid choices."""
+    owner = prefix or cls.__name__
+    mapping = {} if mapping is None else mapping
+    if not isinstance(mapping, dict):
+        raise TypeError(f"{owner} must be a mapping, got {type(mapping).__name__}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(mapping) - set(fields))
+    if unknown:
+        raise ValueError(f"unknown key(s) {unknown} for {owner}; valid keys: {sorted(fields)}")
+    hints = typing.get_type_hints(cls)
+    kwargs = {k: _check_type(owner, k, hints[k], v) for k, v in mapping.items()}
+    return cls(**kwargs)
+
+
+def load_yaml(cls: type[T], path: str | Path) -> T:
+    """Load ``cls`` from a YAML file of values (see :func:`load`)."""
+    import yaml
+
+    with open(path) as fh:
+        data = yaml.safe_load(fh)
+    return load(cls, data, prefix=f"{cls.__name__} ({path})")
+
+
+def to_dict(config: Any) -> dict[str, Any]:
+    """The resolved config as plain data (for YAML/JSON next to results)."""
+    return dataclasses.asdict(config)

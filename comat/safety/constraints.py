@@ -1,0 +1,147 @@
+"""Rows of the barrier QP for many teams at once: layout (fixed per team sizes) and values.
+
+Decision variable: the stacked single-integrator velocities u (2R,) of all R robots of all
+teams, robot r at entries (2r, 2r+1). Rows, in this order:
+
+* pair rows, one per unordered pair (i, j) of the same team, e = p_i - p_j:
+  ``-2eᵀu_i + 2eᵀu_j <= γ·(‖e‖² - d_s²)`` (ḣ >= -γh for h = ‖e‖² - d_s²);
+* boundary rows, two per robot (x and y): ``-γ_b·(p - lo) <= u <= γ_b·(hi - p)`` where
+  [lo, hi] is the arena shrunk by the margin;
+* wheel rows, two per robot: ``|u·(ê ± k·n̂)| <= r·φ̇_max`` with k = l_axle / (2·projection),
+  the exact image of the per-wheel limit |φ̇| <= φ̇_max under the projection map, so any
+  feasible u is realizable by the wheels without clipping.
+
+Values are computed for all rows in one vectorized pass (no loops over pairs); the slow
+reference :func:`reference_rows` builds the same rows with plain loops, for tests.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from comat import constants as C
+from comat.sim.layout import TeamLayout, team_layout
+
+__all__ = ["Layout", "RowValues", "make_layout", "reference_rows", "row_values"]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Sparsity of the block-diagonal QP for a tuple of team sizes.
+
+    Attributes:
+        teams: robot offsets and same-team pairs.
+        row_team: (n_rows,) team of each row.
+        n_rows: total rows = P + 4R.
+        rows, cols: (nnz,) coordinates of the nonzeros, in :func:`row_values` data order.
+    """
+
+    teams: TeamLayout
+    row_team: np.ndarray
+    n_rows: int
+    rows: np.ndarray
+    cols: np.ndarray
+
+
+def make_layout(team_sizes: Sequence[int]) -> Layout:
+    """The QP structure for teams of the given sizes (each >= 1)."""
+    t = team_layout(tuple(team_sizes))
+    R, P = t.n_robots, t.n_pairs
+    # Pair rows: 4 nonzeros each, columns [2i, 2i+1, 2j, 2j+1].
+    pr = np.repeat(np.arange(P), 4)
+    pc = np.stack([2 * t.pair_i, 2 * t.pair_i + 1, 2 * t.pair_j, 2 * t.pair_j + 1], axis=1).ravel()
+    # Boundary rows: row P + 2r (+1) has one nonzero at column 2r (+1).
+    br = P + np.arange(2 * R)
+    bc = np.arange(2 * R)
+    # Wheel rows: rows P + 2R + 2r (+1), each with nonzeros at columns 2r, 2r+1.
+    wr = P + 2 * R + np.repeat(np.arange(2 * R), 2)
+    wc = np.stack([2 * np.arange(R), 2 * np.arange(R) + 1], axis=1).repeat(2, axis=0).ravel()
+    per_robot = np.repeat(t.robot_team, 2)
+    return Layout(
+        teams=t,
+        row_team=np.concatenate([t.pair_team, per_robot, per_robot]).astype(np.int64),
+        n_rows=P + 4 * R,
+        rows=np.concatenate([pr, br, wr]).astype(np.int64),
+        cols=np.concatenate([pc, bc, wc]).astype(np.int64),
+    )
+
+
+@dataclass(frozen=True)
+class RowValues:
+    """Numbers of the QP for one state: nonzeros in layout order and row bounds."""
+
+    data: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+def _limits(cfg, profile: C.RobotProfile) -> tuple[float, float]:
+    k = profile.base_length_m / (2.0 * cfg.projection_distance_m)
+    speed = profile.wheel_radius_m * profile.max_wheel_velocity_radps * cfg.wheel_speed_fraction
+    return k, speed
+
+
+def row_values(layout: Layout, points: np.ndarray, headings: np.ndarray, cfg, profile: C.RobotProfile) -> RowValues:
+    """Vectorized rows for projected points (R, 2) and headings (R,) of all robots.
+
+    ``cfg`` is a :class:`comat.config.SafetyConfig`.
+    """
+    t = layout.teams
+    e = points[t.pair_i] - points[t.pair_j]  # (P, 2)
+    h = np.einsum("pk,pk->p", e, e) - cfg.safety_distance_m**2
+    pair_data = np.concatenate([-2.0 * e, 2.0 * e], axis=1).ravel()
+    R = points.shape[0]
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    m = cfg.boundary_margin_m
+    lo = np.array([x0 + m, y0 + m])
+    hi = np.array([x1 - m, y1 - m])
+    b_lower = (-cfg.boundary_gain * (points - lo)).ravel()
+    b_upper = (cfg.boundary_gain * (hi - points)).ravel()
+    k, speed = _limits(cfg, profile)
+    c, s = np.cos(headings), np.sin(headings)
+    # ê ± k·n̂ with ê = (c, s), n̂ = (-s, c): rows (2r) for +, (2r+1) for -.
+    wheel = np.stack([c - k * s, s + k * c, c + k * s, s - k * c], axis=1).ravel()
+    data = np.concatenate([pair_data, np.ones(2 * R), wheel])
+    lower = np.concatenate([np.full(t.n_pairs, -np.inf), b_lower, np.full(2 * R, -speed)])
+    upper = np.concatenate([cfg.barrier_gain * h, b_upper, np.full(2 * R, speed)])
+    return RowValues(data=data, lower=lower, upper=upper)
+
+
+def reference_rows(team_sizes: Sequence[int], points: np.ndarray, headings: np.ndarray, cfg, profile: C.RobotProfile):
+    """Slow reference: dense (n_rows, 2R) matrix and bounds built with plain loops (tests only)."""
+    R = points.shape[0]
+    rows_a, lows, ups = [], [], []
+    start = 0
+    pair_rows, bound_rows, wheel_rows = [], [], []
+    for n in team_sizes:
+        for i in range(start, start + n):
+            for j in range(i + 1, start + n):
+                e = points[i] - points[j]
+                a = np.zeros(2 * R)
+                a[2 * i : 2 * i + 2] = -2 * e
+                a[2 * j : 2 * j + 2] = 2 * e
+                pair_rows.append((a, -np.inf, cfg.barrier_gain * (e @ e - cfg.safety_distance_m**2)))
+        start += n
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    m = cfg.boundary_margin_m
+    k, speed = _limits(cfg, profile)
+    for r in range(R):
+        for axis, (lo, hi) in enumerate(((x0 + m, x1 - m), (y0 + m, y1 - m))):
+            a = np.zeros(2 * R)
+            a[2 * r + axis] = 1.0
+            bound_rows.append((a, -cfg.boundary_gain * (points[r, axis] - lo), cfg.boundary_gain * (hi - points[r, axis])))
+    for r in range(R):
+        ehat = np.array([np.cos(headings[r]), np.sin(headings[r])])
+        nhat = np.array([-np.sin(headings[r]), np.cos(headings[r])])
+        for sign in (+1, -1):
+            a = np.zeros(2 * R)
+            a[2 * r : 2 * r + 2] = ehat + sign * k * nhat
+            wheel_rows.append((a, -speed, speed))
+    for a, lo, hi in pair_rows + bound_rows + wheel_rows:
+        rows_a.append(a)
+        lows.append(lo)
+        ups.append(hi)
+    return np.array(rows_a).reshape(-1, 2 * R), np.array(lows), np.array(ups)

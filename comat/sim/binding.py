@@ -1,0 +1,99 @@
+"""Names resolved once into index arrays: poses in and out of ``qpos``, commands into ``ctrl``.
+
+A :class:`Binding` knows one compiled scene (team size, tier); the hot path only slices arrays.
+All methods accept extra leading batch dimensions (the batched world passes (S, nq) arrays).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from comat import constants as C
+
+__all__ = ["Binding"]
+
+
+class Binding:
+    """Index arrays and conversions for a scene of ``n_robots`` robots of ``tier``."""
+
+    def __init__(self, model: mujoco.MjModel, n_robots: int, tier: str, profile: C.RobotProfile) -> None:
+        self.model = model
+        self.n_robots = n_robots
+        self.tier = tier
+        self.profile = profile
+        self.substeps = int(round(C.CONTROL_DT_S / model.opt.timestep))
+        root = "root" if tier == "wheels" else "x"
+        self.qadr = np.array([model.jnt_qposadr[model.joint(f"robot_{i}/{root}").id] for i in range(n_robots)])
+        self.dadr = np.array([model.jnt_dofadr[model.joint(f"robot_{i}/{root}").id] for i in range(n_robots)])
+        # Wheel hinge angles of the wheeled tier are reset to 0 (irrelevant to the dynamics).
+        self.wheel_qadr = (
+            np.array(
+                [model.jnt_qposadr[model.joint(f"robot_{i}/{s}_wheel").id] for i in range(n_robots) for s in ("left", "right")]
+            )
+            if tier == "wheels"
+            else np.zeros(0, np.int64)
+        )
+        self.body = np.array([model.body(f"robot_{i}/chassis").id for i in range(n_robots)])
+        self.sensor_all = np.array(
+            [model.sensor_adr[model.sensor(f"robot_{i}/contacts").id] for i in range(n_robots)]
+        )
+        self.sensor_wall = np.array(
+            [model.sensor_adr[model.sensor(f"robot_{i}/wall_contacts").id] for i in range(n_robots)]
+        )
+        if tier == "unicycle":
+            gain = model.actuator_gainprm[model.actuator("robot_0/forward").id, 0]
+            self._mass = float(model.body_subtreemass[self.body[0]])
+            self._h_kv = model.opt.timestep * gain
+        self.z0 = profile.wheel_radius_m
+
+    # -- poses ------------------------------------------------------------------------------------
+    def poses(self, qpos: np.ndarray) -> np.ndarray:
+        """(..., N, 3) [x, y, θ] from (..., nq) qpos; θ in (-π, π]."""
+        q = qpos[..., self.qadr[:, None] + np.arange(7 if self.tier == "wheels" else 3)]
+        if self.tier == "wheels":
+            w, x, y, z = q[..., 3], q[..., 4], q[..., 5], q[..., 6]
+            yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        else:
+            yaw = np.arctan2(np.sin(q[..., 2]), np.cos(q[..., 2]))
+        return np.stack([q[..., 0], q[..., 1], yaw], axis=-1)
+
+    def write_poses(self, qpos: np.ndarray, poses: np.ndarray) -> None:
+        """Write (..., N, 3) poses at rest into (..., nq) qpos (wheels upright on the floor)."""
+        x, y, th = poses[..., 0], poses[..., 1], poses[..., 2]
+        if self.tier == "wheels":
+            cols = self.qadr[:, None] + np.arange(7)
+            vals = np.stack(
+                [x, y, np.full_like(x, self.z0), np.cos(th / 2), np.zeros_like(x), np.zeros_like(x), np.sin(th / 2)],
+                axis=-1,
+            )
+            qpos[..., cols] = vals
+            qpos[..., self.wheel_qadr] = 0.0
+        else:
+            qpos[..., self.qadr[:, None] + np.arange(3)] = np.stack([x, y, th], axis=-1)
+
+    # -- commands ---------------------------------------------------------------------------------
+    def ctrl(self, dxu: np.ndarray) -> np.ndarray:
+        """(..., nu) actuator targets for unicycle commands (..., N, 2) the wheels can realize.
+
+        Wheeled tier: wheel speeds [left, right] per robot. Unicycle tier: body-frame servo
+        targets [forward, lateral, yaw rate], corrected so that in steady state the integrated
+        motion is the exact unicycle arc (README, "Physics"): the lateral target supplies the
+        centripetal force and both undo the semi-implicit integrator's lag of one substep.
+        """
+        v, w = dxu[..., 0], dxu[..., 1]
+        if self.tier == "wheels":
+            r, half_l = self.profile.wheel_radius_m, self.profile.base_length_m / 2.0
+            return np.stack([(v - half_l * w) / r, (v + half_l * w) / r], axis=-1).reshape(*dxu.shape[:-2], -1)
+        a = 0.5 * w * self.model.opt.timestep
+        sinc_a = np.sinc(a / np.pi)  # sin(a)/a
+        forward = v * sinc_a * np.cos(a)
+        lateral = v * sinc_a * np.sin(a) * (2.0 * self._mass + self._h_kv) / self._h_kv
+        return np.stack([forward, lateral, w], axis=-1).reshape(*dxu.shape[:-2], -1)
+
+    # -- contacts ---------------------------------------------------------------------------------
+    def contacts(self, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(..., N) bool robot–robot and robot–wall contact flags from (..., nsensordata)."""
+        total = sensordata[..., self.sensor_all]
+        wall = sensordata[..., self.sensor_wall]
+        return total > wall, wall > 0

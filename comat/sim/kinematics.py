@@ -1,0 +1,96 @@
+"""Differential-drive kinematics, pure numpy, vectorized over any leading batch dimensions.
+
+Naming follows the Robotarium: ``dxu`` unicycle commands [v (m/s), ω (rad/s)], ``dxdd`` wheel
+speeds [left, right] (rad/s), ``dxi`` single-integrator velocities [ẋ, ẏ] (m/s) of the point
+``projection_distance`` ahead of the axle centre, ``poses`` [x, y, θ]. Arrays are
+row-per-robot: ``(..., N, 2)`` or ``(..., N, 3)``.
+
+These functions are the hot path and do not validate; the public classes that call them do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from comat import constants as C
+
+__all__ = [
+    "diff_to_uni",
+    "euler_unicycle_step",
+    "projected_points",
+    "si_to_uni",
+    "threshold_wheels",
+    "uni_to_diff",
+    "uni_to_si",
+    "wrap_angle",
+]
+
+
+def wrap_angle(theta: np.ndarray) -> np.ndarray:
+    """Angles wrapped to (-π, π], as rps does with atan2(sin, cos)."""
+    return np.arctan2(np.sin(theta), np.cos(theta))
+
+
+def uni_to_diff(dxu: np.ndarray, profile: C.RobotProfile = C.DEFAULT_PROFILE) -> np.ndarray:
+    """Wheel speeds (..., N, 2) [left, right] for unicycle commands (..., N, 2) [v, ω]."""
+    r, half_l = profile.wheel_radius_m, profile.base_length_m / 2.0
+    v, w = dxu[..., 0], dxu[..., 1]
+    return np.stack([(v - half_l * w) / r, (v + half_l * w) / r], axis=-1)
+
+
+def diff_to_uni(dxdd: np.ndarray, profile: C.RobotProfile = C.DEFAULT_PROFILE) -> np.ndarray:
+    """Unicycle commands (..., N, 2) [v, ω] for wheel speeds (..., N, 2) [left, right]."""
+    r, l = profile.wheel_radius_m, profile.base_length_m
+    left, right = dxdd[..., 0], dxdd[..., 1]
+    return np.stack([r * (left + right) / 2.0, r * (right - left) / l], axis=-1)
+
+
+def threshold_wheels(
+    dxu: np.ndarray, profile: C.RobotProfile = C.DEFAULT_PROFILE
+) -> tuple[np.ndarray, np.ndarray]:
+    """Clip each wheel to ±12.5 rad/s independently, as rps ``step()`` does since 2024.
+
+    Returns:
+        dxu_clipped: (..., N, 2) the command the wheels can realize.
+        overrun: (..., N) bool, True where a wheel of the *requested* command exceeded the
+            limit (the Robotarium's actuator error).
+    """
+    limit = profile.max_wheel_velocity_radps
+    dxdd = uni_to_diff(dxu, profile)
+    # A hair of tolerance so that commands exactly at the limit (up to rounding) are not errors.
+    overrun = np.any(np.abs(dxdd) > limit * (1.0 + 1e-9), axis=-1)
+    return diff_to_uni(np.clip(dxdd, -limit, limit), profile), overrun
+
+
+def projected_points(poses: np.ndarray, distance: float = C.PROJECTION_DISTANCE_M) -> np.ndarray:
+    """Points ``distance`` ahead of each axle centre along its heading, (..., N, 2)."""
+    th = poses[..., 2]
+    return poses[..., :2] + distance * np.stack([np.cos(th), np.sin(th)], axis=-1)
+
+
+def uni_to_si(dxu: np.ndarray, poses: np.ndarray, distance: float = C.PROJECTION_DISTANCE_M) -> np.ndarray:
+    """Velocity (..., N, 2) of the projected point for unicycle commands (..., N, 2)."""
+    c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
+    v, lw = dxu[..., 0], distance * dxu[..., 1]
+    return np.stack([c * v - s * lw, s * v + c * lw], axis=-1)
+
+
+def si_to_uni(dxi: np.ndarray, poses: np.ndarray, distance: float = C.PROJECTION_DISTANCE_M) -> np.ndarray:
+    """Unicycle commands (..., N, 2) that move the projected point with velocity ``dxi``.
+
+    The exact inverse of :func:`uni_to_si` (rps ``create_si_to_uni_mapping`` without its ω clip):
+    v = cosθ·ẋ + sinθ·ẏ, ω = (−sinθ·ẋ + cosθ·ẏ)/distance.
+    """
+    c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
+    dx, dy = dxi[..., 0], dxi[..., 1]
+    return np.stack([c * dx + s * dy, (-s * dx + c * dy) / distance], axis=-1)
+
+
+def euler_unicycle_step(poses: np.ndarray, dxu: np.ndarray, dt: float = C.CONTROL_DT_S) -> np.ndarray:
+    """The Robotarium simulator's integration of one step: forward Euler, heading wrapped."""
+    th = poses[..., 2]
+    out = np.empty_like(poses)
+    out[..., 0] = poses[..., 0] + dt * dxu[..., 0] * np.cos(th)
+    out[..., 1] = poses[..., 1] + dt * dxu[..., 0] * np.sin(th)
+    out[..., 2] = wrap_angle(th + dt * dxu[..., 1])
+    return out

@@ -1,0 +1,134 @@
+"""Robotarium-style error checks and counters, vectorized over all robots of all teams.
+
+The Robotarium's ``_validate`` (rps legacy) flags, every iteration: a *collision* when two
+robots' centres, each moved 0.025 m forward along its heading, are <= 0.135 m apart; a
+*boundary* error when a centre is outside the arena; an *actuator* error when a requested wheel
+speed exceeds 12.5 rad/s. We check the same on the pose after each tick (rps checks the pose
+before integrating, which differs only at the last iteration), and add MuJoCo's own
+robot–robot and robot–wall contacts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from comat import constants as C
+from comat.sim.kinematics import projected_points
+
+__all__ = ["TickEvents", "Violations", "check_tick"]
+
+
+@dataclass
+class TickEvents:
+    """Events of one control tick, per robot (R,) unless stated.
+
+    Attributes:
+        collision: robot is in a Robotarium collision with some other robot.
+        collision_pairs: (B,) number of colliding pairs per team.
+        boundary: robot centre outside the arena.
+        actuator: requested command exceeded a wheel limit (before clipping).
+        robot_contact: chassis touched another robot in MuJoCo during the tick.
+        wall_contact: chassis touched a wall in MuJoCo during the tick.
+    """
+
+    collision: np.ndarray
+    collision_pairs: np.ndarray
+    boundary: np.ndarray
+    actuator: np.ndarray
+    robot_contact: np.ndarray
+    wall_contact: np.ndarray
+
+
+def check_tick(
+    poses: np.ndarray,
+    pair_i: np.ndarray,
+    pair_j: np.ndarray,
+    pair_team: np.ndarray,
+    n_teams: int,
+    actuator: np.ndarray,
+    robot_contact: np.ndarray,
+    wall_contact: np.ndarray,
+) -> TickEvents:
+    """Robotarium checks on poses (R, 3) for the given same-team pairs (P,)."""
+    pts = projected_points(poses, C.COLLISION_OFFSET_M)
+    d = pts[pair_i] - pts[pair_j]
+    close = np.einsum("pk,pk->p", d, d) <= C.COLLISION_DIAMETER_M**2
+    collision = np.zeros(poses.shape[0], dtype=bool)
+    collision[pair_i[close]] = True
+    collision[pair_j[close]] = True
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    x, y = poses[:, 0], poses[:, 1]
+    boundary = (x < x0) | (x > x1) | (y < y0) | (y > y1)
+    return TickEvents(
+        collision=collision,
+        collision_pairs=np.bincount(pair_team[close], minlength=n_teams),
+        boundary=boundary,
+        actuator=actuator,
+        robot_contact=robot_contact,
+        wall_contact=wall_contact,
+    )
+
+
+@dataclass
+class Violations:
+    """Running counts since the last reset, per team (B,) or per robot (R,).
+
+    Attributes:
+        collision_pairs: (B,) Σ over ticks of colliding pairs (rps V2 ``robots_too_close``).
+        collision_ticks: (R,) ticks each robot was in a collision (rps legacy per-robot count).
+        boundary_ticks: (R,) ticks each robot was outside the arena.
+        actuator_ticks: (B,) ticks with any actuator error in the team.
+        contact_ticks: (R,) ticks each robot touched another robot in MuJoCo.
+        contact_onsets: (R,) times a robot–robot contact began (collision events).
+        wall_ticks: (R,) ticks each robot touched a wall in MuJoCo.
+    """
+
+    robot_team: np.ndarray
+    n_teams: int
+    collision_pairs: np.ndarray = field(init=False)
+    collision_ticks: np.ndarray = field(init=False)
+    boundary_ticks: np.ndarray = field(init=False)
+    actuator_ticks: np.ndarray = field(init=False)
+    contact_ticks: np.ndarray = field(init=False)
+    contact_onsets: np.ndarray = field(init=False)
+    wall_ticks: np.ndarray = field(init=False)
+    _last_contact: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        R, B = self.robot_team.size, self.n_teams
+        self.collision_pairs = np.zeros(B, np.int64)
+        self.actuator_ticks = np.zeros(B, np.int64)
+        for name in ("collision_ticks", "boundary_ticks", "contact_ticks", "contact_onsets", "wall_ticks"):
+            setattr(self, name, np.zeros(R, np.int64))
+        self._last_contact = np.zeros(R, dtype=bool)
+
+    def add(self, ev: TickEvents) -> None:
+        self.collision_pairs += ev.collision_pairs
+        self.collision_ticks += ev.collision
+        self.boundary_ticks += ev.boundary
+        self.actuator_ticks += np.bincount(self.robot_team[ev.actuator], minlength=self.n_teams) > 0
+        self.contact_ticks += ev.robot_contact
+        self.contact_onsets += ev.robot_contact & ~self._last_contact
+        self._last_contact = ev.robot_contact.copy()
+        self.wall_ticks += ev.wall_contact
+
+    def reset(self, teams: np.ndarray | None = None) -> None:
+        """Zero the counts of the given teams (all if None)."""
+        if teams is None:
+            self.__post_init__()
+            return
+        sel = np.isin(self.robot_team, teams)
+        for name in ("collision_ticks", "boundary_ticks", "contact_ticks", "contact_onsets", "wall_ticks"):
+            getattr(self, name)[sel] = 0
+        self._last_contact[sel] = False
+        self.collision_pairs[teams] = 0
+        self.actuator_ticks[teams] = 0
+
+    def per_team(self, name: str) -> np.ndarray:
+        """(B,) sum of a per-robot count over each team."""
+        values = getattr(self, name)
+        if values.shape[0] == self.n_teams and name in ("collision_pairs", "actuator_ticks"):
+            return values.copy()
+        return np.bincount(self.robot_team, weights=values, minlength=self.n_teams).astype(np.int64)

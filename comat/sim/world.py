@@ -1,0 +1,150 @@
+"""MuJoCo worlds: :class:`World` for one team (reference path) and the shared tick logic.
+
+One control tick (0.033 s) of ``step(dxu)``:
+
+1. validate the unicycle commands (R, 2) [v, ω]; flag Robotarium actuator errors;
+2. clip each wheel to ±12.5 rad/s, as the current Robotarium does;
+3. write actuator targets and run ``substeps`` physics steps (contacts read at every substep);
+4. read poses (R, 3), run the Robotarium-style checks and update the counters.
+
+:class:`World` steps one ``MjData`` substep by substep in Python: simple and easy to trust, it is
+the reference that :class:`comat.sim.BatchWorld` (one C call per tick for many teams) is tested
+against.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from comat import constants as C
+from comat._validate import as_float_array, check_positive_int
+from comat.config import SimConfig
+from comat.mjcf.scene import DEFAULT_SUBSTEPS, compiled_scene
+from comat.sim.binding import Binding
+from comat.sim.kinematics import threshold_wheels
+from comat.sim.layout import TeamLayout, team_layout
+from comat.sim.violations import TickEvents, Violations, check_tick
+
+__all__ = ["World", "validate_start_poses"]
+
+
+def validate_start_poses(poses: np.ndarray, layout: TeamLayout, radius: float) -> None:
+    """Raise ValueError if a robot starts outside the arena (body crossing a wall) or two robots of
+    one team overlap (centres closer than a diameter)."""
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    x, y = poses[:, 0], poses[:, 1]
+    outside = (x < x0 + radius) | (x > x1 - radius) | (y < y0 + radius) | (y > y1 - radius)
+    if outside.any():
+        r = int(np.flatnonzero(outside)[0])
+        raise ValueError(
+            f"poses: robot {r} at ({x[r]:.3f}, {y[r]:.3f}) is outside the arena; centres must lie in "
+            f"x in [{x0 + radius:.3f}, {x1 - radius:.3f}], y in [{y0 + radius:.3f}, {y1 - radius:.3f}] m"
+        )
+    d = poses[layout.pair_i, :2] - poses[layout.pair_j, :2]
+    dist = np.sqrt(np.einsum("pk,pk->p", d, d))
+    overlap = dist < 2 * radius
+    if overlap.any():
+        k = int(np.flatnonzero(overlap)[0])
+        i, j = int(layout.pair_i[k]), int(layout.pair_j[k])
+        raise ValueError(
+            f"poses: robots {i} and {j} overlap (centres {dist[k]:.3f} m apart, need >= {2 * radius:.3f} m)"
+        )
+
+
+class _TickMixin:
+    """The per-tick pipeline shared by the single and the batched world."""
+
+    layout: TeamLayout
+    binding: Binding
+    profile: C.RobotProfile
+    violations: Violations
+    _poses: np.ndarray
+
+    def _run_physics(self, dxu_clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def step(self, dxu: np.ndarray) -> TickEvents:
+        """Advance one control tick with unicycle commands (R, 2) [v m/s, ω rad/s].
+
+        Returns the tick's :class:`TickEvents`; :attr:`poses` then holds the new poses.
+        """
+        R = self.layout.n_robots
+        dxu = as_float_array("dxu", dxu, (R, 2))
+        clipped, overrun = threshold_wheels(dxu, self.profile)
+        poses, robot_contact, wall_contact = self._run_physics(clipped)
+        self._poses = poses
+        t = self.layout
+        ev = check_tick(poses, t.pair_i, t.pair_j, t.pair_team, t.n_teams, overrun, robot_contact, wall_contact)
+        self.violations.add(ev)
+        self.ticks += 1
+        return ev
+
+    @property
+    def poses(self) -> np.ndarray:
+        """(R, 3) current poses [x, y, θ] (a copy)."""
+        return self._poses.copy()
+
+
+class World(_TickMixin):
+    """One team of ``n_robots`` robots in the arena, simulated by MuJoCo.
+
+    Args:
+        n_robots: team size (no maximum).
+        config: tier, substeps and robot profile.
+
+    Attributes:
+        model, data: the MuJoCo model (shared per team size, read-only) and this world's data.
+        violations: running Robotarium-style and contact counts since the last reset.
+        ticks: control ticks since the last reset.
+    """
+
+    def __init__(self, n_robots: int, config: SimConfig | None = None) -> None:
+        n = check_positive_int("n_robots", n_robots)
+        self.config = config or SimConfig()
+        self.profile = C.PROFILES[self.config.profile]
+        self.substeps = self.config.substeps or DEFAULT_SUBSTEPS[self.config.tier]
+        self.model = compiled_scene(n, self.config.tier, self.config.profile, self.substeps)
+        self.data = mujoco.MjData(self.model)
+        self.binding = Binding(self.model, n, self.config.tier, self.profile)
+        self.layout = team_layout((n,))
+        self.violations = Violations(self.layout.robot_team, 1)
+        self.ticks = 0
+        self._poses = np.zeros((n, 3))
+
+    @property
+    def n_robots(self) -> int:
+        return self.layout.n_robots
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the last reset (s)."""
+        return float(self.data.time)
+
+    def reset(self, poses: np.ndarray) -> None:
+        """Place the robots at rest at poses (N, 3) [x, y, θ]; zero the counters.
+
+        Raises:
+            ValueError: wrong shape, non-finite values, a robot outside the arena, or two
+                robots overlapping.
+        """
+        poses = as_float_array("poses", poses, (self.n_robots, 3))
+        validate_start_poses(poses, self.layout, self.profile.radius_m)
+        mujoco.mj_resetData(self.model, self.data)
+        self.binding.write_poses(self.data.qpos, poses)
+        mujoco.mj_forward(self.model, self.data)
+        self._poses = self.binding.poses(self.data.qpos)
+        self.violations.reset()
+        self.ticks = 0
+
+    def _run_physics(self, dxu_clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        m, d, b = self.model, self.data, self.binding
+        d.ctrl[:] = b.ctrl(dxu_clipped)
+        robot = np.zeros(self.n_robots, dtype=bool)
+        wall = np.zeros(self.n_robots, dtype=bool)
+        for _ in range(self.substeps):
+            mujoco.mj_step(m, d)
+            r, w = b.contacts(d.sensordata)
+            robot |= r
+            wall |= w
+        return b.poses(d.qpos), robot, wall
