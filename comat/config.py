@@ -30,6 +30,8 @@ class SimConfig:
     """``"wheels"`` (free chassis on friction-driven wheels) or ``"unicycle"`` (planar joints)."""
     substeps: int | None = None
     """Physics steps per 0.033 s control tick; None = the tier's default (README, "Physics")."""
+    timestep_s: float | None = None
+    """Alternative to ``substeps``: the physics timestep, which must divide the 0.033 s tick."""
     profile: str = C.DEFAULT_PROFILE.name
     """Robot generation: ``"gritsbot"`` (axle 0.105 m) or ``"gternal"`` (axle 0.11 m)."""
 
@@ -43,10 +45,29 @@ class SimConfig:
         if self.substeps is not None and (
             isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1
         ):
-            raise ValueError(
-                "SimConfig.substeps must be a positive integer (the physics timestep is "
-                f"{C.CONTROL_DT_S} s / substeps, so it always divides the tick), got {self.substeps!r}"
-            )
+            raise ValueError(f"SimConfig.substeps must be a positive integer, got {self.substeps!r}")
+        if self.timestep_s is not None:
+            if self.substeps is not None:
+                raise ValueError(
+                    f"SimConfig takes substeps or timestep_s, not both (got substeps={self.substeps}, "
+                    f"timestep_s={self.timestep_s})"
+                )
+            ratio = C.CONTROL_DT_S / self.timestep_s if self.timestep_s > 0 else float("nan")
+            if not (math.isfinite(ratio) and ratio >= 1 and abs(ratio - round(ratio)) < 1e-9 * ratio):
+                raise ValueError(
+                    f"SimConfig.timestep_s must divide the {C.CONTROL_DT_S} s control tick "
+                    f"(e.g. {C.CONTROL_DT_S / 4:.6g} = tick/4), got {self.timestep_s!r} "
+                    f"(tick/timestep = {ratio:.6g})"
+                )
+
+    @property
+    def resolved_substeps(self) -> int:
+        """Physics steps per tick after defaults."""
+        from comat.mjcf.scene import DEFAULT_SUBSTEPS
+
+        if self.timestep_s is not None:
+            return int(round(C.CONTROL_DT_S / self.timestep_s))
+        return self.substeps if self.substeps is not None else DEFAULT_SUBSTEPS[self.tier]
 
 
 @dataclass(frozen=True)
@@ -67,11 +88,12 @@ class SafetyConfig:
     wheel_speed_fraction: float = 0.999
     """Fraction of the 12.5 rad/s wheel limit the filtered command may use, so solver
     tolerance never produces a Robotarium actuator error."""
-    eps: float = 1e-6
-    """OSQP absolute and relative tolerance."""
+    eps: float = 1e-4
+    """OSQP absolute and relative tolerance of the ADMM iterations. Polishing then solves the
+    KKT system of the detected active set, so a polished answer is exact to ~1e-12."""
     max_iter: int = 4000
     """OSQP iteration limit; reaching it triggers the fallback."""
-    feasibility_tol: float = 1e-5
+    feasibility_tol: float = 1e-4
     """A solution violating any row by more than this (m/s, or m²/s for pair rows) is rejected."""
     strict: bool = False
     """Raise :class:`comat.safety.InfeasibleError` instead of braking when a team's QP fails."""

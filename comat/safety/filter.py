@@ -16,6 +16,7 @@ rows of :mod:`comat.safety.constraints` (pairwise barrier, arena boundary, exact
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -97,7 +98,10 @@ class SafetyFilter:
         self._A_pattern = csc
         self._P = sp.identity(2 * R, format="csc")
         self._solver: osqp.OSQP | None = None
+        self.last_solver_s = 0.0
+        """Wall time of the last tick's OSQP setup/update/solve calls (0 if none was needed)."""
         self._single: dict[int, SafetyFilter] = {}
+        self._is_retry = False
 
     # -- public ---------------------------------------------------------------------------------
     @property
@@ -135,6 +139,7 @@ class SafetyFilter:
     # -- internals ------------------------------------------------------------------------------
     def _filter(self, poses: np.ndarray, dxi: np.ndarray) -> tuple[np.ndarray, SafetyInfo]:
         lay, cfg = self.layout, self.config
+        self.last_solver_s = 0.0
         points = projected_points(poses, cfg.projection_distance_m)
         vals = row_values(lay, points, poses[:, 2], cfg, self.profile)
         A = self._matrix(vals.data)
@@ -154,7 +159,7 @@ class SafetyFilter:
         if not team_ok.all():
             x, y, status, solve_time, good = self._solve(A, vals, u_nom)
             redo = ~good & ~team_ok
-            if redo.any() and B > 1:
+            if redo.any() and not self._is_retry:
                 x, y, fallback, extra = self._solve_per_team(poses, dxi, x, y, redo)
                 solve_time += extra
             else:
@@ -186,6 +191,7 @@ class SafetyFilter:
     def _solve(self, A: sp.csc_matrix, vals, u_nom: np.ndarray):
         cfg = self.config
         q = -u_nom
+        t0 = time.perf_counter()
         if self._solver is None:
             self._solver = osqp.OSQP()
             self._solver.setup(
@@ -205,16 +211,41 @@ class SafetyFilter:
         else:
             self._solver.update(q=q, l=vals.lower, u=vals.upper, Ax=A.data)
         res = self._solver.solve(raise_error=False)
+        self.last_solver_s += time.perf_counter() - t0
         info = res.info
         t = float(info.update_time + info.solve_time + info.polish_time)
         if info.status_val != _SOLVED or res.x is None or not np.all(np.isfinite(res.x)):
             good = np.zeros(self.layout.teams.n_teams, dtype=bool)
             return np.zeros_like(u_nom), np.zeros(self.layout.n_rows), info.status, t, good
-        good = self._teams_feasible(A @ res.x, vals.lower, vals.upper)
-        return res.x, res.y, info.status, t, good
+        x = self._repair(A, vals, res.x)
+        good = self._teams_feasible(A @ x, vals.lower, vals.upper)
+        return x, res.y, info.status, t, good
+
+    def _repair(self, A: sp.csc_matrix, vals, x: np.ndarray) -> np.ndarray:
+        """Scale each team's answer toward 0 until it meets every row exactly.
+
+        An unpolished ADMM answer may miss rows by ~eps. Where u = 0 is feasible for the team
+        (the state is safe: all barrier values h >= 0 and robots inside the margin), every row
+        is a·u <= b with b >= 0 or a·u >= b with b <= 0, so scaling u by the smallest b/(a·u)
+        over the missed rows lands inside the polytope; the change is of the order of eps.
+        """
+        lay = self.layout
+        Ax = A @ x
+        over, under = Ax > vals.upper, Ax < vals.lower
+        if not (over.any() or under.any()):
+            return x
+        zero_ok = self._per_team((vals.lower > 0) | (vals.upper < 0)) == 0
+        ratio = np.ones(lay.n_rows)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio[over] = vals.upper[over] / Ax[over]
+            ratio[under] = vals.lower[under] / Ax[under]
+        alpha = np.ones(lay.teams.n_teams)
+        np.minimum.at(alpha, lay.row_team, np.clip(ratio, 0.0, 1.0))
+        alpha = np.where(zero_ok, alpha * (1.0 - 1e-12), 1.0)
+        return x * np.repeat(alpha[lay.teams.robot_team], 2)
 
     def _solve_per_team(self, poses, dxi, x, y, redo):
-        """Re-solve the teams whose batch answer was not trusted, each on its own."""
+        """Re-solve the teams whose batch answer was not trusted, each on its own, more precisely."""
         lay = self.layout
         fallback = np.zeros(lay.teams.n_teams, dtype=bool)
         x, y = x.copy(), y.copy()
@@ -224,8 +255,13 @@ class SafetyFilter:
             sl = slice(lay.teams.offsets[b], lay.teams.offsets[b + 1])
             single = self._single.get(n)
             if single is None:
-                single = self._single[n] = SafetyFilter(n, dataclasses.replace(self.config, strict=False), self.profile)
+                # Retry with a 1000x tighter tolerance: a team whose state is just outside the
+                # safe set (h slightly < 0 after a tick) needs an accurate answer, not a repair.
+                precise = dataclasses.replace(self.config, strict=False, eps=self.config.eps * 1e-3)
+                single = self._single[n] = SafetyFilter(n, precise, self.profile)
+                single._is_retry = True
             safe, info = single._filter(poses[sl], dxi[sl])
+            self.last_solver_s += single.last_solver_s
             extra += info.solve_time_s
             fallback[b] = bool(info.fallback[0])
             x[2 * sl.start : 2 * sl.stop] = safe.ravel()

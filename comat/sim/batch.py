@@ -18,7 +18,7 @@ import numpy as np
 from comat import constants as C
 from comat._validate import as_float_array
 from comat.config import SimConfig
-from comat.mjcf.scene import DEFAULT_SUBSTEPS, compiled_scene
+from comat.mjcf.scene import compiled_scene
 from comat.sim.binding import Binding
 from comat.sim.layout import team_layout
 from comat.sim.violations import Violations
@@ -59,7 +59,7 @@ class BatchWorld(_TickMixin):
             raise ValueError(f"team_sizes must be a non-empty sequence of positive integers, got {team_sizes!r}")
         self.config = config or SimConfig()
         self.profile = C.PROFILES[self.config.profile]
-        self.substeps = self.config.substeps or DEFAULT_SUBSTEPS[self.config.tier]
+        self.substeps = self.config.resolved_substeps
         self.layout = team_layout(tuple(int(n) for n in team_sizes))
         sizes = np.array(self.layout.team_sizes)
         self.groups: list[_Group] = []
@@ -86,7 +86,7 @@ class BatchWorld(_TickMixin):
         poses = as_float_array("poses", poses, (R, 3))
         team_ids = np.arange(self.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
         if team_ids.size and (team_ids.min() < 0 or team_ids.max() >= self.layout.n_teams):
-            raise ValueError(f"teams must be indices in [0, {self.layout.n_teams}), got {list(team_ids)}")
+            raise ValueError(f"teams must be indices in [0, {self.layout.n_teams}), got {team_ids.tolist()}")
         for b in team_ids:
             sl = slice(self.layout.offsets[b], self.layout.offsets[b + 1])
             validate_start_poses(poses[sl], team_layout((self.layout.team_sizes[b],)), self.profile.radius_m)

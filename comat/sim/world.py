@@ -14,13 +14,15 @@ against.
 
 from __future__ import annotations
 
+import time
+
 import mujoco
 import numpy as np
 
 from comat import constants as C
 from comat._validate import as_float_array, check_positive_int
 from comat.config import SimConfig
-from comat.mjcf.scene import DEFAULT_SUBSTEPS, compiled_scene
+from comat.mjcf.scene import compiled_scene
 from comat.sim.binding import Binding
 from comat.sim.kinematics import threshold_wheels
 from comat.sim.layout import TeamLayout, team_layout
@@ -60,6 +62,8 @@ class _TickMixin:
     profile: C.RobotProfile
     violations: Violations
     _poses: np.ndarray
+    last_physics_s: float = 0.0
+    """Wall time of the last tick's physics call(s): MuJoCo's own stepping."""
 
     def _run_physics(self, dxu_clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
@@ -72,7 +76,9 @@ class _TickMixin:
         R = self.layout.n_robots
         dxu = as_float_array("dxu", dxu, (R, 2))
         clipped, overrun = threshold_wheels(dxu, self.profile)
+        t0 = time.perf_counter()
         poses, robot_contact, wall_contact = self._run_physics(clipped)
+        self.last_physics_s = time.perf_counter() - t0
         self._poses = poses
         t = self.layout
         ev = check_tick(poses, t.pair_i, t.pair_j, t.pair_team, t.n_teams, overrun, robot_contact, wall_contact)
@@ -103,7 +109,7 @@ class World(_TickMixin):
         n = check_positive_int("n_robots", n_robots)
         self.config = config or SimConfig()
         self.profile = C.PROFILES[self.config.profile]
-        self.substeps = self.config.substeps or DEFAULT_SUBSTEPS[self.config.tier]
+        self.substeps = self.config.resolved_substeps
         self.model = compiled_scene(n, self.config.tier, self.config.profile, self.substeps)
         self.data = mujoco.MjData(self.model)
         self.binding = Binding(self.model, n, self.config.tier, self.profile)

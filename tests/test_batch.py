@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+
+from comat.config import SimConfig
+from comat.control import SafeTeams, go_to_goal
+from comat.sim import BatchWorld, World
+
+TIERS = ["wheels", "unicycle"]
+
+
+def _starts(rng, sizes):
+    out = []
+    for n in sizes:
+        p = np.zeros((n, 3))
+        p[:, 0] = np.linspace(-1.2, 1.2, n) if n > 1 else 0.0
+        p[:, 1] = rng.uniform(-0.6, 0.6, n)
+        p[:, 2] = rng.uniform(-np.pi, np.pi, n)
+        out.append(p)
+    return out
+
+
+@pytest.mark.parametrize("tier", TIERS)
+def test_batched_physics_equals_single_worlds_bit_for_bit(tier, rng):
+    sizes = [3, 2, 3, 5]
+    starts = _starts(rng, sizes)
+    batch = BatchWorld(sizes, SimConfig(tier=tier))
+    batch.reset(np.concatenate(starts))
+    singles = [World(n, SimConfig(tier=tier)) for n in sizes]
+    for w, p in zip(singles, starts):
+        w.reset(p)
+    for _ in range(40):
+        cmd = rng.uniform([-0.25, -4], [0.25, 4], (sum(sizes), 2))
+        ev = batch.step(cmd)
+        single_ev = []
+        for w, part in zip(singles, np.split(cmd, np.cumsum(sizes)[:-1])):
+            single_ev.append(w.step(part))
+        np.testing.assert_array_equal(ev.actuator, np.concatenate([e.actuator for e in single_ev]))
+        np.testing.assert_array_equal(ev.robot_contact, np.concatenate([e.robot_contact for e in single_ev]))
+    np.testing.assert_array_equal(batch.poses, np.concatenate([w.poses for w in singles]))
+    np.testing.assert_array_equal(
+        batch.violations.actuator_ticks, [w.violations.actuator_ticks[0] for w in singles]
+    )
+
+
+def test_batched_contacts_equal_single_world_contacts():
+    # Unfiltered crashes: contact flags of the batched sensors equal the reference world's.
+    starts = [np.array([[-0.15, 0, 0], [0.15, 0, np.pi]]), np.array([[1.35, 0.5, 0.0], [-0.5, -0.5, 0]])]
+    batch = BatchWorld([2, 2])
+    batch.reset(np.concatenate(starts))
+    singles = [World(2) for _ in starts]
+    for w, p in zip(singles, starts):
+        w.reset(p)
+    cmd = np.array([[0.2, 0.0]] * 4)
+    for _ in range(40):
+        ev = batch.step(cmd)
+        ref = [w.step(c) for w, c in zip(singles, np.split(cmd, 2))]
+        np.testing.assert_array_equal(ev.robot_contact, np.concatenate([r.robot_contact for r in ref]))
+        np.testing.assert_array_equal(ev.wall_contact, np.concatenate([r.wall_contact for r in ref]))
+    assert batch.violations.contact_ticks[:2].sum() > 0 and batch.violations.wall_ticks[2] > 0
+
+
+def test_reset_of_some_teams_leaves_the_others_running(rng):
+    sizes = [2, 3]
+    starts = np.concatenate(_starts(rng, sizes))
+    batch = BatchWorld(sizes)
+    batch.reset(starts)
+    for _ in range(10):
+        batch.step(np.full((5, 2), [0.1, 0.0]))
+    moved = batch.poses
+    batch.reset(starts, teams=[0])
+    np.testing.assert_allclose(batch.poses[:2], starts[:2], atol=1e-12)
+    np.testing.assert_array_equal(batch.poses[2:], moved[2:])
+    with pytest.raises(ValueError, match=r"teams must be indices in \[0, 2\), got \[2\]"):
+        batch.reset(starts, teams=[2])
+
+
+@pytest.mark.parametrize("tier", TIERS)
+def test_filtered_batch_equals_filtered_single_teams(tier, rng):
+    """One block-diagonal QP for all teams gives each team the same commands as its own QP."""
+    sizes = [4, 4, 3]
+    starts = _starts(rng, sizes)
+    goals = [-s[:, :2] for s in starts]
+    batch = SafeTeams(sizes, SimConfig(tier=tier))
+    batch.reset(np.concatenate(starts))
+    singles = [SafeTeams([n], SimConfig(tier=tier), batched=False) for n in sizes]
+    for s, p in zip(singles, starts):
+        s.reset(p)
+    g_all = np.concatenate(goals)
+    for _ in range(120):
+        batch.tick(go_to_goal(batch.points, g_all))
+        for s, g in zip(singles, goals):
+            s.tick(go_to_goal(s.points, g))
+    assert batch.interventions.min() > 0
+    np.testing.assert_allclose(batch.poses, np.concatenate([s.poses for s in singles]), atol=1e-6)
