@@ -20,9 +20,11 @@ def test_vectorized_rows_equal_the_loop_reference(rng):
     cfg = SafetyConfig()
     lay = make_layout(sizes)
     vals = row_values(lay, pts, hd, cfg, C.GRITSBOT)
-    A = sp.coo_matrix((vals.data, (lay.rows, lay.cols)), shape=(lay.n_rows, 2 * R)).toarray()
+    A = sp.coo_matrix((vals.data(), (lay.rows, lay.cols)), shape=(lay.n_rows, 2 * R)).toarray()
     A_ref, lo_ref, up_ref = reference_rows(sizes, pts, hd, cfg, C.GRITSBOT)
     np.testing.assert_allclose(A, A_ref, atol=1e-15)
+    u = rng.uniform(-0.2, 0.2, 2 * R)
+    np.testing.assert_allclose(vals.products(u), A_ref @ u, atol=1e-14)
     np.testing.assert_array_equal(vals.lower, lo_ref)
     np.testing.assert_allclose(vals.upper, up_ref, atol=1e-15)
 

@@ -15,6 +15,7 @@ import numpy as np
 from comat import constants as C
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, go_to_goal
+from comat.sim.kinematics import si_to_uni
 
 __all__ = ["SCENARIOS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario"]
 
@@ -132,16 +133,28 @@ class ScenarioResult:
     interventions: np.ndarray
     fallbacks: np.ndarray
     goal_error: np.ndarray
+    goal_error_robot: np.ndarray
 
 
-def run_scenario(scn: Scenario, sim: SimConfig, safety: SafetyConfig | None = None) -> ScenarioResult:
-    """Run every episode of ``scn`` as one batch for ``scn.ticks`` ticks."""
+def run_scenario(
+    scn: Scenario, sim: SimConfig, safety: SafetyConfig | None = None, filtered: bool = True
+) -> ScenarioResult:
+    """Run every episode of ``scn`` as one batch for ``scn.ticks`` ticks.
+
+    With ``filtered=False`` the nominal commands go to the wheels unfiltered (only clipped to
+    the wheel limits), to show what the barrier prevents.
+    """
     teams = SafeTeams(scn.team_sizes, sim, safety)
     teams.reset(scn.poses)
     lay = teams.world.layout
     min_d = np.full(lay.n_teams, np.inf)
+    d_proj = teams.safety_config.projection_distance_m
     for _ in range(scn.ticks):
-        teams.tick(go_to_goal(teams.points, scn.goals))
+        nominal = go_to_goal(teams.points, scn.goals)
+        if filtered:
+            teams.tick(nominal)
+        else:
+            teams.world.step(si_to_uni(nominal, teams.poses, d_proj))
         p = teams.poses[:, :2]
         d = np.linalg.norm(p[lay.pair_i] - p[lay.pair_j], axis=1)
         np.minimum.at(min_d, lay.pair_team, d)
@@ -157,4 +170,5 @@ def run_scenario(scn: Scenario, sim: SimConfig, safety: SafetyConfig | None = No
         interventions=teams.interventions.copy(),
         fallbacks=teams.fallbacks.copy(),
         goal_error=np.bincount(lay.robot_team, weights=err) / np.array(lay.team_sizes),
+        goal_error_robot=err,
     )

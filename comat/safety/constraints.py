@@ -69,13 +69,43 @@ def make_layout(team_sizes: Sequence[int]) -> Layout:
     )
 
 
-@dataclass(frozen=True)
+@dataclass
 class RowValues:
-    """Numbers of the QP for one state: nonzeros in layout order and row bounds."""
+    """The QP's rows for one state, kept in factored form.
 
-    data: np.ndarray
+    Attributes:
+        e: (P, 2) pair differences p_i - p_j.
+        cos, sin: (R,) heading of each robot.
+        k: wheel-row lateral factor l_axle / (2·projection).
+        lower, upper: (n_rows,) row bounds.
+    """
+
+    layout: Layout
+    e: np.ndarray
+    cos: np.ndarray
+    sin: np.ndarray
+    k: float
     lower: np.ndarray
     upper: np.ndarray
+
+    def products(self, u: np.ndarray) -> np.ndarray:
+        """A @ u for stacked velocities u (2R,), without forming A."""
+        t = self.layout.teams
+        U = u.reshape(-1, 2)
+        du = U[t.pair_i] - U[t.pair_j]
+        pair = -2.0 * np.einsum("pk,pk->p", self.e, du)
+        along = self.cos * U[:, 0] + self.sin * U[:, 1]
+        across = -self.sin * U[:, 0] + self.cos * U[:, 1]
+        wheel = np.stack([along + self.k * across, along - self.k * across], axis=1).ravel()
+        return np.concatenate([pair, u, wheel])
+
+    def data(self) -> np.ndarray:
+        """Nonzeros of A in layout order."""
+        c, s, k = self.cos, self.sin, self.k
+        pair = np.concatenate([-2.0 * self.e, 2.0 * self.e], axis=1).ravel()
+        # ê ± k·n̂ with ê = (c, s), n̂ = (-s, c): rows (2r) for +, (2r+1) for -.
+        wheel = np.stack([c - k * s, s + k * c, c + k * s, s - k * c], axis=1).ravel()
+        return np.concatenate([pair, np.ones(2 * c.size), wheel])
 
 
 def _limits(cfg, profile: C.RobotProfile) -> tuple[float, float]:
@@ -85,29 +115,26 @@ def _limits(cfg, profile: C.RobotProfile) -> tuple[float, float]:
 
 
 def row_values(layout: Layout, points: np.ndarray, headings: np.ndarray, cfg, profile: C.RobotProfile) -> RowValues:
-    """Vectorized rows for projected points (R, 2) and headings (R,) of all robots.
+    """Rows for projected points (R, 2) and headings (R,) of all robots (no loops over pairs).
 
     ``cfg`` is a :class:`comat.config.SafetyConfig`.
     """
     t = layout.teams
     e = points[t.pair_i] - points[t.pair_j]  # (P, 2)
     h = np.einsum("pk,pk->p", e, e) - cfg.safety_distance_m**2
-    pair_data = np.concatenate([-2.0 * e, 2.0 * e], axis=1).ravel()
-    R = points.shape[0]
+    P, R = t.n_pairs, t.n_robots
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
     m = cfg.boundary_margin_m
-    lo = np.array([x0 + m, y0 + m])
-    hi = np.array([x1 - m, y1 - m])
-    b_lower = (-cfg.boundary_gain * (points - lo)).ravel()
-    b_upper = (cfg.boundary_gain * (hi - points)).ravel()
     k, speed = _limits(cfg, profile)
-    c, s = np.cos(headings), np.sin(headings)
-    # ê ± k·n̂ with ê = (c, s), n̂ = (-s, c): rows (2r) for +, (2r+1) for -.
-    wheel = np.stack([c - k * s, s + k * c, c + k * s, s - k * c], axis=1).ravel()
-    data = np.concatenate([pair_data, np.ones(2 * R), wheel])
-    lower = np.concatenate([np.full(t.n_pairs, -np.inf), b_lower, np.full(2 * R, -speed)])
-    upper = np.concatenate([cfg.barrier_gain * h, b_upper, np.full(2 * R, speed)])
-    return RowValues(data=data, lower=lower, upper=upper)
+    lower = np.empty(layout.n_rows)
+    upper = np.empty(layout.n_rows)
+    lower[:P] = -np.inf
+    upper[:P] = cfg.barrier_gain * h
+    lower[P : P + 2 * R] = (-cfg.boundary_gain * (points - (x0 + m, y0 + m))).ravel()
+    upper[P : P + 2 * R] = (cfg.boundary_gain * ((x1 - m, y1 - m) - points)).ravel()
+    lower[P + 2 * R :] = -speed
+    upper[P + 2 * R :] = speed
+    return RowValues(layout, e, np.cos(headings), np.sin(headings), k, lower, upper)
 
 
 def reference_rows(team_sizes: Sequence[int], points: np.ndarray, headings: np.ndarray, cfg, profile: C.RobotProfile):

@@ -1,38 +1,40 @@
-"""OSQP control-barrier-function filter for one or many teams (one block-diagonal QP per tick).
+"""OSQP control-barrier-function filter for one or many teams, called once per control tick.
 
 Per tick and team: ``min ½‖u - û‖²`` over the projected-point velocities u, subject to the
 rows of :mod:`comat.safety.constraints` (pairwise barrier, arena boundary, exact wheel limits).
+Three exact stages, cheapest first, decided per team:
 
-* Set up once per tuple of team sizes (fixed sparsity); each tick only updates ``q``, the
-  bounds and the nonzeros in place (``update(Ax=...)``) and warm-starts from the last answer.
-* A team whose nominal command already satisfies every row gets it back bit for bit, and if
-  every team does, no QP is solved at all.
-* The answer is never trusted blindly: a team passes only if OSQP reports *solved* and its
-  solution satisfies its rows within ``feasibility_tol``. Otherwise the whole batch is re-solved
-  team by team, and a team that still fails brakes (zero velocity) — counted in
-  :class:`SafetyInfo` — or, with ``strict=True``, raises :class:`InfeasibleError`.
+1. the nominal command already meets every row: it is returned bit for bit;
+2. else each robot's command is projected onto its wheel-limit rhombus (the QP restricted to
+   the wheel rows, solved in closed form); if that meets every other row it is the optimum;
+3. else the remaining teams go to one block-diagonal OSQP problem, set up once per tuple of
+   team sizes and then only updated in place (``update(Ax=...)``) and warm-started.
+
+The answer is never trusted blindly: a team passes only if OSQP reports *solved* and its
+answer meets its rows within ``feasibility_tol`` (after a repair of eps-sized misses). Failing
+teams are re-solved alone with a 1000× tighter tolerance; a team that still fails brakes (zero
+velocity) — counted in :class:`SafetyInfo` — or, with ``strict=True``, raises
+:class:`InfeasibleError`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import time
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import osqp
-import scipy.sparse as sp
 
 from comat import constants as C
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
-from comat.safety.constraints import Layout, make_layout, row_values
+from comat.safety.qp import BarrierQP
 from comat.sim.kinematics import projected_points, si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
 
-_SOLVED = osqp.SolverStatus.OSQP_SOLVED
+_MAX_CACHED_QPS = 64
 
 
 class InfeasibleError(RuntimeError):
@@ -45,7 +47,7 @@ class SafetyInfo:
 
     Attributes:
         intervention: (B,) ‖u - û‖ per team (m/s), 0 where the nominal command was kept.
-        robot_intervened: (R,) bool, robot's command changed by more than 1e-9 m/s.
+        robot_intervened: (R,) bool, the robot's command was changed.
         active_pairs: (B,) pair rows active (barrier holding the team apart).
         active_boundary: (B,) boundary rows active.
         active_wheels: (B,) wheel-limit rows active.
@@ -66,6 +68,15 @@ class SafetyInfo:
     min_pair_distance: np.ndarray
 
 
+@dataclass
+class _Bounds:
+    """Row bounds of a sub-problem (what BarrierQP.solve needs besides A)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    layout: object
+
+
 class SafetyFilter:
     """Barrier filter for teams of fixed sizes; ``filter`` is called once per control tick.
 
@@ -73,6 +84,10 @@ class SafetyFilter:
         team_sizes: robots per team (an int for a single team).
         config: barrier geometry, gains and solver tolerances.
         profile: robot profile (wheel limits, axle length).
+
+    Attributes:
+        last_solver_s: wall time of the last tick's OSQP update/solve calls (0 if none).
+        last_solver_c_s: OSQP's own reported time for them (update + solve + polish).
     """
 
     def __init__(
@@ -86,22 +101,20 @@ class SafetyFilter:
             raise ValueError(f"team_sizes must be positive integers, got {team_sizes!r}")
         self.config = config or SafetyConfig()
         self.profile = profile
-        self.layout: Layout = make_layout(sizes)
+        self._full = BarrierQP(tuple(int(n) for n in sizes), self.config, profile)
+        self.layout = self._full.layout
+        self._precise = dataclasses.replace(self.config, strict=False, eps=self.config.eps * 1e-3)
+        self._qps: OrderedDict[tuple, BarrierQP] = OrderedDict()
+        self._duals = np.zeros(self.layout.n_rows)  # last QP duals per row: warm starts
         lay = self.layout
-        R = lay.teams.n_robots
-        # CSC order of our nonzeros: build once with data = 1..nnz, read the permutation back.
-        coo = sp.coo_matrix(
-            (np.arange(1, lay.rows.size + 1, dtype=np.float64), (lay.rows, lay.cols)), shape=(lay.n_rows, 2 * R)
-        )
-        csc = coo.tocsc()
-        self._perm = csc.data.astype(np.int64) - 1
-        self._A_pattern = csc
-        self._P = sp.identity(2 * R, format="csc")
-        self._solver: osqp.OSQP | None = None
+        t = lay.teams
+        self._nnz_team = lay.row_team[lay.rows]
+        kind = np.concatenate([np.zeros(t.n_pairs, np.int64), np.ones(2 * t.n_robots, np.int64), np.full(2 * t.n_robots, 2)])
+        self._row_kind_team = kind * t.n_teams + lay.row_team  # (n_rows,) for counting per kind and team
+        self._teams_with_pairs = np.flatnonzero(np.array(t.team_sizes) > 1)
+        self._pair_starts = np.searchsorted(t.pair_team, self._teams_with_pairs)
         self.last_solver_s = 0.0
-        """Wall time of the last tick's OSQP setup/update/solve calls (0 if none was needed)."""
-        self._single: dict[int, SafetyFilter] = {}
-        self._is_retry = False
+        self.last_solver_c_s = 0.0
 
     # -- public ---------------------------------------------------------------------------------
     @property
@@ -138,169 +151,172 @@ class SafetyFilter:
 
     # -- internals ------------------------------------------------------------------------------
     def _filter(self, poses: np.ndarray, dxi: np.ndarray) -> tuple[np.ndarray, SafetyInfo]:
-        lay, cfg = self.layout, self.config
-        self.last_solver_s = 0.0
+        lay, cfg, full = self.layout, self.config, self._full
+        t = lay.teams
+        self.last_solver_s = self.last_solver_c_s = 0.0
         points = projected_points(poses, cfg.projection_distance_m)
-        vals = row_values(lay, points, poses[:, 2], cfg, self.profile)
-        A = self._matrix(vals.data)
+        vals = full.rows(points, poses[:, 2])
+        self._data = None  # nonzeros of A, built only if a QP is solved
         u_nom = dxi.ravel()
-        B = lay.teams.n_teams
-        # The nominal command is kept if it respects the true wheel limit; only the QP's own
-        # answer is held to the reduced limit (wheel_speed_fraction) that absorbs solver tolerance.
-        wheel_rows = slice(lay.teams.n_pairs + 2 * lay.teams.n_robots, None)
-        lo_nom, up_nom = vals.lower.copy(), vals.upper.copy()
-        lo_nom[wheel_rows] /= cfg.wheel_speed_fraction
-        up_nom[wheel_rows] /= cfg.wheel_speed_fraction
-        team_ok = self._teams_feasible(A @ u_nom, lo_nom, up_nom)
         out = u_nom.copy()
-        fallback = np.zeros(B, dtype=bool)
-        status, solve_time = "skipped", 0.0
-        y = np.zeros(lay.n_rows)
-        if not team_ok.all():
-            x, y, status, solve_time, good = self._solve(A, vals, u_nom)
-            redo = ~good & ~team_ok
-            if redo.any() and not self._is_retry:
-                x, y, fallback, extra = self._solve_per_team(poses, dxi, x, y, redo)
-                solve_time += extra
-            else:
-                fallback = redo
-            solved = ~team_ok & ~fallback
-            mask = solved[self.layout.teams.robot_team].repeat(2)
-            out[mask] = x[mask]
-            fb_mask = fallback[lay.teams.robot_team].repeat(2)
-            out[fb_mask] = 0.0
+        Au = vals.products(u_nom)  # A @ out, kept current through the stages (for SafetyInfo)
+        status = "skipped"
+        fallback = np.zeros(t.n_teams, dtype=bool)
+        # Stage 1: the nominal command, held to the true wheel limit (only the filter's own
+        # answers use the reduced limit that absorbs solver tolerance).
+        need = ~full.feasible(vals, u_nom, wheel_scale=1.0 / cfg.wheel_speed_fraction, Au=Au)
+        if need.any():  # Stage 2: per-robot projection onto the wheel-limit rhombus.
+            u_wheel = self._project_wheels(u_nom, poses[:, 2])
+            Au_wheel = vals.products(u_wheel)
+            ok = need & full.feasible(vals, u_wheel, Au=Au_wheel)
+            self._take(ok, out, u_wheel, Au, Au_wheel)
+            need &= ~ok
+        if need.any():  # Stage 3: the QP for the teams still left.
+            teams = self._qp_teams(need)
+            x, Ax, good, rows, cols, status, sub = self._solve(teams, vals, u_nom, self.config, u_wheel)
+            take = need[teams] & good  # padding teams keep their stage-2 answer
+            take_c = np.repeat(take[sub.teams.robot_team], 2)
+            out[cols[take_c]] = x[take_c]
+            take_r = take[sub.row_team]
+            Au[rows[take_r]] = Ax[take_r]
+            for b in teams[need[teams] & ~good]:  # rare: re-solve alone, precisely, or brake
+                x_b, Ax_b, (good_b,), rows_b, cols_b, _, _ = self._solve(np.array([b]), vals, u_nom, self._precise, u_wheel)
+                if good_b:
+                    out[cols_b], Au[rows_b] = x_b, Ax_b
+                else:
+                    fallback[b] = True
+                    out[cols_b] = 0.0
+                    Au[rows_b] = 0.0
             if fallback.any() and cfg.strict:
                 raise InfeasibleError(self._explain(np.flatnonzero(fallback), points, status))
-        return out.reshape(-1, 2), self._info(out, u_nom, y, fallback, status, solve_time, points, team_ok)
+        return out.reshape(-1, 2), self._info(vals, out, u_nom, Au, fallback, status)
 
-    def _matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        A = self._A_pattern.copy()
-        A.data = data[self._perm]
-        return A
+    def _take(self, teams: np.ndarray, out, u, Au, Au_new) -> None:
+        """Adopt ``u`` (and its row products) for the flagged teams."""
+        lay = self.layout
+        robots = teams[lay.teams.robot_team]
+        out[np.repeat(robots, 2)] = u[np.repeat(robots, 2)]
+        rows = teams[lay.row_team]
+        Au[rows] = Au_new[rows]
 
-    def _teams_feasible(self, Au: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """(B,) True where every row of the team holds within feasibility_tol."""
-        viol = np.maximum(Au - upper, lower - Au) > self.config.feasibility_tol
-        return self._per_team(viol) == 0
-
-    def _per_team(self, row_flags: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
-        """(B,) number of flagged rows per team, over the row range ``rows``."""
-        team = self.layout.row_team[rows]
-        return np.bincount(team, weights=row_flags[rows], minlength=self.layout.teams.n_teams).astype(np.int64)
-
-    def _solve(self, A: sp.csc_matrix, vals, u_nom: np.ndarray):
-        cfg = self.config
-        q = -u_nom
-        t0 = time.perf_counter()
-        if self._solver is None:
-            self._solver = osqp.OSQP()
-            self._solver.setup(
-                self._P,
-                q,
-                A,
-                vals.lower,
-                vals.upper,
-                verbose=False,
-                eps_abs=cfg.eps,
-                eps_rel=cfg.eps,
-                max_iter=cfg.max_iter,
-                polishing=True,
-                warm_starting=True,
-                check_termination=10,
-            )
+    def _qp(self, sizes: tuple[int, ...], config: SafetyConfig) -> BarrierQP:
+        key = (sizes, config.eps)
+        qp = self._qps.get(key)
+        if qp is None:
+            qp = BarrierQP(sizes, config, self.profile)
+            self._qps[key] = qp
+            if len(self._qps) > _MAX_CACHED_QPS:
+                self._qps.popitem(last=False)
         else:
-            self._solver.update(q=q, l=vals.lower, u=vals.upper, Ax=A.data)
-        res = self._solver.solve(raise_error=False)
-        self.last_solver_s += time.perf_counter() - t0
-        info = res.info
-        t = float(info.update_time + info.solve_time + info.polish_time)
-        if info.status_val != _SOLVED or res.x is None or not np.all(np.isfinite(res.x)):
-            good = np.zeros(self.layout.teams.n_teams, dtype=bool)
-            return np.zeros_like(u_nom), np.zeros(self.layout.n_rows), info.status, t, good
-        x = self._repair(A, vals, res.x)
-        good = self._teams_feasible(A @ x, vals.lower, vals.upper)
-        return x, res.y, info.status, t, good
+            self._qps.move_to_end(key)
+        return qp
 
-    def _repair(self, A: sp.csc_matrix, vals, x: np.ndarray) -> np.ndarray:
-        """Scale each team's answer toward 0 until it meets every row exactly.
+    def _qp_teams(self, need: np.ndarray) -> np.ndarray:
+        """Teams that go into this tick's QP: those that need it, padded with others.
 
-        An unpolished ADMM answer may miss rows by ~eps. Where u = 0 is feasible for the team
-        (the state is safe: all barrier values h >= 0 and robots inside the margin), every row
-        is a·u <= b with b >= 0 or a·u >= b with b <= 0, so scaling u by the smallest b/(a·u)
-        over the missed rows lands inside the polytope; the change is of the order of eps.
+        Each distinct tuple of team sizes is its own OSQP problem (set up once, ~1 ms), so the
+        count is rounded up to a multiple of 8 teams, or to all teams once more than half need
+        it; padding teams solve to the answer they already have.
+        """
+        t = self.layout.teams
+        teams = np.flatnonzero(need)
+        k = teams.size
+        if k <= 1:
+            return teams
+        target = t.n_teams if 2 * k > t.n_teams else min(t.n_teams, -(-k // 8) * 8)
+        if target > k:
+            teams = np.sort(np.concatenate([teams, np.flatnonzero(~need)[: target - k]]))
+        return teams
+
+    def _solve(self, teams: np.ndarray, vals, u_nom, config, x0):
+        """Solve the QP of the given teams only.
+
+        The rows are those of the full problem restricted to the teams (same order). Warm
+        start: primal from the wheel projection, duals from each row's last solve (the set of
+        teams in a problem changes from tick to tick, so the solver's own memory is not theirs).
+
+        Returns:
+            x (2R_sub,), A_sub @ x, per-team trust (k,), the full-layout rows and the columns
+            of ``u`` that the sub-problem covers, OSQP's status and the sub-problem's layout.
         """
         lay = self.layout
-        Ax = A @ x
-        over, under = Ax > vals.upper, Ax < vals.lower
-        if not (over.any() or under.any()):
-            return x
-        zero_ok = self._per_team((vals.lower > 0) | (vals.upper < 0)) == 0
-        ratio = np.ones(lay.n_rows)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio[over] = vals.upper[over] / Ax[over]
-            ratio[under] = vals.lower[under] / Ax[under]
-        alpha = np.ones(lay.teams.n_teams)
-        np.minimum.at(alpha, lay.row_team, np.clip(ratio, 0.0, 1.0))
-        alpha = np.where(zero_ok, alpha * (1.0 - 1e-12), 1.0)
-        return x * np.repeat(alpha[lay.teams.robot_team], 2)
+        t = lay.teams
+        in_qp = np.zeros(t.n_teams, dtype=bool)
+        in_qp[teams] = True
+        cols = np.flatnonzero(np.repeat(in_qp[t.robot_team], 2))
+        rows = np.flatnonzero(in_qp[lay.row_team])
+        qp = self._qp(tuple(t.team_sizes[b] for b in teams), config)
+        sub = _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
+        if self._data is None:
+            self._data = vals.data()
+        A = qp.matrix(self._data[in_qp[self._nnz_team]])
+        res = qp.solve(A, sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
+        self._duals[rows] = res.y
+        self.last_solver_s += res.solver_wall_s
+        self.last_solver_c_s += res.solver_c_s
+        return res.x, res.Ax, res.good, rows, cols, res.status, qp.layout
 
-    def _solve_per_team(self, poses, dxi, x, y, redo):
-        """Re-solve the teams whose batch answer was not trusted, each on its own, more precisely."""
-        lay = self.layout
-        fallback = np.zeros(lay.teams.n_teams, dtype=bool)
-        x, y = x.copy(), y.copy()
-        extra = 0.0
-        for b in np.flatnonzero(redo):
-            n = lay.teams.team_sizes[b]
-            sl = slice(lay.teams.offsets[b], lay.teams.offsets[b + 1])
-            single = self._single.get(n)
-            if single is None:
-                # Retry with a 1000x tighter tolerance: a team whose state is just outside the
-                # safe set (h slightly < 0 after a tick) needs an accurate answer, not a repair.
-                precise = dataclasses.replace(self.config, strict=False, eps=self.config.eps * 1e-3)
-                single = self._single[n] = SafetyFilter(n, precise, self.profile)
-                single._is_retry = True
-            safe, info = single._filter(poses[sl], dxi[sl])
-            self.last_solver_s += single.last_solver_s
-            extra += info.solve_time_s
-            fallback[b] = bool(info.fallback[0])
-            x[2 * sl.start : 2 * sl.stop] = safe.ravel()
-        return x, y, fallback, extra
+    def _project_wheels(self, u: np.ndarray, headings: np.ndarray) -> np.ndarray:
+        """Closest velocities (2R,) inside each robot's wheel-limit rhombus |a| + k|b| <= s.
 
-    def _info(self, out, u_nom, y, fallback, status, solve_time, points, team_ok) -> SafetyInfo:
+        a, b: components along and across the heading; the rhombus is the exact image of the
+        per-wheel limit (see :mod:`comat.safety.constraints`).
+        """
+        cfg = self.config
+        k = self.profile.base_length_m / (2.0 * cfg.projection_distance_m)
+        speed = self.profile.wheel_radius_m * self.profile.max_wheel_velocity_radps * cfg.wheel_speed_fraction
+        c, s = np.cos(headings), np.sin(headings)
+        ux, uy = u[0::2], u[1::2]
+        a, b = c * ux + s * uy, -s * ux + c * uy
+        pa, pb = np.abs(a), np.abs(b)
+        # Project (|a|, |b|) onto the edge from (speed, 0) to (0, speed/k), clamped to its ends.
+        da, db = -speed, speed / k
+        t = np.clip(((pa - speed) * da + pb * db) / (da * da + db * db), 0.0, 1.0)
+        outside = pa + k * pb > speed
+        pa = np.where(outside, speed + t * da, pa)
+        pb = np.where(outside, t * db, pb)
+        a, b = np.copysign(pa, a), np.copysign(pb, b)
+        out = np.empty_like(u)
+        out[0::2] = c * a - s * b
+        out[1::2] = s * a + c * b
+        return out
+
+    def _info(self, vals, out, u_nom, Au, fallback, status) -> SafetyInfo:
         lay = self.layout
+        t = lay.teams
         diff = (out - u_nom).reshape(-1, 2)
-        robot_norm2 = np.einsum("rk,rk->r", diff, diff)
-        B = lay.teams.n_teams
-        intervention = np.sqrt(np.bincount(lay.teams.robot_team, weights=robot_norm2, minlength=B))
-        # Rows of teams that kept their command or braked are not "active" whatever y says.
-        active = (np.abs(y) > 1e-9) & ~(team_ok | fallback)[lay.row_team]
-        P, R = lay.teams.n_pairs, lay.teams.n_robots
-        pairs = self._per_team(active, slice(0, P))
-        bnd = self._per_team(active, slice(P, P + 2 * R))
-        whl = self._per_team(active, slice(P + 2 * R, None))
-        e = points[lay.teams.pair_i] - points[lay.teams.pair_j]
-        dist = np.sqrt(np.einsum("pk,pk->p", e, e))
-        min_d = np.full(B, np.inf)
-        np.minimum.at(min_d, lay.teams.pair_team, dist)
+        robot_norm2 = diff[:, 0] ** 2 + diff[:, 1] ** 2
+        intervention = np.sqrt(np.bincount(t.robot_team, weights=robot_norm2, minlength=t.n_teams))
+        # Active rows: those the final command meets with equality, in teams whose command the
+        # filter changed (and that did not brake).
+        changed = (intervention > 0) & ~fallback
+        active = np.zeros(3 * t.n_teams, np.int64)
+        if changed.any():
+            tight = (np.abs(Au - vals.upper) <= 1e-7) | (np.abs(Au - vals.lower) <= 1e-7)
+            tight &= changed[lay.row_team]
+            active = np.bincount(self._row_kind_team[tight], minlength=3 * t.n_teams)
+        d2 = vals.e[:, 0] ** 2 + vals.e[:, 1] ** 2
+        min_d = np.full(t.n_teams, np.inf)
+        if d2.size:
+            mins = np.sqrt(np.minimum.reduceat(d2, self._pair_starts))
+            min_d[self._teams_with_pairs] = mins
         return SafetyInfo(
             intervention=intervention,
-            robot_intervened=robot_norm2 > 1e-18,
-            active_pairs=pairs,
-            active_boundary=bnd,
-            active_wheels=whl,
+            robot_intervened=robot_norm2 > 0.0,
+            active_pairs=active[: t.n_teams],
+            active_boundary=active[t.n_teams : 2 * t.n_teams],
+            active_wheels=active[2 * t.n_teams :],
             fallback=fallback,
             status=status,
-            solve_time_s=solve_time,
+            solve_time_s=self.last_solver_c_s,
             min_pair_distance=min_d,
         )
 
     def _explain(self, teams: np.ndarray, points: np.ndarray, status: str) -> str:
-        lay, cfg = self.layout, self.config
+        t, cfg = self.layout.teams, self.config
         parts = []
         for b in teams[:5]:
-            sl = slice(lay.teams.offsets[b], lay.teams.offsets[b + 1])
-            p = points[sl]
+            p = points[t.offsets[b] : t.offsets[b + 1]]
             d = np.linalg.norm(p[:, None] - p[None], axis=-1) + np.eye(len(p)) * 1e9
             i, j = np.unravel_index(np.argmin(d), d.shape)
             parts.append(

@@ -9,6 +9,7 @@ team alone (``tests/test_batch.py``).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 
 import mujoco
@@ -109,9 +110,12 @@ class BatchWorld(_TickMixin):
         poses = np.empty((R, 3))
         robot = np.empty(R, dtype=bool)
         wall = np.empty(R, dtype=bool)
+        self.last_physics_s = 0.0
         for g in self.groups:
             g.ctrl[:] = g.binding.ctrl(dxu_clipped[g.rows])
+            t0 = time.perf_counter()
             rec = g.batch.rollout(g.substeps, record=("sensordata",), out=g._record)["sensordata"]
+            self.last_physics_s += time.perf_counter() - t0
             r, w = g.binding.contacts(rec)  # (S, substeps, n)
             idx = g.rows.ravel()
             robot[idx] = r.any(axis=1).ravel()

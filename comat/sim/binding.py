@@ -86,9 +86,11 @@ class Binding:
             r, half_l = self.profile.wheel_radius_m, self.profile.base_length_m / 2.0
             return np.stack([(v - half_l * w) / r, (v + half_l * w) / r], axis=-1).reshape(*dxu.shape[:-2], -1)
         a = 0.5 * w * self.model.opt.timestep
-        sinc_a = np.sinc(a / np.pi)  # sin(a)/a
+        sin_a = np.sin(a)
+        small = np.abs(a) < 1e-8
+        sinc_a = np.where(small, 1.0, sin_a / np.where(small, 1.0, a))  # sin(a)/a
         forward = v * sinc_a * np.cos(a)
-        lateral = v * sinc_a * np.sin(a) * (2.0 * self._mass + self._h_kv) / self._h_kv
+        lateral = v * sinc_a * sin_a * (2.0 * self._mass + self._h_kv) / self._h_kv
         return np.stack([forward, lateral, w], axis=-1).reshape(*dxu.shape[:-2], -1)
 
     # -- contacts ---------------------------------------------------------------------------------

@@ -1,0 +1,35 @@
+# One-command set-up: every target creates .venv and installs the project on first use.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: setup demo test test-slow test-all bench mjcf clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --disable-pip-version-check -q -e ".[test,robotarium]"
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+demo: $(STAMP)  ## robots crossing paths under the safety filter (about a minute)
+	$(BIN)/comat demo
+
+test: $(STAMP)  ## the fast suite (about a minute)
+	$(BIN)/python -m pytest -q
+
+test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario and tier, fidelity spread
+	$(BIN)/python -m pytest -q -m slow
+
+test-all: test test-slow
+
+bench: $(STAMP)  ## comat bench sim + fidelity, JSON under benchmarks/results/
+	$(BIN)/comat bench sim
+	$(BIN)/comat bench fidelity
+
+mjcf: $(STAMP)  ## regenerate the golden MJCF files
+	$(BIN)/comat mjcf --out assets/mjcf
+
+clean:
+	rm -rf $(VENV) .pytest_cache

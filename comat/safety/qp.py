@@ -1,0 +1,144 @@
+"""One block-diagonal OSQP problem for a fixed tuple of team sizes, set up once, updated per tick."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from comat import constants as C
+from comat.config import SafetyConfig
+from comat.safety.constraints import Layout, RowValues, make_layout, row_values
+
+__all__ = ["BarrierQP", "QPResult", "matrix_of"]
+
+_SOLVED = osqp.SolverStatus.OSQP_SOLVED
+
+
+def matrix_of(layout: Layout) -> tuple[sp.csc_matrix, np.ndarray]:
+    """CSC pattern of the layout's rows and the permutation from our data order to CSC order."""
+    R = layout.teams.n_robots
+    nnz = layout.rows.size
+    coo = sp.coo_matrix((np.arange(1, nnz + 1, dtype=np.float64), (layout.rows, layout.cols)), shape=(layout.n_rows, 2 * R))
+    csc = coo.tocsc()
+    return csc, csc.data.astype(np.int64) - 1
+
+
+@dataclass
+class QPResult:
+    """Answer for the teams of one problem: velocities (2R,), per-team trust, OSQP's status."""
+
+    x: np.ndarray
+    Ax: np.ndarray
+    y: np.ndarray
+    good: np.ndarray
+    status: str
+    solver_wall_s: float
+    solver_c_s: float
+
+
+class BarrierQP:
+    """The barrier QP of :mod:`comat.safety.constraints` for teams of ``team_sizes`` robots."""
+
+    def __init__(self, team_sizes: tuple[int, ...], config: SafetyConfig, profile: C.RobotProfile) -> None:
+        self.layout = make_layout(team_sizes)
+        self.config = config
+        self.profile = profile
+        self._A, self._perm = matrix_of(self.layout)
+        self._solver: osqp.OSQP | None = None
+
+    def matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The constraint matrix for nonzeros ``data`` given in layout order.
+
+        The returned matrix is this problem's own, rewritten in place by the next call.
+        """
+        np.take(data, self._perm, out=self._A.data)
+        return self._A
+
+    def rows(self, points: np.ndarray, headings: np.ndarray) -> RowValues:
+        return row_values(self.layout, points, headings, self.config, self.profile)
+
+    def per_team(self, row_flags: np.ndarray) -> np.ndarray:
+        """(B,) number of flagged rows in each team."""
+        lay = self.layout
+        return np.bincount(lay.row_team[row_flags], minlength=lay.teams.n_teams)
+
+    def feasible(self, vals: RowValues, u: np.ndarray, wheel_scale: float = 1.0, Au: np.ndarray | None = None) -> np.ndarray:
+        """(B,) True where u meets every row of the team within ``feasibility_tol``.
+
+        ``wheel_scale`` widens the wheel rows (to test a command against the true wheel limit
+        rather than the reduced one the QP answers within).
+        """
+        Au = vals.products(u) if Au is None else Au
+        tol = self.config.feasibility_tol
+        viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
+        if wheel_scale != 1.0:
+            w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
+            aw = Au[w]
+            viol[w] = (aw > vals.upper[w] * wheel_scale + tol) | (aw < vals.lower[w] * wheel_scale - tol)
+        return self.per_team(viol) == 0
+
+    def solve(
+        self, A: sp.csc_matrix, vals, u_nom: np.ndarray, x0: np.ndarray | None = None, y0: np.ndarray | None = None
+    ) -> QPResult:
+        """Solve for all teams of this problem, warm-started from (x0, y0) if given, else from
+        this problem's previous answer."""
+        cfg = self.config
+        t0 = time.perf_counter()
+        if self._solver is None:
+            self._solver = osqp.OSQP()
+            self._solver.setup(
+                sp.identity(u_nom.size, format="csc"),
+                -u_nom,
+                A,
+                vals.lower,
+                vals.upper,
+                verbose=False,
+                eps_abs=cfg.eps,
+                eps_rel=cfg.eps,
+                max_iter=cfg.max_iter,
+                polishing=True,
+                warm_starting=True,
+                check_termination=10,
+            )
+        else:
+            self._solver.update(q=-u_nom, l=vals.lower, u=vals.upper, Ax=A.data)
+        if x0 is not None:
+            self._solver.warm_start(x=x0, y=y0)
+        res = self._solver.solve(raise_error=False)
+        wall = time.perf_counter() - t0
+        info = res.info
+        c_time = float(info.update_time + info.solve_time + info.polish_time)
+        B = self.layout.teams.n_teams
+        if info.status_val != _SOLVED or res.x is None or not np.all(np.isfinite(res.x)):
+            m = vals.lower.size
+            return QPResult(np.zeros_like(u_nom), np.zeros(m), np.zeros(m), np.zeros(B, dtype=bool), info.status, wall, c_time)
+        # A polished answer is exact; an unpolished one may miss rows by ~eps: repair it.
+        x = res.x if info.status_polish == 1 else self._repair(A, vals, res.x)
+        Ax = A @ x
+        return QPResult(x, Ax, res.y, self.feasible(vals, x, Au=Ax), info.status, wall, c_time)
+
+    def _repair(self, A: sp.csc_matrix, vals, x: np.ndarray) -> np.ndarray:
+        """Scale each team's answer toward 0 until it meets every row exactly.
+
+        An unpolished ADMM answer may miss rows by ~eps. Where u = 0 is feasible for the team
+        (the state is safe: all barrier values h >= 0 and robots inside the margin), every row
+        is a·u <= b with b >= 0 or a·u >= b with b <= 0, so scaling u by the smallest b/(a·u)
+        over the missed rows lands inside the polytope; the change is of the order of eps.
+        """
+        lay = self.layout
+        Ax = A @ x
+        over, under = Ax > vals.upper, Ax < vals.lower
+        if not (over.any() or under.any()):
+            return x
+        zero_ok = self.per_team((vals.lower > 0) | (vals.upper < 0)) == 0
+        ratio = np.ones(lay.n_rows)
+        ratio[over] = vals.upper[over] / Ax[over]
+        ratio[under] = vals.lower[under] / Ax[under]
+        alpha = np.ones(lay.teams.n_teams)
+        np.minimum.at(alpha, lay.row_team, np.clip(ratio, 0.0, 1.0))
+        alpha = np.where(zero_ok, alpha * (1.0 - 1e-12), 1.0)
+        return x * np.repeat(alpha[lay.teams.robot_team], 2)
