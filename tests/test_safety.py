@@ -122,3 +122,21 @@ def test_scenarios_are_safe_200_episodes(name, tier):
 def test_safety_config_is_replaceable():
     cfg = dataclasses.replace(SafetyConfig(), safety_distance_m=0.25)
     assert cfg.safety_distance_m == 0.25
+
+
+def test_wheel_projection_is_the_qp_optimum_when_only_wheel_rows_bind(rng):
+    """Stage 2 (closed-form projection) against OSQP on the same problem (the slow reference)."""
+    from comat.safety.qp import BarrierQP
+
+    f = SafetyFilter(3)
+    poses = np.array([[-1.0, 0.0, 0.3], [0.0, 0.5, -2.0], [1.0, -0.4, 2.5]])  # far apart
+    for _ in range(20):
+        dxi = rng.uniform(-0.5, 0.5, (3, 2))
+        fast = f._project_wheels(dxi.ravel(), poses[:, 2])
+        qp = BarrierQP((3,), SafetyConfig(eps=1e-9), C.GRITSBOT)
+        vals = qp.rows(projected_points(poses, 0.025), poses[:, 2])
+        res = qp.solve(qp.matrix(vals.data()), vals, dxi.ravel())
+        np.testing.assert_allclose(fast, res.x, atol=1e-7)
+        out, info = f.filter(poses, dxi)
+        np.testing.assert_allclose(out.ravel(), fast, atol=1e-12)
+        assert info.status == "skipped"

@@ -162,9 +162,8 @@ class SafetyFilter:
         Au = vals.products(u_nom)  # A @ out, kept current through the stages (for SafetyInfo)
         status = "skipped"
         fallback = np.zeros(t.n_teams, dtype=bool)
-        # Stage 1: the nominal command, held to the true wheel limit (only the filter's own
-        # answers use the reduced limit that absorbs solver tolerance).
-        need = ~full.feasible(vals, u_nom, wheel_scale=1.0 / cfg.wheel_speed_fraction, Au=Au)
+        # Stage 1: the nominal command as it is.
+        need = ~full.feasible(vals, u_nom, Au=Au)
         if need.any():  # Stage 2: per-robot projection onto the wheel-limit rhombus.
             u_wheel = self._project_wheels(u_nom, poses[:, 2])
             Au_wheel = vals.products(u_wheel)

@@ -66,19 +66,19 @@ class BarrierQP:
         lay = self.layout
         return np.bincount(lay.row_team[row_flags], minlength=lay.teams.n_teams)
 
-    def feasible(self, vals: RowValues, u: np.ndarray, wheel_scale: float = 1.0, Au: np.ndarray | None = None) -> np.ndarray:
-        """(B,) True where u meets every row of the team within ``feasibility_tol``.
+    def feasible(self, vals: RowValues, u: np.ndarray, Au: np.ndarray | None = None) -> np.ndarray:
+        """(B,) True where u meets every row of the team.
 
-        ``wheel_scale`` widens the wheel rows (to test a command against the true wheel limit
-        rather than the reduced one the QP answers within).
+        Barrier and boundary rows within ``feasibility_tol``; wheel rows against the true wheel
+        limit with no tolerance (over it is a Robotarium actuator error), while the QP itself
+        answers within ``wheel_speed_fraction`` of it, so solver tolerance never gets there.
         """
         Au = vals.products(u) if Au is None else Au
         tol = self.config.feasibility_tol
         viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
-        if wheel_scale != 1.0:
-            w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
-            aw = Au[w]
-            viol[w] = (aw > vals.upper[w] * wheel_scale + tol) | (aw < vals.lower[w] * wheel_scale - tol)
+        w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
+        limit = vals.upper[w] / self.config.wheel_speed_fraction
+        viol[w] = np.abs(Au[w]) > limit
         return self.per_team(viol) == 0
 
     def solve(
