@@ -132,7 +132,7 @@ def test_wheel_projection_is_the_qp_optimum_when_only_wheel_rows_bind(rng):
     poses = np.array([[-1.0, 0.0, 0.3], [0.0, 0.5, -2.0], [1.0, -0.4, 2.5]])  # far apart
     for _ in range(20):
         dxi = rng.uniform(-0.5, 0.5, (3, 2))
-        fast = f._project_wheels(dxi.ravel(), poses[:, 2])
+        fast = f._project_wheels(dxi.ravel(), np.cos(poses[:, 2]), np.sin(poses[:, 2]))
         qp = BarrierQP((3,), SafetyConfig(eps=1e-9), C.GRITSBOT)
         vals = qp.rows(projected_points(poses, 0.025), poses[:, 2])
         res = qp.solve(qp.matrix(vals.data()), vals, dxi.ravel())

@@ -25,7 +25,10 @@ import numpy as np
 from comat import constants as C
 from comat.sim.layout import TeamLayout, team_layout
 
-__all__ = ["Layout", "RowValues", "make_layout", "reference_rows", "row_values"]
+__all__ = ["OSQP_INFINITY", "Layout", "RowValues", "make_layout", "reference_rows", "row_values"]
+
+OSQP_INFINITY = 1e30
+"""OSQP's infinity: bounds at or beyond it are treated as absent (pair rows have no lower bound)."""
 
 
 @dataclass(frozen=True)
@@ -92,8 +95,8 @@ class RowValues:
         """A @ u for stacked velocities u (2R,), without forming A."""
         t = self.layout.teams
         U = u.reshape(-1, 2)
-        du = U[t.pair_i] - U[t.pair_j]
-        pair = -2.0 * np.einsum("pk,pk->p", self.e, du)
+        du = np.take(U, t.pair_i, axis=0) - np.take(U, t.pair_j, axis=0)
+        pair = -2.0 * (self.e[:, 0] * du[:, 0] + self.e[:, 1] * du[:, 1])
         along = self.cos * U[:, 0] + self.sin * U[:, 1]
         across = -self.sin * U[:, 0] + self.cos * U[:, 1]
         wheel = np.stack([along + self.k * across, along - self.k * across], axis=1).ravel()
@@ -114,27 +117,37 @@ def _limits(cfg, profile: C.RobotProfile) -> tuple[float, float]:
     return k, speed
 
 
-def row_values(layout: Layout, points: np.ndarray, headings: np.ndarray, cfg, profile: C.RobotProfile) -> RowValues:
+def row_values(
+    layout: Layout,
+    points: np.ndarray,
+    headings: np.ndarray,
+    cfg,
+    profile: C.RobotProfile,
+    cos_sin: tuple[np.ndarray, np.ndarray] | None = None,
+) -> RowValues:
     """Rows for projected points (R, 2) and headings (R,) of all robots (no loops over pairs).
 
-    ``cfg`` is a :class:`comat.config.SafetyConfig`.
+    ``cfg`` is a :class:`comat.config.SafetyConfig`; ``cos_sin`` may pass the headings' cosines
+    and sines when the caller has them already.
     """
     t = layout.teams
-    e = points[t.pair_i] - points[t.pair_j]  # (P, 2)
-    h = np.einsum("pk,pk->p", e, e) - cfg.safety_distance_m**2
+    # np.take: several times faster than fancy indexing for these row gathers.
+    e = np.take(points, t.pair_i, axis=0) - np.take(points, t.pair_j, axis=0)  # (P, 2)
+    h = e[:, 0] ** 2 + e[:, 1] ** 2 - cfg.safety_distance_m**2
     P, R = t.n_pairs, t.n_robots
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
     m = cfg.boundary_margin_m
     k, speed = _limits(cfg, profile)
     lower = np.empty(layout.n_rows)
     upper = np.empty(layout.n_rows)
-    lower[:P] = -np.inf
+    lower[:P] = -OSQP_INFINITY
     upper[:P] = cfg.barrier_gain * h
     lower[P : P + 2 * R] = (-cfg.boundary_gain * (points - (x0 + m, y0 + m))).ravel()
     upper[P : P + 2 * R] = (cfg.boundary_gain * ((x1 - m, y1 - m) - points)).ravel()
     lower[P + 2 * R :] = -speed
     upper[P + 2 * R :] = speed
-    return RowValues(layout, e, np.cos(headings), np.sin(headings), k, lower, upper)
+    c, s = cos_sin if cos_sin is not None else (np.cos(headings), np.sin(headings))
+    return RowValues(layout, e, c, s, k, lower, upper)
 
 
 def reference_rows(team_sizes: Sequence[int], points: np.ndarray, headings: np.ndarray, cfg, profile: C.RobotProfile):
@@ -150,7 +163,7 @@ def reference_rows(team_sizes: Sequence[int], points: np.ndarray, headings: np.n
                 a = np.zeros(2 * R)
                 a[2 * i : 2 * i + 2] = -2 * e
                 a[2 * j : 2 * j + 2] = 2 * e
-                pair_rows.append((a, -np.inf, cfg.barrier_gain * (e @ e - cfg.safety_distance_m**2)))
+                pair_rows.append((a, -OSQP_INFINITY, cfg.barrier_gain * (e @ e - cfg.safety_distance_m**2)))
         start += n
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
     m = cfg.boundary_margin_m

@@ -20,6 +20,7 @@ velocity) — counted in :class:`SafetyInfo` — or, with ``strict=True``, raise
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -41,31 +42,67 @@ class InfeasibleError(RuntimeError):
     """Raised in strict mode when no safe command exists for a team (or the solver failed)."""
 
 
-@dataclass
 class SafetyInfo:
     """What the filter did in one tick.
 
     Attributes:
         intervention: (B,) ‖u - û‖ per team (m/s), 0 where the nominal command was kept.
         robot_intervened: (R,) bool, the robot's command was changed.
-        active_pairs: (B,) pair rows active (barrier holding the team apart).
-        active_boundary: (B,) boundary rows active.
-        active_wheels: (B,) wheel-limit rows active.
         fallback: (B,) bool, team braked because its QP had no trusted solution.
-        status: OSQP status text of the batch solve (``"skipped"`` if none was needed).
+        status: OSQP status text of the tick's QP (``"skipped"`` if none was needed).
         solve_time_s: OSQP's own time (update + solve + polish), 0 if skipped.
-        min_pair_distance: (B,) smallest projected-point distance in the team (inf if N=1).
+        active_pairs, active_boundary, active_wheels: (B,) rows of each kind that the final
+            command meets with equality (the constraints holding the team back); computed on
+            first access.
+        min_pair_distance: (B,) smallest projected-point distance in the team (inf if N=1);
+            computed on first access.
     """
 
-    intervention: np.ndarray
-    robot_intervened: np.ndarray
-    active_pairs: np.ndarray
-    active_boundary: np.ndarray
-    active_wheels: np.ndarray
-    fallback: np.ndarray
-    status: str
-    solve_time_s: float
-    min_pair_distance: np.ndarray
+    def __init__(self, filt: SafetyFilter, vals, Au, intervention, robot_intervened, fallback, status, solve_time_s):
+        self.intervention = intervention
+        self.robot_intervened = robot_intervened
+        self.fallback = fallback
+        self.status = status
+        self.solve_time_s = solve_time_s
+        self._filt, self._vals, self._Au = filt, vals, Au
+
+    @functools.cached_property
+    def _active(self) -> np.ndarray:
+        lay, vals, Au = self._filt.layout, self._vals, self._Au
+        n = lay.teams.n_teams
+        changed = (self.intervention > 0) & ~self.fallback
+        if not changed.any():
+            return np.zeros((3, n), np.int64)
+        tight = (np.abs(Au - vals.upper) <= 1e-7) | (np.abs(Au - vals.lower) <= 1e-7)
+        tight &= changed[lay.row_team]
+        return np.bincount(self._filt._row_kind_team[tight], minlength=3 * n).reshape(3, n)
+
+    @property
+    def active_pairs(self) -> np.ndarray:
+        return self._active[0]
+
+    @property
+    def active_boundary(self) -> np.ndarray:
+        return self._active[1]
+
+    @property
+    def active_wheels(self) -> np.ndarray:
+        return self._active[2]
+
+    @functools.cached_property
+    def min_pair_distance(self) -> np.ndarray:
+        f, e = self._filt, self._vals.e
+        min_d = np.full(f.layout.teams.n_teams, np.inf)
+        if e.shape[0]:
+            min_d[f._teams_with_pairs] = np.sqrt(np.minimum.reduceat(e[:, 0] ** 2 + e[:, 1] ** 2, f._pair_starts))
+        return min_d
+
+    def __repr__(self) -> str:
+        return (
+            f"SafetyInfo(intervention={self.intervention}, fallback={self.fallback}, status={self.status!r}, "
+            f"active_pairs={self.active_pairs}, active_boundary={self.active_boundary}, "
+            f"active_wheels={self.active_wheels}, min_pair_distance={self.min_pair_distance})"
+        )
 
 
 @dataclass
@@ -106,6 +143,8 @@ class SafetyFilter:
         self._precise = dataclasses.replace(self.config, strict=False, eps=self.config.eps * 1e-3)
         self._qps: OrderedDict[tuple, BarrierQP] = OrderedDict()
         self._duals = np.zeros(self.layout.n_rows)  # last QP duals per row: warm starts
+        self._all_rows = np.arange(self.layout.n_rows)
+        self._all_cols = np.arange(2 * self.layout.teams.n_robots)
         lay = self.layout
         t = lay.teams
         self._nnz_team = lay.row_team[lay.rows]
@@ -115,6 +154,9 @@ class SafetyFilter:
         self._pair_starts = np.searchsorted(t.pair_team, self._teams_with_pairs)
         self.last_solver_s = 0.0
         self.last_solver_c_s = 0.0
+        self._k = profile.base_length_m / (2.0 * self.config.projection_distance_m)
+        self._speed = profile.wheel_radius_m * profile.max_wheel_velocity_radps * self.config.wheel_speed_fraction
+        self._inv_edge2 = 1.0 / (self._speed**2 * (1.0 + 1.0 / self._k**2))
 
     # -- public ---------------------------------------------------------------------------------
     @property
@@ -154,8 +196,10 @@ class SafetyFilter:
         lay, cfg, full = self.layout, self.config, self._full
         t = lay.teams
         self.last_solver_s = self.last_solver_c_s = 0.0
-        points = projected_points(poses, cfg.projection_distance_m)
-        vals = full.rows(points, poses[:, 2])
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        self._cos, self._sin = c, s
+        points = poses[:, :2] + cfg.projection_distance_m * np.stack([c, s], axis=1)
+        vals = full.rows(points, poses[:, 2], (c, s))
         self._data = None  # nonzeros of A, built only if a QP is solved
         u_nom = dxi.ravel()
         out = u_nom.copy()
@@ -164,8 +208,12 @@ class SafetyFilter:
         fallback = np.zeros(t.n_teams, dtype=bool)
         # Stage 1: the nominal command as it is.
         need = ~full.feasible(vals, u_nom, Au=Au)
-        if need.any():  # Stage 2: per-robot projection onto the wheel-limit rhombus.
-            u_wheel = self._project_wheels(u_nom, poses[:, 2])
+        u_wheel = None
+        # Stage 2: per-robot projection onto the wheel-limit rhombus. Skipped when most teams
+        # need the QP anyway: the whole batch then goes to one problem, warm-started from its
+        # own previous answer, and stage 2 would only cost time.
+        if need.any() and (t.n_teams < 8 or 2 * int(need.sum()) <= t.n_teams):
+            u_wheel = self._project_wheels(u_nom, c, s)
             Au_wheel = vals.products(u_wheel)
             ok = need & full.feasible(vals, u_wheel, Au=Au_wheel)
             self._take(ok, out, u_wheel, Au, Au_wheel)
@@ -173,6 +221,8 @@ class SafetyFilter:
         if need.any():  # Stage 3: the QP for the teams still left.
             teams = self._qp_teams(need)
             x, Ax, good, rows, cols, status, sub = self._solve(teams, vals, u_nom, self.config, u_wheel)
+            if u_wheel is None:
+                u_wheel = self._project_wheels(u_nom, c, s)  # warm start of precise retries
             take = need[teams] & good  # padding teams keep their stage-2 answer
             take_c = np.repeat(take[sub.teams.robot_team], 2)
             out[cols[take_c]] = x[take_c]
@@ -240,76 +290,56 @@ class SafetyFilter:
         """
         lay = self.layout
         t = lay.teams
-        in_qp = np.zeros(t.n_teams, dtype=bool)
-        in_qp[teams] = True
-        cols = np.flatnonzero(np.repeat(in_qp[t.robot_team], 2))
-        rows = np.flatnonzero(in_qp[lay.row_team])
-        qp = self._qp(tuple(t.team_sizes[b] for b in teams), config)
-        sub = _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
         if self._data is None:
             self._data = vals.data()
-        A = qp.matrix(self._data[in_qp[self._nnz_team]])
-        res = qp.solve(A, sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
-        self._duals[rows] = res.y
+        if teams.size == t.n_teams:  # the whole batch: no slicing
+            qp = self._qp(t.team_sizes, config)
+            res = qp.solve(qp.matrix(self._data), vals, u_nom, x0=x0, y0=None if x0 is None else self._duals)
+            self._duals = res.y
+            rows, cols = self._all_rows, self._all_cols
+        else:
+            in_qp = np.zeros(t.n_teams, dtype=bool)
+            in_qp[teams] = True
+            cols = np.flatnonzero(np.repeat(in_qp[t.robot_team], 2))
+            rows = np.flatnonzero(in_qp[lay.row_team])
+            qp = self._qp(tuple(t.team_sizes[b] for b in teams), config)
+            sub = _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
+            x0 = self._project_wheels(u_nom, self._cos, self._sin) if x0 is None else x0
+            res = qp.solve(qp.matrix(self._data[in_qp[self._nnz_team]]), sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
+            self._duals[rows] = res.y
         self.last_solver_s += res.solver_wall_s
         self.last_solver_c_s += res.solver_c_s
         return res.x, res.Ax, res.good, rows, cols, res.status, qp.layout
 
-    def _project_wheels(self, u: np.ndarray, headings: np.ndarray) -> np.ndarray:
-        """Closest velocities (2R,) inside each robot's wheel-limit rhombus |a| + k|b| <= s.
+    def _project_wheels(self, u: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """Closest velocities (2R,) inside each robot's wheel-limit rhombus |a| + k|b| <= v.
 
-        a, b: components along and across the heading; the rhombus is the exact image of the
-        per-wheel limit (see :mod:`comat.safety.constraints`).
+        a, b: components along and across the heading (cosines c, sines s); the rhombus is the
+        exact image of the per-wheel limit (see :mod:`comat.safety.constraints`).
         """
-        cfg = self.config
-        k = self.profile.base_length_m / (2.0 * cfg.projection_distance_m)
-        speed = self.profile.wheel_radius_m * self.profile.max_wheel_velocity_radps * cfg.wheel_speed_fraction
-        c, s = np.cos(headings), np.sin(headings)
+        k, v = self._k, self._speed
         ux, uy = u[0::2], u[1::2]
-        a, b = c * ux + s * uy, -s * ux + c * uy
+        a = c * ux + s * uy
+        b = c * uy - s * ux
         pa, pb = np.abs(a), np.abs(b)
-        # Project (|a|, |b|) onto the edge from (speed, 0) to (0, speed/k), clamped to its ends.
-        da, db = -speed, speed / k
-        t = np.clip(((pa - speed) * da + pb * db) / (da * da + db * db), 0.0, 1.0)
-        outside = pa + k * pb > speed
-        pa = np.where(outside, speed + t * da, pa)
-        pb = np.where(outside, t * db, pb)
-        a, b = np.copysign(pa, a), np.copysign(pb, b)
+        outside = pa + k * pb > v
+        # (|a|, |b|) onto the edge from (v, 0) to (0, v/k), clamped to its ends.
+        t = np.clip(((v - pa) * v + pb * v / k) * self._inv_edge2, 0.0, 1.0)
+        pa = np.where(outside, v - t * v, pa)
+        pb = np.where(outside, t * v / k, pb)
+        a = np.copysign(pa, a)
+        b = np.copysign(pb, b)
         out = np.empty_like(u)
         out[0::2] = c * a - s * b
         out[1::2] = s * a + c * b
         return out
 
     def _info(self, vals, out, u_nom, Au, fallback, status) -> SafetyInfo:
-        lay = self.layout
-        t = lay.teams
-        diff = (out - u_nom).reshape(-1, 2)
-        robot_norm2 = diff[:, 0] ** 2 + diff[:, 1] ** 2
+        t = self.layout.teams
+        diff = out - u_nom
+        robot_norm2 = diff[0::2] ** 2 + diff[1::2] ** 2
         intervention = np.sqrt(np.bincount(t.robot_team, weights=robot_norm2, minlength=t.n_teams))
-        # Active rows: those the final command meets with equality, in teams whose command the
-        # filter changed (and that did not brake).
-        changed = (intervention > 0) & ~fallback
-        active = np.zeros(3 * t.n_teams, np.int64)
-        if changed.any():
-            tight = (np.abs(Au - vals.upper) <= 1e-7) | (np.abs(Au - vals.lower) <= 1e-7)
-            tight &= changed[lay.row_team]
-            active = np.bincount(self._row_kind_team[tight], minlength=3 * t.n_teams)
-        d2 = vals.e[:, 0] ** 2 + vals.e[:, 1] ** 2
-        min_d = np.full(t.n_teams, np.inf)
-        if d2.size:
-            mins = np.sqrt(np.minimum.reduceat(d2, self._pair_starts))
-            min_d[self._teams_with_pairs] = mins
-        return SafetyInfo(
-            intervention=intervention,
-            robot_intervened=robot_norm2 > 0.0,
-            active_pairs=active[: t.n_teams],
-            active_boundary=active[t.n_teams : 2 * t.n_teams],
-            active_wheels=active[2 * t.n_teams :],
-            fallback=fallback,
-            status=status,
-            solve_time_s=self.last_solver_c_s,
-            min_pair_distance=min_d,
-        )
+        return SafetyInfo(self, vals, Au, intervention, robot_norm2 > 0.0, fallback, status, self.last_solver_c_s)
 
     def _explain(self, teams: np.ndarray, points: np.ndarray, status: str) -> str:
         t, cfg = self.layout.teams, self.config

@@ -58,8 +58,8 @@ class BarrierQP:
         np.take(data, self._perm, out=self._A.data)
         return self._A
 
-    def rows(self, points: np.ndarray, headings: np.ndarray) -> RowValues:
-        return row_values(self.layout, points, headings, self.config, self.profile)
+    def rows(self, points: np.ndarray, headings: np.ndarray, cos_sin=None) -> RowValues:
+        return row_values(self.layout, points, headings, self.config, self.profile, cos_sin)
 
     def per_team(self, row_flags: np.ndarray) -> np.ndarray:
         """(B,) number of flagged rows in each team."""
@@ -105,21 +105,40 @@ class BarrierQP:
                 check_termination=10,
             )
         else:
-            self._solver.update(q=-u_nom, l=vals.lower, u=vals.upper, Ax=A.data)
+            # The compiled solver directly: the Python wrapper's per-call bookkeeping (bound
+            # clipping, a derivative cache, a SimpleNamespace of results) costs more than a
+            # small solve. Our bounds are already within ±OSQP_INFINITY.
+            ext = self._solver._solver
+            ext.update_data_vec(q=-u_nom, l=vals.lower, u=vals.upper)
+            ext.update_data_mat(P_x=None, P_i=None, A_x=A.data, A_i=None)
+        ext = self._solver._solver
         if x0 is not None:
-            self._solver.warm_start(x=x0, y=y0)
-        res = self._solver.solve(raise_error=False)
-        wall = time.perf_counter() - t0
-        info = res.info
+            ext.warm_start(x0, y0)  # (y0 None: keep the solver's own duals)
+        ext.solve()
+        info = ext.info
         c_time = float(info.update_time + info.solve_time + info.polish_time)
+        if info.status_val == _SOLVED and info.status_polish != 1:
+            # Polishing missed the active set: continue from this answer to eps/100 (which
+            # usually lets the polish find it), so the result is the optimum to ~1e-5 whatever
+            # else shares the problem (batched == single); then restore the tolerance.
+            self._solver.update_settings(eps_abs=cfg.eps * 1e-2, eps_rel=cfg.eps * 1e-2)
+            ext.solve()
+            self._solver.update_settings(eps_abs=cfg.eps, eps_rel=cfg.eps)
+            info = ext.info
+            c_time += float(info.solve_time + info.polish_time)
+        wall = time.perf_counter() - t0
+        sol = ext.solution
+        status, status_val, polished = info.status, info.status_val, info.status_polish == 1
+        x, y = np.array(sol.x), np.array(sol.y)
         B = self.layout.teams.n_teams
-        if info.status_val != _SOLVED or res.x is None or not np.all(np.isfinite(res.x)):
+        if status_val != _SOLVED or not np.all(np.isfinite(x)):
             m = vals.lower.size
-            return QPResult(np.zeros_like(u_nom), np.zeros(m), np.zeros(m), np.zeros(B, dtype=bool), info.status, wall, c_time)
+            return QPResult(np.zeros_like(u_nom), np.zeros(m), np.zeros(m), np.zeros(B, dtype=bool), status, wall, c_time)
         # A polished answer is exact; an unpolished one may miss rows by ~eps: repair it.
-        x = res.x if info.status_polish == 1 else self._repair(A, vals, res.x)
+        if not polished:
+            x = self._repair(A, vals, x)
         Ax = A @ x
-        return QPResult(x, Ax, res.y, self.feasible(vals, x, Au=Ax), info.status, wall, c_time)
+        return QPResult(x, Ax, y, self.feasible(vals, x, Au=Ax), status, wall, c_time)
 
     def _repair(self, A: sp.csc_matrix, vals, x: np.ndarray) -> np.ndarray:
         """Scale each team's answer toward 0 until it meets every row exactly.

@@ -58,8 +58,12 @@ def threshold_wheels(
     limit = profile.max_wheel_velocity_radps
     dxdd = uni_to_diff(dxu, profile)
     # A hair of tolerance so that commands exactly at the limit (up to rounding) are not errors.
-    overrun = np.any(np.abs(dxdd) > limit * (1.0 + 1e-9), axis=-1)
-    return diff_to_uni(np.clip(dxdd, -limit, limit), profile), overrun
+    over = np.abs(dxdd) > limit * (1.0 + 1e-9)
+    overrun = over[..., 0] | over[..., 1]
+    if not overrun.any():  # the usual case behind the safety filter: nothing to clip
+        return dxu, overrun
+    # Robots within the limit keep their command bit for bit (no round trip through the wheels).
+    return np.where(overrun[..., None], diff_to_uni(np.clip(dxdd, -limit, limit), profile), dxu), overrun
 
 
 def projected_points(poses: np.ndarray, distance: float = C.PROJECTION_DISTANCE_M) -> np.ndarray:

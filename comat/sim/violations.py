@@ -53,8 +53,8 @@ def check_tick(
 ) -> TickEvents:
     """Robotarium checks on poses (R, 3) for the given same-team pairs (P,)."""
     pts = projected_points(poses, C.COLLISION_OFFSET_M)
-    d = pts[pair_i] - pts[pair_j]
-    close = np.einsum("pk,pk->p", d, d) <= C.COLLISION_DIAMETER_M**2
+    d = np.take(pts, pair_i, axis=0) - np.take(pts, pair_j, axis=0)
+    close = d[:, 0] ** 2 + d[:, 1] ** 2 <= C.COLLISION_DIAMETER_M**2
     collision = np.zeros(poses.shape[0], dtype=bool)
     collision[pair_i[close]] = True
     collision[pair_j[close]] = True
