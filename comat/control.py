@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.sim import BatchWorld, World
@@ -93,10 +94,10 @@ class SafeTeams:
     def tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
         """One control tick with nominal projected-point velocities (R, 2)."""
         t0 = time.perf_counter()
-        poses = self.world.poses
-        safe, info = self.filter.filter(poses, dxi)
-        dxu = si_to_uni(safe, poses, self.safety_config.projection_distance_m)
-        events = self.world.step(dxu)
+        dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
+        poses = self.world._poses  # read-only here; our own arrays skip the public checks
+        safe, info = self.filter._filter(poses, dxi)
+        events = self.world._step(si_to_uni(safe, poses, self.safety_config.projection_distance_m))
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.timing.total = time.perf_counter() - t0

@@ -197,7 +197,6 @@ class SafetyFilter:
         t = lay.teams
         self.last_solver_s = self.last_solver_c_s = 0.0
         c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        self._cos, self._sin = c, s
         points = poses[:, :2] + cfg.projection_distance_m * np.stack([c, s], axis=1)
         vals = full.rows(points, poses[:, 2], (c, s))
         self._data = None  # nonzeros of A, built only if a QP is solved
@@ -208,11 +207,7 @@ class SafetyFilter:
         fallback = np.zeros(t.n_teams, dtype=bool)
         # Stage 1: the nominal command as it is.
         need = ~full.feasible(vals, u_nom, Au=Au)
-        u_wheel = None
-        # Stage 2: per-robot projection onto the wheel-limit rhombus. Skipped when most teams
-        # need the QP anyway: the whole batch then goes to one problem, warm-started from its
-        # own previous answer, and stage 2 would only cost time.
-        if need.any() and (t.n_teams < 8 or 2 * int(need.sum()) <= t.n_teams):
+        if need.any():  # Stage 2: per-robot projection onto the wheel-limit rhombus.
             u_wheel = self._project_wheels(u_nom, c, s)
             Au_wheel = vals.products(u_wheel)
             ok = need & full.feasible(vals, u_wheel, Au=Au_wheel)
@@ -221,8 +216,6 @@ class SafetyFilter:
         if need.any():  # Stage 3: the QP for the teams still left.
             teams = self._qp_teams(need)
             x, Ax, good, rows, cols, status, sub = self._solve(teams, vals, u_nom, self.config, u_wheel)
-            if u_wheel is None:
-                u_wheel = self._project_wheels(u_nom, c, s)  # warm start of precise retries
             take = need[teams] & good  # padding teams keep their stage-2 answer
             take_c = np.repeat(take[sub.teams.robot_team], 2)
             out[cols[take_c]] = x[take_c]
@@ -294,7 +287,7 @@ class SafetyFilter:
             self._data = vals.data()
         if teams.size == t.n_teams:  # the whole batch: no slicing
             qp = self._qp(t.team_sizes, config)
-            res = qp.solve(qp.matrix(self._data), vals, u_nom, x0=x0, y0=None if x0 is None else self._duals)
+            res = qp.solve(qp.matrix(self._data), vals, u_nom, x0=x0, y0=self._duals)
             self._duals = res.y
             rows, cols = self._all_rows, self._all_cols
         else:
@@ -304,7 +297,6 @@ class SafetyFilter:
             rows = np.flatnonzero(in_qp[lay.row_team])
             qp = self._qp(tuple(t.team_sizes[b] for b in teams), config)
             sub = _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
-            x0 = self._project_wheels(u_nom, self._cos, self._sin) if x0 is None else x0
             res = qp.solve(qp.matrix(self._data[in_qp[self._nnz_team]]), sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
             self._duals[rows] = res.y
         self.last_solver_s += res.solver_wall_s

@@ -113,7 +113,7 @@ class BarrierQP:
             ext.update_data_mat(P_x=None, P_i=None, A_x=A.data, A_i=None)
         ext = self._solver._solver
         if x0 is not None:
-            ext.warm_start(x0, y0)  # (y0 None: keep the solver's own duals)
+            ext.warm_start(x0, y0)
         ext.solve()
         info = ext.info
         c_time = float(info.update_time + info.solve_time + info.polish_time)

@@ -57,7 +57,7 @@ class Binding:
             w, x, y, z = q[..., 3], q[..., 4], q[..., 5], q[..., 6]
             yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
         else:
-            yaw = np.arctan2(np.sin(q[..., 2]), np.cos(q[..., 2]))
+            yaw = np.pi - np.remainder(np.pi - q[..., 2], 2.0 * np.pi)  # wrapped to (-π, π]
         return np.stack([q[..., 0], q[..., 1], yaw], axis=-1)
 
     def write_poses(self, qpos: np.ndarray, poses: np.ndarray) -> None:

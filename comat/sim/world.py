@@ -73,8 +73,10 @@ class _TickMixin:
 
         Returns the tick's :class:`TickEvents`; :attr:`poses` then holds the new poses.
         """
-        R = self.layout.n_robots
-        dxu = as_float_array("dxu", dxu, (R, 2))
+        return self._step(as_float_array("dxu", dxu, (self.layout.n_robots, 2)))
+
+    def _step(self, dxu: np.ndarray) -> TickEvents:
+        """:meth:`step` without input checks, for commands made inside comat (the filter's)."""
         clipped, overrun = threshold_wheels(dxu, self.profile)
         poses, robot_contact, wall_contact = self._run_physics(clipped)
         self._poses = poses
