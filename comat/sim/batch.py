@@ -106,19 +106,28 @@ class BatchWorld(_TickMixin):
             self.ticks = 0
 
     def _run_physics(self, dxu_clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.last_physics_s = 0.0
+        if len(self.groups) == 1:  # all teams of one size, rows in order: no gathers/scatters
+            g = self.groups[0]
+            poses, robot, wall = self._group_step(g, dxu_clipped.reshape(*g.rows.shape, 2))
+            return poses.reshape(-1, 3), robot.ravel(), wall.ravel()
         R = self.layout.n_robots
         poses = np.empty((R, 3))
         robot = np.empty(R, dtype=bool)
         wall = np.empty(R, dtype=bool)
-        self.last_physics_s = 0.0
         for g in self.groups:
-            g.ctrl[:] = g.binding.ctrl(dxu_clipped[g.rows])
-            t0 = time.perf_counter()
-            rec = g.batch.rollout(g.substeps, record=("sensordata",), out=g._record)["sensordata"]
-            self.last_physics_s += time.perf_counter() - t0
-            r, w = g.binding.contacts(rec)  # (S, substeps, n)
+            p, r, w = self._group_step(g, np.take(dxu_clipped, g.rows, axis=0))
             idx = g.rows.ravel()
-            robot[idx] = r.any(axis=1).ravel()
-            wall[idx] = w.any(axis=1).ravel()
-            poses[idx] = g.binding.poses(g.qpos).reshape(-1, 3)
+            poses[idx] = p.reshape(-1, 3)
+            robot[idx] = r.ravel()
+            wall[idx] = w.ravel()
         return poses, robot, wall
+
+    def _group_step(self, g: _Group, dxu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One tick of one group: commands (S, n, 2) in; poses (S, n, 3) and contact flags out."""
+        g.ctrl[:] = g.binding.ctrl(dxu)
+        t0 = time.perf_counter()
+        rec = g.batch.rollout(g.substeps, record=("sensordata",), out=g._record)["sensordata"]
+        self.last_physics_s += time.perf_counter() - t0
+        robot, wall = g.binding.contacts_any(rec)
+        return g.binding.poses(g.qpos), robot, wall

@@ -100,6 +100,12 @@ class Binding:
     # -- contacts ---------------------------------------------------------------------------------
     def contacts(self, sensordata: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(..., N) bool robot–robot and robot–wall contact flags from (..., nsensordata)."""
-        total = sensordata[..., self.sensor_all]
-        wall = sensordata[..., self.sensor_wall]
+        total = np.take(sensordata, self.sensor_all, axis=-1)
+        wall = np.take(sensordata, self.sensor_wall, axis=-1)
         return total > wall, wall > 0
+
+    def contacts_any(self, record: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(S, N) flags: contact in any substep of a (S, substeps, nsensordata) recording."""
+        total = np.take(record, self.sensor_all, axis=-1)
+        wall = np.take(record, self.sensor_wall, axis=-1)
+        return (total - wall).max(axis=1) > 0, wall.max(axis=1) > 0
