@@ -17,7 +17,6 @@ Provenance (see ``shared/reference/robotarium-marbler.md`` §1):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 __all__ = [

@@ -12,10 +12,8 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 from comat import constants as C
-from comat.bench.scenarios import _swap, Scenario, run_scenario
+from comat.bench.scenarios import run_scenario, swap_scenario
 from comat.config import SimConfig
 
 __all__ = ["run_demo"]
@@ -27,9 +25,8 @@ def run_demo(tier: str = "wheels", robots: int = 8, episodes: int = 4, seed: int
         raise ValueError(f"--robots must be between 2 and 12 (they start on a 0.75 m ring), got {robots}")
     if episodes < 1:
         raise ValueError(f"--episodes must be >= 1, got {episodes}")
-    sizes, poses, goals, _ = _swap(robots, 0.75)(np.random.default_rng(seed), episodes)
     ticks = 600  # 19.8 s: the barrier slows the crossing down; everyone gets through
-    scn = Scenario("swap", tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks)
+    scn = swap_scenario(robots, episodes, seed, ticks=ticks)
     sim = SimConfig(tier=tier)
     print(
         f"comat demo: {episodes} team(s) of {robots} robots swap sides through the arena centre "

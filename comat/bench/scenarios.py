@@ -17,7 +17,7 @@ from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, go_to_goal
 from comat.sim.kinematics import si_to_uni
 
-__all__ = ["SCENARIOS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario"]
+__all__ = ["SCENARIOS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario", "swap_scenario"]
 
 _X0, _X1, _Y0, _Y1 = C.ARENA_BOUNDS_M
 
@@ -110,6 +110,12 @@ SCENARIOS: dict[str, Callable] = {
     "converge32": _converge(32),
     "walls": _walls,
 }
+
+
+def swap_scenario(robots: int, episodes: int, seed: int, ticks: int = 300, radius: float = 0.75) -> Scenario:
+    """``episodes`` teams of ``robots`` on a jittered ring, each robot driven to the opposite side."""
+    sizes, poses, goals, _ = _swap(robots, radius)(np.random.default_rng(seed), episodes)
+    return Scenario(f"swap{robots}", tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks)
 
 
 def make_scenario(name: str, episodes: int, seed: int) -> Scenario:

@@ -31,7 +31,7 @@ from comat import constants as C
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
 from comat.safety.qp import BarrierQP
-from comat.sim.kinematics import projected_points, si_to_uni, uni_to_si
+from comat.sim.kinematics import si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
 
