@@ -9,6 +9,7 @@ waypoint controller of the projected points (Robotarium ``si_position_controller
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -18,10 +19,10 @@ from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.sim import BatchWorld, World
-from comat.sim.kinematics import projected_points, si_to_uni
+from comat.sim.kinematics import limit_to_wheels, projected_points, si_to_uni
 from comat.sim.violations import TickEvents
 
-__all__ = ["SafeTeams", "TickTiming", "go_to_goal"]
+__all__ = ["SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
 
 
 def go_to_goal(points: np.ndarray, goals: np.ndarray, gain: float = 1.0, max_speed: float = 0.2) -> np.ndarray:
@@ -29,6 +30,18 @@ def go_to_goal(points: np.ndarray, goals: np.ndarray, gain: float = 1.0, max_spe
     dxi = gain * (goals - points)
     norm = np.linalg.norm(dxi, axis=-1, keepdims=True)
     return dxi * np.minimum(1.0, max_speed / np.maximum(norm, 1e-12))
+
+
+def waypoint_controller(
+    points: np.ndarray, goals: np.ndarray, poses: np.ndarray, gain: float = 4.0, projection_distance: float = 0.025
+) -> np.ndarray:
+    """The envs' nominal controller: :func:`go_to_goal` saturated to what the wheels can do.
+
+    Saturating here (closed form, per robot) means the safety filter only changes commands for
+    safety: its intervention count measures the barrier, not the motors.
+    """
+    dxi = go_to_goal(points, goals, gain, max_speed=0.2)
+    return limit_to_wheels(dxi, poses, projection_distance)
 
 
 @dataclass
@@ -70,7 +83,8 @@ class SafeTeams:
             if len(sizes) != 1:
                 raise ValueError(f"batched=False takes exactly one team, got team_sizes={sizes}")
             self.world = World(sizes[0], self.sim_config)
-        self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile)
+        self._qp_cache: OrderedDict = OrderedDict()
+        self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile, self._qp_cache)
         self.timing = TickTiming()
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
@@ -85,12 +99,27 @@ class SafeTeams:
         """(R, 2) current projected points (what the barrier keeps apart)."""
         return projected_points(self.world.poses, self.safety_config.projection_distance_m)
 
-    def reset(self, poses: np.ndarray) -> None:
-        """Place all robots at poses (R, 3) and zero the counters."""
-        self.world.reset(poses)
-        self.interventions[:] = 0
-        self.fallbacks[:] = 0
+    def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None) -> None:
+        """Place robots at poses (R, 3) and zero their counters; only ``teams`` if given."""
+        self.world.reset(poses, teams) if teams is not None else self.world.reset(poses)
+        sel = slice(None) if teams is None else np.asarray(teams, dtype=np.int64)
+        self.interventions[sel] = 0
+        self.fallbacks[sel] = 0
 
+    def set_team_sizes(self, team_sizes: Sequence[int]) -> None:
+        """New team sizes (batched world only): teams whose size changed must be reset next.
+
+        The filter is rebuilt for the new layout; OSQP problems already set up are reused.
+        """
+        if not isinstance(self.world, BatchWorld):
+            raise TypeError("set_team_sizes needs the batched world (SafeTeams(..., batched=True))")
+        sizes = tuple(int(n) for n in team_sizes)
+        if sizes == self.world.team_sizes:
+            return
+        self.world.set_team_sizes(sizes)
+        self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile, self._qp_cache)
+        self.interventions = np.zeros(len(sizes), np.int64)
+        self.fallbacks = np.zeros(len(sizes), np.int64)
     def tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
         """One control tick with nominal projected-point velocities (R, 2)."""
         t0 = time.perf_counter()

@@ -31,7 +31,7 @@ from comat import constants as C
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
 from comat.safety.qp import BarrierQP
-from comat.sim.kinematics import si_to_uni, uni_to_si
+from comat.sim.kinematics import limit_to_wheels, si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
 
@@ -121,6 +121,8 @@ class SafetyFilter:
         team_sizes: robots per team (an int for a single team).
         config: barrier geometry, gains and solver tolerances.
         profile: robot profile (wheel limits, axle length).
+        qp_cache: a dict to keep OSQP problems in, shared with other filters (same config and
+            profile) so that a new layout reuses the problems already set up.
 
     Attributes:
         last_solver_s: wall time of the last tick's OSQP update/solve calls (0 if none).
@@ -132,6 +134,7 @@ class SafetyFilter:
         team_sizes: int | Sequence[int],
         config: SafetyConfig | None = None,
         profile: C.RobotProfile = C.DEFAULT_PROFILE,
+        qp_cache: OrderedDict | None = None,
     ) -> None:
         sizes = (team_sizes,) if isinstance(team_sizes, (int, np.integer)) else tuple(team_sizes)
         if not sizes or any(isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1 for n in sizes):
@@ -141,7 +144,8 @@ class SafetyFilter:
         self._full = BarrierQP(tuple(int(n) for n in sizes), self.config, profile)
         self.layout = self._full.layout
         self._precise = dataclasses.replace(self.config, strict=False, eps=self.config.eps * 1e-3)
-        self._qps: OrderedDict[tuple, BarrierQP] = OrderedDict()
+        # OSQP problems by (team sizes, tolerance); shareable between filters whose teams change.
+        self._qps: OrderedDict[tuple, BarrierQP] = OrderedDict() if qp_cache is None else qp_cache
         self._duals = np.zeros(self.layout.n_rows)  # last QP duals per row: warm starts
         self._all_rows = np.arange(self.layout.n_rows)
         self._all_cols = np.arange(2 * self.layout.teams.n_robots)
@@ -154,9 +158,7 @@ class SafetyFilter:
         self._pair_starts = np.searchsorted(t.pair_team, self._teams_with_pairs)
         self.last_solver_s = 0.0
         self.last_solver_c_s = 0.0
-        self._k = profile.base_length_m / (2.0 * self.config.projection_distance_m)
-        self._speed = profile.wheel_radius_m * profile.max_wheel_velocity_radps * self.config.wheel_speed_fraction
-        self._inv_edge2 = 1.0 / (self._speed**2 * (1.0 + 1.0 / self._k**2))
+
 
     # -- public ---------------------------------------------------------------------------------
     @property
@@ -304,27 +306,11 @@ class SafetyFilter:
         return res.x, res.Ax, res.good, rows, cols, res.status, qp.layout
 
     def _project_wheels(self, u: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Closest velocities (2R,) inside each robot's wheel-limit rhombus |a| + k|b| <= v.
-
-        a, b: components along and across the heading (cosines c, sines s); the rhombus is the
-        exact image of the per-wheel limit (see :mod:`comat.safety.constraints`).
-        """
-        k, v = self._k, self._speed
-        ux, uy = u[0::2], u[1::2]
-        a = c * ux + s * uy
-        b = c * uy - s * ux
-        pa, pb = np.abs(a), np.abs(b)
-        outside = pa + k * pb > v
-        # (|a|, |b|) onto the edge from (v, 0) to (0, v/k), clamped to its ends.
-        t = np.clip(((v - pa) * v + pb * v / k) * self._inv_edge2, 0.0, 1.0)
-        pa = np.where(outside, v - t * v, pa)
-        pb = np.where(outside, t * v / k, pb)
-        a = np.copysign(pa, a)
-        b = np.copysign(pb, b)
-        out = np.empty_like(u)
-        out[0::2] = c * a - s * b
-        out[1::2] = s * a + c * b
-        return out
+        """Closest velocities (2R,) inside each robot's reduced wheel-limit rhombus."""
+        cfg = self.config
+        return limit_to_wheels(
+            u.reshape(-1, 2), None, cfg.projection_distance_m, self.profile, cfg.wheel_speed_fraction, (c, s)
+        ).ravel()
 
     def _info(self, vals, out, u_nom, Au, fallback, status) -> SafetyInfo:
         t = self.layout.teams

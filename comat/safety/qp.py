@@ -77,7 +77,8 @@ class BarrierQP:
         tol = self.config.feasibility_tol
         viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
         w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
-        limit = vals.upper[w] / self.config.wheel_speed_fraction
+        # (1e-9: rounding of commands exactly at the limit, as in kinematics.threshold_wheels)
+        limit = vals.upper[w] * ((1.0 + 1e-9) / self.config.wheel_speed_fraction)
         viol[w] = np.abs(Au[w]) > limit
         return self.per_team(viol) == 0
 

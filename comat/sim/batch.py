@@ -2,9 +2,11 @@
 
 Teams of equal size share one compiled model and one Batch (``rollout`` of ``substeps``
 substeps, recording the contact sensors at every substep); teams of different sizes run as a
-few such groups. Arrays are the teams' robots concatenated row-wise, (R, ·), in team order
-(see :class:`comat.sim.layout.TeamLayout`). Results equal :class:`comat.sim.World` run on each
-team alone (``tests/test_batch.py``).
+few such groups. Team sizes may change between episodes (:meth:`BatchWorld.set_team_sizes`):
+each size's Batch has room for every team, and a team simply moves to a free simulation of its
+new size. Arrays are the teams' robots concatenated row-wise, (R, ·), in team order (see
+:class:`comat.sim.layout.TeamLayout`). Results equal :class:`comat.sim.World` run on each team
+alone (``tests/test_batch.py``).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from comat._validate import as_float_array
 from comat.config import SimConfig
 from comat.mjcf.scene import compiled_scene
 from comat.sim.binding import Binding
-from comat.sim.layout import team_layout
+from comat.sim.layout import TeamLayout, team_layout
 from comat.sim.violations import Violations
 from comat.sim.world import _TickMixin, validate_start_poses
 
@@ -29,23 +31,33 @@ __all__ = ["BatchWorld"]
 
 
 class _Group:
-    """All teams of one size: a Batch over their shared model."""
+    """Every team of one size: a Batch of ``capacity`` simulations over their shared model."""
 
-    def __init__(self, teams: np.ndarray, rows: np.ndarray, n: int, config: SimConfig, substeps: int, nthread: int):
-        self.teams = teams  # (S,) team indices
-        self.rows = rows  # (S, n) robot rows in the flat arrays
+    def __init__(self, n: int, capacity: int, config: SimConfig, substeps: int, nthread: int):
         model = compiled_scene(n, config.tier, config.profile, substeps)
+        self.n = n
         self.binding = Binding(model, n, config.tier, C.PROFILES[config.profile])
-        self.batch = mujoco.batch.Batch(model, nsim=len(teams), nthread=nthread)
+        self.batch = mujoco.batch.Batch(model, nsim=capacity, nthread=nthread)
         self.qpos = self.batch.bind("qpos")
-        self.qvel = self.batch.bind("qvel")
         self.ctrl = self.batch.bind("ctrl")
         self.substeps = substeps
-        self._record = {"sensordata": np.empty((len(teams), substeps, model.nsensordata))}
+        self.nsensordata = model.nsensordata
+        self.owner = np.full(capacity, -1, dtype=np.int64)  # team using each simulation, -1 = free
+        # Per layout: active simulations, their teams (in team order) and robot rows (S, n).
+        self.sims = np.zeros(0, np.int64)
+        self.teams = np.zeros(0, np.int64)
+        self.rows = np.zeros((0, n), np.int64)
+        self._records: dict[int, dict[str, np.ndarray]] = {}
+
+    def record(self, count: int) -> dict[str, np.ndarray]:
+        buf = self._records.get(count)
+        if buf is None:
+            buf = self._records[count] = {"sensordata": np.empty((count, self.substeps, self.nsensordata))}
+        return buf
 
 
 class BatchWorld(_TickMixin):
-    """B teams (sizes may differ) simulated together; the batched counterpart of ``World``.
+    """B teams (sizes may differ, and change between episodes) simulated together.
 
     Args:
         team_sizes: robots per team.
@@ -54,27 +66,79 @@ class BatchWorld(_TickMixin):
     """
 
     def __init__(self, team_sizes: Sequence[int], config: SimConfig | None = None, nthread: int = 1) -> None:
-        if isinstance(team_sizes, (int, np.integer)) or not all(
-            isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in team_sizes
-        ) or len(team_sizes) == 0:
-            raise ValueError(f"team_sizes must be a non-empty sequence of positive integers, got {team_sizes!r}")
+        sizes = self._check_sizes(team_sizes)
         self.config = config or SimConfig()
         self.profile = C.PROFILES[self.config.profile]
         self.substeps = self.config.resolved_substeps
-        self.layout = team_layout(tuple(int(n) for n in team_sizes))
-        sizes = np.array(self.layout.team_sizes)
-        self.groups: list[_Group] = []
-        for n in np.unique(sizes):
-            teams = np.flatnonzero(sizes == n)
-            rows = self.layout.offsets[teams][:, None] + np.arange(n)
-            self.groups.append(_Group(teams, rows, int(n), self.config, self.substeps, nthread))
-        self.violations = Violations(self.layout.robot_team, self.layout.n_teams)
-        self.ticks = 0
-        self._poses = np.zeros((self.layout.n_robots, 3))
+        self._nthread = nthread
+        self._groups: dict[int, _Group] = {}
+        self._sim_of = np.full(len(sizes), -1, dtype=np.int64)  # simulation index of each team
+        self.layout: TeamLayout = team_layout((1,) * len(sizes))  # replaced below
+        self._sizes = np.zeros(len(sizes), np.int64)
+        self.set_team_sizes(sizes)
+
+    @staticmethod
+    def _check_sizes(team_sizes) -> tuple[int, ...]:
+        if (
+            isinstance(team_sizes, (int, np.integer))
+            or len(team_sizes) == 0
+            or not all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in team_sizes)
+        ):
+            raise ValueError(f"team_sizes must be a non-empty sequence of positive integers, got {team_sizes!r}")
+        return tuple(int(n) for n in team_sizes)
 
     @property
     def team_sizes(self) -> tuple[int, ...]:
         return self.layout.team_sizes
+
+    @property
+    def groups(self) -> list[_Group]:
+        """Groups with at least one team, by size."""
+        return [g for g in self._groups.values() if g.sims.size]
+
+    def set_team_sizes(self, team_sizes: Sequence[int]) -> None:
+        """Change the team sizes (same number of teams).
+
+        Teams whose size is unchanged keep their simulation and state; the others get a fresh
+        simulation of their new size and must be :meth:`reset` before the next tick. Counters
+        restart (they are per robot, and robots change).
+        """
+        sizes = self._check_sizes(team_sizes)
+        if len(sizes) != self._sizes.size:
+            raise ValueError(f"team_sizes must list {self._sizes.size} teams, got {len(sizes)}")
+        old_poses = getattr(self, "_poses", None)
+        old_layout = self.layout
+        B = len(sizes)
+        for b, n in enumerate(sizes):
+            if self._sizes[b] == n and self._sim_of[b] >= 0:
+                continue
+            if self._sim_of[b] >= 0:
+                self._groups[int(self._sizes[b])].owner[self._sim_of[b]] = -1
+            group = self._groups.get(n)
+            if group is None:
+                group = self._groups[n] = _Group(n, B, self.config, self.substeps, self._nthread)
+            free = np.flatnonzero(group.owner < 0)
+            sim = int(free[0])
+            group.owner[sim] = b
+            self._sim_of[b] = sim
+            self._sizes[b] = n
+        self.layout = team_layout(sizes)
+        poses = np.zeros((self.layout.n_robots, 3))
+        for n, group in self._groups.items():
+            group.teams = np.flatnonzero(self._sizes == n)
+            group.sims = self._sim_of[group.teams]
+            group.rows = self.layout.offsets[group.teams][:, None] + np.arange(n)
+            group.in_order = group.teams.size == B and np.array_equal(group.sims, np.arange(B))
+        if old_poses is not None:
+            # Teams that kept their size keep their poses.
+            for b in range(B):
+                if b < old_layout.n_teams and old_layout.team_sizes[b] == sizes[b]:
+                    poses[self.layout.offsets[b] : self.layout.offsets[b + 1]] = old_poses[
+                        old_layout.offsets[b] : old_layout.offsets[b + 1]
+                    ]
+        self._poses = poses
+        self.violations = Violations(self.layout.robot_team, self.layout.n_teams)
+        self.ticks = 0
 
     def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None) -> None:
         """Place robots at rest and zero their counters.
@@ -95,39 +159,46 @@ class BatchWorld(_TickMixin):
             sel = np.flatnonzero(np.isin(g.teams, team_ids))
             if sel.size == 0:
                 continue
-            g.batch.reset(sel, stage=mujoco.mjtStage.mjSTAGE_NONE)
-            q = g.qpos[sel].copy()
+            sims = g.sims[sel]
+            g.batch.reset(sims, stage=mujoco.mjtStage.mjSTAGE_NONE)
+            q = g.qpos[sims].copy()
             g.binding.write_poses(q, poses[g.rows[sel]])
-            g.qpos[sel] = q
-            g.batch.forward(sel)
-            self._poses[g.rows[sel].ravel()] = g.binding.poses(g.qpos[sel]).reshape(-1, 3)
+            g.qpos[sims] = q
+            g.batch.forward(sims)
+            self._poses[g.rows[sel].ravel()] = g.binding.poses(g.qpos[sims]).reshape(-1, 3)
         self.violations.reset(team_ids)
         if teams is None:
             self.ticks = 0
 
     def _run_physics(self, dxu_clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.last_physics_s = 0.0
-        if len(self.groups) == 1:  # all teams of one size, rows in order: no gathers/scatters
-            g = self.groups[0]
-            poses, robot, wall = self._group_step(g, dxu_clipped.reshape(*g.rows.shape, 2))
+        groups = self.groups
+        if len(groups) == 1 and groups[0].in_order:  # one size, simulations in team order
+            g = groups[0]
+            poses, robot, wall = self._group_step(g, dxu_clipped.reshape(*g.rows.shape, 2), None)
             return poses.reshape(-1, 3), robot.ravel(), wall.ravel()
         R = self.layout.n_robots
         poses = np.empty((R, 3))
         robot = np.empty(R, dtype=bool)
         wall = np.empty(R, dtype=bool)
-        for g in self.groups:
-            p, r, w = self._group_step(g, np.take(dxu_clipped, g.rows, axis=0))
+        for g in groups:
+            p, r, w = self._group_step(g, np.take(dxu_clipped, g.rows, axis=0), g.sims)
             idx = g.rows.ravel()
             poses[idx] = p.reshape(-1, 3)
             robot[idx] = r.ravel()
             wall[idx] = w.ravel()
         return poses, robot, wall
 
-    def _group_step(self, g: _Group, dxu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _group_step(self, g: _Group, dxu: np.ndarray, sims: np.ndarray | None):
         """One tick of one group: commands (S, n, 2) in; poses (S, n, 3) and contact flags out."""
-        g.ctrl[:] = g.binding.ctrl(dxu)
+        count = g.batch.nsim if sims is None else sims.size
+        if sims is None:
+            g.ctrl[:] = g.binding.ctrl(dxu)
+        else:
+            g.ctrl[sims] = g.binding.ctrl(dxu)
         t0 = time.perf_counter()
-        rec = g.batch.rollout(g.substeps, record=("sensordata",), out=g._record)["sensordata"]
+        rec = g.batch.rollout(g.substeps, record=("sensordata",), ids=sims, out=g.record(count))["sensordata"]
         self.last_physics_s += time.perf_counter() - t0
         robot, wall = g.binding.contacts_any(rec)
-        return g.binding.poses(g.qpos), robot, wall
+        qpos = g.qpos if sims is None else g.qpos[sims]
+        return g.binding.poses(qpos), robot, wall

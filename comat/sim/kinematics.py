@@ -17,6 +17,7 @@ from comat import constants as C
 __all__ = [
     "diff_to_uni",
     "euler_unicycle_step",
+    "limit_to_wheels",
     "projected_points",
     "si_to_uni",
     "threshold_wheels",
@@ -88,6 +89,37 @@ def si_to_uni(dxi: np.ndarray, poses: np.ndarray, distance: float = C.PROJECTION
     c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
     dx, dy = dxi[..., 0], dxi[..., 1]
     return np.stack([c * dx + s * dy, (-s * dx + c * dy) / distance], axis=-1)
+
+
+def limit_to_wheels(
+    dxi: np.ndarray,
+    poses: np.ndarray,
+    distance: float = C.PROJECTION_DISTANCE_M,
+    profile: C.RobotProfile = C.DEFAULT_PROFILE,
+    fraction: float = 1.0,
+    cos_sin: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """Closest projected-point velocities (..., 2) that the wheels can realize.
+
+    Through the projection map, the per-wheel limit |φ̇| <= φ̇_max is the rhombus
+    |a| + k|b| <= r·φ̇_max·fraction (a, b: components along and across the heading,
+    k = l_axle / (2·distance)); points outside are projected onto it (closed form).
+    """
+    k = profile.base_length_m / (2.0 * distance)
+    v = profile.wheel_radius_m * profile.max_wheel_velocity_radps * fraction
+    c, s = cos_sin if cos_sin is not None else (np.cos(poses[..., 2]), np.sin(poses[..., 2]))
+    ux, uy = dxi[..., 0], dxi[..., 1]
+    a = c * ux + s * uy
+    b = c * uy - s * ux
+    pa, pb = np.abs(a), np.abs(b)
+    outside = pa + k * pb > v
+    # (|a|, |b|) onto the edge from (v, 0) to (0, v/k), clamped to its ends.
+    t = np.clip(((v - pa) * v + pb * v / k) / (v * v * (1.0 + 1.0 / (k * k))), 0.0, 1.0)
+    pa = np.where(outside, v - t * v, pa)
+    pb = np.where(outside, t * v / k, pb)
+    a = np.copysign(pa, a)
+    b = np.copysign(pb, b)
+    return np.stack([c * a - s * b, s * a + c * b], axis=-1)
 
 
 def euler_unicycle_step(poses: np.ndarray, dxu: np.ndarray, dt: float = C.CONTROL_DT_S) -> np.ndarray:

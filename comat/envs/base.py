@@ -1,0 +1,203 @@
+"""PettingZoo ``ParallelEnv`` base for the Robotarium tasks: one environment over :class:`TaskCore`.
+
+``possible_agents`` is the superset ``robot_0 … robot_{M-1}`` (M = the largest team this
+environment may get); ``agents`` is this episode's team, which changes at every reset: a
+coalition drawn from the environment's set, or the team given to the constructor or to
+``reset(options={"team": ...})``. Robot type and capabilities are observation features, never
+part of an agent's name.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from comat.config import SafetyConfig, SimConfig
+from comat.envs.core import TaskCore
+from comat.team import TeamSpec, generate_coalitions, load_coalitions
+
+__all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team"]
+
+COALITION_SEED = 0
+"""Seed of the paper's composition sets (train/coalitions/*.yaml hold the same teams)."""
+
+
+def resolve_team(value: Any, task: str, name: str = "team") -> TeamSpec:
+    """A TeamSpec from a TeamSpec, or from a mapping ``{"robots": [...]}`` (task optional)."""
+    if isinstance(value, TeamSpec):
+        team = value
+    elif isinstance(value, Mapping):
+        team = TeamSpec.from_dict({"task": task, **value})
+    else:
+        raise TypeError(f"{name} must be a TeamSpec or a mapping with 'robots', got {type(value).__name__}")
+    if team.task != task:
+        raise ValueError(f"{name} is a {team.task!r} team, but this environment runs {task!r}")
+    return team
+
+
+def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
+    """The coalition set: "train" or "test" (the paper's sets), a YAML path, or a list of teams."""
+    if isinstance(value, str) and value in ("train", "test"):
+        return generate_coalitions(task, value, seed=COALITION_SEED)
+    if isinstance(value, (str, Path)):
+        teams = load_coalitions(value)
+    elif isinstance(value, Sequence) and len(value) > 0:
+        teams = [resolve_team(t, task, f"coalitions[{i}]") for i, t in enumerate(value)]
+    else:
+        raise ValueError(f"coalitions must be 'train', 'test', a YAML path or a non-empty list of teams, got {value!r}")
+    for i, t in enumerate(teams):
+        if t.task != task:
+            raise ValueError(f"coalitions[{i}] is a {t.task!r} team, but this environment runs {task!r}")
+    return teams
+
+
+class TaskEnv(ParallelEnv):
+    """A Robotarium task as a PettingZoo parallel environment (subclasses set ``task_cls``).
+
+    Keyword arguments (all optional):
+        coalitions: "train" (default) or "test" — the paper's sets — a YAML file, or a list of
+            teams; each reset draws one uniformly.
+        team: a fixed team (TeamSpec or dict) used at every reset instead.
+        tier: "wheels" (default) or "unicycle"; or ``sim`` for a full SimConfig.
+        safety: SafetyConfig of the barrier filter.
+        ticks_per_step: control ticks per env step (PCP 29, HMT 74 by default).
+        max_robots: size of ``possible_agents`` (default: the largest team it may get).
+        state_robots: robots covered by ``state()`` (default 8).
+        task options: see each task (e.g. PCP ``n_prey``).
+    """
+
+    metadata = {"name": "", "render_modes": [], "is_parallelizable": True}
+    task_cls: type = object
+
+    def __init__(
+        self,
+        *,
+        coalitions: Any = "train",
+        team: Any = None,
+        tier: str = "wheels",
+        sim: SimConfig | None = None,
+        safety: SafetyConfig | None = None,
+        ticks_per_step: int | None = None,
+        max_robots: int | None = None,
+        state_robots: int = 8,
+        **task_options: Any,
+    ) -> None:
+        self.task = self.task_cls(**task_options)
+        name = self.task.name
+        self.coalitions = resolve_coalitions(coalitions, name)
+        self.fixed_team = None if team is None else resolve_team(team, name)
+        largest = max([t.size for t in self.coalitions] + ([self.fixed_team.size] if self.fixed_team else []))
+        if max_robots is not None and (not isinstance(max_robots, int) or max_robots < largest):
+            raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
+        if ticks_per_step is not None and (isinstance(ticks_per_step, bool) or not isinstance(ticks_per_step, int) or ticks_per_step < 1):
+            raise ValueError(f"ticks_per_step must be a positive integer, got {ticks_per_step!r}")
+        if not isinstance(state_robots, int) or state_robots < 1:
+            raise ValueError(f"state_robots must be a positive integer, got {state_robots!r}")
+        sim = sim or SimConfig(tier=tier)
+        self.core = TaskCore(self.task, 1, max_robots or largest, sim, safety, ticks_per_step)
+        self.possible_agents = [f"robot_{i}" for i in range(self.core.N)]
+        self.agents: list[str] = []
+        self.state_robots = state_robots
+        self._np_random = np.random.default_rng()
+        self._obs_size = self.task.obs_size()
+        self._state_size = self.task.global_features(self.core.state).shape[-1] + state_robots * self._obs_size
+
+    # -- spaces ---------------------------------------------------------------------------------
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent: str) -> spaces.Box:
+        return spaces.Box(-np.inf, np.inf, (self._obs_size,), np.float64)
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent: str) -> spaces.Discrete:
+        return spaces.Discrete(5)
+
+    @property
+    def state_space(self) -> spaces.Box:
+        return spaces.Box(-np.inf, np.inf, (self._state_size,), np.float64)
+
+    # -- API --------------------------------------------------------------------------------------
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            self._np_random = np.random.default_rng(seed)
+        options = options or {}
+        if options.get("team") is not None:
+            team = resolve_team(options["team"], self.task.name, "options['team']")
+        elif self.fixed_team is not None:
+            team = self.fixed_team
+        else:
+            team = self.coalitions[int(self._np_random.integers(len(self.coalitions)))]
+        if team.size > self.core.N:
+            raise ValueError(
+                f"team of {team.size} robots is larger than this environment's {self.core.N} agents; "
+                "construct it with max_robots >= the team size"
+            )
+        self.team = team
+        self.core.reset([0], [team], [self._np_random])
+        self.agents = self.possible_agents[: team.size]
+        obs = self._obs()
+        return obs, {a: {} for a in self.agents}
+
+    def step(self, actions: dict):
+        if not self.agents:
+            raise RuntimeError("step() called after the episode ended; call reset()")
+        act = np.zeros((1, self.core.N), dtype=np.int64)
+        missing = [a for a in self.agents if a not in actions]
+        extra = [a for a in actions if a not in self.agents]
+        if missing or extra:
+            raise ValueError(f"actions must cover exactly the agents {self.agents}; missing {missing}, not in the team {extra}")
+        for i, a in enumerate(self.agents):
+            value = actions[a]
+            if isinstance(value, np.ndarray) and value.shape == ():
+                value = value.item()
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < 5:
+                raise ValueError(f"action of {a} must be an integer in [0, 5) (stay, +x, -x, +y, -y), got {value!r}")
+            act[0, i] = int(value)
+        res = self.core.step(act)
+        agents = list(self.agents)
+        obs = self._obs()
+        reward = float(res.rewards[0])
+        term, trunc = bool(res.terminated[0]), bool(res.truncated[0])
+        info = {f"reward/{k}": float(v[0]) for k, v in res.terms.items()}
+        if term or trunc:
+            info.update({f"episode/{k}": v for k, v in self.core.episode_metrics(0).items()})
+            self.agents = []
+        return (
+            obs,
+            {a: reward for a in agents},
+            {a: term for a in agents},
+            {a: trunc for a in agents},
+            {a: dict(info) for a in agents},
+        )
+
+    def state(self) -> np.ndarray:
+        """Centralized state: task-global features, then ``state_robots`` robots' observations."""
+        return self.core.global_state(self.state_robots)[0]
+
+    def graph(self) -> dict[str, np.ndarray]:
+        """This team's graph (see :meth:`TaskCore.graph`), unpadded: N = team size."""
+        n = self.team.size
+        g = self.core.graph()
+        return {
+            "nodes": g["nodes"][0, :n],
+            "node_type": g["node_type"][0, :n],
+            "edge_attr": g["edge_attr"][0, :n, :n],
+            "edge_type": g["edge_type"][0, :n, :n],
+            "edge_mask": g["edge_mask"][0, :n, :n],
+        }
+
+    def render(self):
+        raise NotImplementedError("rendering is through Rerun recordings (comat rollout), not render()")
+
+    def close(self) -> None:
+        pass
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        obs = self.core.observe()[0]
+        return {a: obs[i].copy() for i, a in enumerate(self.possible_agents[: self.team.size])}
+

@@ -1,0 +1,253 @@
+"""The engine under both env APIs: B environments of one task, stepped together.
+
+Per env step and environment: each robot's discrete action sets a waypoint for its projected
+point (:func:`comat.task_logic.waypoint_goals`); then ``ticks_per_step`` control ticks of
+waypoint controller → safety filter → physics run for all B teams at once
+(:class:`comat.control.SafeTeams`: one physics call per team size and one QP per tick); then
+the task logic (:mod:`comat.task_logic`) updates its state and the named reward terms.
+
+Robots are padded to ``N`` slots per environment (``mask`` (B, N)); physics arrays are flat
+(R, ·) in team order, and ``_flat`` maps slots to rows. Team sizes change between episodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from comat.config import SafetyConfig, SimConfig
+from comat.control import SafeTeams, waypoint_controller
+from comat.task_logic import waypoint_goals
+from comat.team import TeamSpec
+
+__all__ = ["EPISODE_METRICS", "StepResult", "TaskCore"]
+
+WAYPOINT_GAIN = 4.0
+"""Proportional gain (1/s) of the waypoint controller: covers ~90 % of a 0.2 m step in 29 ticks."""
+
+EPISODE_METRICS = (
+    "return",
+    "steps",
+    "completion",
+    "success",
+    "collisions",
+    "robotarium_collisions",
+    "boundary_exits",
+    "actuator_errors",
+    "interventions",
+    "fallbacks",
+)
+"""Per-episode metrics (see :meth:`TaskCore.episode_metrics`)."""
+
+
+@dataclass
+class StepResult:
+    """One env step of all B environments: rewards (B,), reward terms name -> (B,), flags (B,)."""
+
+    rewards: np.ndarray
+    terms: dict[str, np.ndarray]
+    terminated: np.ndarray
+    truncated: np.ndarray
+
+
+@dataclass
+class _Stats:
+    """Running per-environment counters of the current episode (B,)."""
+
+    B: int
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in EPISODE_METRICS:
+            self.values[name] = np.zeros(self.B)
+
+    def zero(self, envs: np.ndarray) -> None:
+        for v in self.values.values():
+            v[envs] = 0.0
+
+
+class TaskCore:
+    """B environments of ``task`` (a :mod:`comat.task_logic` task) with up to ``max_robots`` each.
+
+    Args:
+        task: task logic instance (``PCP()`` or ``HMT()``).
+        num_envs: B.
+        max_robots: robot slots per environment (N).
+        sim: physics settings.
+        safety: barrier filter settings.
+        ticks_per_step: control ticks per env step (default: the task's, PCP 29, HMT 74).
+    """
+
+    def __init__(
+        self,
+        task,
+        num_envs: int,
+        max_robots: int,
+        sim: SimConfig | None = None,
+        safety: SafetyConfig | None = None,
+        ticks_per_step: int | None = None,
+    ) -> None:
+        self.task = task
+        self.B, self.N = int(num_envs), int(max_robots)
+        self.sim_config = sim or SimConfig()
+        self.safety_config = safety or SafetyConfig()
+        self.ticks_per_step = int(ticks_per_step or task.ticks_per_step)
+        self.state = task.new_state(self.B, self.N)
+        self.mask = np.zeros((self.B, self.N), dtype=bool)
+        self.type_ids = np.zeros((self.B, self.N), dtype=np.int64)
+        self.caps = np.zeros((self.B, self.N, len(task.capabilities)))
+        self.teams: list[TeamSpec | None] = [None] * self.B
+        self.steps = np.zeros(self.B, dtype=np.int64)
+        self.stats = _Stats(self.B)
+        self.safe: SafeTeams | None = None
+        self._flat = np.zeros((self.B, self.N), dtype=np.int64)
+
+    # -- layout -------------------------------------------------------------------------------------
+    def _relayout(self) -> None:
+        sizes = [int(m.sum()) for m in self.mask]
+        if self.safe is None:
+            self.safe = SafeTeams(sizes, self.sim_config, self.safety_config)
+        else:
+            self.safe.set_team_sizes(sizes)
+        offsets = self.safe.world.layout.offsets
+        self._flat = offsets[:-1, None] + np.arange(self.N)[None, :]
+        self._flat = np.where(self.mask, self._flat, 0)
+
+    def padded(self, flat: np.ndarray) -> np.ndarray:
+        """(B, N, ...) view of flat (R, ...) per-robot values; padded slots are 0."""
+        out = flat[self._flat]
+        out[~self.mask] = 0
+        return out
+
+    def poses(self) -> np.ndarray:
+        """(B, N, 3) current poses (padded slots 0)."""
+        return self.padded(self.safe.world._poses)
+
+    # -- episodes -----------------------------------------------------------------------------------
+    def reset(self, envs: Sequence[int], teams: Sequence[TeamSpec], rngs: Sequence[np.random.Generator]) -> None:
+        """Start new episodes in ``envs`` with the given teams and random generators."""
+        envs = np.asarray(envs, dtype=np.int64)
+        starts = {}
+        for b, team, rng in zip(envs, teams, rngs):
+            n = team.size
+            if n > self.N:
+                raise ValueError(f"team of {n} robots does not fit this environment's {self.N} robot slots")
+            self.teams[b] = team
+            self.mask[b] = np.arange(self.N) < n
+            self.type_ids[b] = 0
+            self.type_ids[b, :n] = team.type_ids()
+            self.caps[b] = 0.0
+            self.caps[b, :n] = team.capability_array()
+            starts[int(b)] = self.task.spawn(rng, n)
+            self.task.reset_env(self.state, b, rng, self.caps[b, :n])
+        self._relayout()
+        flat = self.safe.world._poses.copy()
+        for b, p in starts.items():
+            flat[self._flat[b, : p.shape[0]]] = p
+        self.safe.reset(flat, teams=envs)
+        self.steps[envs] = 0
+        self.stats.zero(envs)
+        self._last_contact = np.zeros(self.safe.world.layout.n_robots, dtype=bool)
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """Advance every environment one env step with actions (B, N) (padded slots ignored)."""
+        task, safe = self.task, self.safe
+        lay = safe.world.layout
+        flat_actions = actions[self.mask]
+        steps = task.step_lengths(self.caps)[self.mask]
+        goals = waypoint_goals(safe.points, flat_actions, steps)
+        starts = lay.offsets[:-1]
+        violations = np.zeros(self.B)
+        s = self.stats.values
+        last = self._last_contact
+        for _ in range(self.ticks_per_step):
+            world_poses = safe.world._poses
+            nominal = waypoint_controller(safe.points, goals, world_poses, WAYPOINT_GAIN, self.safety_config.projection_distance_m)
+            events, info = safe.tick(nominal)
+            per_robot = np.stack([events.robot_contact & ~last, events.boundary, events.actuator], axis=1).astype(np.int64)
+            last = events.robot_contact
+            counts = np.add.reduceat(per_robot, starts, axis=0)  # (B, 3)
+            s["collisions"] += counts[:, 0]
+            s["boundary_exits"] += counts[:, 1]
+            s["actuator_errors"] += counts[:, 2] > 0
+            s["robotarium_collisions"] += events.collision_pairs
+            s["interventions"] += info.intervention > 0
+            s["fallbacks"] += info.fallback
+            violations += counts[:, 0] + counts[:, 1] + events.collision_pairs
+        self._last_contact = last
+        poses = self.poses()
+        raw = task.update(self.state, poses, self.type_ids, self.caps, self.mask)
+        raw["time"] = np.ones(self.B)
+        raw["violation"] = (violations > 0).astype(float)
+        terms = {name: task.reward_weights[name] * raw[name] for name in task.reward_terms}
+        rewards = np.zeros(self.B)
+        for name in task.reward_terms:
+            rewards = rewards + terms[name]
+        self.steps += 1
+        terminated = task.done(self.state)
+        truncated = (self.steps >= task.horizon) & ~terminated
+        s["return"] += rewards
+        s["steps"] = self.steps.astype(float)
+        s["completion"] = task.completion(self.state)
+        s["success"] = terminated.astype(float)
+        return StepResult(rewards, terms, terminated, truncated)
+
+    def episode_metrics(self, b: int) -> dict[str, float]:
+        """The paper's metrics for env b's episode so far.
+
+        return; steps; completion (fraction of prey captured / material delivered); success
+        (task finished before the horizon); collisions (MuJoCo robot–robot contact onsets,
+        summed over robots); robotarium_collisions (pair-ticks with offset centres <= 0.135 m);
+        boundary_exits (robot-ticks outside the arena); actuator_errors (ticks with a wheel
+        over 12.5 rad/s requested); interventions (ticks the filter changed a command);
+        fallbacks (ticks the filter braked).
+        """
+        return {name: float(v[b]) for name, v in self.stats.values.items()}
+
+    # -- observations -------------------------------------------------------------------------------
+    def observe(self) -> np.ndarray:
+        """(B, N, D) observations (padded slots 0)."""
+        return self.task.observe(self.state, self.poses(), self.type_ids, self.caps, self.mask)
+
+    def graph(self) -> dict[str, np.ndarray]:
+        """Dense team graphs of all environments.
+
+        Returns:
+            nodes (B, N, D): observations; node_type (B, N); edge_attr (B, N, N, 5): for the edge
+            from j to i, j's position in i's frame (2), distance (1) and relative heading as
+            cos, sin (2); edge_type (B, N, N): type_i · n_types + type_j; edge_mask (B, N, N):
+            both robots real and i != j; mask (B, N).
+        """
+        poses = self.poses()
+        d = poses[:, None, :, :2] - poses[:, :, None, :2]  # [b, i, j] = p_j - p_i
+        c, s = np.cos(poses[..., 2])[..., None], np.sin(poses[..., 2])[..., None]
+        local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
+        dist = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)[..., None]
+        rel = poses[:, None, :, 2] - poses[:, :, None, 2]
+        edge_attr = np.concatenate([local, dist, np.cos(rel)[..., None], np.sin(rel)[..., None]], axis=-1)
+        edge_mask = self.mask[:, :, None] & self.mask[:, None, :] & ~np.eye(self.N, dtype=bool)
+        n_types = len(self.task.types)
+        edge_type = self.type_ids[:, :, None] * n_types + self.type_ids[:, None, :]
+        return {
+            "nodes": self.observe(),
+            "node_type": self.type_ids.copy(),
+            "edge_attr": edge_attr * edge_mask[..., None],
+            "edge_type": np.where(edge_mask, edge_type, 0),
+            "edge_mask": edge_mask,
+            "mask": self.mask.copy(),
+        }
+
+    def global_state(self, max_robots: int) -> np.ndarray:
+        """(B, G + max_robots·D) centralized state: task features, then robots' observations."""
+        obs = self.observe()
+        if self.N > max_robots and self.mask[:, max_robots:].any():
+            raise ValueError(
+                f"state() covers {max_robots} robots but a team has {int(self.mask.sum(1).max())}; "
+                "create the environment with a larger state_robots"
+            )
+        pad = np.zeros((self.B, max_robots, obs.shape[-1]))
+        n = min(max_robots, self.N)
+        pad[:, :n] = obs[:, :n]
+        return np.concatenate([self.task.global_features(self.state), pad.reshape(self.B, -1)], axis=-1)

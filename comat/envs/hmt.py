@@ -1,0 +1,56 @@
+"""Heterogeneous Material Transport (``hmt_v0``): fast and slow robots carry material to a drop-off.
+
+| | |
+|---|---|
+| Agents | ``robot_0 … robot_{n-1}``, n = 2…; types ``fast`` and ``slow``, >= 1 of each |
+| Capabilities | [speed m, payload units]: speed = waypoint step per env step, payload = what it carries |
+| Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a waypoint one speed-step away |
+| Step | 74 control ticks of 0.033 s (2.44 s): waypoint controller → safety filter → MuJoCo |
+| Observation | Box(15,) float64, below |
+| State | Box(4 + 8·15,): material left per zone, initial amount per zone, then 8 robots' observations |
+| Horizon | 70 steps; ends early when all material is delivered |
+| Zones | zone 1: circle r = 0.35 m at the centre; zone 2: x > 1.0 m; drop-off: x < −1.0 m |
+| Material | zone 1 = 1.5 × and zone 2 = 0.5 × the team's total payload (two full team loads) |
+| Spawn | robots ≥ 0.3 m apart in x ∈ [−1.45, −0.75], y ∈ [−0.85, 0.85], random headings |
+
+Observation layout (per robot, fixed length whatever the team size):
+
+| index | feature |
+|---|---|
+| 0–1 | x, y (m) |
+| 2–3 | cos θ, sin θ |
+| 4–5 | type one-hot (fast, slow) |
+| 6–7 | capabilities (speed / 0.5 m, payload / 20) |
+| 8 | own load / own payload |
+| 9–10 | fraction of material left in zone 1, zone 2 |
+| 11–12 | offset (m) from the robot to zone 1's centre |
+| 13 | x-offset (m) to zone 2's edge (x = 1.0) |
+| 14 | x-offset (m) to the drop-off's edge (x = −1.0) |
+
+Rules, after every step: a loaded robot whose centre is in the drop-off unloads everything; an
+empty robot in a zone with material left loads min(payload, left) — zone 2 first, robots in
+order.
+
+Reward (shared) = sum of named terms in ``infos[agent]["reward/<term>"]``: ``loaded`` +0.025
+per unit loaded, ``unloaded`` +0.075 per unit delivered, ``time`` −0.1 per step, ``violation``
+−6 in a step with any robot–robot contact, Robotarium-style collision or boundary exit. At the
+last step ``infos`` also hold ``episode/<metric>``.
+
+Arguments: see :class:`comat.envs.base.TaskEnv`.
+
+Version history: v0 — first version (after MARBLER's MaterialTransport and the COMAT paper).
+"""
+
+from __future__ import annotations
+
+from comat.envs.base import TaskEnv
+from comat.task_logic import MaterialTransport
+
+__all__ = ["HmtEnv"]
+
+
+class HmtEnv(TaskEnv):
+    """Heterogeneous Material Transport as a PettingZoo parallel environment (spec: module docstring)."""
+
+    metadata = {"name": "hmt_v0", "render_modes": [], "is_parallelizable": True}
+    task_cls = MaterialTransport

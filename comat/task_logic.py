@@ -1,0 +1,286 @@
+"""Task logic of PCP and HMT in plain numpy: waypoints, task state, rewards, observations.
+
+This module imports numpy only, on purpose: the MuJoCo environments (``comat.envs``) and the
+exported Robotarium script (``sim2real``) run this same file, so the two cannot drift. Arrays
+are batched over B environments with robots padded to N slots: ``mask`` (B, N) marks real
+robots; poses (B, N, 3); capabilities (B, N, 2); type ids (B, N).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "ACTIONS",
+    "ARENA",
+    "HMT",
+    "PCP",
+    "heading_features",
+    "waypoint_goals",
+]
+
+ARENA = (-1.6, 1.6, -1.0, 1.0)
+"""Robotarium arena (x_min, x_max, y_min, y_max), m; equal to comat.constants.ARENA_BOUNDS_M."""
+WAYPOINT_LIMITS = (-1.45, 1.45, -0.85, 0.85)
+"""Waypoints are clipped to this box (the barrier keeps robots 0.1 m inside the arena anyway)."""
+
+ACTIONS = np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+"""Discrete actions: 0 stay, 1 +x, 2 -x, 3 +y, 4 -y (unit directions of the waypoint step)."""
+ACTION_NAMES = ("stay", "+x", "-x", "+y", "-y")
+
+
+def waypoint_goals(points: np.ndarray, actions: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Goals (..., 2) for the robots' projected points: one ``step`` (...,) m along the action.
+
+    ``stay`` holds the current point. Goals are clipped to :data:`WAYPOINT_LIMITS`.
+    """
+    goals = points + ACTIONS[actions] * step[..., None]
+    x0, x1, y0, y1 = WAYPOINT_LIMITS
+    return np.stack([np.clip(goals[..., 0], x0, x1), np.clip(goals[..., 1], y0, y1)], axis=-1)
+
+
+def heading_features(poses: np.ndarray) -> np.ndarray:
+    """(..., 4) pose features [x, y, cos θ, sin θ]."""
+    return np.concatenate([poses[..., :2], np.cos(poses[..., 2:3]), np.sin(poses[..., 2:3])], axis=-1)
+
+
+def _spread(rng: np.random.Generator, n: int, box: tuple[float, float, float, float], spacing: float, what: str) -> np.ndarray:
+    """n points (n, 2) uniform in box, pairwise >= spacing apart (bounded rejection sampling)."""
+    x0, x1, y0, y1 = box
+    cells = int(np.floor((x1 - x0) / spacing) + 1) * int(np.floor((y1 - y0) / spacing) + 1)
+    if n > cells:
+        raise ValueError(
+            f"{what}: {n} do not fit {spacing} m apart in x [{x0}, {x1}], y [{y0}, {y1}] (at most {cells})"
+        )
+    for _ in range(100):
+        pts = np.zeros((0, 2))
+        for _ in range(200 * n):
+            p = rng.uniform((x0, y0), (x1, y1))
+            if pts.shape[0] == 0 or np.min(np.hypot(*(pts - p).T)) >= spacing:
+                pts = np.vstack([pts, p])
+                if pts.shape[0] == n:
+                    return pts
+    # Dense teams: fall back to a jittered grid, which always fits.
+    nx = int(np.floor((x1 - x0) / spacing) + 1)
+    cells_xy = np.stack(np.meshgrid(np.arange(nx), np.arange(cells // nx)), -1).reshape(-1, 2)
+    pick = rng.permutation(cells_xy.shape[0])[:n]
+    return np.array([x0, y0]) + cells_xy[pick] * spacing
+
+
+class _Task:
+    """Shared shape of both tasks (see PCP and HMT)."""
+
+    name = ""
+    types: tuple[str, ...] = ()
+    capabilities: tuple[str, ...] = ()
+    capability_scale = np.ones(2)
+    horizon = 0
+    ticks_per_step = 0
+    spawn_box = (0.0, 0.0, 0.0, 0.0)
+    spawn_spacing = 0.3
+    n_task_features = 0
+    reward_terms: tuple[str, ...] = ()
+
+    def obs_size(self) -> int:
+        return 4 + len(self.types) + len(self.capabilities) + self.n_task_features
+
+    def spawn(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Start poses (n, 3): spread in the spawn area, random headings."""
+        pts = _spread(rng, n, self.spawn_box, self.spawn_spacing, f"{self.name} spawn area: {n} robots")
+        return np.column_stack([pts, rng.uniform(-np.pi, np.pi, n)])
+
+    def observe(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Per-robot observations (B, N, D); padded slots are zeros.
+
+        Layout: [x, y, cos θ, sin θ | type one-hot | capabilities / scale | task features].
+        """
+        onehot = np.eye(len(self.types))[type_ids]
+        obs = np.concatenate(
+            [heading_features(poses), onehot, caps / self.capability_scale, self.task_features(state, poses, type_ids, caps, mask)],
+            axis=-1,
+        )
+        return obs * mask[..., None]
+
+    def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        raise NotImplementedError
+
+
+class PredatorCapturePrey(_Task):
+    """PCP: sensing robots find static prey, capture robots capture the sensed ones.
+
+    State per env: prey positions (B, K, 2), sensed (B, K), captured (B, K). A prey becomes
+    sensed (for good) when a sensing robot is within its sensing radius; a sensed prey is
+    captured when a capture robot is within its capture radius.
+    """
+
+    name = "pcp"
+    types = ("sensing", "capture")
+    capabilities = ("sensing_radius_m", "capture_radius_m")
+    capability_scale = np.array([0.5, 0.5])
+    horizon = 80
+    ticks_per_step = 29
+    step_m = 0.2
+    spawn_box = (-1.4, -0.5, -0.85, 0.85)
+    prey_box = (0.5, 1.4, -0.85, 0.85)
+    prey_spacing = 0.2
+    n_task_features = 5
+    reward_terms = ("sensed", "captured", "time", "violation")
+    reward_weights = {"sensed": 1.0, "captured": 5.0, "time": -0.05, "violation": -5.0}
+
+    def __init__(self, n_prey: int = 6):
+        if not isinstance(n_prey, (int, np.integer)) or n_prey < 1:
+            raise ValueError(f"n_prey must be a positive integer, got {n_prey!r}")
+        self.n_prey = int(n_prey)
+
+    def step_lengths(self, caps: np.ndarray) -> np.ndarray:
+        """Waypoint step (B, N), m: fixed 0.2 m in PCP."""
+        return np.full(caps.shape[:-1], self.step_m)
+
+    def new_state(self, B: int, N: int) -> dict:
+        K = self.n_prey
+        return {"prey": np.zeros((B, K, 2)), "sensed": np.zeros((B, K), bool), "captured": np.zeros((B, K), bool)}
+
+    def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
+        """Place env b's prey (its team's capabilities ``caps`` (n, 2) are not needed here)."""
+        state["prey"][b] = _spread(rng, self.n_prey, self.prey_box, self.prey_spacing, f"pcp prey: {self.n_prey} prey")
+        state["sensed"][b] = False
+        state["captured"][b] = False
+
+    def _within(self, state: dict, poses: np.ndarray, radius: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """(B, N, K) robot i within radius_i of prey k (and a real robot)."""
+        d = poses[:, :, None, :2] - state["prey"][:, None, :, :]
+        return (d[..., 0] ** 2 + d[..., 1] ** 2 <= radius[..., None] ** 2) & mask[..., None]
+
+    def update(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> dict:
+        """Advance the task state after a step; returns the raw (unweighted) reward counts (B,)."""
+        sensing = self._within(state, poses, caps[..., 0], mask & (type_ids == 0)).any(axis=1)
+        new_sensed = sensing & ~state["sensed"] & ~state["captured"]
+        state["sensed"] |= sensing
+        capture = self._within(state, poses, caps[..., 1], mask & (type_ids == 1)).any(axis=1)
+        new_captured = capture & state["sensed"] & ~state["captured"]
+        state["captured"] |= new_captured
+        return {"sensed": new_sensed.sum(axis=1).astype(float), "captured": new_captured.sum(axis=1).astype(float)}
+
+    def done(self, state: dict) -> np.ndarray:
+        return state["captured"].all(axis=1)
+
+    def completion(self, state: dict) -> np.ndarray:
+        """Fraction of prey captured (B,)."""
+        return state["captured"].mean(axis=1)
+
+    def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """[seen, dx, dy] to the nearest uncaptured prey inside the robot's own sensing radius
+        (only sensing robots see prey), then the team's fractions of prey sensed and captured."""
+        d = state["prey"][:, None, :, :] - poses[:, :, None, :2]  # (B, N, K, 2)
+        dist2 = d[..., 0] ** 2 + d[..., 1] ** 2
+        visible = (dist2 <= caps[..., 0:1] ** 2) & ~state["captured"][:, None, :] & (type_ids == 0)[..., None]
+        dist2 = np.where(visible, dist2, np.inf)
+        k = np.argmin(dist2, axis=-1)
+        seen = np.isfinite(np.take_along_axis(dist2, k[..., None], -1))[..., 0]
+        near = np.take_along_axis(d, k[..., None, None], 2)[..., 0, :] * seen[..., None]
+        B, N = mask.shape
+        progress = np.stack([state["sensed"].mean(1), state["captured"].mean(1)], -1)[:, None, :].repeat(N, 1)
+        return np.concatenate([seen[..., None].astype(float), near, progress], axis=-1)
+
+    def global_features(self, state: dict) -> np.ndarray:
+        """(B, 4K) prey positions, sensed and captured flags."""
+        return np.concatenate(
+            [state["prey"].reshape(state["prey"].shape[0], -1), state["sensed"].astype(float), state["captured"].astype(float)],
+            axis=-1,
+        )
+
+
+ZONE1_CENTRE = (0.0, 0.0)
+ZONE1_RADIUS = 0.35
+ZONE2_X = 1.0
+"""HMT material zone 2 is x > ZONE2_X; the drop-off is x < -ZONE2_X (MARBLER layout)."""
+
+
+class MaterialTransport(_Task):
+    """HMT: fast and slow robots carry material from two zones to the drop-off.
+
+    State per env: material left in zone 1 (circle r = 0.35 m at the centre) and zone 2
+    (x > 1.0 m), (B, 2), the initial amounts, and each robot's load (B, N). Amounts scale with
+    the team: zone 1 holds 1.5x and zone 2 0.5x the team's total payload (two full team loads).
+    An empty robot inside a zone with material loads min(payload, what is left) (zone 2 first);
+    a loaded robot inside the drop-off (x < -1.0 m) unloads everything.
+    """
+
+    name = "hmt"
+    types = ("fast", "slow")
+    capabilities = ("speed_m", "payload")
+    capability_scale = np.array([0.5, 20.0])
+    horizon = 70
+    ticks_per_step = 74
+    spawn_box = (-1.45, -0.75, -0.85, 0.85)
+    zone_factors = (1.5, 0.5)
+    n_task_features = 7
+    reward_terms = ("loaded", "unloaded", "time", "violation")
+    reward_weights = {"loaded": 0.025, "unloaded": 0.075, "time": -0.1, "violation": -6.0}
+
+    def step_lengths(self, caps: np.ndarray) -> np.ndarray:
+        """Waypoint step (B, N), m: the robot's speed capability."""
+        return caps[..., 0]
+
+    def new_state(self, B: int, N: int) -> dict:
+        return {"left": np.zeros((B, 2)), "initial": np.ones((B, 2)), "load": np.zeros((B, N)), "delivered": np.zeros(B)}
+
+    def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
+        total = float(caps[:, 1].sum())
+        state["initial"][b] = np.array(self.zone_factors) * total
+        state["left"][b] = state["initial"][b]
+        state["load"][b] = 0.0
+        state["delivered"][b] = 0.0
+
+    @staticmethod
+    def zones(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(B, N) robot centre in zone 1, zone 2, drop-off."""
+        x, y = poses[..., 0], poses[..., 1]
+        z1 = (x - ZONE1_CENTRE[0]) ** 2 + (y - ZONE1_CENTRE[1]) ** 2 <= ZONE1_RADIUS**2
+        return z1, x >= ZONE2_X, x <= -ZONE2_X
+
+    def update(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> dict:
+        z1, z2, drop = self.zones(poses)
+        load, left = state["load"], state["left"]
+        unload = np.where(drop & mask & (load > 0), load, 0.0)
+        load -= unload
+        state["delivered"] += unload.sum(axis=1)
+        loaded = np.zeros_like(load)
+        # Robots load one after another (robot order), zone 2 checked first, as in MARBLER.
+        for i in range(load.shape[1]):
+            empty = mask[:, i] & (load[:, i] <= 0)
+            for z, inside in ((1, z2[:, i]), (0, z1[:, i])):
+                take = np.where(empty & inside & (left[:, z] > 0), np.minimum(caps[:, i, 1], left[:, z]), 0.0)
+                left[:, z] -= take
+                loaded[:, i] += take
+                empty &= take <= 0
+        load += loaded
+        return {"loaded": loaded.sum(axis=1), "unloaded": unload.sum(axis=1)}
+
+    def done(self, state: dict) -> np.ndarray:
+        return state["delivered"] >= state["initial"].sum(axis=1) * (1.0 - 1e-12)
+
+    def completion(self, state: dict) -> np.ndarray:
+        """Fraction of the material delivered (B,)."""
+        return state["delivered"] / state["initial"].sum(axis=1)
+
+    def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """[own load / payload, zone 1 and zone 2 fraction left, vector to zone 1's centre (2),
+        x-distance to zone 2's edge, x-distance to the drop-off's edge]."""
+        B, N = mask.shape
+        frac = state["left"] / np.maximum(state["initial"], 1e-9)
+        load = state["load"] / np.maximum(caps[..., 1], 1e-9)
+        x, y = poses[..., 0], poses[..., 1]
+        return np.stack(
+            [load, *np.broadcast_to(frac[:, None, :], (B, N, 2)).transpose(2, 0, 1),
+             ZONE1_CENTRE[0] - x, ZONE1_CENTRE[1] - y, ZONE2_X - x, -ZONE2_X - x],
+            axis=-1,
+        )
+
+    def global_features(self, state: dict) -> np.ndarray:
+        """(B, 4) material left and initial per zone."""
+        return np.concatenate([state["left"], state["initial"]], axis=-1)
+
+
+PCP = PredatorCapturePrey
+HMT = MaterialTransport
