@@ -1,10 +1,24 @@
 """comat: a MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium, and COMAT.
 
-Subpackages: :mod:`comat.mjcf` (MJCF generation), :mod:`comat.sim` (MuJoCo worlds),
-:mod:`comat.safety` (barrier filter), :mod:`comat.control` (the per-tick pipeline). Importing
-``comat`` itself is light: no torch, no rerun.
+``comat.make_env(env_id, **options)`` gives a PettingZoo parallel environment (``"pcp_v0"``,
+``"hmt_v0"``; see :data:`ENV_IDS`) and ``comat.make_vec_env(env_id, num_envs, **options)`` the
+batched one. Subpackages: :mod:`comat.mjcf` (MJCF generation), :mod:`comat.sim` (MuJoCo
+worlds), :mod:`comat.safety` (barrier filter), :mod:`comat.envs` (tasks). Importing ``comat``
+itself is light: the envs load on first use, and nothing here imports torch or rerun.
 """
+
+from typing import Any
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__"]
+__all__ = ["ENV_IDS", "__version__", "make_env", "make_vec_env"]
+
+ENV_IDS = ("hmt_v0", "pcp_v0")
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("make_env", "make_vec_env"):
+        from comat import envs
+
+        return getattr(envs, name)
+    raise AttributeError(f"module 'comat' has no attribute {name!r}")

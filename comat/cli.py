@@ -29,6 +29,20 @@ def _cmd_mjcf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_coalitions(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from comat.team import CAPABILITY_RANGES, generate_coalitions, save_coalitions
+
+    for task, split in sorted(CAPABILITY_RANGES):
+        teams = generate_coalitions(task, split, args.count, args.seed)
+        path = Path(args.out) / f"{task}_{split}.yaml"
+        save_coalitions(teams, path, header=f"comat coalitions --seed {args.seed} --count {args.count}: U_{split} for {task} (paper §III-D)")
+        sizes = sorted({t.size for t in teams})
+        print(f"wrote {path}: {len(teams)} teams, sizes {sizes}")
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.demo import run_demo
 
@@ -64,6 +78,14 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).")
     p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_mjcf)
+
+    p = sub.add_parser("coalitions", help="regenerate the paper's train/test team composition sets",
+                       description="Write U_train and U_test (20 coalitions each, per task) from a seed "
+                       "as YAML; the environments use the same teams (seed 0).")
+    p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
+    p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
+    p.add_argument("--out", default="train/coalitions", help="output folder (default: %(default)s)")
+    p.set_defaults(func=_cmd_coalitions)
 
     p = sub.add_parser("demo", help="robots crossing paths under the safety filter, with a summary",
                        description="Teams of robots swap places through the arena centre, every command "

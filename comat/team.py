@@ -34,6 +34,7 @@ __all__ = [
     "TaskTypes",
     "generate_coalitions",
     "load_coalitions",
+    "random_team",
     "save_coalitions",
 ]
 
@@ -76,7 +77,7 @@ class RobotSpec:
     capabilities: tuple[float, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"type": self.type, "capabilities": [round(float(c), 6) for c in self.capabilities]}
+        return {"type": self.type, "capabilities": [float(c) for c in self.capabilities]}
 
 
 @dataclass(frozen=True)
@@ -150,16 +151,9 @@ class TeamSpec:
             specs.append(RobotSpec(str(r["type"]), tuple(float(c) for c in r["capabilities"])))
         return cls(str(data.get("task", "")), tuple(specs))
 
-    @classmethod
-    def coerce(cls, value: Any, task: str) -> TeamSpec:
-        """A TeamSpec from a TeamSpec or its dict form, checked to be for ``task``."""
-        team = value if isinstance(value, TeamSpec) else cls.from_dict({"task": task, **value} if isinstance(value, Mapping) and "task" not in value else value)
-        if team.task != task:
-            raise ValueError(f"team is for task {team.task!r}, but this environment runs {task!r}")
-        return team
 
-
-def _draw_team(rng: np.random.Generator, task: str, split: str, size: int) -> TeamSpec:
+def random_team(rng: np.random.Generator, task: str, split: str, size: int) -> TeamSpec:
+    """A team of ``size`` robots drawn like the paper's set (task, split): >= 1 robot per type."""
     tt = TASK_TYPES[task]
     ranges = CAPABILITY_RANGES[(task, split)]
     # At least one robot of each type, the rest uniformly typed; shuffled robot order.
@@ -167,7 +161,8 @@ def _draw_team(rng: np.random.Generator, task: str, split: str, size: int) -> Te
     rng.shuffle(types)
     robots = []
     for t in types:
-        caps = tuple(float(rng.uniform(lo, hi)) if hi > lo else float(lo) for lo, hi in ranges[t])
+        # Rounded to 1e-6 (what the YAML files hold), so files and generator agree exactly.
+        caps = tuple(round(float(rng.uniform(lo, hi)), 6) if hi > lo else float(lo) for lo, hi in ranges[t])
         robots.append(RobotSpec(t, caps))
     return TeamSpec(task, tuple(robots))
 
@@ -180,7 +175,7 @@ def generate_coalitions(task: str, split: str, count: int = 20, seed: int = 0) -
     key = sorted(CAPABILITY_RANGES).index((task, split))
     rng = np.random.default_rng([seed, key])
     sizes = rng.choice(SIZES[split], size=count)
-    return [_draw_team(rng, task, split, int(n)) for n in sizes]
+    return [random_team(rng, task, split, int(n)) for n in sizes]
 
 
 def save_coalitions(teams: Sequence[TeamSpec], path: str | Path, header: str = "") -> None:

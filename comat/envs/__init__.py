@@ -1,7 +1,52 @@
-"""Robotarium tasks as PettingZoo parallel environments (``pcp_v0``, ``hmt_v0``) and a vector env."""
+"""Robotarium tasks as PettingZoo parallel environments (``pcp_v0``, ``hmt_v0``) and a vector env.
+
+``make_env(env_id, **options)`` and ``make_vec_env(env_id, num_envs, **options)`` check the
+options and name any unknown one together with the valid ones.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
 
 from comat.envs.base import TaskEnv
 from comat.envs.hmt import HmtEnv
 from comat.envs.pcp import PcpEnv
+from comat.envs.vector import VectorEnv
 
-__all__ = ["HmtEnv", "PcpEnv", "TaskEnv"]
+__all__ = ["ENV_IDS", "HmtEnv", "PcpEnv", "TaskEnv", "VectorEnv", "make_env", "make_vec_env"]
+
+_ENVS: dict[str, type[TaskEnv]] = {"hmt_v0": HmtEnv, "pcp_v0": PcpEnv}
+ENV_IDS = tuple(sorted(_ENVS))
+
+
+def _env_class(env_id: str) -> type[TaskEnv]:
+    if env_id not in _ENVS:
+        raise ValueError(f"env_id must be one of {ENV_IDS}, got {env_id!r}")
+    return _ENVS[env_id]
+
+
+def _check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] = ()) -> None:
+    cls = _env_class(env_id)
+    valid = {p for p in inspect.signature(TaskEnv.__init__).parameters if p not in ("self", "task_options")}
+    valid |= {p for p in inspect.signature(cls.task_cls.__init__).parameters if p not in ("self", "args", "kwargs")}
+    valid |= set(extra)
+    unknown = sorted(set(options) - valid)
+    if unknown:
+        raise ValueError(f"unknown option(s) {unknown} for {env_id}; valid options: {sorted(valid)}")
+
+
+def make_env(env_id: str, **options: Any) -> TaskEnv:
+    """A PettingZoo parallel environment: ``"pcp_v0"`` or ``"hmt_v0"`` (options: see TaskEnv)."""
+    _check_options(env_id, options)
+    return _env_class(env_id)(**options)
+
+
+def make_vec_env(env_id: str, num_envs: int, **options: Any) -> VectorEnv:
+    """``num_envs`` environments of ``env_id`` as one :class:`VectorEnv` (options: see TaskEnv,
+    plus ``seed``)."""
+    _check_options(env_id, options, extra=("seed",))
+    cls = _env_class(env_id)
+    task_keys = set(inspect.signature(cls.task_cls.__init__).parameters) - {"self"}
+    task = cls.task_cls(**{k: v for k, v in options.items() if k in task_keys})
+    return VectorEnv(task, num_envs, **{k: v for k, v in options.items() if k not in task_keys})

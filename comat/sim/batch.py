@@ -43,7 +43,7 @@ class _Group:
         self.substeps = substeps
         self.nsensordata = model.nsensordata
         self.owner = np.full(capacity, -1, dtype=np.int64)  # team using each simulation, -1 = free
-        # Per layout: active simulations, their teams (in team order) and robot rows (S, n).
+        # Per layout: active simulations (sorted), their teams and robot rows (S, n).
         self.sims = np.zeros(0, np.int64)
         self.teams = np.zeros(0, np.int64)
         self.rows = np.zeros((0, n), np.int64)
@@ -125,7 +125,9 @@ class BatchWorld(_TickMixin):
         self.layout = team_layout(sizes)
         poses = np.zeros((self.layout.n_robots, 3))
         for n, group in self._groups.items():
-            group.teams = np.flatnonzero(self._sizes == n)
+            teams = np.flatnonzero(self._sizes == n)
+            order = np.argsort(self._sim_of[teams])  # MuJoCo's batch calls take sorted ids
+            group.teams = teams[order]
             group.sims = self._sim_of[group.teams]
             group.rows = self.layout.offsets[group.teams][:, None] + np.arange(n)
             group.in_order = group.teams.size == B and np.array_equal(group.sims, np.arange(B))

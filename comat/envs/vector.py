@@ -1,0 +1,141 @@
+"""B environments of one task as padded arrays: the trainer's view of the tasks.
+
+All B teams run in one :class:`comat.envs.core.TaskCore` — one physics call per team size and
+one safety QP per control tick for all of them. Teams differ in size; arrays are padded to
+N = the largest team the environment may get, with ``agent_mask`` (B, N) marking real robots.
+
+Autoreset is *same-step*: when an environment's episode ends, the step that ends it already
+returns the first observation of its next episode (new team, new start); the finished
+episode's last observation is in ``info["final_obs"]`` and its metrics in ``info["episode"]``,
+both valid where ``info["_episode"]`` is True.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from comat.config import SafetyConfig, SimConfig
+from comat.envs.base import resolve_coalitions, resolve_team
+from comat.envs.core import EPISODE_METRICS, TaskCore
+from comat.team import TeamSpec
+
+__all__ = ["VectorEnv"]
+
+
+class VectorEnv:
+    """``num_envs`` environments of a task with per-episode team compositions.
+
+    Args:
+        task: a :mod:`comat.task_logic` task instance.
+        num_envs: B.
+        seed: seeds every environment's generator (same seed, same episodes).
+        coalitions, team, tier, sim, safety, ticks_per_step, max_robots, state_robots: as for
+            :class:`comat.envs.base.TaskEnv`.
+    """
+
+    def __init__(
+        self,
+        task,
+        num_envs: int,
+        *,
+        seed: int | None = None,
+        coalitions: Any = "train",
+        team: Any = None,
+        tier: str = "wheels",
+        sim: SimConfig | None = None,
+        safety: SafetyConfig | None = None,
+        ticks_per_step: int | None = None,
+        max_robots: int | None = None,
+        state_robots: int = 8,
+    ) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        self.task = task
+        self.num_envs = num_envs
+        self.coalitions = resolve_coalitions(coalitions, task.name)
+        self.fixed_team = None if team is None else resolve_team(team, task.name)
+        largest = max([t.size for t in self.coalitions] + ([self.fixed_team.size] if self.fixed_team else []))
+        if max_robots is not None and (not isinstance(max_robots, int) or max_robots < largest):
+            raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
+        self.state_robots = state_robots
+        self.core = TaskCore(task, num_envs, max_robots or largest, sim or SimConfig(tier=tier), safety, ticks_per_step)
+        self.max_robots = self.core.N
+        self.single_observation_space = spaces.Box(-np.inf, np.inf, (task.obs_size(),), np.float64)
+        self.single_action_space = spaces.Discrete(5)
+        self._seed(seed)
+        self._started = False
+
+    def _seed(self, seed: int | None) -> None:
+        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(self.num_envs)]
+
+    def _draw(self, b: int) -> TeamSpec:
+        if self.fixed_team is not None:
+            return self.fixed_team
+        return self.coalitions[int(self._rngs[b].integers(len(self.coalitions)))]
+
+    @property
+    def agent_mask(self) -> np.ndarray:
+        """(B, N) True where a slot holds a robot of the current team."""
+        return self.core.mask.copy()
+
+    def reset(self, seed: int | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start a new episode in every environment; returns obs (B, N, D) and info."""
+        if seed is not None:
+            self._seed(seed)
+        envs = np.arange(self.num_envs)
+        self.core.reset(envs, [self._draw(b) for b in envs], [self._rngs[b] for b in envs])
+        self._started = True
+        return self.core.observe(), self._info()
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One env step of all environments with actions (B, N) (padded slots are ignored).
+
+        Returns obs (B, N, D), rewards (B,), terminated (B,), truncated (B,) and info with
+        ``agent_mask``, ``reward/<term>`` (B,), and for finished episodes ``episode``
+        (metric -> (B,)), ``final_obs`` (B, N, D) and the mask ``_episode`` (B,).
+        """
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        actions = np.asarray(actions)
+        B, N = self.num_envs, self.max_robots
+        if actions.shape != (B, N):
+            raise ValueError(f"actions must have shape ({B}, {N}) (envs, robot slots), got {actions.shape}")
+        real = actions[self.core.mask]
+        if not np.issubdtype(actions.dtype, np.integer) or real.size and (real.min() < 0 or real.max() > 4):
+            bad = real[(real < 0) | (real > 4)] if np.issubdtype(actions.dtype, np.integer) else real
+            raise ValueError(f"actions must be integers in [0, 5) (stay, +x, -x, +y, -y), got {bad[:5].tolist()}")
+        res = self.core.step(actions.astype(np.int64))
+        done = res.terminated | res.truncated
+        info = {f"reward/{k}": v for k, v in res.terms.items()}
+        if done.any():
+            final_obs = self.core.observe()
+            metrics = {name: np.zeros(B) for name in EPISODE_METRICS}
+            envs = np.flatnonzero(done)
+            for b in envs:
+                for name, value in self.core.episode_metrics(b).items():
+                    metrics[name][b] = value
+            self.core.reset(envs, [self._draw(b) for b in envs], [self._rngs[b] for b in envs])
+            info.update({"episode": metrics, "_episode": done.copy(), "final_obs": final_obs})
+        info.update(self._info())
+        return self.core.observe(), res.rewards, res.terminated, res.truncated, info
+
+    def _info(self) -> dict[str, Any]:
+        return {"agent_mask": self.core.mask.copy(), "type_ids": self.core.type_ids.copy()}
+
+    def graph(self) -> dict[str, np.ndarray]:
+        """Dense graphs of all teams, (B, N, ...) (see :meth:`TaskCore.graph`)."""
+        return self.core.graph()
+
+    def state(self) -> np.ndarray:
+        """(B, S) centralized states (see :meth:`TaskEnv.state`)."""
+        return self.core.global_state(self.state_robots)
+
+    def teams(self) -> list[TeamSpec]:
+        """The current team of every environment."""
+        return list(self.core.teams)
+
+    def close(self) -> None:
+        pass
