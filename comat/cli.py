@@ -59,6 +59,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         run_sim_bench(sizes, tuple(args.batches), tuple(args.tiers), args.ticks, args.rps_ticks, args.out)
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
+    if args.what == "env":
+        from comat.bench.env_bench import run_env_bench
+
+        t0 = time.perf_counter()
+        run_env_bench(tuple(args.tasks), tuple(args.tiers), tuple(args.sizes), tuple(args.batches), args.steps, args.out)
+        print(f"done in {time.perf_counter() - t0:.0f} s")
+        return 0
     if args.what == "fidelity":
         from comat.bench.fidelity_bench import run_fidelity_bench
 
@@ -108,6 +115,16 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--ticks", type=int, default=100, help="measured ticks per configuration (default: %(default)s)")
     b.add_argument("--rps-ticks", type=int, default=100, help="measured Robotarium iterations (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/sim.json", help="JSON output (default: %(default)s)")
+    b.set_defaults(func=_cmd_bench)
+    b = bsub.add_parser("env", help="env-steps/s with random actions per task, tier, batch and team size",
+                        description="Time vector environments (safety filter at every tick) with random actions, "
+                        "next to the Robotarium simulator's loop per env step.")
+    b.add_argument("--tasks", nargs="+", choices=["pcp", "hmt"], default=["pcp", "hmt"])
+    b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["wheels", "unicycle"])
+    b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 16], help="team sizes (default: %(default)s)")
+    b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
+    b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
+    b.add_argument("--out", default="benchmarks/results/env.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("fidelity", help="how closely the MuJoCo robot follows the Robotarium's unicycle model",
                         description="Steady-state tracking over the admissible command range, and trajectory "

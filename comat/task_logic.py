@@ -44,27 +44,29 @@ def heading_features(poses: np.ndarray) -> np.ndarray:
     return np.concatenate([poses[..., :2], np.cos(poses[..., 2:3]), np.sin(poses[..., 2:3])], axis=-1)
 
 
-def _spread(rng: np.random.Generator, n: int, box: tuple[float, float, float, float], spacing: float, what: str) -> np.ndarray:
+def _spread(
+    rng: np.random.Generator, n: int, box: tuple[float, float, float, float], spacing: float, what: str, noun: str
+) -> np.ndarray:
     """n points (n, 2) uniform in box, pairwise >= spacing apart (bounded rejection sampling)."""
     x0, x1, y0, y1 = box
     cells = int(np.floor((x1 - x0) / spacing) + 1) * int(np.floor((y1 - y0) / spacing) + 1)
     if n > cells:
         raise ValueError(
-            f"{what}: {n} do not fit {spacing} m apart in x [{x0}, {x1}], y [{y0}, {y1}] (at most {cells})"
+            f"{what}: {n} {noun} do not fit {spacing} m apart in x [{x0}, {x1}], y [{y0}, {y1}] (at most {cells})"
         )
-    for _ in range(100):
+    for _ in range(5):  # random sequential addition; dense teams rarely fit this way
         pts = np.zeros((0, 2))
-        for _ in range(200 * n):
+        for _ in range(30 * n):
             p = rng.uniform((x0, y0), (x1, y1))
             if pts.shape[0] == 0 or np.min(np.hypot(*(pts - p).T)) >= spacing:
                 pts = np.vstack([pts, p])
                 if pts.shape[0] == n:
                     return pts
-    # Dense teams: fall back to a jittered grid, which always fits.
+    # Dense teams: random cells of a grid of that spacing, which always fits.
     nx = int(np.floor((x1 - x0) / spacing) + 1)
-    cells_xy = np.stack(np.meshgrid(np.arange(nx), np.arange(cells // nx)), -1).reshape(-1, 2)
-    pick = rng.permutation(cells_xy.shape[0])[:n]
-    return np.array([x0, y0]) + cells_xy[pick] * spacing
+    ny = cells // nx
+    grid = np.stack(np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij"), -1).reshape(-1, 2)
+    return np.array([x0, y0]) + grid[rng.permutation(grid.shape[0])[:n]] * spacing
 
 
 class _Task:
@@ -86,7 +88,7 @@ class _Task:
 
     def spawn(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Start poses (n, 3): spread in the spawn area, random headings."""
-        pts = _spread(rng, n, self.spawn_box, self.spawn_spacing, f"{self.name} spawn area: {n} robots")
+        pts = _spread(rng, n, self.spawn_box, self.spawn_spacing, f"{self.name} spawn area", "robots")
         return np.column_stack([pts, rng.uniform(-np.pi, np.pi, n)])
 
     def observe(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -142,7 +144,7 @@ class PredatorCapturePrey(_Task):
 
     def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
         """Place env b's prey (its team's capabilities ``caps`` (n, 2) are not needed here)."""
-        state["prey"][b] = _spread(rng, self.n_prey, self.prey_box, self.prey_spacing, f"pcp prey: {self.n_prey} prey")
+        state["prey"][b] = _spread(rng, self.n_prey, self.prey_box, self.prey_spacing, "pcp prey area", "prey")
         state["sensed"][b] = False
         state["captured"][b] = False
 

@@ -92,3 +92,28 @@ def test_filtered_batch_equals_filtered_single_teams(tier, rng):
             s.tick(go_to_goal(s.points, g))
     assert batch.interventions.min() > 0
     np.testing.assert_allclose(batch.poses, np.concatenate([s.poses for s in singles]), atol=1e-6)
+
+
+def test_team_sizes_change_between_episodes(rng):
+    """Teams that keep their size keep running; a resized team restarts and equals a fresh world."""
+    batch = BatchWorld([3, 2, 3])
+    starts = _starts(rng, [3, 2, 3])
+    batch.reset(np.concatenate(starts))
+    for _ in range(5):
+        batch.step(np.full((8, 2), [0.1, 0.5]))
+    kept = batch.poses[:3].copy(), batch.poses[5:].copy()
+    batch.set_team_sizes([3, 4, 3])
+    new = _starts(rng, [4])[0]
+    full = np.concatenate([kept[0], new, kept[1]])
+    batch.reset(full, teams=[1])
+    np.testing.assert_array_equal(batch.poses[:3], kept[0])
+    np.testing.assert_array_equal(batch.poses[7:], kept[1])
+    ref = World(4)
+    ref.reset(new)
+    cmd = rng.uniform([-0.2, -3], [0.2, 3], (10, 2))
+    for _ in range(20):
+        batch.step(cmd)
+        ref.step(cmd[3:7])
+    np.testing.assert_array_equal(batch.poses[3:7], ref.poses)
+    with pytest.raises(ValueError, match=r"team_sizes must list 3 teams, got 2"):
+        batch.set_team_sizes([3, 3])

@@ -46,6 +46,11 @@ def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
     if isinstance(value, str) and value in ("train", "test"):
         return generate_coalitions(task, value, seed=COALITION_SEED)
     if isinstance(value, (str, Path)):
+        if not Path(value).is_file():
+            raise ValueError(
+                f"coalitions must be 'train', 'test', a YAML path or a non-empty list of teams, got {str(value)!r} "
+                "(no such file)"
+            )
         teams = load_coalitions(value)
     elif isinstance(value, Sequence) and len(value) > 0:
         teams = [resolve_team(t, task, f"coalitions[{i}]") for i, t in enumerate(value)]

@@ -1,0 +1,172 @@
+"""The PettingZoo environments: API, determinism, rewards, graphs, bad input."""
+
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test
+
+import comat
+from comat.envs import PcpEnv, make_env
+from comat.team import RobotSpec, TeamSpec, generate_coalitions, random_team
+
+TASKS = ["pcp", "hmt"]
+
+
+def _pick(task, split):
+    teams = generate_coalitions(task, split)
+    sizes = [t.size for t in teams]
+    mixed = max(teams, key=lambda t: min(np.bincount(t.type_ids(), minlength=2)))
+    return {"smallest": teams[int(np.argmin(sizes))], "largest": teams[int(np.argmax(sizes))], "mixed": mixed}
+
+
+CASES = [(task, split, kind) for task in TASKS for split in ("train", "test") for kind in ("smallest", "largest", "mixed")]
+
+
+@pytest.mark.parametrize("task,split,kind", CASES)
+def test_parallel_api(task, split, kind):
+    team = _pick(task, split)[kind]
+    env = make_env(f"{task}_v0", team=team, tier="unicycle", ticks_per_step=6)
+    parallel_api_test(env, num_cycles=90)
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_parallel_api_sixteen_robots(task):
+    team = random_team(np.random.default_rng(3), task, "train", 16)
+    env = make_env(f"{task}_v0", team=team, tier="unicycle", ticks_per_step=6)
+    parallel_api_test(env, num_cycles=90)
+    assert env.graph()["edge_attr"].shape == (16, 16, 5)
+
+
+def _episode(env, seed, action_seed, steps=None):
+    obs, infos = env.reset(seed=seed)
+    trace = [(obs, None, None, None, infos)]
+    rng = np.random.default_rng(action_seed)
+    n = 0
+    while env.agents and (steps is None or n < steps):
+        actions = {a: int(rng.integers(5)) for a in env.agents}
+        trace.append(env.step(actions))
+        n += 1
+    return trace
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_full_episode_determinism(task):
+    a = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1)
+    b = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1)
+    assert len(a) == len(b) > 60  # a whole episode, to the horizon
+    for step_a, step_b in zip(a, b):
+        for part_a, part_b in zip(step_a, step_b):
+            if part_a is None:
+                continue
+            assert part_a.keys() == part_b.keys()
+            for k in part_a:
+                if isinstance(part_a[k], dict):
+                    assert part_a[k] == part_b[k]
+                else:
+                    np.testing.assert_array_equal(part_a[k], part_b[k])
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_different_seeds_give_different_starts_and_teams(task):
+    env = make_env(f"{task}_v0", tier="unicycle")
+    starts, teams = [], []
+    for seed in range(6):
+        obs, _ = env.reset(seed=seed)
+        starts.append(obs["robot_0"][:4])
+        teams.append(env.team)
+    assert len({tuple(s) for s in starts}) == 6
+    assert len({t for t in teams}) > 1
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_reward_is_exactly_the_sum_of_its_terms(task):
+    env = make_env(f"{task}_v0", tier="unicycle")
+    trace = _episode(env, seed=3, action_seed=2, steps=40)
+    for _, rewards, _, _, infos in trace[1:]:
+        for agent, reward in rewards.items():
+            terms = [v for k, v in infos[agent].items() if k.startswith("reward/")]
+            assert len(terms) == 4
+            assert reward == sum(terms)  # bit for bit: the reward is built as this sum
+
+
+def test_episode_metrics_at_the_end():
+    env = make_env("pcp_v0", tier="unicycle", ticks_per_step=4)
+    trace = _episode(env, seed=0, action_seed=0)
+    last = trace[-1][4]["robot_0"]
+    for name in comat.envs.core.EPISODE_METRICS:
+        assert f"episode/{name}" in last
+    assert last["episode/steps"] == 80 and last["episode/collisions"] == 0
+    assert "episode/return" not in trace[-2][4]["robot_0"]
+
+
+def test_reset_with_an_explicit_team_and_observation_layout():
+    team = {"robots": [{"type": "capture", "capabilities": [0.0, 0.4]}, {"type": "sensing", "capabilities": [0.5, 0.0]}]}
+    env = make_env("pcp_v0", tier="unicycle")
+    obs, _ = env.reset(seed=0, options={"team": team})
+    assert env.agents == ["robot_0", "robot_1"]
+    o = obs["robot_0"]
+    assert o.shape == (13,)
+    np.testing.assert_allclose(o[4:6], [0, 1])  # capture one-hot
+    np.testing.assert_allclose(o[6:8], [0.0, 0.8])  # capabilities / 0.5
+    assert o[8] == 0  # capture robots never see prey
+    assert env.state().shape == env.state_space.shape
+
+
+def test_graph_inputs_any_size():
+    team = random_team(np.random.default_rng(0), "pcp", "train", 12)
+    env = make_env("pcp_v0", team=team, tier="unicycle")
+    env.reset(seed=0)
+    g = env.graph()
+    assert g["nodes"].shape == (12, 13) and g["edge_attr"].shape == (12, 12, 5)
+    assert not g["edge_mask"].diagonal().any() and g["edge_mask"].sum() == 12 * 11
+    i, j = 0, 1
+    p = env.core.poses()[0]
+    d = p[j, :2] - p[i, :2]
+    assert g["edge_attr"][i, j, 2] == pytest.approx(np.hypot(*d))
+    # Edge types are ordered type pairs: type_i * 2 + type_j.
+    t = team.type_ids()
+    assert g["edge_type"][i, j] == t[i] * 2 + t[j]
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(colour="red"), r"unknown option\(s\) \['colour'\] for pcp_v0; valid options:"),
+        (dict(tier="legs"), r"SimConfig.tier must be one of"),
+        (dict(coalitions="validation"), r"coalitions must be 'train', 'test', a YAML path or a non-empty list"),
+        (dict(team={"robots": []}), r"needs at least one robot of each type"),
+        (dict(team={"robots": [{"type": "sensing", "capabilities": [0.4, 0.0]}]}), r"missing \['capture'\]"),
+        (dict(team={"robots": [{"type": "sensing", "capabilities": [2.0, 0.0]}, {"type": "capture", "capabilities": [0.0, 0.3]}]}), r"sensing_radius_m must be in \[0.0, 1.0\]"),
+        (dict(n_prey=0), r"n_prey must be a positive integer, got 0"),
+    ],
+)
+def test_bad_constructor_options(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        make_env("pcp_v0", **kwargs)
+
+
+def test_unknown_env_id():
+    with pytest.raises(ValueError, match=r"env_id must be one of \('hmt_v0', 'pcp_v0'\), got 'soccer_v0'"):
+        make_env("soccer_v0")
+
+
+def test_too_many_robots_for_the_spawn_area():
+    team = random_team(np.random.default_rng(0), "hmt", "train", 30)
+    env = make_env("hmt_v0", team=team, tier="unicycle")
+    with pytest.raises(ValueError, match=r"hmt spawn area: 30 robots do not fit 0.3 m apart .* \(at most 18\)"):
+        env.reset(seed=0)
+
+
+def test_bad_actions():
+    env = make_env("pcp_v0", tier="unicycle")
+    env.reset(seed=0)
+    good = {a: 0 for a in env.agents}
+    with pytest.raises(ValueError, match=r"action of robot_0 must be an integer in \[0, 5\) .* got 7"):
+        env.step({**good, "robot_0": 7})
+    with pytest.raises(ValueError, match=r"missing \['robot_1'\]"):
+        env.step({k: v for k, v in good.items() if k != "robot_1"})
+    with pytest.raises(ValueError, match=r"not in the team \['robot_9'\]"):
+        env.step({**good, "robot_9": 0})
+    with pytest.raises(ValueError, match=r"larger than this environment's 2 agents"):
+        pair = TeamSpec("pcp", (RobotSpec("sensing", (0.4, 0)), RobotSpec("capture", (0, 0.4))))
+        small = PcpEnv(coalitions=[pair], tier="unicycle")
+        small.reset(seed=0, options={"team": random_team(np.random.default_rng(0), "pcp", "train", 5)})

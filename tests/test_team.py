@@ -1,0 +1,80 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from comat.team import (
+    CAPABILITY_RANGES,
+    SIZES,
+    TASK_TYPES,
+    RobotSpec,
+    TeamSpec,
+    generate_coalitions,
+    load_coalitions,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("task,split", sorted(CAPABILITY_RANGES))
+def test_sets_follow_the_paper(task, split):
+    teams = generate_coalitions(task, split)
+    assert len(teams) == 20
+    assert {t.size for t in teams} <= set(SIZES[split])
+    types = TASK_TYPES[task].types
+    for t in teams:
+        assert set(r.type for r in t.robots) == set(types)  # at least one of each type
+        for r in t.robots:
+            for value, (lo, hi) in zip(r.capabilities, CAPABILITY_RANGES[(task, split)][r.type]):
+                assert lo <= value <= hi
+
+
+def test_sets_are_reproducible_and_seed_dependent():
+    a = generate_coalitions("pcp", "train", seed=0)
+    assert a == generate_coalitions("pcp", "train", seed=0)
+    assert a != generate_coalitions("pcp", "train", seed=1)
+    assert a != generate_coalitions("pcp", "test", seed=0)
+
+
+@pytest.mark.parametrize("task,split", sorted(CAPABILITY_RANGES))
+def test_stored_files_equal_the_generator(task, split):
+    path = ROOT / "train" / "coalitions" / f"{task}_{split}.yaml"
+    assert load_coalitions(path) == generate_coalitions(task, split, seed=0), (
+        f"{path} is stale: run `comat coalitions`"
+    )
+
+
+def test_unseen_test_ranges_differ_from_training():
+    # PCP test sensing radii reach below the training range; HMT test payloads beyond it.
+    train = generate_coalitions("pcp", "train")
+    test = generate_coalitions("pcp", "test")
+    s_train = [r.capabilities[0] for t in train for r in t.robots if r.type == "sensing"]
+    s_test = [r.capabilities[0] for t in test for r in t.robots if r.type == "sensing"]
+    assert min(s_test) < min(s_train)
+
+
+@pytest.mark.parametrize(
+    "robots, match",
+    [
+        ((), r"needs at least one robot of each type \('sensing', 'capture'\), got an empty team"),
+        ((RobotSpec("sensing", (0.4, 0.0)),), r"missing \['capture'\]"),
+        ((RobotSpec("sensing", (0.4, 0.0)), RobotSpec("seeker", (0.0, 0.3))), r"robot 1: type must be one of"),
+        ((RobotSpec("sensing", (1.5, 0.0)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: sensing_radius_m must be in \[0.0, 1.0\] \(physical limit\), got 1.5"),
+        ((RobotSpec("sensing", (0.0, 0.0)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: a sensing robot needs sensing_radius_m > 0, got 0.0"),
+        ((RobotSpec("sensing", (0.4,)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: capabilities must be 2 numbers"),
+    ],
+)
+def test_bad_teams(robots, match):
+    with pytest.raises(ValueError, match=match):
+        TeamSpec("pcp", robots)
+
+
+def test_hmt_speed_limit_is_physical():
+    with pytest.raises(ValueError, match=r"speed_m must be in \[0.0, 0.488\]"):
+        TeamSpec("hmt", (RobotSpec("fast", (0.6, 5.0)), RobotSpec("slow", (0.1, 20.0))))
+
+
+def test_round_trip_through_dict():
+    team = generate_coalitions("hmt", "test")[3]
+    assert TeamSpec.from_dict(team.to_dict()) == team
+    np.testing.assert_array_equal(team.capability_array().shape, (team.size, 2))
