@@ -46,7 +46,7 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.demo import run_demo
 
-    return run_demo(tier=args.tier, robots=args.robots, episodes=args.episodes, seed=args.seed, out=args.out)
+    return run_demo(tier=args.tier, robots=args.robots, episodes=args.episodes, seed=args.seed, out=args.out, part=args.part)
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -94,13 +94,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="train/coalitions", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_coalitions)
 
-    p = sub.add_parser("demo", help="robots crossing paths under the safety filter, with a summary",
-                       description="Teams of robots swap places through the arena centre, every command "
-                       "passing the barrier filter; the same episodes without the filter show what it prevents.")
+    p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks played by a scripted policy",
+                       description="1) Teams of robots swap places through the arena centre, every command passing "
+                       "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
+                       "heuristic and a random policy on PCP and HMT, training and unseen coalitions.")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels", help="dynamics tier (default: %(default)s)")
     p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
-    p.add_argument("--episodes", type=int, default=4, help="teams simulated side by side (default: %(default)s)")
+    p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--part", choices=["all", "physics", "tasks"], default="all", help="which part to run (default: all)")
     p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
     p.set_defaults(func=_cmd_demo)
 

@@ -24,11 +24,20 @@ def test_mjcf_command_writes_the_golden_files(tmp_path, capsys):
 
 def test_demo_runs_safely_and_writes_a_summary(tmp_path, capsys):
     out = tmp_path / "demo.json"
-    assert main(["demo", "--tier", "unicycle", "--robots", "4", "--episodes", "2", "--out", str(out)]) == 0
-    summary = json.loads(out.read_text())["results"]
-    assert summary["safety filter"]["MuJoCo robot-robot contact ticks"] == 0
-    assert summary["no filter"]["MuJoCo robot-robot contact ticks"] > 0
+    argv = ["demo", "--tier", "unicycle", "--robots", "4", "--episodes", "1", "--part", "physics", "--out", str(out)]
+    assert main(argv) == 0
+    physics = json.loads(out.read_text())["physics"]["results"]
+    assert physics["safety filter"]["MuJoCo robot-robot contact ticks"] == 0
+    assert physics["no filter"]["MuJoCo robot-robot contact ticks"] > 0
     assert "safety filter" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_demo_tasks_part(tmp_path):
+    out = tmp_path / "demo.json"
+    assert main(["demo", "--tier", "unicycle", "--episodes", "1", "--part", "tasks", "--out", str(out)]) == 0
+    heuristic = [r for r in json.loads(out.read_text())["tasks"]["rows"] if r["policy"] == "heuristic"]
+    assert len(heuristic) == 4 and all(r["success"] == 1.0 for r in heuristic)
 
 
 def test_bad_arguments_get_a_clear_error(capsys):

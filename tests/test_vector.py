@@ -5,6 +5,7 @@ import pytest
 
 from comat.envs import make_env, make_vec_env
 from comat.envs.heuristics import heuristic_actions, random_actions
+from comat.envs.rollout import episodes_per_team
 from comat.team import generate_coalitions
 
 
@@ -75,16 +76,7 @@ def test_bad_vector_actions():
 def _heuristic_episodes(task: str, tier: str):
     teams = generate_coalitions(task, "train")
     env = make_vec_env(f"{task}_v0", len(teams), seed=0, tier=tier, coalitions=teams)
-    # One episode per coalition: fix env b to team b.
-    env._draw = lambda b: teams[b]
-    env.reset()
-    results = {}
-    while len(results) < len(teams):
-        _, _, _, _, info = env.step(heuristic_actions(env.core))
-        if "_episode" in info:
-            for b in np.flatnonzero(info["_episode"]):
-                results.setdefault(int(b), {k: v[b] for k, v in info["episode"].items()})
-    return list(results.values())
+    return episodes_per_team(env, lambda e: heuristic_actions(e.core), teams)
 
 
 def _check_heuristic(results):
