@@ -50,7 +50,7 @@ def test_autoreset_same_step():
     env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle", ticks_per_step=2)
     env.reset()
     rng = np.random.default_rng(0)
-    for k in range(80):
+    for _ in range(80):
         obs, rewards, term, trunc, info = env.step(random_actions(rng, env.agent_mask))
     assert trunc.all() and info["_episode"].all()
     assert (info["episode"]["steps"] == 80).all()

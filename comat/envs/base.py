@@ -9,7 +9,6 @@ part of an agent's name.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,7 +21,7 @@ from comat.config import SafetyConfig, SimConfig
 from comat.envs.core import TaskCore
 from comat.team import TeamSpec, generate_coalitions, load_coalitions
 
-__all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team"]
+__all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team", "team_source"]
 
 COALITION_SEED = 0
 """Seed of the paper's composition sets (train/coalitions/*.yaml hold the same teams)."""
@@ -62,6 +61,16 @@ def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
     return teams
 
 
+def team_source(task: str, coalitions: Any, team: Any, max_robots: Any) -> tuple[list[TeamSpec], TeamSpec | None, int]:
+    """Checked coalition set, fixed team (or None) and number of robot slots for ``task``."""
+    teams = resolve_coalitions(coalitions, task)
+    fixed = None if team is None else resolve_team(team, task)
+    largest = max([t.size for t in teams] + ([fixed.size] if fixed else []))
+    if max_robots is not None and (isinstance(max_robots, bool) or not isinstance(max_robots, int) or max_robots < largest):
+        raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
+    return teams, fixed, max_robots or largest
+
+
 class TaskEnv(ParallelEnv):
     """A Robotarium task as a PettingZoo parallel environment (subclasses set ``task_cls``).
 
@@ -94,37 +103,23 @@ class TaskEnv(ParallelEnv):
         **task_options: Any,
     ) -> None:
         self.task = self.task_cls(**task_options)
-        name = self.task.name
-        self.coalitions = resolve_coalitions(coalitions, name)
-        self.fixed_team = None if team is None else resolve_team(team, name)
-        largest = max([t.size for t in self.coalitions] + ([self.fixed_team.size] if self.fixed_team else []))
-        if max_robots is not None and (not isinstance(max_robots, int) or max_robots < largest):
-            raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
-        if ticks_per_step is not None and (isinstance(ticks_per_step, bool) or not isinstance(ticks_per_step, int) or ticks_per_step < 1):
-            raise ValueError(f"ticks_per_step must be a positive integer, got {ticks_per_step!r}")
-        if not isinstance(state_robots, int) or state_robots < 1:
-            raise ValueError(f"state_robots must be a positive integer, got {state_robots!r}")
+        self.coalitions, self.fixed_team, slots = team_source(self.task.name, coalitions, team, max_robots)
         sim = sim or SimConfig(tier=tier)
-        self.core = TaskCore(self.task, 1, max_robots or largest, sim, safety, ticks_per_step)
+        self.core = TaskCore(self.task, 1, slots, sim, safety, ticks_per_step, state_robots)
         self.possible_agents = [f"robot_{i}" for i in range(self.core.N)]
         self.agents: list[str] = []
-        self.state_robots = state_robots
         self._np_random = np.random.default_rng()
-        self._obs_size = self.task.obs_size()
-        self._state_size = self.task.global_features(self.core.state).shape[-1] + state_robots * self._obs_size
+        # One space object for every agent (PettingZoo wants the same object on every call).
+        self._observation_space = spaces.Box(-np.inf, np.inf, (self.task.obs_size(),), np.float64)
+        self._action_space = spaces.Discrete(5)
+        self.state_space = spaces.Box(-np.inf, np.inf, (self.core.state_size(),), np.float64)
 
     # -- spaces ---------------------------------------------------------------------------------
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent: str) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, (self._obs_size,), np.float64)
+        return self._observation_space
 
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent: str) -> spaces.Discrete:
-        return spaces.Discrete(5)
-
-    @property
-    def state_space(self) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, (self._state_size,), np.float64)
+        return self._action_space
 
     # -- API --------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -182,7 +177,7 @@ class TaskEnv(ParallelEnv):
 
     def state(self) -> np.ndarray:
         """Centralized state: task-global features, then ``state_robots`` robots' observations."""
-        return self.core.global_state(self.state_robots)[0]
+        return self.core.global_state()[0]
 
     def graph(self) -> dict[str, np.ndarray]:
         """This team's graph (see :meth:`TaskCore.graph`), unpadded: N = team size."""

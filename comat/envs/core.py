@@ -78,6 +78,7 @@ class TaskCore:
         sim: physics settings.
         safety: barrier filter settings.
         ticks_per_step: control ticks per env step (default: the task's, PCP 29, HMT 74).
+        state_robots: robots covered by :meth:`global_state`.
     """
 
     def __init__(
@@ -88,8 +89,13 @@ class TaskCore:
         sim: SimConfig | None = None,
         safety: SafetyConfig | None = None,
         ticks_per_step: int | None = None,
+        state_robots: int = 8,
     ) -> None:
+        for name, value in (("ticks_per_step", ticks_per_step), ("state_robots", state_robots)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
         self.task = task
+        self.state_robots = state_robots
         self.B, self.N = int(num_envs), int(max_robots)
         self.sim_config = sim or SimConfig()
         self.safety_config = safety or SafetyConfig()
@@ -239,8 +245,13 @@ class TaskCore:
             "mask": self.mask.copy(),
         }
 
-    def global_state(self, max_robots: int) -> np.ndarray:
-        """(B, G + max_robots·D) centralized state: task features, then robots' observations."""
+    def state_size(self) -> int:
+        """Length of :meth:`global_state` rows."""
+        return self.task.global_features(self.state).shape[-1] + self.state_robots * self.task.obs_size()
+
+    def global_state(self) -> np.ndarray:
+        """(B, G + state_robots·D) centralized state: task features, then robots' observations."""
+        max_robots = self.state_robots
         obs = self.observe()
         if self.N > max_robots and self.mask[:, max_robots:].any():
             raise ValueError(

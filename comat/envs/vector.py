@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from comat.config import SafetyConfig, SimConfig
-from comat.envs.base import resolve_coalitions, resolve_team
+from comat.envs.base import team_source
 from comat.envs.core import EPISODE_METRICS, TaskCore
 from comat.team import TeamSpec
 
@@ -55,13 +55,8 @@ class VectorEnv:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self.task = task
         self.num_envs = num_envs
-        self.coalitions = resolve_coalitions(coalitions, task.name)
-        self.fixed_team = None if team is None else resolve_team(team, task.name)
-        largest = max([t.size for t in self.coalitions] + ([self.fixed_team.size] if self.fixed_team else []))
-        if max_robots is not None and (not isinstance(max_robots, int) or max_robots < largest):
-            raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
-        self.state_robots = state_robots
-        self.core = TaskCore(task, num_envs, max_robots or largest, sim or SimConfig(tier=tier), safety, ticks_per_step)
+        self.coalitions, self.fixed_team, slots = team_source(task.name, coalitions, team, max_robots)
+        self.core = TaskCore(task, num_envs, slots, sim or SimConfig(tier=tier), safety, ticks_per_step, state_robots)
         self.max_robots = self.core.N
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (task.obs_size(),), np.float64)
         self.single_action_space = spaces.Discrete(5)
@@ -131,7 +126,7 @@ class VectorEnv:
 
     def state(self) -> np.ndarray:
         """(B, S) centralized states (see :meth:`TaskEnv.state`)."""
-        return self.core.global_state(self.state_robots)
+        return self.core.global_state()
 
     def teams(self) -> list[TeamSpec]:
         """The current team of every environment."""
