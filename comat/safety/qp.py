@@ -16,6 +16,7 @@ from comat.safety.constraints import Layout, RowValues, make_layout, row_values
 __all__ = ["BarrierQP", "QPResult", "matrix_of"]
 
 _SOLVED = osqp.SolverStatus.OSQP_SOLVED
+_REFINE_MAX_TEAMS = 8
 
 
 def matrix_of(layout: Layout) -> tuple[sp.csc_matrix, np.ndarray]:
@@ -118,10 +119,12 @@ class BarrierQP:
         ext.solve()
         info = ext.info
         c_time = float(info.update_time + info.solve_time + info.polish_time)
-        if info.status_val == _SOLVED and info.status_polish != 1:
+        if info.status_val == _SOLVED and info.status_polish != 1 and self.layout.teams.n_teams <= _REFINE_MAX_TEAMS:
             # Polishing missed the active set: continue from this answer to eps/100 (which
             # usually lets the polish find it), so the result is the optimum to ~1e-5 whatever
-            # else shares the problem (batched == single); then restore the tolerance.
+            # else shares the problem (batched == single); then restore the tolerance. Larger
+            # problems (dense pile-ups of many teams) skip this — it costs more than the rest
+            # of the tick — and keep the repaired answer, within eps of the optimum.
             self._solver.update_settings(eps_abs=cfg.eps * 1e-2, eps_rel=cfg.eps * 1e-2)
             ext.solve()
             self._solver.update_settings(eps_abs=cfg.eps, eps_rel=cfg.eps)
