@@ -1,8 +1,7 @@
 """The ``comat`` command line: ``comat <command> --help`` documents each command.
 
-Commands available now: ``mjcf`` (write the golden MJCF files), ``demo`` (robots crossing
-paths under the safety filter), ``bench sim`` and ``bench fidelity``. Training, evaluation,
-rollouts and export arrive with their issues.
+Commands: ``train`` (COMAT, MAT, MAPPO, QMIX on HMT or PCP), ``demo``, ``bench``
+(sim, env, fidelity, learn), ``mjcf`` (the golden MJCF files), ``coalitions``.
 """
 
 from __future__ import annotations
@@ -47,6 +46,39 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.demo import run_demo
 
     return run_demo(tier=args.tier, robots=args.robots, episodes=args.episodes, seed=args.seed, out=args.out, part=args.part)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from comat.rl.checkpoint import load_checkpoint
+    from comat.rl.config import RunConfig, load_preset, resolve
+    from comat.rl.runner import train
+
+    if args.resume:
+        if args.out is None:
+            raise ValueError("--resume needs --out, the folder of the run to continue")
+        data = load_checkpoint(Path(args.out) / "checkpoint.pt", algo=args.algo, task=args.task)
+        config = RunConfig.from_dict(data["config"])
+        for name in ("seed", "tier"):
+            given = getattr(args, name)
+            if given is not None and given != getattr(config, name):
+                raise ValueError(f"--{name} {given!r} does not match the run being resumed ({getattr(config, name)!r})")
+        if args.steps is not None:
+            config = RunConfig.from_dict({**config.to_dict(), "total_env_steps": args.steps})
+    else:
+        if args.algo is None or args.task is None:
+            raise ValueError("--algo and --task are required for a new run")
+        config = resolve(load_preset(args.preset), args.algo, args.task, args.seed, args.tier, args.steps)
+    out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
+    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier), seed {config.seed}, "
+          f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
+    summary = train(config, out, resume=args.resume, quiet=args.quiet)
+    ev = summary["eval_train"]
+    print(f"done: {summary['env_steps']:,} env steps in {summary['wall_s'] / 60:.1f} min; on the training coalitions "
+          f"(deterministic): return {ev['return']:.2f}, completion {ev['completion']:.0%}, steps {ev['steps']:.1f}, "
+          f"collisions {ev['collisions']:.2f}; run folder {out}")
+    return 0
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -106,6 +138,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
     p.set_defaults(func=_cmd_demo)
 
+    p = sub.add_parser("train", help="train COMAT, MAT, MAPPO or QMIX on HMT or PCP",
+                       description="Train a policy on the task's training coalitions (U_train), with periodic "
+                       "evaluation, CSV + TensorBoard logs, atomic checkpoints and --resume. Settings come from a "
+                       "preset in train/configs/ (values only); the resolved config is written to the run folder.")
+    p.add_argument("--algo", choices=["comat", "mat", "mappo", "qmix"], help="algorithm (required for a new run)")
+    p.add_argument("--task", choices=["hmt", "pcp"], help="task (required for a new run)")
+    p.add_argument("--preset", default="paper",
+                   help="preset name in train/configs/ (paper, quick) or a YAML path (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
+    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="dynamics tier (default: the preset's)")
+    p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")
+    p.add_argument("--out", default=None, help="run folder (default: runs/<algo>_<task>_s<seed>)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=_cmd_train)
+
     p = sub.add_parser("bench", help="benchmarks (JSON + table)", description="Performance and fidelity benchmarks.")
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
     b = bsub.add_parser("sim", help="µs per control tick vs team size, batch and tier; vs the Robotarium simulator",
@@ -143,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, FileExistsError) as exc:
         print(f"comat {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

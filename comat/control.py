@@ -106,6 +106,16 @@ class SafeTeams:
         self.interventions[sel] = 0
         self.fallbacks[sel] = 0
 
+    def forget_solver_state(self) -> None:
+        """Drop the OSQP problems (their adapted step sizes) and the filter's warm-start duals.
+
+        After this the next ticks depend only on poses and commands, not on earlier ticks:
+        environments call it when every team is reset, so a run resumed from a checkpoint
+        takes exactly the steps of the run that was not interrupted.
+        """
+        self._qp_cache.clear()
+        self.filter = SafetyFilter(self.filter.team_sizes, self.safety_config, self.world.profile, self._qp_cache)
+
     def set_team_sizes(self, team_sizes: Sequence[int]) -> None:
         """New team sizes (batched world only): teams whose size changed must be reset next.
 

@@ -153,6 +153,8 @@ class TaskCore:
         for b, p in starts.items():
             flat[self._flat[b, : p.shape[0]]] = p
         self.safe.reset(flat, teams=envs)
+        if envs.size == self.B:  # every episode starts afresh: so does the solver (exact resume)
+            self.safe.forget_solver_state()
         self.steps[envs] = 0
         self.stats.zero(envs)
         self._last_contact = np.zeros(self.safe.world.layout.n_robots, dtype=bool)

@@ -6,8 +6,9 @@ N = the largest team the environment may get, with ``agent_mask`` (B, N) marking
 
 Autoreset is *same-step*: when an environment's episode ends, the step that ends it already
 returns the first observation of its next episode (new team, new start); the finished
-episode's last observation is in ``info["final_obs"]`` and its metrics in ``info["episode"]``,
-both valid where ``info["_episode"]`` is True.
+episode's last observation is in ``info["final_obs"]`` (its global state in
+``info["final_state"]`` when every team fits the state's ``state_robots`` slots) and its metrics in ``info["episode"]``, all valid where
+``info["_episode"]`` is True.
 """
 
 from __future__ import annotations
@@ -71,17 +72,36 @@ class VectorEnv:
             return self.fixed_team
         return self.coalitions[int(self._rngs[b].integers(len(self.coalitions)))]
 
+    def rng_state(self) -> list[dict]:
+        """The environments' generator states (for checkpoints)."""
+        return [rng.bit_generator.state for rng in self._rngs]
+
+    def set_rng_state(self, states: list[dict]) -> None:
+        """Restore generator states from :meth:`rng_state`."""
+        if len(states) != self.num_envs:
+            raise ValueError(f"expected {self.num_envs} generator states (one per environment), got {len(states)}")
+        for rng, state in zip(self._rngs, states):
+            rng.bit_generator.state = state
+
     @property
     def agent_mask(self) -> np.ndarray:
         """(B, N) True where a slot holds a robot of the current team."""
         return self.core.mask.copy()
 
-    def reset(self, seed: int | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        """Start a new episode in every environment; returns obs (B, N, D) and info."""
+    def reset(self, seed: int | None = None, teams: list[TeamSpec] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start a new episode in every environment; returns obs (B, N, D) and info.
+
+        ``teams`` (one per environment) sets this episode's teams instead of drawing them
+        (evaluation: every coalition once); later episodes are drawn as usual.
+        """
         if seed is not None:
             self._seed(seed)
         envs = np.arange(self.num_envs)
-        self.core.reset(envs, [self._draw(b) for b in envs], [self._rngs[b] for b in envs])
+        if teams is None:
+            teams = [self._draw(b) for b in envs]
+        elif len(teams) != self.num_envs or not all(isinstance(t, TeamSpec) for t in teams):
+            raise ValueError(f"teams must be a list of {self.num_envs} TeamSpec (one per environment), got {teams!r:.200}")
+        self.core.reset(envs, list(teams), [self._rngs[b] for b in envs])
         self._started = True
         return self.core.observe(), self._info()
 
@@ -90,7 +110,8 @@ class VectorEnv:
 
         Returns obs (B, N, D), rewards (B,), terminated (B,), truncated (B,) and info with
         ``agent_mask``, ``reward/<term>`` (B,), and for finished episodes ``episode``
-        (metric -> (B,)), ``final_obs`` (B, N, D) and the mask ``_episode`` (B,).
+        (metric -> (B,)), ``final_obs`` (B, N, D), ``final_state`` (B, S) and the mask
+        ``_episode`` (B,).
         """
         if not self._started:
             raise RuntimeError("call reset() before step()")
@@ -107,6 +128,9 @@ class VectorEnv:
         info = {f"reward/{k}": v for k, v in res.terms.items()}
         if done.any():
             final_obs = self.core.observe()
+            # The state covers state_robots slots; larger teams (COMAT only) have none.
+            fits = not self.core.mask[:, self.core.state_robots :].any()
+            final_state = self.core.global_state() if fits else None
             metrics = {name: np.zeros(B) for name in EPISODE_METRICS}
             envs = np.flatnonzero(done)
             for b in envs:
@@ -114,6 +138,8 @@ class VectorEnv:
                     metrics[name][b] = value
             self.core.reset(envs, [self._draw(b) for b in envs], [self._rngs[b] for b in envs])
             info.update({"episode": metrics, "_episode": done.copy(), "final_obs": final_obs})
+            if final_state is not None:
+                info["final_state"] = final_state
         info.update(self._info())
         return self.core.observe(), res.rewards, res.terminated, res.truncated, info
 

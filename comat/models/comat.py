@@ -1,0 +1,161 @@
+"""COMAT: a HEAT graph-attention encoder and a capability-oriented autoregressive decoder.
+
+Encoder (paper eq. 1–3). The team is a directed graph with self-loops; node types are robot
+types, edge types ordered type pairs (type_i·T + type_j), edge features robot j seen from
+robot i (``comat.models.features.edge_features``). A HEAT block:
+
+    x̃_i   = LeakyReLU(W_{type(i)} x_i)                      type-specific node transform
+    ẽ_ij  = [LeakyReLU(W_a e_ij) ‖ LeakyReLU(E[type_ij])]   edge features ‖ edge-type embedding
+    α^k_ij = softmax_j LeakyReLU(â_k · [x̃_i ‖ ẽ_ij ‖ x̃_j])  over i's neighbours, K heads
+    ô_i   = 1/K Σ_k Σ_j α^k_ij · W_h [ẽ_ij ‖ x̃_j]             heads averaged
+
+Blocks are stacked with a residual and LayerNorm. The critic is an MLP on ô_i (one value per
+robot).
+
+Decoder (eq. 4–5). Tokens are the start token a⁰ and the previous robots' actions. θ¹, the
+action-embedding block: token embedding, K-head causal self-attention, two linear layers. θ²:
+K-head attention with queries ô^{0:m} and keys/values the embedded actions, masked so robot m
+sees actions 0..m−1. Decision layer: one actor head per robot type on [h_m ‖ c_m] (capability
+vector). No weight depends on the team size; masks are built per forward pass.
+
+Shapes: obs (B, N, D_obs), mask (B, N); embedding E; T types; C capabilities; A = 5 actions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from comat.models.autoregressive import AutoregressivePolicy
+from comat.models.features import ObsLayout, edge_features
+from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
+
+__all__ = ["Comat", "ComatConfig"]
+
+
+@dataclass(frozen=True)
+class ComatConfig:
+    """COMAT sizes."""
+
+    embed: int = 64
+    """Embedding width E of node features, attention and decoder."""
+    heads: int = 4
+    """Attention heads K (HEAT and decoder)."""
+    heat_blocks: int = 2
+    """Stacked HEAT blocks in the encoder."""
+    edge_embed: int = 32
+    """Width of the edge-feature and edge-type embeddings."""
+
+
+class HEATBlock(nn.Module):
+    """One heterogeneous edge-enhanced graph-attention layer (dense, (B, N, N) edges).
+
+    The message W_h [ẽ_ij ‖ x̃_j] is linear, so it is applied after the attention-weighted sum
+    over neighbours (Σ_j α_ij W x_ij = W Σ_j α_ij x_ij): no (B, N, N, E) tensor is built. The
+    edge-type embedding ẽ^type has one row per ordered type pair, so its attention score and
+    its share of the message are looked up per pair rather than computed per edge.
+    """
+
+    def __init__(self, d_in: int, d: int, n_types: int, d_edge: int, heads: int) -> None:
+        super().__init__()
+        self.n_types, self.heads = n_types, heads
+        self.node = nn.ModuleList(init_linear(nn.Linear(d_in, d, bias=False)) for _ in range(n_types))
+        self.edge_attr = init_linear(nn.Linear(5, d_edge, bias=False))
+        self.edge_type = nn.Embedding(n_types * n_types, d_edge)
+        # â · [x̃_i ‖ ẽ^attr_ij ‖ ẽ^type_ij ‖ x̃_j], split by part.
+        self.att_i = init_linear(nn.Linear(d, heads, bias=False))
+        self.att_attr = init_linear(nn.Linear(d_edge, heads, bias=False))
+        self.att_type = init_linear(nn.Linear(d_edge, heads, bias=False))
+        self.att_j = init_linear(nn.Linear(d, heads, bias=False))
+        # W_h [ẽ^attr_ij ‖ ẽ^type_ij ‖ x̃_j], split by part.
+        self.msg_attr = init_linear(nn.Linear(d_edge, d, bias=False))
+        self.msg_type = init_linear(nn.Linear(d_edge, d, bias=False))
+        self.msg_j = init_linear(nn.Linear(d, d, bias=False))
+
+    def forward(self, x, types, edge_attr, edge_type, edge_mask) -> torch.Tensor:
+        """x (B, N, d_in) -> (B, N, d)."""
+        xt = sum(torch.where((types == t)[..., None], layer(x), 0.0) for t, layer in enumerate(self.node))
+        xt = F.leaky_relu(xt, 0.2)
+        ea = F.leaky_relu(self.edge_attr(edge_attr), 0.2)  # (B, N, N, d_edge)
+        et = F.leaky_relu(self.edge_type.weight, 0.2)  # (T², d_edge): one row per type pair
+        score = (self.att_i(xt)[:, :, None] + self.att_attr(ea) + self.att_type(et)[edge_type]
+                 + self.att_j(xt)[:, None])
+        score = F.leaky_relu(score, 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
+        alpha = torch.softmax(score, dim=2).nan_to_num(0.0).mean(-1)  # (B, N, N): heads averaged
+        pair = F.one_hot(edge_type, et.shape[0]).to(alpha.dtype)  # (B, N, N, T²)
+        w = alpha[..., None]
+        # Elementwise weighted sums: tiny batched matmuls are slower on CPU.
+        return (self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et)
+                + self.msg_j(alpha @ xt))
+
+
+class Comat(AutoregressivePolicy):
+    """COMAT policy for a task's observation layout (see module docstring)."""
+
+    def __init__(self, layout: ObsLayout, config: ComatConfig | None = None) -> None:
+        super().__init__()
+        cfg = config or ComatConfig()
+        self.layout, self.config = layout, cfg
+        E, K, T = cfg.embed, cfg.heads, layout.n_types
+        self.heat = nn.ModuleList(
+            HEATBlock(layout.obs_dim if k == 0 else E, E, T, cfg.edge_embed, K) for k in range(cfg.heat_blocks)
+        )
+        self.heat_norm = nn.ModuleList(nn.LayerNorm(E) for _ in range(cfg.heat_blocks))
+        self.critic = mlp([E, E, 1])
+        # θ¹: action embedding block.
+        self.token = nn.Sequential(init_linear(nn.Linear(self.n_actions + 1, E, bias=False)), nn.ReLU())
+        self.self_attn = Attention(E, K)
+        self.ln1, self.ln2 = nn.LayerNorm(E), nn.LayerNorm(E)
+        self.fc = mlp([E, E, E])
+        # θ²: robot representations attend to the embedded actions.
+        self.cross_attn = Attention(E, K)
+        self.ln3, self.ln4 = nn.LayerNorm(E), nn.LayerNorm(E)
+        self.fc2 = mlp([E, E, E])
+        # Decision layer: one actor head per robot type, on [h_m ‖ c_m].
+        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T)
+
+    # -- encoder ------------------------------------------------------------------------------------
+    def encode(self, obs, mask):
+        edge_attr, edge_type, edge_mask = edge_features(obs, mask, self.layout)
+        types = self.layout.types(obs)
+        h = obs
+        for k, (block, norm) in enumerate(zip(self.heat, self.heat_norm)):
+            out = block(h, types, edge_attr, edge_type, edge_mask)
+            h = norm(out if k == 0 else h + out)
+        return h, self.critic(h)[..., 0]
+
+    # -- decoder ------------------------------------------------------------------------------------
+    def _actor(self, h, obs) -> torch.Tensor:
+        x = torch.cat([h, self.layout.capabilities(obs)], -1)
+        return self.heads(x, obs[..., 4 : 4 + self.layout.n_types])
+
+    def _embed_actions(self, e, attended) -> torch.Tensor:
+        x = self.ln1(e + attended)
+        return self.ln2(x + self.fc(x))
+
+    def _decide(self, rep, attended, obs) -> torch.Tensor:
+        h = self.ln3(rep + attended)
+        h = self.ln4(h + self.fc2(h))
+        return self._actor(h, obs)
+
+    def decode_all(self, rep, tokens, obs, mask):
+        L = tokens.shape[1]
+        m = causal(L, tokens.device)[None]
+        e = self.token(tokens)
+        a_hat = self._embed_actions(e, self.self_attn(e, e, e, m))
+        return self._decide(rep, self.cross_attn(rep, a_hat, a_hat, m), obs)
+
+    def decode_init(self, rep):
+        # Queries of θ² for every robot in one matmul; caches of both attentions.
+        N = rep.shape[1]
+        return KVCache(N), KVCache(N), self.cross_attn.project_query(rep)
+
+    def decode_step(self, state, rep_m, token_m, obs_m, m: int):
+        self_cache, cross_cache, cross_q = state
+        e = self.token(token_m)
+        a_hat = self._embed_actions(e, self.self_attn.step(self.self_attn.project_query(e), e, e, self_cache))
+        attended = self.cross_attn.step(cross_q[:, :, m : m + 1], a_hat, a_hat, cross_cache)
+        return self._decide(rep_m, attended, obs_m)[:, 0]

@@ -1,0 +1,68 @@
+"""What the models read: padded observations and a mask, decoded into types, capabilities, graphs.
+
+Every model takes ``obs`` (B, N, D) and ``mask`` (B, N) (True for real robots, padded slots at
+the end). The task's observation layout (``comat/task_logic.py``) starts with
+[x, y, cos θ, sin θ | type one-hot (T) | capabilities (C) | task features], so the team graph
+(relative positions, distances, relative headings, ordered type pairs) is rebuilt from the
+observations themselves — identical to ``env.graph()`` — and no input depends on N.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+__all__ = ["ObsLayout", "edge_features"]
+
+
+@dataclass(frozen=True)
+class ObsLayout:
+    """Where things are in an observation vector.
+
+    Attributes:
+        obs_dim: D.
+        n_types: T, robot types of the task.
+        n_caps: C, capability dimensions.
+    """
+
+    obs_dim: int
+    n_types: int
+    n_caps: int
+
+    def types(self, obs: torch.Tensor) -> torch.Tensor:
+        """(B, N) type ids from the one-hot block."""
+        return obs[..., 4 : 4 + self.n_types].argmax(-1)
+
+    def capabilities(self, obs: torch.Tensor) -> torch.Tensor:
+        """(B, N, C) scaled capability vectors."""
+        return obs[..., 4 + self.n_types : 4 + self.n_types + self.n_caps]
+
+    @classmethod
+    def for_task(cls, task) -> ObsLayout:
+        return cls(task.obs_size(), len(task.types), len(task.capabilities))
+
+
+def edge_features(obs: torch.Tensor, mask: torch.Tensor, layout: ObsLayout) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Dense team graph with self-loops, from observations.
+
+    Returns:
+        edge_attr (B, N, N, 5): for [b, i, j], robot j seen from robot i — position in i's
+            frame (2), distance (1), relative heading cos, sin (2); (0, 0, 0, 1, 0) on the diagonal.
+        edge_type (B, N, N): type_i · T + type_j.
+        edge_mask (B, N, N): both robots real (self-loops included).
+    """
+    xy, c, s = obs[..., 0:2], obs[..., 2], obs[..., 3]
+    d = xy[:, None, :, :] - xy[:, :, None, :]  # [b, i, j] = p_j - p_i
+    ci, si = c[:, :, None], s[:, :, None]
+    local_x = ci * d[..., 0] + si * d[..., 1]
+    local_y = -si * d[..., 0] + ci * d[..., 1]
+    dist = torch.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + 1e-12) * (1 - torch.eye(obs.shape[1], device=obs.device))
+    cj, sj = c[:, None, :], s[:, None, :]
+    rel_cos = ci * cj + si * sj  # cos(θ_j − θ_i)
+    rel_sin = ci * sj - si * cj  # sin(θ_j − θ_i)
+    edge_attr = torch.stack([local_x, local_y, dist, rel_cos, rel_sin], dim=-1)
+    types = layout.types(obs)
+    edge_type = types[:, :, None] * layout.n_types + types[:, None, :]
+    edge_mask = mask[:, :, None] & mask[:, None, :]
+    return edge_attr, edge_type, edge_mask

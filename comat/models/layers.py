@@ -1,0 +1,145 @@
+"""Building blocks shared by the models: MLPs, attention with a key/value cache, masks.
+
+Shapes: B batch, L/N sequence length (robots), D embedding, H heads. Boolean masks are True
+where attention (or a robot) is allowed. Nothing here depends on the team size.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+__all__ = ["Attention", "KVCache", "TypeHeads", "causal", "init_linear", "mlp"]
+
+
+def init_linear(layer: nn.Linear, gain: float = 1.0) -> nn.Linear:
+    """Orthogonal weights with ``gain``, zero bias (MAT's and cleanrl's initialisation)."""
+    nn.init.orthogonal_(layer.weight, gain)
+    if layer.bias is not None:
+        nn.init.zeros_(layer.bias)
+    return layer
+
+
+def mlp(sizes: list[int], act: type[nn.Module] = nn.ReLU, out_gain: float = 1.0) -> nn.Sequential:
+    """Linear–act–…–Linear; hidden layers get gain √2, the last ``out_gain``."""
+    layers: list[nn.Module] = []
+    for k in range(len(sizes) - 1):
+        last = k == len(sizes) - 2
+        layers.append(init_linear(nn.Linear(sizes[k], sizes[k + 1]), out_gain if last else math.sqrt(2)))
+        if not last:
+            layers.append(act())
+    return nn.Sequential(*layers)
+
+
+def causal(length: int, device=None) -> torch.Tensor:
+    """(L, L) lower-triangular mask: position i attends to positions <= i."""
+    return torch.ones(length, length, dtype=torch.bool, device=device).tril()
+
+
+class KVCache:
+    """Keys and values (B, H, L, dh) of the positions decoded so far, written one step at a time
+    into buffers sized for the whole sequence (no reallocation per step)."""
+
+    def __init__(self, length: int) -> None:
+        self.length, self.n = length, 0
+        self.k: torch.Tensor | None = None
+        self.v: torch.Tensor | None = None
+
+    def append(self, k: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        if self.k is None:
+            B, H, _, dh = k.shape
+            self.k = k.new_empty(B, H, self.length, dh)
+            self.v = v.new_empty(B, H, self.length, dh)
+        self.k[:, :, self.n : self.n + 1] = k
+        self.v[:, :, self.n : self.n + 1] = v
+        self.n += 1
+        return self.k[:, :, : self.n], self.v[:, :, : self.n]
+
+
+class Attention(nn.Module):
+    """Multi-head scaled dot-product attention, with an incremental (cached) mode.
+
+    ``forward(query (B, Lq, D), key (B, Lk, D), value (B, Lk, D), mask (B|1, Lq, Lk))``.
+    ``step(q (B, 1, D), key (B, 1, D), value (B, 1, D), cache)`` takes an already projected query
+    (:meth:`project_query`, which callers may compute for all positions at once), appends the
+    new key and value to ``cache`` and attends over everything cached: equal to the causal
+    forward pass at that position.
+    """
+
+    def __init__(self, dim: int, heads: int) -> None:
+        super().__init__()
+        if dim % heads:
+            raise ValueError(f"embedding dim {dim} must be divisible by heads {heads}")
+        self.heads = heads
+        self.q = init_linear(nn.Linear(dim, dim))
+        self.kv = init_linear(nn.Linear(dim, 2 * dim))  # keys and values in one matmul
+        self.o = init_linear(nn.Linear(dim, dim), 0.01)
+
+    def _split(self, x: torch.Tensor) -> torch.Tensor:
+        B, L, D = x.shape
+        return x.view(B, L, self.heads, D // self.heads).transpose(1, 2)
+
+    def _merge(self, x: torch.Tensor) -> torch.Tensor:
+        B, H, L, dh = x.shape
+        return self.o(x.transpose(1, 2).reshape(B, L, H * dh))
+
+    def _kv(self, key: torch.Tensor, value: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        if key is value:
+            k, v = self.kv(key).chunk(2, dim=-1)
+        else:
+            D = key.shape[-1]
+            k = F.linear(key, self.kv.weight[:D], self.kv.bias[:D])
+            v = F.linear(value, self.kv.weight[D:], self.kv.bias[D:])
+        return self._split(k), self._split(v)
+
+    @staticmethod
+    def _attend(q, k, v, mask: torch.Tensor | None = None) -> torch.Tensor:
+        # Plain matmul–softmax–matmul: for a few robots it is several times cheaper on the CPU
+        # than the fused kernel, and the cached and full passes do the same arithmetic.
+        scores = (q @ k.transpose(-2, -1)) * (q.shape[-1] ** -0.5)
+        if mask is not None:
+            scores = scores.masked_fill(~mask, float("-inf"))
+        return torch.softmax(scores, dim=-1) @ v
+
+    def project_query(self, query: torch.Tensor) -> torch.Tensor:
+        return self._split(self.q(query))
+
+    def forward(self, query, key, value, mask: torch.Tensor | None = None) -> torch.Tensor:
+        k, v = self._kv(key, value)
+        if mask is not None:
+            # A query with nothing to attend to (a padded robot) attends to the first key only,
+            # so no row is all -inf; its output is never used.
+            empty = ~mask.any(-1, keepdim=True)
+            mask = mask | (empty & (torch.arange(mask.shape[-1], device=mask.device) == 0))
+            mask = mask[:, None]
+        return self._merge(self._attend(self.project_query(query), k, v, mask))
+
+    def step(self, q: torch.Tensor, key, value, cache: KVCache) -> torch.Tensor:
+        k, v = cache.append(*self._kv(key, value))
+        return self._merge(self._attend(q, k, v))
+
+
+class TypeHeads(nn.Module):
+    """One two-layer MLP per robot type, evaluated for all types in two matmuls.
+
+    ``forward(x (B, L, in), type_onehot (B, L, T)) -> (B, L, out)``: each robot's output comes
+    from the head of its own type (parameters shared by robots of a type, never by position).
+    """
+
+    def __init__(self, d_in: int, hidden: int, d_out: int, n_types: int, out_gain: float = 0.01) -> None:
+        super().__init__()
+        self.n_types, self.hidden = n_types, hidden
+        self.first = init_linear(nn.Linear(d_in, n_types * hidden), math.sqrt(2))
+        w2 = torch.empty(n_types, hidden, d_out)
+        for t in range(n_types):
+            nn.init.orthogonal_(w2[t], out_gain)
+        self.w2 = nn.Parameter(w2)
+        self.b2 = nn.Parameter(torch.zeros(n_types, d_out))
+
+    def forward(self, x: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
+        h = F.relu(self.first(x)).unflatten(-1, (self.n_types, self.hidden))  # (B, L, T, H)
+        out = torch.einsum("blth,tho->blto", h, self.w2) + self.b2  # (B, L, T, out)
+        return (out * type_onehot[..., None]).sum(-2)

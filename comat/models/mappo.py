@@ -1,0 +1,66 @@
+"""MAPPO as the paper ran it: actors shared within each robot type, a centralized critic.
+
+Actor: one MLP per robot type (parameter sharing among robots of a type) on the robot's own
+observation, which carries its type and capability vector. Critic: an MLP on the environment's
+global state concatenated with the robot's observation, one value per robot. Fixed-size
+baseline: the state covers ``state_robots`` (8) robots, so teams are at most that large.
+
+Shapes: obs (B, N, D_obs), mask (B, N), state (B, S); A = 5 actions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from comat.models.features import ObsLayout
+from comat.models.layers import TypeHeads, mlp
+
+__all__ = ["Mappo", "MappoConfig"]
+
+
+@dataclass(frozen=True)
+class MappoConfig:
+    hidden: int = 128
+    """Hidden width of the actors and the critic."""
+
+
+class Mappo(nn.Module):
+    """Type-shared actors and a centralized critic (see module docstring)."""
+
+    n_actions = 5
+
+    def __init__(self, layout: ObsLayout, state_dim: int, config: MappoConfig | None = None) -> None:
+        super().__init__()
+        cfg = config or MappoConfig()
+        self.layout, self.config = layout, cfg
+        self.actor = TypeHeads(layout.obs_dim, cfg.hidden, self.n_actions, layout.n_types)
+        self.critic = mlp([state_dim + layout.obs_dim, cfg.hidden, cfg.hidden, 1])
+
+    def _logits(self, obs):
+        return self.actor(obs, obs[..., 4 : 4 + self.layout.n_types])
+
+    def values(self, obs, mask, state):
+        if state is None:
+            raise ValueError("MAPPO's critic needs the global state (env.state())")
+        s = state[:, None, :].expand(-1, obs.shape[1], -1)
+        return self.critic(torch.cat([s, obs], -1))[..., 0] * mask
+
+    def act(self, obs, mask, state=None, deterministic: bool = False, generator: torch.Generator | None = None):
+        logits = self._logits(obs)
+        if deterministic:
+            a = logits.argmax(-1)
+        else:
+            u = torch.rand(logits.shape, generator=generator).clamp_(1e-20, 1.0)
+            a = (logits - torch.log(-torch.log(u))).argmax(-1)
+        a = torch.where(mask, a, 0)
+        logp = torch.log_softmax(logits, -1).gather(-1, a[..., None])[..., 0] * mask
+        return a, logp, self.values(obs, mask, state)
+
+    def evaluate_actions(self, obs, mask, actions, state=None):
+        logp_all = torch.log_softmax(self._logits(obs), -1)
+        logp = logp_all.gather(-1, actions[..., None])[..., 0]
+        entropy = -(logp_all.exp() * logp_all).sum(-1)
+        return logp * mask, entropy * mask, self.values(obs, mask, state)

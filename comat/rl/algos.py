@@ -1,0 +1,112 @@
+"""The four algorithms behind one small interface: build, iterate (collect + update), act.
+
+``Dims`` are the sizes a model is built from (stored in checkpoints, so a policy can be
+rebuilt without an environment). Fixed-size baselines (MAT, MAPPO, QMIX) get environments with
+``BASELINE_ROBOTS`` (8) robot slots, as in the paper; COMAT gets as many as its teams need.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+
+from comat.models.comat import Comat
+from comat.models.features import ObsLayout
+from comat.models.mappo import Mappo
+from comat.models.mat import Mat
+from comat.models.qmix import QmixAgents, QmixMixer
+from comat.rl.ppo import PPOTrainer
+from comat.rl.qmix import QmixTrainer
+
+__all__ = ["BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "make_learner", "policy_act"]
+
+BASELINE_ROBOTS = 8
+
+
+@dataclass(frozen=True)
+class Dims:
+    obs_dim: int
+    n_types: int
+    n_caps: int
+    state_dim: int
+
+    @classmethod
+    def of(cls, env) -> Dims:
+        layout = ObsLayout.for_task(env.task)
+        return cls(layout.obs_dim, layout.n_types, layout.n_caps, env.core.state_size())
+
+    @property
+    def layout(self) -> ObsLayout:
+        return ObsLayout(self.obs_dim, self.n_types, self.n_caps)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def build_modules(algo: str, dims: Dims, model_config) -> dict[str, torch.nn.Module]:
+    """The networks of ``algo``, freshly initialized (seed torch first for reproducible weights)."""
+    if algo == "comat":
+        return {"policy": Comat(dims.layout, model_config)}
+    if algo == "mat":
+        return {"policy": Mat(dims.layout, model_config)}
+    if algo == "mappo":
+        return {"policy": Mappo(dims.layout, dims.state_dim, model_config)}
+    if algo == "qmix":
+        return {"agents": QmixAgents(dims.layout, model_config), "mixer": QmixMixer(dims.state_dim, model_config)}
+    raise ValueError(f"algo must be one of ['comat', 'mat', 'mappo', 'qmix'], got {algo!r}")
+
+
+def uses_state(algo: str) -> bool:
+    """Whether acting needs ``env.state()`` (MAPPO's critic; QMIX only learns from it)."""
+    return algo == "mappo"
+
+
+def policy_act(algo: str, modules: dict[str, torch.nn.Module]):
+    """Deterministic numpy policy ``act(obs, mask, state) -> actions (B, N)`` (evaluation)."""
+    use_state = uses_state(algo)
+
+    @torch.no_grad()
+    def act(obs: np.ndarray, mask: np.ndarray, state: np.ndarray | None) -> np.ndarray:
+        o = torch.as_tensor(obs, dtype=torch.float32)
+        m = torch.as_tensor(mask)
+        if algo == "qmix":
+            return torch.where(m, modules["agents"](o, m).argmax(-1), 0).numpy()
+        s = torch.as_tensor(state, dtype=torch.float32) if use_state else None
+        return modules["policy"].act(o, m, s, deterministic=True)[0].numpy()
+
+    return act
+
+
+class Learner:
+    """One algorithm's trainer with a uniform loop interface."""
+
+    def __init__(self, algo: str, modules: dict, trainer) -> None:
+        self.algo, self.modules, self.trainer = algo, modules, trainer
+
+    def iterate(self) -> tuple[list[dict], dict[str, float], int]:
+        """Collect and learn once: finished episodes' metrics, training statistics, env steps."""
+        if self.algo == "qmix":
+            before = self.trainer.env_steps
+            episodes = self.trainer.collect()
+            return episodes, self.trainer.update(), self.trainer.env_steps - before
+        rollout = self.trainer.collect()
+        T, B = rollout.rewards.shape
+        return rollout.episodes, self.trainer.update(rollout), T * B
+
+    def state_dict(self) -> dict:
+        return self.trainer.state_dict()
+
+    def load_state_dict(self, state: dict) -> None:
+        self.trainer.load_state_dict(state)
+
+
+def make_learner(config, env, dims: Dims) -> Learner:
+    """Modules and trainer for a :class:`comat.rl.config.RunConfig` on ``env``."""
+    modules = build_modules(config.algo, dims, config.model)
+    if config.algo == "qmix":
+        trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, seed=config.seed)
+    else:
+        trainer = PPOTrainer(modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo))
+    return Learner(config.algo, modules, trainer)

@@ -1,0 +1,104 @@
+"""Checkpoints: one file per run state, written atomically, checked before use.
+
+A checkpoint is a ``torch.save`` dict loaded with ``weights_only=True`` (tensors and plain data
+only, so loading one never runs code):
+
+    format "comat-checkpoint", format_version, algo, task, config (the resolved run config),
+    versions (comat, torch, mujoco, numpy, python), progress (env steps, updates, …),
+    trainer (the trainer's state: weights, optimizer, normalizers, generators, buffers),
+    env_rngs (the vector environment's generators), torch_rng.
+
+Writes go to a temporary file in the same folder, are flushed to disk, then renamed over the
+target, so a crash leaves either the old checkpoint or the new one, never half of one.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+__all__ = ["CheckpointError", "load_checkpoint", "save_checkpoint", "to_plain", "versions"]
+
+FORMAT = "comat-checkpoint"
+FORMAT_VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be used: missing, corrupt, another format, algo or task."""
+
+
+def versions() -> dict[str, str]:
+    import mujoco
+
+    from comat import __version__
+
+    return {"comat": __version__, "torch": str(torch.__version__), "mujoco": str(mujoco.__version__),
+            "numpy": str(np.__version__), "python": platform.python_version()}
+
+
+def to_plain(obj: Any) -> Any:
+    """numpy arrays → tensors, numpy scalars → Python numbers, recursively (what
+    ``weights_only`` loading accepts)."""
+    if isinstance(obj, dict):
+        return {k: to_plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(to_plain(v) for v in obj)
+    if isinstance(obj, np.ndarray):
+        return torch.from_numpy(np.ascontiguousarray(obj))
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def save_checkpoint(path: str | Path, *, algo: str, task: str, config: dict, progress: dict,
+                    trainer: dict, env_rngs: list[dict]) -> Path:
+    """Atomically write a checkpoint to ``path``; returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "algo": algo, "task": task,
+        "config": config, "versions": versions(), "progress": progress,
+        "trainer": to_plain(trainer), "env_rngs": env_rngs, "torch_rng": torch.get_rng_state(),
+    }
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            torch.save(payload, fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_checkpoint(path: str | Path, algo: str | None = None, task: str | None = None) -> dict:
+    """Read and check a checkpoint; ``algo``/``task``, if given, must match it.
+
+    Raises:
+        CheckpointError: naming the file and what is wrong with it.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {str(path)!r} does not exist")
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises several types for truncated or foreign files
+        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt or not a comat checkpoint "
+                              f"({type(err).__name__}: {str(err).splitlines()[0][:200]})") from err
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise CheckpointError(f"{str(path)!r} is not a comat checkpoint (expected format {FORMAT!r})")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise CheckpointError(f"checkpoint {str(path)!r} has format_version {data.get('format_version')!r}, "
+                              f"this comat reads {FORMAT_VERSION}")
+    for key, want in (("algo", algo), ("task", task)):
+        if want is not None and data[key] != want:
+            raise CheckpointError(f"checkpoint {str(path)!r} is for {key} {data[key]!r}, expected {want!r}")
+    return data

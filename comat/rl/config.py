@@ -1,0 +1,135 @@
+"""Run configuration: presets in ``train/configs/*.yaml`` resolved for one algo, task and seed.
+
+A preset holds values only, for every algorithm at once::
+
+    total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
+    checkpoint_every_steps, ppo: {PPOConfig}, qmix: {QmixConfig},
+    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}}
+
+:func:`resolve` picks the sections the algorithm uses and gives a :class:`RunConfig`, which is
+what a run writes next to its results (``config.yaml``) and stores in its checkpoints.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from comat.config import load
+from comat.models.comat import ComatConfig
+from comat.models.mappo import MappoConfig
+from comat.models.mat import MatConfig
+from comat.models.qmix import QmixNetConfig
+from comat.rl.ppo import PPOConfig
+from comat.rl.qmix import QmixConfig
+
+__all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "load_preset", "preset_names", "resolve"]
+
+ALGOS = ("comat", "mat", "mappo", "qmix")
+TASKS = ("hmt", "pcp")
+TIERS = ("wheels", "unicycle")
+PRESETS_DIR = Path(__file__).resolve().parents[2] / "train" / "configs"
+MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
+_RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps")
+_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything that defines a training run."""
+
+    algo: str
+    task: str
+    seed: int
+    tier: str
+    total_env_steps: int
+    """Stop after this many env steps (one env step = one step of one team)."""
+    eval_every_steps: int
+    """Evaluate on the training coalitions every this many env steps (and at the end)."""
+    eval_episodes_per_team: int
+    """Evaluation episodes per training coalition (deterministic actions)."""
+    checkpoint_every_steps: int
+    """Write the checkpoint every this many env steps (and at the end)."""
+    trainer: PPOConfig | QmixConfig
+    model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig
+
+    @property
+    def env_id(self) -> str:
+        return f"{self.task}_v0"
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["trainer"], out["model"] = dataclasses.asdict(self.trainer), dataclasses.asdict(self.model)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RunConfig:
+        data = dict(data)
+        _check_choice("algo", data.get("algo"), ALGOS)
+        trainer_cls = QmixConfig if data["algo"] == "qmix" else PPOConfig
+        data["trainer"] = load(trainer_cls, data.get("trainer"), prefix="trainer")
+        data["model"] = load(MODEL_CONFIGS[data["algo"]], data.get("model"), prefix="model")
+        return cls(**data)
+
+
+def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
+
+
+def preset_names() -> list[str]:
+    return sorted(p.stem for p in PRESETS_DIR.glob("*.yaml"))
+
+
+def load_preset(preset: str | Path) -> dict[str, Any]:
+    """A preset by name (``train/configs/<name>.yaml``) or path, checked for unknown keys."""
+    import yaml
+
+    path = Path(preset)
+    if path.suffix not in (".yaml", ".yml"):
+        path = PRESETS_DIR / f"{preset}.yaml"
+        if not path.is_file():
+            raise ValueError(f"unknown preset {str(preset)!r}; presets: {preset_names()} (or a path to a YAML file)")
+    elif not path.is_file():
+        raise ValueError(f"preset file {str(path)!r} does not exist")
+    with open(path) as fh:
+        data = yaml.safe_load(fh) or {}
+    if not isinstance(data, dict):
+        raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(_PRESET_KEYS))
+    if unknown:
+        raise ValueError(f"unknown key(s) {unknown} in preset {str(path)!r}; valid keys: {sorted(_PRESET_KEYS)}")
+    models = data.get("models") or {}
+    unknown = sorted(set(models) - set(ALGOS))
+    if unknown:
+        raise ValueError(f"unknown algo(s) {unknown} under models in preset {str(path)!r}; valid: {list(ALGOS)}")
+    return data
+
+
+def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
+            total_env_steps: int | None = None) -> RunConfig:
+    """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it."""
+    _check_choice("algo", algo, ALGOS)
+    _check_choice("task", task, TASKS)
+    tier = tier or preset.get("tier", "unicycle")
+    _check_choice("tier", tier, TIERS)
+    if seed is None:
+        seed = (preset.get("seeds") or [0])[0]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    run = {k: preset[k] for k in _RUN_KEYS if k in preset}
+    if total_env_steps is not None:
+        run["total_env_steps"] = total_env_steps
+    defaults = {"total_env_steps": 4_000_000, "eval_every_steps": 200_000, "eval_episodes_per_team": 1,
+                "checkpoint_every_steps": 100_000}
+    for key, default in defaults.items():
+        value = run.setdefault(key, default)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{key} must be a positive integer, got {value!r}")
+    section = "qmix" if algo == "qmix" else "ppo"
+    return RunConfig.from_dict({
+        "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
+        "trainer": preset.get(section), "model": (preset.get("models") or {}).get(algo),
+    })

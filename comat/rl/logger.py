@@ -1,0 +1,117 @@
+"""What a training run records: CSV tables, TensorBoard scalars and a progress line.
+
+``progress.csv`` has one row per update, ``eval.csv`` one row per evaluation; both keyed by
+``env_steps``. On resume, rows written after the checkpoint being resumed are dropped (from
+the CSV files, and from TensorBoard with ``purge_step``), so a resumed run's logs read like an
+uninterrupted one's.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["ProgressLine", "RunLogger"]
+
+
+def _truncate_csv(path: Path, max_step: int) -> None:
+    if not path.exists():
+        return
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        return
+    header, body = rows[0], rows[1:]
+    col = header.index("env_steps")
+    keep = [r for r in body if r and float(r[col]) <= max_step]
+    with open(path, "w", newline="") as fh:
+        csv.writer(fh).writerows([header, *keep])
+
+
+class RunLogger:
+    """Appends rows to ``<out>/<table>.csv`` and scalars to TensorBoard under ``<out>/tb``.
+
+    Args:
+        out: the run folder.
+        resume_step: env steps of the checkpoint being resumed (None for a new run).
+        tensorboard: write TensorBoard events.
+    """
+
+    def __init__(self, out: Path, resume_step: int | None = None, tensorboard: bool = True) -> None:
+        self.out = Path(out)
+        self._headers: dict[str, list[str]] = {}
+        if resume_step is not None:
+            for table in ("progress", "eval"):
+                _truncate_csv(self.out / f"{table}.csv", resume_step)
+        for table in ("progress", "eval"):
+            path = self.out / f"{table}.csv"
+            if path.exists() and path.stat().st_size:
+                with open(path, newline="") as fh:
+                    self._headers[table] = next(csv.reader(fh))
+        self._tb = None
+        if tensorboard:
+            from torch.utils.tensorboard import SummaryWriter
+
+            purge = None if resume_step is None else resume_step + 1
+            self._tb = SummaryWriter(str(self.out / "tb"), purge_step=purge)
+
+    def log(self, table: str, env_steps: int, values: dict[str, float]) -> None:
+        """One row of ``table`` ("progress" or "eval") at ``env_steps``."""
+        row = {"env_steps": env_steps, **values}
+        path = self.out / f"{table}.csv"
+        header = self._headers.get(table)
+        if header is None:
+            header = self._headers[table] = list(row)
+            with open(path, "w", newline="") as fh:
+                csv.writer(fh).writerow(header)
+        with open(path, "a", newline="") as fh:
+            csv.writer(fh).writerow([row.get(k, "") for k in header])
+        if self._tb is not None:
+            for key, value in values.items():
+                if isinstance(value, (int, float)) and math.isfinite(value):
+                    self._tb.add_scalar(f"{table}/{key}", value, env_steps)
+
+    def close(self) -> None:
+        if self._tb is not None:
+            self._tb.close()
+
+
+def _clock(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "?"
+    s = int(seconds)
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
+
+
+class ProgressLine:
+    """``[####------] 12,800/100,000 steps | 410 steps/s | return 12.3 | completion 41% | ETA 0:03:57``.
+
+    Redrawn in place on a terminal; elsewhere (logs, CI) printed at most every ``every_s``.
+    """
+
+    def __init__(self, total: int, start: int = 0, stream=None, every_s: float = 30.0) -> None:
+        self.total, self.start = total, start
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.every_s = every_s
+        self._t0 = time.perf_counter()
+        self._last_print = -math.inf
+
+    def update(self, steps: int, ret: float, completion: float, final: bool = False) -> None:
+        elapsed = time.perf_counter() - self._t0
+        rate = (steps - self.start) / elapsed if elapsed > 0 else 0.0
+        eta = (self.total - steps) / rate if rate > 0 else math.inf
+        frac = min(1.0, steps / self.total)
+        bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
+        line = (f"[{bar}] {steps:,}/{self.total:,} steps | {rate:,.0f} steps/s | return {ret:.2f} | "
+                f"completion {completion:.0%} | ETA {_clock(eta)}")
+        if self.tty:
+            self.stream.write("\r" + line + ("\n" if final else ""))
+            self.stream.flush()
+        elif final or elapsed - self._last_print >= self.every_s:
+            self.stream.write(line + "\n")
+            self.stream.flush()
+            self._last_print = elapsed

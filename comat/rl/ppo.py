@@ -1,0 +1,232 @@
+"""PPO for COMAT, MAT and MAPPO (paper eq. 6–9), readable top to bottom.
+
+One update:
+
+1. **Collect** ``rollout_steps`` vector steps from fresh episodes (every environment is reset at
+   the start of a rollout, so an update depends only on the parameters and the random streams —
+   which is what makes ``--resume`` continue exactly). Autoreset is same-step; where an episode
+   ended, the next state of *that* episode is the env's ``final_obs``.
+2. **Advantages** (eq. 9): joint GAE on V̂ = the mean of the robots' values, shared by the team's
+   robots and normalized over the batch.
+3. **Critic** (eq. 6): each robot's value regresses (Huber) to r_t + γ·V̄(o'_t) from a *target*
+   critic V̄, refreshed (copied, targets recomputed) every ``target_update_epochs`` epochs;
+   targets are normalized by a running ValueNorm.
+4. **Actor** (eq. 7–8): clipped importance ratio per robot times the joint advantage, plus an
+   entropy bonus; one joint loss, one Adam step per minibatch, gradient-norm clipping.
+
+Padded robot slots are masked out of every loss and statistic (mask (T, B, N)).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from comat.rl.gae import gae
+from comat.rl.valuenorm import ValueNorm
+
+__all__ = ["PPOConfig", "PPOTrainer", "Rollout"]
+
+
+@dataclass(frozen=True)
+class PPOConfig:
+    """PPO settings (defaults: MAT's, with the task's horizon as rollout length)."""
+
+    num_envs: int = 32
+    """Environments stepped together (the paper's batch size 32)."""
+    rollout_steps: int | None = None
+    """Vector steps per update (None: the task's horizon, one full episode per environment)."""
+    epochs: int = 5
+    """Passes over each rollout."""
+    minibatches: int = 4
+    """Minibatches per epoch (samples are whole teams at one step)."""
+    lr: float = 5e-4
+    clip: float = 0.2
+    """PPO ratio clip ε."""
+    entropy_coef: float = 0.01
+    """σ, weight of the entropy bonus."""
+    value_coef: float = 1.0
+    max_grad_norm: float = 10.0
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    target_update_epochs: int = 2
+    """The target critic V̄ is refreshed every this many epochs (paper: "every few epochs")."""
+    huber_delta: float = 10.0
+
+
+@dataclass
+class Rollout:
+    """One rollout, (T, B, ...) tensors; ``next_*`` describe the state after each step in the
+    same episode."""
+
+    obs: torch.Tensor
+    mask: torch.Tensor
+    state: torch.Tensor | None
+    actions: torch.Tensor
+    logp: torch.Tensor
+    values: torch.Tensor
+    rewards: torch.Tensor
+    terminated: torch.Tensor
+    dones: torch.Tensor
+    next_obs: torch.Tensor
+    next_mask: torch.Tensor
+    next_state: torch.Tensor | None
+    episodes: list[dict]
+
+
+def _team_value(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """V̂: mean of the real robots' values, (..., N) -> (...)."""
+    return (values * mask).sum(-1) / mask.sum(-1).clamp(min=1)
+
+
+class PPOTrainer:
+    """Trains ``policy`` (COMAT, MAT or MAPPO interface) on a :class:`comat.envs.VectorEnv`.
+
+    Args:
+        policy: has ``act``, ``evaluate_actions`` and ``values``.
+        env: the vector environment (its ``num_envs`` must equal ``config.num_envs``).
+        config: PPO settings.
+        seed: seeds the action sampling and the minibatch order.
+        use_state: pass ``env.state()`` to the policy (MAPPO's centralized critic).
+    """
+
+    def __init__(self, policy, env, config: PPOConfig, seed: int, use_state: bool = False) -> None:
+        if env.num_envs != config.num_envs:
+            raise ValueError(f"env has {env.num_envs} environments, config.num_envs is {config.num_envs}")
+        self.policy, self.env, self.config = policy, env, config
+        self.use_state = use_state
+        self.optimizer = torch.optim.Adam(policy.parameters(), lr=config.lr, eps=1e-5)
+        self.target = copy.deepcopy(policy).requires_grad_(False)
+        self.value_norm = ValueNorm()
+        self.generator = torch.Generator().manual_seed(seed)
+        self.rng = np.random.default_rng(seed)
+
+    # -- helpers --------------------------------------------------------------------------------
+    def _state(self) -> torch.Tensor | None:
+        return torch.as_tensor(self.env.state(), dtype=torch.float32) if self.use_state else None
+
+    def _denorm_values(self, values: torch.Tensor) -> torch.Tensor:
+        return self.value_norm.denormalize(values)
+
+    # -- 1. collect -----------------------------------------------------------------------------
+    @torch.no_grad()
+    def collect(self) -> Rollout:
+        env, T = self.env, self.config.rollout_steps or self.env.task.horizon
+        obs_np, info = env.reset()
+        obs = torch.as_tensor(obs_np, dtype=torch.float32)
+        mask = torch.as_tensor(info["agent_mask"])
+        state = self._state()
+        steps: dict[str, list] = {k: [] for k in ("obs", "mask", "state", "actions", "logp", "values", "rewards",
+                                                  "terminated", "dones", "next_obs", "next_mask", "next_state")}
+        episodes: list[dict] = []
+        for _ in range(T):
+            actions, logp, values = self.policy.act(obs, mask, state, generator=self.generator)
+            next_np, rewards, terminated, truncated, info = env.step(actions.numpy())
+            next_obs = torch.as_tensor(next_np, dtype=torch.float32)
+            next_mask = torch.as_tensor(info["agent_mask"])
+            next_state = self._state()
+            done = terminated | truncated
+            # The next state of the same episode: the final observation where it just ended.
+            ep_obs, ep_mask, ep_state = next_obs.clone(), next_mask.clone(), None if next_state is None else next_state.clone()
+            if done.any():
+                d = torch.as_tensor(done)
+                ep_obs[d] = torch.as_tensor(info["final_obs"], dtype=torch.float32)[d]
+                ep_mask[d] = mask[d]
+                if ep_state is not None:
+                    ep_state[d] = torch.as_tensor(info["final_state"], dtype=torch.float32)[d]
+                for b in np.flatnonzero(done):
+                    episodes.append({k: float(v[b]) for k, v in info["episode"].items()})
+            for key, value in (("obs", obs), ("mask", mask), ("state", state), ("actions", actions), ("logp", logp),
+                               ("values", values), ("rewards", torch.as_tensor(rewards, dtype=torch.float32)),
+                               ("terminated", torch.as_tensor(terminated)), ("dones", torch.as_tensor(done)),
+                               ("next_obs", ep_obs), ("next_mask", ep_mask), ("next_state", ep_state)):
+                steps[key].append(value)
+            obs, mask, state = next_obs, next_mask, next_state
+        stacked = {k: (torch.stack(v) if v[0] is not None else None) for k, v in steps.items()}
+        return Rollout(**stacked, episodes=episodes)
+
+    # -- 2-4. update ----------------------------------------------------------------------------
+    def _next_values(self, net, ro: Rollout) -> torch.Tensor:
+        """Per-robot values (T, B, N) of the next states under ``net`` (0 after termination)."""
+        T, B, N, D = ro.next_obs.shape
+        state = None if ro.next_state is None else ro.next_state.reshape(T * B, -1)
+        v = net.values(ro.next_obs.reshape(T * B, N, D), ro.next_mask.reshape(T * B, N), state).reshape(T, B, N)
+        return self._denorm_values(v) * (~ro.terminated)[..., None]
+
+    def update(self, ro: Rollout) -> dict[str, float]:
+        cfg = self.config
+        T, B, N, D = ro.obs.shape
+        mask = ro.mask.to(torch.float32)
+        with torch.no_grad():
+            v_hat = _team_value(self._denorm_values(ro.values), mask)
+            v_next_hat = _team_value(self._next_values(self.policy, ro), ro.next_mask.to(torch.float32))
+            adv, _ = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
+            adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+        flat = {
+            "obs": ro.obs.reshape(T * B, N, D),
+            "mask": ro.mask.reshape(T * B, N),
+            "state": None if ro.state is None else ro.state.reshape(T * B, -1),
+            "actions": ro.actions.reshape(T * B, N),
+            "logp": ro.logp.reshape(T * B, N),
+            "adv": adv.reshape(T * B),
+        }
+        stats: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "approx_kl": [], "clip_frac": []}
+        targets = None
+        for epoch in range(cfg.epochs):
+            if epoch % cfg.target_update_epochs == 0:
+                # Refresh V̄ and its TD targets r + γ·V̄(o'); update the normalizer on them.
+                self.target.load_state_dict(self.policy.state_dict())
+                with torch.no_grad():
+                    raw = ro.rewards[..., None] + cfg.gamma * self._next_values(self.target, ro)
+                    self.value_norm.update(raw[ro.mask])
+                    targets = self.value_norm.normalize(raw).reshape(T * B, N)
+            order = self.rng.permutation(T * B)
+            for idx in np.array_split(order, cfg.minibatches):
+                idx_t = torch.as_tensor(idx)
+                m = flat["mask"][idx_t]
+                mf = m.to(torch.float32)
+                n_real = mf.sum().clamp(min=1)
+                state = None if flat["state"] is None else flat["state"][idx_t]
+                logp, entropy, values = self.policy.evaluate_actions(flat["obs"][idx_t], m, flat["actions"][idx_t], state)
+                ratio = torch.exp(logp - flat["logp"][idx_t])
+                a = flat["adv"][idx_t][:, None]
+                surrogate = torch.min(ratio * a, ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * a)
+                policy_loss = -(surrogate * mf).sum() / n_real
+                entropy_mean = (entropy * mf).sum() / n_real
+                value_loss = (F.huber_loss(values, targets[idx_t], reduction="none", delta=cfg.huber_delta) * mf).sum() / n_real
+                loss = policy_loss - cfg.entropy_coef * entropy_mean + cfg.value_coef * value_loss
+                self.optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(self.policy.parameters(), cfg.max_grad_norm)
+                self.optimizer.step()
+                with torch.no_grad():
+                    log_ratio = (logp - flat["logp"][idx_t]) * mf
+                    stats["approx_kl"].append(float(((ratio - 1) * mf - log_ratio).sum() / n_real))
+                    stats["clip_frac"].append(float((((ratio - 1).abs() > cfg.clip) * mf).sum() / n_real))
+                stats["policy_loss"].append(policy_loss.item())
+                stats["value_loss"].append(value_loss.item())
+                stats["entropy"].append(entropy_mean.item())
+        return {k: float(np.mean(v)) for k, v in stats.items()}
+
+    # -- checkpoint state -------------------------------------------------------------------------
+    def state_dict(self) -> dict:
+        return {
+            "policy": self.policy.state_dict(),
+            "target": self.target.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "value_norm": self.value_norm.state_dict(),
+            "generator": self.generator.get_state(),
+            "rng": self.rng.bit_generator.state,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.policy.load_state_dict(state["policy"])
+        self.target.load_state_dict(state["target"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.value_norm.load_state_dict(state["value_norm"])
+        self.generator.set_state(state["generator"])
+        self.rng.bit_generator.state = state["rng"]

@@ -1,0 +1,177 @@
+"""A training run from start to finish: folder, loop, evaluation, checkpoints, resume.
+
+Run folder (``--out``)::
+
+    config.yaml      the resolved RunConfig, versions and the command line (written first)
+    checkpoint.pt    latest checkpoint (atomic), every ``checkpoint_every_steps`` and at the end
+    progress.csv     one row per update: env steps, wall time, env-steps/s, episode metrics, losses
+    eval.csv         one row per evaluation on the training coalitions (deterministic actions)
+    tb/              TensorBoard events of both tables
+    summary.json     the final evaluation, written when the run finishes
+
+``train(..., resume=True)`` continues from ``checkpoint.pt``: weights, optimizer, normalizers,
+replay buffer, every random generator and the env-step counter are restored, and every
+rollout starts from freshly reset environments, so the resumed run takes exactly the updates
+the uninterrupted run would have taken.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+import comat
+from comat.envs.base import resolve_coalitions
+from comat.eval.episodes import run_episodes, summarize
+from comat.rl.algos import BASELINE_ROBOTS, Dims, build_modules, make_learner, policy_act, uses_state
+from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
+from comat.rl.config import RunConfig
+from comat.rl.logger import ProgressLine, RunLogger
+
+__all__ = ["EVAL_SEED_OFFSET", "load_policy", "train"]
+
+EVAL_SEED_OFFSET = 1_000_003
+"""Evaluation episodes use seed ``run seed + EVAL_SEED_OFFSET`` (never a training seed)."""
+_SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "interventions", "fallbacks")
+
+
+def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
+    slots = None if config.algo == "comat" else BASELINE_ROBOTS
+    return comat.make_vec_env(config.env_id, num_envs, seed=seed, tier=config.tier, coalitions=coalitions,
+                              max_robots=slots)
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _write_config(out: Path, config: RunConfig, resumed_at: int | None) -> None:
+    import yaml
+
+    doc = {"config": config.to_dict(), "versions": versions(), "command": sys.argv,
+           "resumed_at_env_steps": resumed_at}
+    _write_atomic(out / "config.yaml", yaml.safe_dump(doc, sort_keys=False))
+
+
+def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions="train") -> dict:
+    """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition."""
+    teams = resolve_coalitions(coalitions, config.task) * (episodes_per_team or config.eval_episodes_per_team)
+    env = _make_env(config, min(len(teams), 32), config.seed + EVAL_SEED_OFFSET, coalitions)
+    for m in modules.values():
+        m.eval()
+    try:
+        episodes = run_episodes(env, policy_act(config.algo, modules), teams, config.seed + EVAL_SEED_OFFSET,
+                                use_state=uses_state(config.algo))
+    finally:
+        for m in modules.values():
+            m.train()
+    return summarize(episodes)
+
+
+def _next_multiple(steps: int, every: int) -> int:
+    return (steps // every + 1) * every
+
+
+def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False) -> dict:
+    """Train (or, with ``resume``, continue) the run in folder ``out``; returns the final
+    evaluation on the training coalitions.
+
+    Raises:
+        FileExistsError: ``out`` already holds a run and ``resume`` is False (nothing is touched).
+        CheckpointError: ``resume`` without a usable checkpoint for this algo and task.
+    """
+    out = Path(out)
+    ckpt_path = out / "checkpoint.pt"
+    data = None
+    if resume:
+        data = load_checkpoint(ckpt_path, algo=config.algo, task=config.task)
+        saved = RunConfig.from_dict(data["config"])
+        if saved.to_dict() != {**config.to_dict(), "total_env_steps": saved.total_env_steps}:
+            raise CheckpointError(f"checkpoint {str(ckpt_path)!r} was written with another configuration; "
+                                  "resume it with its own (see config.yaml), or start a new run in another --out")
+    elif ckpt_path.exists() or (out / "config.yaml").exists():
+        raise FileExistsError(f"{str(out)!r} already holds a run; pass --resume to continue it, or choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    torch.manual_seed(config.seed)
+    env = _make_env(config, config.trainer.num_envs, config.seed)
+    env.reset()
+    dims = Dims.of(env)
+    learner = make_learner(config, env, dims)
+    progress = {"env_steps": 0, "updates": 0, "wall_s": 0.0}
+    if data is not None:
+        learner.load_state_dict(data["trainer"])
+        env.set_rng_state(data["env_rngs"])
+        torch.set_rng_state(data["torch_rng"])
+        progress = dict(data["progress"])
+    _write_config(out, config, progress["env_steps"] if data is not None else None)
+    logger = RunLogger(out, resume_step=progress["env_steps"] if data is not None else None)
+    bar = None if quiet else ProgressLine(config.total_env_steps, start=progress["env_steps"])
+    next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
+    next_ckpt = _next_multiple(progress["env_steps"], config.checkpoint_every_steps)
+    last_eval: dict | None = None
+
+    def checkpoint() -> None:
+        save_checkpoint(ckpt_path, algo=config.algo, task=config.task, config=config.to_dict(),
+                        progress={**progress, "dims": dims.to_dict()}, trainer=learner.state_dict(),
+                        env_rngs=env.rng_state())
+
+    recent: list[dict] = []
+    try:
+        while progress["env_steps"] < config.total_env_steps:
+            t0 = time.perf_counter()
+            episodes, stats, n = learner.iterate()
+            dt = time.perf_counter() - t0
+            progress["env_steps"] += n
+            progress["updates"] += 1
+            progress["wall_s"] += dt
+            recent = (recent + episodes)[-200:]
+            ep = summarize(episodes) if episodes else {}
+            row = {"updates": progress["updates"], "wall_s": round(progress["wall_s"], 3),
+                   "env_steps_per_s": n / dt, "episodes": len(episodes),
+                   **{f"episode_{k}": ep.get(k, float("nan")) for k in _SUMMARY_KEYS}, **stats}
+            logger.log("progress", progress["env_steps"], row)
+            steps = progress["env_steps"]
+            finished = steps >= config.total_env_steps
+            if bar is not None and recent:
+                tail = summarize(recent[-64:])
+                bar.update(steps, tail["return"], tail["completion"], final=finished)
+            if steps >= next_eval or finished:
+                last_eval = evaluate(config, learner.modules)
+                logger.log("eval", steps, last_eval)
+                next_eval = _next_multiple(steps, config.eval_every_steps)
+                if not quiet:
+                    print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, completion "
+                          f"{last_eval['completion']:.0%}, steps {last_eval['steps']:.1f}, collisions "
+                          f"{last_eval['collisions']:.2f}", file=sys.stderr)
+            if steps >= next_ckpt or finished:
+                checkpoint()
+                next_ckpt = _next_multiple(steps, config.checkpoint_every_steps)
+    finally:
+        logger.close()
+    if last_eval is None:  # resumed a run that had already finished
+        last_eval = evaluate(config, learner.modules)
+    summary = {"algo": config.algo, "task": config.task, "seed": config.seed, "tier": config.tier,
+               "env_steps": progress["env_steps"], "wall_s": progress["wall_s"], "eval_train": last_eval}
+    _write_atomic(out / "summary.json", json.dumps(summary, indent=2))
+    return summary
+
+
+def load_policy(path: str | Path, algo: str | None = None, task: str | None = None):
+    """A trained policy from a checkpoint: ``(act, config)`` with ``act(obs, mask, state) ->
+    actions`` deterministic (numpy in and out)."""
+    data = load_checkpoint(path, algo=algo, task=task)
+    config = RunConfig.from_dict(data["config"])
+    dims = Dims(**data["progress"]["dims"])
+    modules = build_modules(config.algo, dims, config.model)
+    trainer_state = data["trainer"]
+    for name, module in modules.items():
+        module.load_state_dict(trainer_state[name])
+        module.eval()
+    return policy_act(config.algo, modules), config
