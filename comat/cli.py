@@ -75,9 +75,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
     summary = train(config, out, resume=args.resume, quiet=args.quiet)
     ev = summary["eval_train"]
-    print(f"done: {summary['env_steps']:,} env steps in {summary['wall_s'] / 60:.1f} min; on the training coalitions "
-          f"(deterministic): return {ev['return']:.2f}, completion {ev['completion']:.0%}, steps {ev['steps']:.1f}, "
-          f"collisions {ev['collisions']:.2f}; run folder {out}")
+    result = "" if ev is None else (
+        f"; on the training coalitions (deterministic): return {ev['return']:.2f}, completion "
+        f"{ev['completion']:.0%}, steps {ev['steps']:.1f}, collisions {ev['collisions']:.2f}")
+    print(f"done: {summary['env_steps']:,} env steps in {summary['wall_s'] / 60:.1f} min{result}; run folder {out}")
     return 0
 
 
@@ -191,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, FileExistsError) as exc:
+    except (ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
         print(f"comat {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

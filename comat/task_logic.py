@@ -23,6 +23,8 @@ ARENA = (-1.6, 1.6, -1.0, 1.0)
 """Robotarium arena (x_min, x_max, y_min, y_max), m; equal to comat.constants.ARENA_BOUNDS_M."""
 WAYPOINT_LIMITS = (-1.45, 1.45, -0.85, 0.85)
 """Waypoints are clipped to this box (the barrier keeps robots 0.1 m inside the arena anyway)."""
+SPAWN_X_LIMIT = 1.45
+"""Spawn areas of very large teams grow to the right up to this x (m)."""
 
 ACTIONS = np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 """Discrete actions: 0 stay, 1 +x, 2 -x, 3 +y, 4 -y (unit directions of the waypoint step)."""
@@ -87,8 +89,17 @@ class _Task:
         return 4 + len(self.types) + len(self.capabilities) + self.n_task_features
 
     def spawn(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """Start poses (n, 3): spread in the spawn area, random headings."""
-        pts = _spread(rng, n, self.spawn_box, self.spawn_spacing, f"{self.name} spawn area", "robots")
+        """Start poses (n, 3): spread in the spawn area, random headings.
+
+        A team too large for the spawn area (beyond the Robotarium's 20 robots) gets the area
+        widened to the right, one spacing at a time, up to the far side of the arena.
+        """
+        x0, x1, y0, y1 = self.spawn_box
+        s = self.spawn_spacing
+        rows = int(np.floor((y1 - y0) / s) + 1)
+        while int(np.floor((x1 - x0) / s) + 1) * rows < n and x1 + s <= SPAWN_X_LIMIT:
+            x1 += s
+        pts = _spread(rng, n, (x0, x1, y0, y1), s, f"{self.name} spawn area", "robots")
         return np.column_stack([pts, rng.uniform(-np.pi, np.pi, n)])
 
     def observe(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -7,6 +7,7 @@ from pettingzoo.test import parallel_api_test
 import comat
 from comat.envs import PcpEnv, make_env
 from comat.team import RobotSpec, TeamSpec, generate_coalitions, random_team
+from comat.task_logic import MaterialTransport
 
 TASKS = ["pcp", "hmt"]
 
@@ -149,10 +150,15 @@ def test_unknown_env_id():
         make_env("soccer_v0")
 
 
-def test_too_many_robots_for_the_spawn_area():
-    team = random_team(np.random.default_rng(0), "hmt", "train", 30)
+def test_large_teams_widen_the_spawn_area_until_the_arena_is_full():
+    task = MaterialTransport()
+    poses = task.spawn(np.random.default_rng(0), 30)  # 18 fit the usual area; it grows to the right
+    assert poses[:, 0].max() > task.spawn_box[1]
+    d = np.hypot(*(poses[:, None, :2] - poses[None, :, :2]).transpose(2, 0, 1)) + np.eye(30)
+    assert d.min() >= task.spawn_spacing - 1e-9
+    team = random_team(np.random.default_rng(0), "hmt", "train", 61)
     env = make_env("hmt_v0", team=team, tier="unicycle")
-    with pytest.raises(ValueError, match=r"hmt spawn area: 30 robots do not fit 0.3 m apart .* \(at most 18\)"):
+    with pytest.raises(ValueError, match=r"hmt spawn area: 61 robots do not fit 0.3 m apart .* \(at most 60\)"):
         env.reset(seed=0)
 
 

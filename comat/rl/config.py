@@ -49,7 +49,7 @@ class RunConfig:
     eval_every_steps: int
     """Evaluate on the training coalitions every this many env steps (and at the end)."""
     eval_episodes_per_team: int
-    """Evaluation episodes per training coalition (deterministic actions)."""
+    """Evaluation episodes per training coalition (deterministic actions); 0: no evaluation."""
     checkpoint_every_steps: int
     """Write the checkpoint every this many env steps (and at the end)."""
     trainer: PPOConfig | QmixConfig
@@ -126,8 +126,9 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
                 "checkpoint_every_steps": 100_000}
     for key, default in defaults.items():
         value = run.setdefault(key, default)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ValueError(f"{key} must be a positive integer, got {value!r}")
+        least = 0 if key == "eval_episodes_per_team" else 1
+        if isinstance(value, bool) or not isinstance(value, int) or value < least:
+            raise ValueError(f"{key} must be an integer >= {least}, got {value!r}")
     section = "qmix" if algo == "qmix" else "ppo"
     return RunConfig.from_dict({
         "algo": algo, "task": task, "seed": seed, "tier": tier, **run,

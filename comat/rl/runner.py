@@ -80,8 +80,8 @@ def _next_multiple(steps: int, every: int) -> int:
 
 
 def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False) -> dict:
-    """Train (or, with ``resume``, continue) the run in folder ``out``; returns the final
-    evaluation on the training coalitions.
+    """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
+    the final evaluation on the training coalitions (None if evaluation is off).
 
     Raises:
         FileExistsError: ``out`` already holds a run and ``resume`` is False (nothing is touched).
@@ -142,7 +142,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
             if bar is not None and recent:
                 tail = summarize(recent[-64:])
                 bar.update(steps, tail["return"], tail["completion"], final=finished)
-            if steps >= next_eval or finished:
+            if config.eval_episodes_per_team and (steps >= next_eval or finished):
                 last_eval = evaluate(config, learner.modules)
                 logger.log("eval", steps, last_eval)
                 next_eval = _next_multiple(steps, config.eval_every_steps)
@@ -155,7 +155,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                 next_ckpt = _next_multiple(steps, config.checkpoint_every_steps)
     finally:
         logger.close()
-    if last_eval is None:  # resumed a run that had already finished
+    if last_eval is None and config.eval_episodes_per_team:  # resumed a run that had already finished
         last_eval = evaluate(config, learner.modules)
     summary = {"algo": config.algo, "task": config.task, "seed": config.seed, "tier": config.tier,
                "env_steps": progress["env_steps"], "wall_s": progress["wall_s"], "eval_train": last_eval}

@@ -1,0 +1,191 @@
+"""Models: autoregressive decoding agrees with teacher forcing and with itself uncached; padding
+is invisible; per-type sharing; QMIX's mixer is monotonic; graphs match the environment's."""
+
+import numpy as np
+import pytest
+import torch
+
+from comat.envs import make_vec_env
+from comat.models.comat import Comat
+from comat.models.features import ObsLayout, edge_features
+from comat.models.mappo import Mappo
+from comat.models.mat import Mat, MatConfig
+from comat.models.qmix import QmixAgents, QmixMixer
+from comat.task_logic import MaterialTransport, PredatorCapturePrey
+
+LAYOUT = ObsLayout.for_task(PredatorCapturePrey())
+
+
+def fake_obs(B: int, N: int, layout: ObsLayout = LAYOUT, seed: int = 0, n_real=None):
+    """Observations with valid type one-hots, headings and capabilities; padded slots zero."""
+    g = torch.Generator().manual_seed(seed)
+    obs = torch.randn(B, N, layout.obs_dim, generator=g)
+    theta = torch.rand(B, N, generator=g) * 6.28
+    obs[..., 2], obs[..., 3] = torch.cos(theta), torch.sin(theta)
+    types = torch.randint(0, layout.n_types, (B, N), generator=g)
+    obs[..., 4 : 4 + layout.n_types] = torch.nn.functional.one_hot(types, layout.n_types).float()
+    n_real = torch.full((B,), N) if n_real is None else torch.as_tensor(n_real)
+    mask = torch.arange(N)[None] < n_real[:, None]
+    return obs * mask[..., None], mask
+
+
+def models():
+    torch.manual_seed(0)
+    return {"comat": Comat(LAYOUT), "mat": Mat(LAYOUT, MatConfig(max_robots=64))}
+
+
+@pytest.mark.parametrize("name", ["comat", "mat"])
+@pytest.mark.parametrize("n", list(range(1, 17)))
+def test_autoregressive_logps_equal_teacher_forced(name, n):
+    model = models()[name]
+    obs, mask = fake_obs(4, n, seed=n)
+    gen = torch.Generator().manual_seed(n)
+    actions, logp, values = model.act(obs, mask, generator=gen)
+    logp_tf, entropy, values_tf = model.evaluate_actions(obs, mask, actions)
+    torch.testing.assert_close(logp, logp_tf, atol=1e-5, rtol=0)
+    torch.testing.assert_close(values, values_tf, atol=1e-6, rtol=0)
+    assert (entropy > 0).all() and (logp < 0).all()
+
+
+@pytest.mark.parametrize("name", ["comat", "mat"])
+@pytest.mark.parametrize("n", [1, 3, 8, 16])
+def test_cached_decoding_equals_uncached(name, n):
+    model = models()[name]
+    obs, mask = fake_obs(5, n, seed=100 + n, n_real=[n, max(1, n - 1), n, 1, max(1, n // 2)])
+    for deterministic in (True, False):
+        a1, l1, v1 = model.act(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
+        a2, l2, v2 = model.act_uncached(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
+        assert torch.equal(a1, a2)
+        torch.testing.assert_close(l1, l2, atol=1e-5, rtol=0)
+        torch.testing.assert_close(v1, v2, atol=0, rtol=0)
+
+
+def _with_padding(obs, mask, extra: int, seed: int = 9):
+    """The same teams with ``extra`` more slots holding garbage (masked out)."""
+    B, N, D = obs.shape
+    junk = torch.randn(B, extra, D, generator=torch.Generator().manual_seed(seed)) * 5
+    junk[..., 4:6] = torch.nn.functional.one_hot(torch.randint(0, 2, (B, extra)), 2).float()
+    return torch.cat([obs, junk], 1), torch.cat([mask, torch.zeros(B, extra, dtype=torch.bool)], 1)
+
+
+@pytest.mark.parametrize("name", ["comat", "mat", "mappo"])
+def test_padding_slots_change_nothing(name):
+    torch.manual_seed(0)
+    model = models()[name] if name != "mappo" else Mappo(LAYOUT, state_dim=7)
+    obs, mask = fake_obs(6, 5, seed=1, n_real=[5, 3, 4, 2, 5, 1])
+    obs_p, mask_p = _with_padding(obs, mask, 3)
+    state = torch.randn(6, 7)
+    actions = torch.randint(0, 5, (6, 5)) * mask
+    l1, e1, v1 = model.evaluate_actions(obs, mask, actions, state)
+    l2, e2, v2 = model.evaluate_actions(obs_p, mask_p, torch.cat([actions, torch.randint(0, 5, (6, 3))], 1), state)
+    torch.testing.assert_close(l1, l2[:, :5], atol=1e-6, rtol=0)
+    torch.testing.assert_close(e1 * mask, e2[:, :5] * mask, atol=1e-6, rtol=0)
+    torch.testing.assert_close(v1, v2[:, :5], atol=1e-6, rtol=0)
+    assert (l2[:, 5:] == 0).all() and (v2[:, 5:] == 0).all()
+    g1, g2 = torch.Generator().manual_seed(4), torch.Generator().manual_seed(4)
+    a1, _, _ = model.act(obs, mask, state, deterministic=True, generator=g1)
+    a2, _, _ = model.act(obs_p, mask_p, state, deterministic=True, generator=g2)
+    assert torch.equal(a1, a2[:, :5]) and (a2[:, 5:] == 0).all()
+
+
+@pytest.mark.parametrize("name", ["comat", "mat", "mappo"])
+def test_padded_robots_get_zero_gradient(name):
+    torch.manual_seed(0)
+    model = models()[name] if name != "mappo" else Mappo(LAYOUT, state_dim=7)
+    obs, mask = fake_obs(4, 6, seed=2, n_real=[6, 3, 4, 2])
+    obs = obs.clone().requires_grad_(True)
+    state = torch.randn(4, 7)
+    actions = torch.randint(0, 5, (4, 6)) * mask
+    logp, entropy, values = model.evaluate_actions(obs, mask, actions, state)
+    (logp.sum() + entropy.sum() + values.sum()).backward()
+    assert obs.grad[~mask].abs().max() == 0
+    assert obs.grad[mask].abs().max() > 0
+    # and the parameter gradients are those of the unpadded teams
+    grads = {k: p.grad.clone() for k, p in model.named_parameters() if p.grad is not None}
+    obs_p, mask_p = _with_padding(obs.detach(), mask, 2)
+    model.zero_grad()
+    lp, en, va = model.evaluate_actions(obs_p, mask_p, torch.cat([actions, torch.zeros(4, 2, dtype=torch.long)], 1), state)
+    (lp.sum() + en.sum() + va.sum()).backward()
+    for k, p in model.named_parameters():
+        if k in grads:
+            torch.testing.assert_close(p.grad, grads[k], atol=1e-5, rtol=1e-4)
+
+
+@pytest.mark.parametrize("n", [2, 8, 16, 32, 40])
+def test_comat_acts_on_any_team_size(n):
+    model = models()["comat"]
+    obs, mask = fake_obs(3, n, seed=n)
+    actions, logp, values = model.act(obs, mask, generator=torch.Generator().manual_seed(0))
+    assert actions.shape == (3, n) and torch.isfinite(logp).all() and torch.isfinite(values).all()
+    torch.testing.assert_close(logp, model.evaluate_actions(obs, mask, actions)[0], atol=1e-5, rtol=0)
+
+
+def test_mat_refuses_teams_over_its_maximum():
+    model = Mat(LAYOUT)  # max_robots 8, as the paper trains it
+    obs, mask = fake_obs(2, 9, seed=0)
+    with pytest.raises(ValueError, match="at most 8 robots"):
+        model.act(obs, mask)
+    obs, mask = fake_obs(2, 9, seed=0, n_real=[8, 5])  # 9 slots, the 9th padded: fine
+    model.act(obs, mask)
+
+
+def test_comat_uses_capabilities_and_types():
+    """The decision layer reads [h ‖ c]: changing only a robot's capability changes its policy."""
+    model = models()["comat"]
+    for p in model.heads.parameters():  # the default init makes the heads near-zero
+        torch.nn.init.normal_(p, std=0.5)
+    obs, mask = fake_obs(1, 4, seed=3)
+    logp_all = lambda o: torch.log_softmax(model.decode_all(model.encode(o, mask)[0], model._start(1, None).repeat(1, 4, 1), o, mask), -1)  # noqa: E731
+    base = logp_all(obs)
+    changed = obs.clone()
+    changed[0, 2, 4 + LAYOUT.n_types] += 0.5  # robot 2's first capability
+    assert not torch.allclose(logp_all(changed)[0, 2], base[0, 2], atol=1e-4)
+
+
+def test_type_heads_share_within_a_type():
+    """MAPPO's actor and QMIX's agents: same type and observation -> same output; another type
+    with the same observation otherwise -> another head."""
+    torch.manual_seed(0)
+    mappo, agents = Mappo(LAYOUT, state_dim=3), QmixAgents(LAYOUT)
+    for p in list(mappo.actor.parameters()) + list(agents.parameters()):
+        torch.nn.init.normal_(p, std=0.3)
+    obs, mask = fake_obs(1, 3, seed=5)
+    obs[0, 1] = obs[0, 0]
+    obs[0, 2] = obs[0, 0]
+    obs[0, 2, 4:6] = 1 - obs[0, 0, 4:6]  # robot 2: the other type
+    for out in (mappo._logits(obs), agents(obs, mask)):
+        torch.testing.assert_close(out[0, 0], out[0, 1])
+        assert not torch.allclose(out[0, 0], out[0, 2])
+
+
+def test_qmix_mixer_is_monotonic_and_ignores_dead_slots():
+    torch.manual_seed(0)
+    mixer = QmixMixer(state_dim=6)
+    q = torch.randn(16, 8, requires_grad=True)
+    mask = torch.arange(8)[None] < torch.randint(1, 9, (16, 1))
+    state = torch.randn(16, 6)
+    q_tot = mixer(q, mask, state)
+    q_tot.sum().backward()
+    assert (q.grad >= 0).all() and (q.grad[~mask] == 0).all()
+    q2 = q.detach().clone()
+    q2[~mask] = 1e3
+    torch.testing.assert_close(mixer(q2, mask, state), q_tot.detach())
+    with pytest.raises(ValueError, match="8 robot slots"):
+        mixer(torch.randn(2, 9), torch.ones(2, 9, dtype=torch.bool), torch.randn(2, 6))
+
+
+@pytest.mark.parametrize("env_id, task", [("pcp_v0", PredatorCapturePrey()), ("hmt_v0", MaterialTransport())])
+def test_model_graph_matches_the_environment(env_id, task):
+    """COMAT rebuilds the team graph from observations: it equals env.graph() (plus self-loops)."""
+    env = make_vec_env(env_id, 3, seed=2, tier="unicycle")
+    obs, info = env.reset()
+    env.step(np.random.default_rng(0).integers(0, 5, (3, env.max_robots)))
+    g = env.graph()
+    layout = ObsLayout.for_task(task)
+    o, m = torch.as_tensor(g["nodes"], dtype=torch.float32), torch.as_tensor(g["mask"])
+    attr, etype, emask = edge_features(o, m, layout)
+    off = torch.as_tensor(g["edge_mask"])
+    np.testing.assert_allclose(attr[off].numpy(), g["edge_attr"][g["edge_mask"]], atol=1e-5)
+    assert torch.equal(etype[off], torch.as_tensor(g["edge_type"])[off])
+    assert torch.equal(emask & ~torch.eye(o.shape[1], dtype=torch.bool), off)
+    assert torch.equal(layout.types(o)[m], torch.as_tensor(g["node_type"])[m])

@@ -1,0 +1,238 @@
+"""Trainers and runs: GAE against a plain loop, masking in PPO updates, QMIX's TD target,
+checkpoint -> resume equality, policies from checkpoints on unseen team sizes, bad input."""
+
+import numpy as np
+import pytest
+import torch
+
+from comat.cli import main
+from comat.envs import make_vec_env
+from comat.eval.episodes import run_episodes
+from comat.models.features import ObsLayout
+from comat.models.mappo import Mappo
+from comat.rl.checkpoint import CheckpointError, load_checkpoint
+from comat.rl.config import load_preset, resolve
+from comat.rl.gae import gae
+from comat.rl.ppo import PPOConfig, PPOTrainer, Rollout
+from comat.rl.runner import load_policy, train
+from comat.team import random_team
+
+TINY_MODELS = {
+    "comat": {"embed": 16, "heads": 2, "heat_blocks": 1, "edge_embed": 8},
+    "mat": {"embed": 16, "heads": 1, "blocks": 1},
+    "mappo": {"hidden": 16},
+    "qmix": {"hidden": 16, "mixing_embed": 8, "hypernet_embed": 16},
+}
+
+
+def tiny(algo: str, task: str = "pcp", steps: int = 12, **overrides):
+    preset = {
+        "total_env_steps": steps, "eval_every_steps": 10**9, "eval_episodes_per_team": 0,
+        "checkpoint_every_steps": 6,
+        "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2},
+        "qmix": {"num_envs": 2, "batch_episodes": 2, "buffer_episodes": 8, "updates_per_episode": 1.0},
+        "models": TINY_MODELS, **overrides,
+    }
+    return resolve(preset, algo, task, seed=3)
+
+
+def assert_same(a, b, path="state"):
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), path
+        for k in a:
+            assert_same(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_same(x, y, f"{path}[{i}]")
+    elif isinstance(a, torch.Tensor):
+        assert torch.equal(a, b), path
+    else:
+        assert a == b, path
+
+
+# -- GAE ------------------------------------------------------------------------------------------
+def test_gae_equals_a_plain_reverse_loop():
+    g = torch.Generator().manual_seed(0)
+    T, B, gamma, lam = 13, 4, 0.97, 0.9
+    rewards, values, next_values = (torch.randn(T, B, generator=g) for _ in range(3))
+    dones = torch.rand(T, B, generator=g) < 0.2
+    adv, ret = gae(rewards, values, next_values, dones, gamma, lam)
+    for b in range(B):
+        running = 0.0
+        for t in reversed(range(T)):
+            if dones[t, b]:
+                running = 0.0
+            delta = rewards[t, b] + gamma * next_values[t, b] - values[t, b]
+            running = delta + gamma * lam * running
+            assert abs(adv[t, b] - running) < 1e-5
+    torch.testing.assert_close(ret, adv + values)
+
+
+# -- PPO: padded slots do not change an update -------------------------------------------------------
+def _pad(ro: Rollout, extra: int) -> Rollout:
+    def pad(x, value=0):
+        if x is None:
+            return None
+        shape = (*x.shape[:2], extra, *x.shape[3:])
+        return torch.cat([x, torch.full(shape, value, dtype=x.dtype)], 2)
+
+    return Rollout(obs=pad(ro.obs), mask=pad(ro.mask, False), state=ro.state, actions=pad(ro.actions),
+                   logp=pad(ro.logp), values=pad(ro.values), rewards=ro.rewards, terminated=ro.terminated,
+                   dones=ro.dones, next_obs=pad(ro.next_obs), next_mask=pad(ro.next_mask, False),
+                   next_state=ro.next_state, episodes=ro.episodes)
+
+
+@pytest.mark.parametrize("algo", ["comat", "mappo"])
+def test_ppo_update_ignores_padded_slots(algo):
+    from comat.models.comat import Comat, ComatConfig
+
+    env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
+    env.reset()
+    layout = ObsLayout.for_task(env.task)
+    cfg = PPOConfig(num_envs=2, rollout_steps=4, epochs=2, minibatches=2)
+
+    def trainer():
+        torch.manual_seed(0)
+        policy = Comat(layout, ComatConfig(16, 2, 1, 8)) if algo == "comat" else Mappo(layout, env.core.state_size())
+        return PPOTrainer(policy, env, cfg, seed=0, use_state=algo == "mappo")
+
+    t1, t2 = trainer(), trainer()
+    ro = t1.collect()
+    t1.update(ro)
+    t2.update(_pad(ro, 3))
+    for (k, p1), p2 in zip(t1.policy.named_parameters(), t2.policy.parameters()):
+        torch.testing.assert_close(p1, p2, atol=1e-6, rtol=1e-5, msg=k)
+
+
+# -- QMIX's TD target ------------------------------------------------------------------------------
+def test_qmix_learn_step_matches_a_per_step_reference():
+    from comat.models.qmix import QmixAgents, QmixMixer, QmixNetConfig
+    from comat.rl.qmix import QmixConfig, QmixTrainer
+
+    env = make_vec_env("pcp_v0", 2, seed=1, tier="unicycle", max_robots=8)
+    env.reset()
+    net = QmixNetConfig(16, 8, 16)
+    torch.manual_seed(0)
+    tr = QmixTrainer(QmixAgents(ObsLayout.for_task(env.task), net), QmixMixer(env.core.state_size(), net), env,
+                     QmixConfig(num_envs=2, batch_episodes=2, buffer_episodes=4, standardize_rewards=False,
+                                target_update_interval=1), seed=0)
+    tr.collect()
+    for p in tr.target_agents.parameters():  # make online and target nets differ
+        p.data.add_(0.1)
+    rng_state = tr.rng.bit_generator.state  # the batch learn_step will draw
+    batch = tr.buffer.sample(2, tr.rng)
+    tr.rng.bit_generator.state = rng_state
+    agents = {k: v.clone() for k, v in tr.agents.state_dict().items()}
+    loss = 0.0
+    n = 0
+    with torch.no_grad():
+        for e in range(2):
+            m = batch["mask"][e][None]
+            for t in range(int(batch["filled"][e].sum())):
+                o, o2 = batch["obs"][e, t][None], batch["obs"][e, t + 1][None]
+                s, s2 = batch["state"][e, t][None], batch["state"][e, t + 1][None]
+                a_star = tr.agents(o2, m).argmax(-1, keepdim=True)
+                q_next = tr.target_mixer(tr.target_agents(o2, m).gather(-1, a_star)[..., 0], m, s2)
+                y = batch["rewards"][e, t] + 0.99 * (not batch["terminated"][e, t]) * q_next
+                q = tr.mixer(tr.agents(o, m).gather(-1, batch["actions"][e, t][None, :, None])[..., 0], m, s)
+                loss += float((q - y) ** 2)
+                n += 1
+    stats = tr.learn_step()
+    assert abs(stats["td_loss"] - loss / n) < 1e-4 * max(1.0, loss / n)
+    assert any(not torch.equal(agents[k], v) for k, v in tr.agents.state_dict().items())  # it learned
+
+
+# -- runs: checkpoint -> resume -----------------------------------------------------------------------
+@pytest.mark.parametrize("algo, steps", [("comat", 12), ("mat", 12), ("mappo", 12), ("qmix", 320)])
+def test_resume_continues_exactly(tmp_path, algo, steps):
+    straight = train(tiny(algo, steps=steps), tmp_path / "straight", quiet=True)
+    train(tiny(algo, steps=steps // 2), tmp_path / "split", quiet=True)
+    resumed = train(tiny(algo, steps=steps), tmp_path / "split", resume=True, quiet=True)
+    assert straight["env_steps"] == resumed["env_steps"] == steps
+    a = load_checkpoint(tmp_path / "straight" / "checkpoint.pt")
+    b = load_checkpoint(tmp_path / "split" / "checkpoint.pt")
+    assert_same(a["trainer"], b["trainer"], "trainer")
+    assert_same(a["env_rngs"], b["env_rngs"], "env_rngs")
+    assert torch.equal(a["torch_rng"], b["torch_rng"])
+    # the logs read like one run
+    rows = (tmp_path / "split" / "progress.csv").read_text().splitlines()
+    assert rows[1:] and [r.split(",")[0] for r in rows[1:]] == [
+        r.split(",")[0] for r in (tmp_path / "straight" / "progress.csv").read_text().splitlines()[1:]]
+
+
+def test_comat_trained_on_357_acts_on_other_sizes(tmp_path):
+    train(tiny("comat"), tmp_path / "run", quiet=True)
+    act, config = load_policy(tmp_path / "run" / "checkpoint.pt", algo="comat", task="pcp")
+    rng = np.random.default_rng(0)
+    for n in (2, 8, 16, 32):
+        team = random_team(rng, "pcp", "test", n)
+        env = make_vec_env("pcp_v0", 2, seed=n, tier="unicycle", coalitions=[team])
+        obs, info = env.reset()
+        assert obs.shape[1] == n
+        for _ in range(2):
+            actions = act(obs, info["agent_mask"], None)
+            assert actions.shape == (2, n) and actions.min() >= 0 and actions.max() < 5
+            obs, *_, info = env.step(actions)
+    episodes = run_episodes(make_vec_env("pcp_v0", 2, seed=0, tier="unicycle", ticks_per_step=2, max_robots=9), act,
+                            [random_team(rng, "pcp", "test", n) for n in (2, 9, 4)], seed=5)
+    assert [e["team_size"] for e in episodes] == [2, 9, 4]
+
+
+# -- bad input ----------------------------------------------------------------------------------------
+def test_unknown_algo_task_and_preset_keys(tmp_path):
+    preset = load_preset("quick")
+    with pytest.raises(ValueError, match=r"algo must be one of \['comat', 'mat', 'mappo', 'qmix'\], got 'ppo'"):
+        resolve(preset, "ppo", "pcp")
+    with pytest.raises(ValueError, match="task must be one of"):
+        resolve(preset, "comat", "football")
+    with pytest.raises(ValueError, match="unknown preset 'fast'"):
+        load_preset("fast")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("total_env_steps: 100\nlearning_rate: 0.1\n")
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['learning_rate'\]"):
+        load_preset(bad)
+    bad.write_text("ppo: {lr: 0.1, epoch: 3}\n")
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['epoch'\] for trainer"):
+        resolve(load_preset(bad), "comat", "pcp")
+    bad.write_text("models: {comat: {embed: 'big'}}\n")
+    with pytest.raises(TypeError, match="model.embed must be"):
+        resolve(load_preset(bad), "comat", "pcp")
+    bad.write_text("total_env_steps: -5\n")
+    with pytest.raises(ValueError, match="total_env_steps must be an integer >= 1, got -5"):
+        resolve(load_preset(bad), "comat", "pcp")
+    assert main(["train", "--algo", "comat", "--task", "pcp", "--preset", "nope", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()
+
+
+def test_bad_checkpoints_are_refused_and_nothing_is_overwritten(tmp_path, capsys):
+    run = tmp_path / "run"
+    train(tiny("mappo"), run, quiet=True)
+    ckpt = run / "checkpoint.pt"
+    before = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    with pytest.raises(CheckpointError, match="is for algo 'mappo', expected 'comat'"):
+        load_checkpoint(ckpt, algo="comat")
+    with pytest.raises(CheckpointError, match="is for task 'pcp', expected 'hmt'"):
+        load_policy(ckpt, task="hmt")
+    with pytest.raises(CheckpointError, match="for algo 'mappo', expected 'qmix'"):
+        train(tiny("qmix"), run, resume=True, quiet=True)
+    with pytest.raises(FileExistsError, match="already holds a run; pass --resume"):
+        train(tiny("mappo"), run, quiet=True)
+    assert main(["train", "--algo", "mappo", "--task", "pcp", "--preset", "quick", "--out", str(run)]) == 2
+    assert "already holds a run" in capsys.readouterr().err
+    assert main(["train", "--resume", "--algo", "comat", "--out", str(run)]) == 2
+    assert "expected 'comat'" in capsys.readouterr().err
+    after = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    assert after == before
+    corrupt = tmp_path / "corrupt.pt"
+    corrupt.write_bytes(ckpt.read_bytes()[:1000])
+    with pytest.raises(CheckpointError, match="is corrupt or not a comat checkpoint"):
+        load_checkpoint(corrupt)
+    corrupt.write_bytes(b"not a checkpoint at all")
+    with pytest.raises(CheckpointError, match="is corrupt or not a comat checkpoint"):
+        load_policy(corrupt)
+    torch.save({"weights": torch.zeros(3)}, corrupt)
+    with pytest.raises(CheckpointError, match="not a comat checkpoint"):
+        load_checkpoint(corrupt)
+    with pytest.raises(CheckpointError, match="does not exist"):
+        load_checkpoint(tmp_path / "missing.pt")
