@@ -37,7 +37,7 @@ __all__ = ["EpisodeBuffer", "QmixConfig", "QmixTrainer"]
 class QmixConfig:
     """QMIX settings (EPyMARL's qmix.yaml unless said otherwise)."""
 
-    num_envs: int = 8
+    num_envs: int = 32
     """Environments stepped together; each round stores one episode per environment."""
     buffer_episodes: int = 5000
     batch_episodes: int = 32
