@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-demo: $(STAMP)  ## robots crossing paths under the safety filter (about a minute)
+demo: $(STAMP)  ## safety filter, the tasks, then a quick COMAT trained on PCP (about 5 minutes)
 	$(BIN)/comat demo
 
 test: $(STAMP)  ## the fast suite (about a minute)
@@ -24,8 +24,10 @@ test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario 
 
 test-all: test test-slow
 
-bench: $(STAMP)  ## comat bench sim + fidelity, JSON under benchmarks/results/
+bench: $(STAMP)  ## comat bench sim, env, learn and fidelity; JSON under benchmarks/results/
 	$(BIN)/comat bench sim
+	$(BIN)/comat bench env
+	$(BIN)/comat bench learn
 	$(BIN)/comat bench fidelity
 
 mjcf: $(STAMP)  ## regenerate the golden MJCF files

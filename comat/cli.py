@@ -60,7 +60,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             raise ValueError("--resume needs --out, the folder of the run to continue")
         data = load_checkpoint(Path(args.out) / "checkpoint.pt", algo=args.algo, task=args.task)
         config = RunConfig.from_dict(data["config"])
-        for name in ("seed", "tier"):
+        for name in ("seed", "tier", "env_workers"):
             given = getattr(args, name)
             if given is not None and given != getattr(config, name):
                 raise ValueError(f"--{name} {given!r} does not match the run being resumed ({getattr(config, name)!r})")
@@ -69,7 +69,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     else:
         if args.algo is None or args.task is None:
             raise ValueError("--algo and --task are required for a new run")
-        config = resolve(load_preset(args.preset), args.algo, args.task, args.seed, args.tier, args.steps)
+        config = resolve(load_preset(args.preset), args.algo, args.task, args.seed, args.tier, args.steps,
+                         args.env_workers)
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
     print(f"comat train: {config.algo} on {config.task} ({config.tier} tier), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
@@ -97,6 +98,15 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
         t0 = time.perf_counter()
         run_env_bench(tuple(args.tasks), tuple(args.tiers), tuple(args.sizes), tuple(args.batches), args.steps, args.out)
+        print(f"done in {time.perf_counter() - t0:.0f} s")
+        return 0
+    if args.what == "learn":
+        from comat.bench.learn_bench import run_learn_bench
+
+        t0 = time.perf_counter()
+        print(f"comat bench learn: decode (COMAT, MAT, 8 robots), training {tuple(args.algos)} with env workers "
+              f"{tuple(args.workers)}, {args.iterations} iterations each")
+        run_learn_bench(tuple(args.algos), tuple(args.workers), args.iterations, tuple(args.batches), args.out)
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "fidelity":
@@ -127,15 +137,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="train/coalitions", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_coalitions)
 
-    p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks played by a scripted policy",
+    p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks; a quick COMAT training",
                        description="1) Teams of robots swap places through the arena centre, every command passing "
                        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
-                       "heuristic and a random policy on PCP and HMT, training and unseen coalitions.")
+                       "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) A quick COMAT trains on "
+                       "PCP (about 3 minutes) and plays the training and unseen coalitions next to a random policy.")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels", help="dynamics tier (default: %(default)s)")
     p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
     p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--part", choices=["all", "physics", "tasks"], default="all", help="which part to run (default: all)")
+    p.add_argument("--part", choices=["all", "physics", "tasks", "train"], default="all",
+                   help="which part to run (default: all)")
     p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
     p.set_defaults(func=_cmd_demo)
 
@@ -146,10 +158,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", choices=["comat", "mat", "mappo", "qmix"], help="algorithm (required for a new run)")
     p.add_argument("--task", choices=["hmt", "pcp"], help="task (required for a new run)")
     p.add_argument("--preset", default="paper",
-                   help="preset name in train/configs/ (paper, quick) or a YAML path (default: %(default)s)")
+                   help="preset name in train/configs/ (paper, quick, learning) or a YAML path (default: %(default)s)")
     p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="dynamics tier (default: the preset's)")
     p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")
+    p.add_argument("--env-workers", type=int, default=None,
+                   help="processes stepping the environments (default: the preset's; results are reproducible "
+                   "for the same value)")
     p.add_argument("--out", default=None, help="run folder (default: runs/<algo>_<task>_s<seed>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress line")
@@ -176,6 +191,20 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
     b.add_argument("--out", default="benchmarks/results/env.json", help="JSON output (default: %(default)s)")
+    b.set_defaults(func=_cmd_bench)
+    b = bsub.add_parser("learn", help="cached vs uncached decoding; training env-steps/s per algorithm",
+                        description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "
+                        "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
+                        "algorithm on PCP in the unicycle tier with the paper's settings.")
+    b.add_argument("--algos", nargs="+", choices=["comat", "mat", "mappo", "qmix"],
+                   default=["comat", "mat", "mappo", "qmix"])
+    b.add_argument("--workers", type=int, nargs="+", default=[1, 2],
+                   help="environment worker processes to compare (default: %(default)s)")
+    b.add_argument("--iterations", type=int, default=2,
+                   help="timed training iterations per algorithm, each 2,560 env steps (default: %(default)s)")
+    b.add_argument("--batches", type=int, nargs="+", default=[1, 32, 256],
+                   help="decoding batch sizes (default: %(default)s)")
+    b.add_argument("--out", default="benchmarks/results/learn.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("fidelity", help="how closely the MuJoCo robot follows the Robotarium's unicycle model",
                         description="Steady-state tracking over the admissible command range, and trajectory "

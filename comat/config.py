@@ -66,7 +66,7 @@ class SimConfig:
         from comat.mjcf.scene import DEFAULT_SUBSTEPS
 
         if self.timestep_s is not None:
-            return int(round(C.CONTROL_DT_S / self.timestep_s))
+            return round(C.CONTROL_DT_S / self.timestep_s)
         return self.substeps if self.substeps is not None else DEFAULT_SUBSTEPS[self.tier]
 
 

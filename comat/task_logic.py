@@ -8,6 +8,8 @@ robots; poses (B, N, 3); capabilities (B, N, 2); type ids (B, N).
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 __all__ = [
@@ -138,7 +140,7 @@ class PredatorCapturePrey(_Task):
     prey_spacing = 0.2
     n_task_features = 5
     reward_terms = ("sensed", "captured", "time", "violation")
-    reward_weights = {"sensed": 1.0, "captured": 5.0, "time": -0.05, "violation": -5.0}
+    reward_weights: ClassVar[dict] = {"sensed": 1.0, "captured": 5.0, "time": -0.05, "violation": -5.0}
 
     def __init__(self, n_prey: int = 6):
         if not isinstance(n_prey, (int, np.integer)) or n_prey < 1:
@@ -191,7 +193,7 @@ class PredatorCapturePrey(_Task):
         k = np.argmin(dist2, axis=-1)
         seen = np.isfinite(np.take_along_axis(dist2, k[..., None], -1))[..., 0]
         near = np.take_along_axis(d, k[..., None, None], 2)[..., 0, :] * seen[..., None]
-        B, N = mask.shape
+        _B, N = mask.shape
         progress = np.stack([state["sensed"].mean(1), state["captured"].mean(1)], -1)[:, None, :].repeat(N, 1)
         return np.concatenate([seen[..., None].astype(float), near, progress], axis=-1)
 
@@ -229,7 +231,7 @@ class MaterialTransport(_Task):
     zone_factors = (1.5, 0.5)
     n_task_features = 7
     reward_terms = ("loaded", "unloaded", "time", "violation")
-    reward_weights = {"loaded": 0.025, "unloaded": 0.075, "time": -0.1, "violation": -6.0}
+    reward_weights: ClassVar[dict] = {"loaded": 0.025, "unloaded": 0.075, "time": -0.1, "violation": -6.0}
 
     def step_lengths(self, caps: np.ndarray) -> np.ndarray:
         """Waypoint step (B, N), m: the robot's speed capability."""

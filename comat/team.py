@@ -30,8 +30,8 @@ __all__ = [
     "SIZES",
     "TASK_TYPES",
     "RobotSpec",
-    "TeamSpec",
     "TaskTypes",
+    "TeamSpec",
     "generate_coalitions",
     "load_coalitions",
     "random_team",
@@ -143,7 +143,7 @@ class TeamSpec:
             raise ValueError(f"team must be a mapping with keys 'task' and 'robots', got {data!r}")
         robots = data["robots"]
         if not isinstance(robots, Sequence) or isinstance(robots, str):
-            raise ValueError(f"team robots must be a list, got {robots!r}")
+            raise ValueError(f"team robots must be a list, got {robots!r}")  # noqa: TRY004
         specs = []
         for i, r in enumerate(robots):
             if not isinstance(r, Mapping) or set(r) != {"type", "capabilities"}:
@@ -200,5 +200,5 @@ def load_coalitions(path: str | Path) -> list[TeamSpec]:
         raise FileNotFoundError(f"coalition file {p} does not exist (regenerate with `comat coalitions`)")
     data = yaml.safe_load(p.read_text())
     if not isinstance(data, dict) or not isinstance(data.get("coalitions"), list):
-        raise ValueError(f"{p}: expected a mapping with a 'coalitions' list")
+        raise ValueError(f"{p}: expected a mapping with a 'coalitions' list")  # noqa: TRY004 - bad file content
     return [TeamSpec.from_dict(t) for t in data["coalitions"]]

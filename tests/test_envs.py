@@ -6,8 +6,8 @@ from pettingzoo.test import parallel_api_test
 
 import comat
 from comat.envs import PcpEnv, make_env
-from comat.team import RobotSpec, TeamSpec, generate_coalitions, random_team
 from comat.task_logic import MaterialTransport
+from comat.team import RobotSpec, TeamSpec, generate_coalitions, random_team
 
 TASKS = ["pcp", "hmt"]
 
@@ -131,13 +131,13 @@ def test_graph_inputs_any_size():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(colour="red"), r"unknown option\(s\) \['colour'\] for pcp_v0; valid options:"),
-        (dict(tier="legs"), r"SimConfig.tier must be one of"),
-        (dict(coalitions="validation"), r"coalitions must be 'train', 'test', a YAML path or a non-empty list"),
-        (dict(team={"robots": []}), r"needs at least one robot of each type"),
-        (dict(team={"robots": [{"type": "sensing", "capabilities": [0.4, 0.0]}]}), r"missing \['capture'\]"),
-        (dict(team={"robots": [{"type": "sensing", "capabilities": [2.0, 0.0]}, {"type": "capture", "capabilities": [0.0, 0.3]}]}), r"sensing_radius_m must be in \[0.0, 1.0\]"),
-        (dict(n_prey=0), r"n_prey must be a positive integer, got 0"),
+        ({"colour": "red"}, r"unknown option\(s\) \['colour'\] for pcp_v0; valid options:"),
+        ({"tier": "legs"}, r"SimConfig.tier must be one of"),
+        ({"coalitions": "validation"}, r"coalitions must be 'train', 'test', a YAML path or a non-empty list"),
+        ({"team": {"robots": []}}, r"needs at least one robot of each type"),
+        ({"team": {"robots": [{"type": "sensing", "capabilities": [0.4, 0.0]}]}}, r"missing \['capture'\]"),
+        ({"team": {"robots": [{"type": "sensing", "capabilities": [2.0, 0.0]}, {"type": "capture", "capabilities": [0.0, 0.3]}]}}, r"sensing_radius_m must be in \[0.0, 1.0\]"),
+        ({"n_prey": 0}, r"n_prey must be a positive integer, got 0"),
     ],
 )
 def test_bad_constructor_options(kwargs, match):

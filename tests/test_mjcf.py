@@ -24,7 +24,7 @@ def test_golden_files_match_the_generator(tmp_path):
 @pytest.mark.parametrize("n", GOLDEN_TEAM_SIZES)
 def test_golden_scenes_load_and_match_counts(tier, n):
     model = mujoco.MjModel.from_xml_path(str(ASSETS / f"scene_{tier}_n{n}.xml"))
-    per_robot = {"wheels": dict(nq=9, nu=2, nbody=3), "unicycle": dict(nq=3, nu=3, nbody=1)}[tier]
+    per_robot = {"wheels": {"nq": 9, "nu": 2, "nbody": 3}, "unicycle": {"nq": 3, "nu": 3, "nbody": 1}}[tier]
     assert model.nq == n * per_robot["nq"]
     assert model.nu == n * per_robot["nu"]
     assert model.nbody == 2 + n * per_robot["nbody"]  # world + walls + robots
@@ -70,7 +70,7 @@ def test_collision_bits_allow_robot_robot_and_robot_wall_contacts_only(tier):
 
 def test_arena_walls_sit_on_the_boundary():
     model = arena_spec().compile()
-    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    _x0, x1, _y0, y1 = C.ARENA_BOUNDS_M
     east = model.geom("wall_east")
     assert east.pos[0] - east.size[0] == pytest.approx(x1)
     north = model.geom("wall_north")

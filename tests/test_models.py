@@ -62,7 +62,7 @@ def test_cached_decoding_equals_uncached(name, n):
 
 def _with_padding(obs, mask, extra: int, seed: int = 9):
     """The same teams with ``extra`` more slots holding garbage (masked out)."""
-    B, N, D = obs.shape
+    B, _N, D = obs.shape
     junk = torch.randn(B, extra, D, generator=torch.Generator().manual_seed(seed)) * 5
     junk[..., 4:6] = torch.nn.functional.one_hot(torch.randint(0, 2, (B, extra)), 2).float()
     return torch.cat([obs, junk], 1), torch.cat([mask, torch.zeros(B, extra, dtype=torch.bool)], 1)
@@ -135,7 +135,7 @@ def test_comat_uses_capabilities_and_types():
     for p in model.heads.parameters():  # the default init makes the heads near-zero
         torch.nn.init.normal_(p, std=0.5)
     obs, mask = fake_obs(1, 4, seed=3)
-    logp_all = lambda o: torch.log_softmax(model.decode_all(model.encode(o, mask)[0], model._start(1, None).repeat(1, 4, 1), o, mask), -1)  # noqa: E731
+    logp_all = lambda o: torch.log_softmax(model.decode_all(model.encode(o, mask)[0], model._start(1, None).repeat(1, 4, 1), o, mask), -1)
     base = logp_all(obs)
     changed = obs.clone()
     changed[0, 2, 4 + LAYOUT.n_types] += 0.5  # robot 2's first capability
@@ -178,7 +178,7 @@ def test_qmix_mixer_is_monotonic_and_ignores_dead_slots():
 def test_model_graph_matches_the_environment(env_id, task):
     """COMAT rebuilds the team graph from observations: it equals env.graph() (plus self-loops)."""
     env = make_vec_env(env_id, 3, seed=2, tier="unicycle")
-    obs, info = env.reset()
+    _obs, _info = env.reset()
     env.step(np.random.default_rng(0).integers(0, 5, (3, env.max_robots)))
     g = env.graph()
     layout = ObsLayout.for_task(task)

@@ -161,9 +161,21 @@ def test_resume_continues_exactly(tmp_path, algo, steps):
         r.split(",")[0] for r in (tmp_path / "straight" / "progress.csv").read_text().splitlines()[1:]]
 
 
+def test_resume_with_env_workers_continues_exactly(tmp_path):
+    """Environments in two worker processes: the run is still exactly reproducible and resumable."""
+    straight = train(tiny("mappo", env_workers=2), tmp_path / "straight", quiet=True)
+    train(tiny("mappo", steps=6, env_workers=2), tmp_path / "split", quiet=True)
+    train(tiny("mappo", env_workers=2), tmp_path / "split", resume=True, quiet=True)
+    a = load_checkpoint(tmp_path / "straight" / "checkpoint.pt")
+    b = load_checkpoint(tmp_path / "split" / "checkpoint.pt")
+    assert straight["env_steps"] == 12 and a["config"]["env_workers"] == 2
+    assert_same(a["trainer"], b["trainer"], "trainer")
+    assert_same(a["env_rngs"], b["env_rngs"], "env_rngs")
+
+
 def test_comat_trained_on_357_acts_on_other_sizes(tmp_path):
     train(tiny("comat"), tmp_path / "run", quiet=True)
-    act, config = load_policy(tmp_path / "run" / "checkpoint.pt", algo="comat", task="pcp")
+    act, _config = load_policy(tmp_path / "run" / "checkpoint.pt", algo="comat", task="pcp")
     rng = np.random.default_rng(0)
     for n in (2, 8, 16, 32):
         team = random_team(rng, "pcp", "test", n)

@@ -67,7 +67,7 @@ def test_infeasible_start_falls_back_to_braking_and_is_counted():
     # in; no velocity within the wheel limits can satisfy the barrier. Team 1 is fine.
     poses = np.array([[-0.06, 0, 0], [0.06, 0, np.pi], [-0.5, 0.6, 0], [0.5, 0.6, np.pi]])
     teams.reset(poses)
-    ev, info = teams.tick(np.array([[0.1, 0], [-0.1, 0], [0.1, 0], [-0.1, 0]]))
+    _ev, info = teams.tick(np.array([[0.1, 0], [-0.1, 0], [0.1, 0], [-0.1, 0]]))
     assert info.fallback.tolist() == [True, False]
     assert teams.fallbacks.tolist() == [1, 0]
     np.testing.assert_allclose(teams.poses[:2], poses[:2], atol=1e-9)  # braked: did not move

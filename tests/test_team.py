@@ -23,7 +23,7 @@ def test_sets_follow_the_paper(task, split):
     assert {t.size for t in teams} <= set(SIZES[split])
     types = TASK_TYPES[task].types
     for t in teams:
-        assert set(r.type for r in t.robots) == set(types)  # at least one of each type
+        assert {r.type for r in t.robots} == set(types)  # at least one of each type
         for r in t.robots:
             for value, (lo, hi) in zip(r.capabilities, CAPABILITY_RANGES[(task, split)][r.type]):
                 assert lo <= value <= hi

@@ -27,7 +27,7 @@ def test_vector_env_equals_single_envs():
     """B environments batched (one physics call, one QP per tick) = each run alone."""
     teams = generate_coalitions("pcp", "train")[:3]
     vec = make_vec_env("pcp_v0", 3, seed=5, tier="unicycle", coalitions=teams)
-    obs, info = vec.reset()
+    obs, _info = vec.reset()
     singles = []
     for b in range(3):
         env = make_env("pcp_v0", tier="unicycle", coalitions=teams, max_robots=vec.max_robots)
@@ -39,7 +39,7 @@ def test_vector_env_equals_single_envs():
     rng = np.random.default_rng(0)
     for _ in range(15):
         actions = random_actions(rng, vec.agent_mask)
-        obs, rewards, term, trunc, _ = vec.step(actions)
+        obs, rewards, _term, _trunc, _ = vec.step(actions)
         for b, env in enumerate(singles):
             o, r, *_ = env.step({a: int(actions[b, i]) for i, a in enumerate(env.agents)})
             np.testing.assert_allclose(np.stack(list(o.values())), obs[b, : env.team.size], atol=1e-6)
@@ -51,12 +51,12 @@ def test_autoreset_same_step():
     env.reset()
     rng = np.random.default_rng(0)
     for _ in range(80):
-        obs, rewards, term, trunc, info = env.step(random_actions(rng, env.agent_mask))
+        obs, _rewards, _term, trunc, info = env.step(random_actions(rng, env.agent_mask))
     assert trunc.all() and info["_episode"].all()
     assert (info["episode"]["steps"] == 80).all()
     assert "final_obs" in info and info["final_obs"].shape == obs.shape
     # The returned observation already belongs to the next episode.
-    obs2, *_ = env.step(random_actions(rng, env.agent_mask))
+    _obs2, *_ = env.step(random_actions(rng, env.agent_mask))
     assert (env.core.steps == 1).all()
 
 

@@ -35,7 +35,7 @@ _DT = C.CONTROL_DT_S
 
 def random_commands(rng: np.random.Generator, duration_s: float = 10.0, profile=C.DEFAULT_PROFILE) -> np.ndarray:
     """(T, 2) piecewise-constant [v, ω] commands: pieces of 15–60 ticks, wheels uniform in ±max."""
-    n = int(round(duration_s / _DT))
+    n = round(duration_s / _DT)
     out = np.empty((n, 2))
     k = 0
     lim = profile.max_wheel_velocity_radps
@@ -104,7 +104,7 @@ def trajectory_errors(config: SimConfig, seeds: range | list[int]) -> dict[str, 
                 break
         exact = exact_unicycle(start, cmds)
         sim = simulate(world, start, cmds)
-        err = lambda a, b: float(np.max(np.linalg.norm(a[:, :2] - b[:, :2], axis=1)))  # noqa: E731
+        err = lambda a, b: float(np.max(np.linalg.norm(a[:, :2] - b[:, :2], axis=1)))
         out["mujoco_vs_euler"].append(err(sim, euler))
         out["mujoco_vs_exact"].append(err(sim, exact))
         out["euler_vs_exact"].append(err(euler, exact))
@@ -137,7 +137,7 @@ def steady_state(config: SimConfig, grid: int = 9, settle_s: float = 1.0, measur
     lim = prof.max_wheel_velocity_radps
     wheels = np.linspace(-lim, lim, grid)
     rel = absolute = lateral = 0.0
-    n_settle, n_meas = int(round(settle_s / _DT)), int(round(measure_s / _DT))
+    n_settle, n_meas = round(settle_s / _DT), round(measure_s / _DT)
     for left in wheels:
         for right in wheels:
             if left == 0 and right == 0:

@@ -111,7 +111,7 @@ def bench_rps(n: int, ticks: int, seed: int = 0, warmup: int = 10) -> SimBenchRo
     import matplotlib
 
     matplotlib.use("Agg")
-    import rps.robotarium as robotarium
+    from rps import robotarium
     from rps.utilities.barrier_certificates import create_unicycle_barrier_certificate_with_boundary
     from rps.utilities.controllers import create_si_position_controller
     from rps.utilities.misc import generate_initial_conditions

@@ -12,9 +12,10 @@ from typing import Any
 from comat.envs.base import TaskEnv
 from comat.envs.hmt import HmtEnv
 from comat.envs.pcp import PcpEnv
+from comat.envs.sharded import ShardedVectorEnv
 from comat.envs.vector import VectorEnv
 
-__all__ = ["ENV_IDS", "HmtEnv", "PcpEnv", "TaskEnv", "VectorEnv", "make_env", "make_vec_env"]
+__all__ = ["ENV_IDS", "HmtEnv", "PcpEnv", "ShardedVectorEnv", "TaskEnv", "VectorEnv", "make_env", "make_vec_env"]
 
 _ENVS: dict[str, type[TaskEnv]] = {"hmt_v0": HmtEnv, "pcp_v0": PcpEnv}
 ENV_IDS = tuple(sorted(_ENVS))
@@ -42,10 +43,13 @@ def make_env(env_id: str, **options: Any) -> TaskEnv:
     return _env_class(env_id)(**options)
 
 
-def make_vec_env(env_id: str, num_envs: int, **options: Any) -> VectorEnv:
-    """``num_envs`` environments of ``env_id`` as one :class:`VectorEnv` (options: see TaskEnv,
+def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -> VectorEnv | ShardedVectorEnv:
+    """``num_envs`` environments of ``env_id``: one :class:`VectorEnv` in this process, or with
+    ``workers`` > 1 a :class:`ShardedVectorEnv` over that many processes (options: see TaskEnv,
     plus ``seed``)."""
-    _check_options(env_id, options, extra=("seed",))
+    if workers != 1:
+        return ShardedVectorEnv(env_id, num_envs, workers=workers, **options)
+    _check_options(env_id, options, extra=("seed", "shard"))
     cls = _env_class(env_id)
     task_keys = set(inspect.signature(cls.task_cls.__init__).parameters) - {"self"}
     task = cls.task_cls(**{k: v for k, v in options.items() if k in task_keys})

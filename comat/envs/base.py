@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -86,7 +86,7 @@ class TaskEnv(ParallelEnv):
         task options: see each task (e.g. PCP ``n_prey``).
     """
 
-    metadata = {"name": "", "render_modes": [], "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "", "render_modes": [], "is_parallelizable": True}
     task_cls: type = object
 
     def __init__(

@@ -43,6 +43,8 @@ Version history: v0 — first version (after MARBLER's MaterialTransport and the
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from comat.envs.base import TaskEnv
 from comat.task_logic import MaterialTransport
 
@@ -52,5 +54,5 @@ __all__ = ["HmtEnv"]
 class HmtEnv(TaskEnv):
     """Heterogeneous Material Transport as a PettingZoo parallel environment (spec: module docstring)."""
 
-    metadata = {"name": "hmt_v0", "render_modes": [], "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "hmt_v0", "render_modes": [], "is_parallelizable": True}
     task_cls = MaterialTransport

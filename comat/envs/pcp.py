@@ -43,6 +43,8 @@ Version history: v0 — first version (after MARBLER's PredatorCapturePrey and t
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from comat.envs.base import TaskEnv
 from comat.task_logic import PredatorCapturePrey
 
@@ -52,5 +54,5 @@ __all__ = ["PcpEnv"]
 class PcpEnv(TaskEnv):
     """Predator Capture Prey as a PettingZoo parallel environment (spec sheet: module docstring)."""
 
-    metadata = {"name": "pcp_v0", "render_modes": [], "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "pcp_v0", "render_modes": [], "is_parallelizable": True}
     task_cls = PredatorCapturePrey

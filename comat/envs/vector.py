@@ -35,6 +35,9 @@ class VectorEnv:
         seed: seeds every environment's generator (same seed, same episodes).
         coalitions, team, tier, sim, safety, ticks_per_step, max_robots, state_robots: as for
             :class:`comat.envs.base.TaskEnv`.
+        shard: ``(first, total)``: these are environments ``first … first + num_envs - 1`` of
+            ``total`` seeded from ``seed`` (how :class:`comat.envs.sharded.ShardedVectorEnv`
+            splits one seed over worker processes); None: all of them.
     """
 
     def __init__(
@@ -51,11 +54,16 @@ class VectorEnv:
         ticks_per_step: int | None = None,
         max_robots: int | None = None,
         state_robots: int = 8,
+        shard: tuple[int, int] | None = None,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self.task = task
         self.num_envs = num_envs
+        first, total = shard if shard is not None else (0, num_envs)
+        if not (0 <= first and first + num_envs <= total):
+            raise ValueError(f"shard must be (first, total) with 0 <= first and first + num_envs <= total, got {shard!r}")
+        self._shard = (first, total)
         self.coalitions, self.fixed_team, slots = team_source(task.name, coalitions, team, max_robots)
         self.core = TaskCore(task, num_envs, slots, sim or SimConfig(tier=tier), safety, ticks_per_step, state_robots)
         self.max_robots = self.core.N
@@ -65,7 +73,9 @@ class VectorEnv:
         self._started = False
 
     def _seed(self, seed: int | None) -> None:
-        self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(self.num_envs)]
+        first, total = self._shard
+        children = np.random.SeedSequence(seed).spawn(total)[first : first + self.num_envs]
+        self._rngs = [np.random.default_rng(s) for s in children]
 
     def _draw(self, b: int) -> TeamSpec:
         if self.fixed_team is not None:
@@ -153,6 +163,10 @@ class VectorEnv:
     def state(self) -> np.ndarray:
         """(B, S) centralized states (see :meth:`TaskEnv.state`)."""
         return self.core.global_state()
+
+    def state_size(self) -> int:
+        """S, the length of :meth:`state` rows."""
+        return self.core.state_size()
 
     def teams(self) -> list[TeamSpec]:
         """The current team of every environment."""

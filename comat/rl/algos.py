@@ -35,7 +35,7 @@ class Dims:
     @classmethod
     def of(cls, env) -> Dims:
         layout = ObsLayout.for_task(env.task)
-        return cls(layout.obs_dim, layout.n_types, layout.n_caps, env.core.state_size())
+        return cls(layout.obs_dim, layout.n_types, layout.n_caps, env.state_size())
 
     @property
     def layout(self) -> ObsLayout:

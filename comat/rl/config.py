@@ -3,7 +3,7 @@
 A preset holds values only, for every algorithm at once::
 
     total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
-    checkpoint_every_steps, ppo: {PPOConfig}, qmix: {QmixConfig},
+    checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
     models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}}
 
 :func:`resolve` picks the sections the algorithm uses and gives a :class:`RunConfig`, which is
@@ -32,7 +32,8 @@ TASKS = ("hmt", "pcp")
 TIERS = ("wheels", "unicycle")
 PRESETS_DIR = Path(__file__).resolve().parents[2] / "train" / "configs"
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
-_RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps")
+_RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
+             "env_workers", "torch_threads")
 _PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models")
 
 
@@ -54,6 +55,11 @@ class RunConfig:
     """Write the checkpoint every this many env steps (and at the end)."""
     trainer: PPOConfig | QmixConfig
     model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig
+    env_workers: int = 1
+    """Processes stepping the environments (:class:`comat.envs.ShardedVectorEnv` when > 1).
+    Part of the run's identity: results are exactly reproducible for the same value."""
+    torch_threads: int = 2
+    """``torch.set_num_threads`` for the learner (recorded: reductions depend on it)."""
 
     @property
     def env_id(self) -> str:
@@ -109,7 +115,7 @@ def load_preset(preset: str | Path) -> dict[str, Any]:
 
 
 def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
-            total_env_steps: int | None = None) -> RunConfig:
+            total_env_steps: int | None = None, env_workers: int | None = None) -> RunConfig:
     """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it."""
     _check_choice("algo", algo, ALGOS)
     _check_choice("task", task, TASKS)
@@ -122,8 +128,10 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
     run = {k: preset[k] for k in _RUN_KEYS if k in preset}
     if total_env_steps is not None:
         run["total_env_steps"] = total_env_steps
+    if env_workers is not None:
+        run["env_workers"] = env_workers
     defaults = {"total_env_steps": 4_000_000, "eval_every_steps": 200_000, "eval_episodes_per_team": 1,
-                "checkpoint_every_steps": 100_000}
+                "checkpoint_every_steps": 100_000, "env_workers": 1, "torch_threads": 2}
     for key, default in defaults.items():
         value = run.setdefault(key, default)
         least = 0 if key == "eval_episodes_per_team" else 1

@@ -42,8 +42,8 @@ _SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "inte
 
 def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
     slots = None if config.algo == "comat" else BASELINE_ROBOTS
-    return comat.make_vec_env(config.env_id, num_envs, seed=seed, tier=config.tier, coalitions=coalitions,
-                              max_robots=slots)
+    return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
+                              tier=config.tier, coalitions=coalitions, max_robots=slots)
 
 
 def _write_atomic(path: Path, text: str) -> None:
@@ -70,6 +70,7 @@ def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = N
         episodes = run_episodes(env, policy_act(config.algo, modules), teams, config.seed + EVAL_SEED_OFFSET,
                                 use_state=uses_state(config.algo))
     finally:
+        env.close()
         for m in modules.values():
             m.train()
     return summarize(episodes)
@@ -99,6 +100,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
     elif ckpt_path.exists() or (out / "config.yaml").exists():
         raise FileExistsError(f"{str(out)!r} already holds a run; pass --resume to continue it, or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
     env = _make_env(config, config.trainer.num_envs, config.seed)
     env.reset()
@@ -155,6 +157,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                 next_ckpt = _next_multiple(steps, config.checkpoint_every_steps)
     finally:
         logger.close()
+        env.close()
     if last_eval is None and config.eval_episodes_per_team:  # resumed a run that had already finished
         last_eval = evaluate(config, learner.modules)
     summary = {"algo": config.algo, "task": config.task, "seed": config.seed, "tier": config.tier,

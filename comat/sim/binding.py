@@ -22,7 +22,7 @@ class Binding:
         self.n_robots = n_robots
         self.tier = tier
         self.profile = profile
-        self.substeps = int(round(C.CONTROL_DT_S / model.opt.timestep))
+        self.substeps = round(C.CONTROL_DT_S / model.opt.timestep)
         root = "root" if tier == "wheels" else "x"
         self.qadr = np.array([model.jnt_qposadr[model.joint(f"robot_{i}/{root}").id] for i in range(n_robots)])
         self.dadr = np.array([model.jnt_dofadr[model.joint(f"robot_{i}/{root}").id] for i in range(n_robots)])

@@ -1,0 +1,170 @@
+"""``comat bench learn``: decoding speed and end-to-end training throughput.
+
+Two parts:
+
+* **decode**: COMAT's and MAT's autoregressive ``act`` with cached keys/values (one decoder
+  step per robot) against ``act_uncached`` (the whole decoder re-run on the prefix for every
+  robot), 8 robots, for several batch sizes. The shared encoder pass is timed on its own and
+  subtracted, so ``decode_speedup`` compares the decoding itself; ``act_speedup`` is the whole
+  call.
+* **train**: env steps per second of complete training iterations (collect a rollout + learn
+  from it, exactly what ``comat train`` runs) for each algorithm on PCP in the unicycle tier
+  with the paper's settings, split into time in the environment, in acting and in learning.
+  The first iteration (set-ups, caches) is not timed.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+
+import torch
+
+__all__ = ["bench_decode", "bench_train", "run_learn_bench"]
+
+TRAIN_TARGET = 400.0
+"""COMAT env-steps/s on PCP, unicycle tier, the learners issue's target for a 2-core machine."""
+DECODE_TARGET = 3.0
+"""Cached decoding vs a full re-run per robot, 8 robots."""
+
+
+def _best_time(fn, repeats: int) -> float:
+    """Best of ``repeats`` timings of ``fn()`` (s); the minimum is the least noisy estimate."""
+    fn()
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+@torch.no_grad()
+def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: int = 20, seed: int = 0) -> dict:
+    """Cached vs uncached autoregressive decoding of ``model_name`` ("comat" or "mat")."""
+    from comat.models.comat import Comat, ComatConfig
+    from comat.models.features import ObsLayout
+    from comat.models.mat import Mat, MatConfig
+    from comat.task_logic import PCP
+
+    torch.manual_seed(seed)
+    layout = ObsLayout.for_task(PCP())
+    model = Comat(layout, ComatConfig()) if model_name == "comat" else Mat(layout, MatConfig())
+    model.eval()
+    obs = torch.randn(batch, n_robots, layout.obs_dim)
+    types = torch.randint(0, layout.n_types, (batch, n_robots))
+    obs[..., 4 : 4 + layout.n_types] = torch.nn.functional.one_hot(types, layout.n_types).float()
+    mask = torch.ones(batch, n_robots, dtype=torch.bool)
+    a_cached = model.act(obs, mask, deterministic=True)[0]
+    a_uncached = model.act_uncached(obs, mask, deterministic=True)[0]
+    if not torch.equal(a_cached, a_uncached):
+        raise AssertionError(f"{model_name}: cached and uncached decoding chose different actions")
+    t_enc = _best_time(lambda: model.encode(obs, mask), repeats)
+    t_cached = _best_time(lambda: model.act(obs, mask, deterministic=True), repeats)
+    t_uncached = _best_time(lambda: model.act_uncached(obs, mask, deterministic=True), repeats)
+    dec_cached, dec_uncached = max(t_cached - t_enc, 1e-9), max(t_uncached - t_enc, 1e-9)
+    return {"model": model_name, "n_robots": n_robots, "batch": batch, "encode_ms": 1e3 * t_enc,
+            "act_cached_ms": 1e3 * t_cached, "act_uncached_ms": 1e3 * t_uncached,
+            "decode_speedup": dec_uncached / dec_cached, "act_speedup": t_uncached / t_cached}
+
+
+def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0) -> dict:
+    """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on PCP (unicycle)."""
+    from comat.rl.algos import Dims, make_learner
+    from comat.rl.config import load_preset, resolve
+    from comat.rl.runner import _make_env
+
+    config = resolve(load_preset(preset), algo, "pcp", seed=seed, tier="unicycle", env_workers=env_workers)
+    torch.set_num_threads(config.torch_threads)
+    torch.manual_seed(seed)
+    env = _make_env(config, config.trainer.num_envs, seed)
+    try:
+        env.reset()
+        learner = make_learner(config, env, Dims.of(env))
+        clock = {"env": 0.0}
+        step = env.step
+
+        def timed_step(actions):
+            t0 = time.perf_counter()
+            out = step(actions)
+            clock["env"] += time.perf_counter() - t0
+            return out
+
+        env.step = timed_step
+        learner.iterate()  # warm-up: QP set-ups per team-size tuple, allocator, caches
+        steps = collect_s = update_s = env_s = 0.0
+        for _ in range(iterations):
+            clock["env"] = 0.0
+            t0 = time.perf_counter()
+            if algo == "qmix":
+                before = learner.trainer.env_steps
+                learner.trainer.collect()
+                t1 = time.perf_counter()
+                learner.trainer.update()
+                n = learner.trainer.env_steps - before
+            else:
+                rollout = learner.trainer.collect()
+                t1 = time.perf_counter()
+                learner.trainer.update(rollout)
+                n = rollout.rewards.numel()
+            t2 = time.perf_counter()
+            steps += n
+            collect_s += t1 - t0
+            update_s += t2 - t1
+            env_s += clock["env"]
+    finally:
+        env.close()
+    total = collect_s + update_s
+    return {"algo": algo, "task": "pcp", "tier": "unicycle", "num_envs": config.trainer.num_envs,
+            "env_workers": env_workers, "torch_threads": config.torch_threads, "env_steps": int(steps),
+            "env_steps_per_s": steps / total, "env_s": env_s, "act_s": collect_s - env_s, "learn_s": update_s,
+            "env_only_steps_per_s": steps / env_s}
+
+
+def run_learn_bench(algos=("comat", "mat", "mappo", "qmix"), workers=(1, 2), iterations: int = 2,
+                    batches=(1, 32, 256), out: str | None = None, progress=print) -> dict:
+    """Both parts, a table on ``progress`` and JSON at ``out``."""
+    decode = []
+    for model in ("comat", "mat"):
+        for batch in batches:
+            progress(f"  decode {model} N=8 B={batch} ...")
+            decode.append(bench_decode(model, 8, batch))
+    train = []
+    for w in workers:
+        for algo in algos:
+            progress(f"  train {algo} env_workers={w} ({iterations} iterations) ...")
+            train.append(bench_train(algo, iterations, env_workers=w))
+    checks = {}
+    for row in decode:
+        if row["batch"] == 32:
+            checks[f"{row['model']}_decode_cached_vs_uncached_N8_B32"] = {
+                "value": row["decode_speedup"], "target": f">= {DECODE_TARGET}", "pass": row["decode_speedup"] >= DECODE_TARGET}
+    comat_rows = [r for r in train if r["algo"] == "comat"]
+    if comat_rows:
+        best = max(comat_rows, key=lambda r: r["env_steps_per_s"])
+        checks["comat_train_pcp_unicycle_env_steps_per_s"] = {
+            "value": best["env_steps_per_s"], "target": f">= {TRAIN_TARGET}", "pass": best["env_steps_per_s"] >= TRAIN_TARGET,
+            "env_workers": best["env_workers"]}
+    result = {"benchmark": "learn",
+              "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
+                          "torch": torch.__version__},
+              "decode": decode, "train": train, "checks": checks}
+    head = f"{'model':<7}{'B':>5}{'encode ms':>11}{'cached ms':>11}{'uncached ms':>13}{'decode ×':>10}{'act ×':>8}"
+    progress(head + "\n" + "-" * len(head))
+    for r in decode:
+        progress(f"{r['model']:<7}{r['batch']:>5}{r['encode_ms']:>11.2f}{r['act_cached_ms']:>11.2f}"
+                 f"{r['act_uncached_ms']:>13.2f}{r['decode_speedup']:>10.2f}{r['act_speedup']:>8.2f}")
+    head = f"{'algo':<7}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}{'env only/s':>12}"
+    progress(head + "\n" + "-" * len(head))
+    for r in train:
+        progress(f"{r['algo']:<7}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
+                 f"{r['learn_s']:>9.2f}{r['env_only_steps_per_s']:>12.1f}")
+    for name, c in checks.items():
+        progress(f"  {'PASS' if c['pass'] else 'FAIL'}  {name}: {c['value']:.3g} (target {c['target']})")
+    if out:
+        from comat.bench.sim_bench import _write_json
+
+        _write_json(out, result)
+        progress(f"wrote {out}")
+    return result
