@@ -83,6 +83,62 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from comat.eval.evaluate import evaluate_policies, print_table, write_results
+
+    if args.checkpoint is None and args.task is None:
+        raise ValueError("give --checkpoint (a run's checkpoint.pt), or --task for the reference policies alone")
+    if args.checkpoint is not None and not Path(args.checkpoint).is_file():
+        raise FileNotFoundError(f"--checkpoint {args.checkpoint!r} does not exist")
+    out = Path(args.out) if args.out else (Path(args.checkpoint).parent if args.checkpoint else None)
+    if out is None:
+        raise ValueError("--out is required without --checkpoint")
+    if not out.is_dir():
+        raise FileNotFoundError(f"--out folder {str(out)!r} does not exist (create it first)")
+    sets = ["train", "test"] if args.set == "both" else [args.set]
+    print(f"comat eval: {args.checkpoint or 'reference policies'} on {', '.join(sets)} coalitions, "
+          f"{args.episodes} episode(s) per coalition", file=sys.stderr)
+    result = evaluate_policies(args.checkpoint, args.task, sets, args.episodes, args.tier, args.seed,
+                               references=not args.no_references, progress=lambda m: print(m, file=sys.stderr))
+    print_table(result)
+    stem = f"evaluation_{result['tier']}"
+    for path in write_results(result, out, stem):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from comat.eval.report import make_report
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = make_report(args.runs, out, args.tier)
+    print(f"comat report: {result['runs']} runs ({', '.join(f'{k}: {v}' for k, v in result['groups'].items())})")
+    print((out / "table1.md").read_text())
+    for row in result["generalization"]:
+        print(f"  {row['algo']:<6}{row['task']:<4} train return {row['train_return']:.2f}, unseen "
+              f"{row['test_return']:.2f}, retention {100 * row['retention']:.0f}%")
+    for name in result["files"]:
+        print(f"wrote {out / name}")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from comat.eval.sweep import run_sweep
+
+    records = run_sweep(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
+                        args.eval_tiers, [] if args.no_eval else ["train", "test"], args.episodes, args.address,
+                        args.jobs)
+    failed = [r for r in records if "error" in r]
+    print(f"comat sweep: {len(records) - len(failed)} of {len(records)} jobs finished; report with: comat report "
+          f"{args.out}/*_s* --out results")
+    return 1 if failed else 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "sim":
         from comat.bench.sim_bench import run_sim_bench
@@ -169,6 +225,51 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("eval", help="evaluate a checkpoint (and reference policies) on training and unseen coalitions",
+                       description="The paper's metrics with 95%% confidence intervals for a trained policy, the "
+                       "scripted heuristic and a random policy, on U_train and/or U_test: a table on screen, "
+                       "evaluation_<tier>.json and .csv in --out (default: the checkpoint's run folder).")
+    p.add_argument("--checkpoint", default=None, help="a run's checkpoint.pt")
+    p.add_argument("--task", choices=["hmt", "pcp"], default=None,
+                   help="task (default: the checkpoint's; required without --checkpoint)")
+    p.add_argument("--set", choices=["train", "test", "both"], default="both", help="coalition set(s) (default: both)")
+    p.add_argument("--episodes", type=int, default=1, help="episodes per coalition (default: %(default)s)")
+    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None,
+                   help="dynamics tier (default: the one the checkpoint trained in)")
+    p.add_argument("--seed", type=int, default=2_000_003, help="evaluation seed (default: %(default)s)")
+    p.add_argument("--no-references", action="store_true", help="skip the heuristic and random rows")
+    p.add_argument("--out", default=None, help="output folder (default: the checkpoint's folder)")
+    p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("report", help="Table I, Fig. 4 and Fig. 5 from run folders",
+                       description="Aggregate run folders (algorithms x tasks x seeds) into the paper's Table I "
+                       "(markdown + CSV, next to the paper's values), the train-vs-unseen generalization table, Fig. 4 "
+                       "(training return vs env steps) and Fig. 5 (train vs unseen return, retention %) as PNG.")
+    p.add_argument("runs", nargs="+", help="run folders (each with config.yaml, progress.csv, evaluation_<tier>.json)")
+    p.add_argument("--out", default="results", help="output folder (default: %(default)s)")
+    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None,
+                   help="which evaluation to read (default: each run's training tier)")
+    p.set_defaults(func=_cmd_report)
+
+    p = sub.add_parser("sweep", help="train and evaluate a grid of runs as resumable Ray jobs",
+                       description="Algorithms x tasks x seeds as independent Ray jobs (a local Ray instance, or a "
+                       "cluster with --address), one run folder each under --out. Re-running the same command skips "
+                       "finished jobs and resumes interrupted ones.")
+    p.add_argument("--algos", nargs="+", choices=["comat", "mat", "mappo", "qmix"], default=["comat", "mat", "mappo", "qmix"])
+    p.add_argument("--tasks", nargs="+", choices=["hmt", "pcp"], default=["pcp", "hmt"])
+    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    p.add_argument("--preset", default="paper", help="preset name or YAML path (default: %(default)s)")
+    p.add_argument("--steps", type=int, default=None, help="env steps per run (default: the preset's)")
+    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="training tier (default: the preset's)")
+    p.add_argument("--eval-tiers", nargs="+", choices=["wheels", "unicycle"], default=["unicycle"],
+                   help="tiers to evaluate each final policy in (default: %(default)s)")
+    p.add_argument("--episodes", type=int, default=1, help="evaluation episodes per coalition (default: %(default)s)")
+    p.add_argument("--no-eval", action="store_true", help="train only")
+    p.add_argument("--jobs", type=int, default=None, help="jobs at once on a local Ray instance (default: CPUs)")
+    p.add_argument("--address", default=None, help="an existing Ray cluster ('auto' or ray://host:10001)")
+    p.add_argument("--out", default="runs/sweep", help="root folder of the run folders (default: %(default)s)")
+    p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("bench", help="benchmarks (JSON + table)", description="Performance and fidelity benchmarks.")
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")

@@ -1,0 +1,138 @@
+"""``comat eval``: a checkpoint (and reference policies) on the training and unseen coalitions.
+
+Protocol: for each set (U_train, U_test; 20 coalitions each), ``episodes`` episodes per
+coalition with deterministic actions, environments seeded from ``seed``; the same teams and
+starts for every policy. Rows: the checkpoint's policy, the scripted heuristic (privileged: it
+reads the task state) and uniformly random actions. Each metric of :data:`REPORTED` comes with
+a 95 % confidence interval over episodes.
+
+Outputs (``--out``): ``eval.json`` (every row with means, intervals and the per-episode
+metrics) and ``eval.csv`` (one line per row and metric), both written atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from comat.eval.episodes import run_episodes
+from comat.eval.metrics import REPORTED, summarize_ci
+
+__all__ = ["EVAL_SEED", "evaluate_policies", "print_table", "write_results"]
+
+EVAL_SEED = 2_000_003
+"""Default seed of evaluation episodes (never a training seed of the presets)."""
+SETS = ("train", "test")
+
+
+def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
+    from comat.envs.heuristics import heuristic_actions
+
+    rng = np.random.default_rng(seed)
+    out = {}
+    if checkpoint_act is not None:
+        out[config.algo] = checkpoint_act
+    out["heuristic"] = lambda obs, mask, state: heuristic_actions(env.core)
+    out["random"] = lambda obs, mask, state: np.where(mask, rng.integers(0, 5, mask.shape), 0)
+    return out
+
+
+def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, sets=SETS, episodes: int = 1,
+                      tier: str | None = None, seed: int = EVAL_SEED, references: bool = True,
+                      progress=print) -> dict:
+    """Rows of (policy, set) results; see the module docstring.
+
+    Args:
+        checkpoint: a run's ``checkpoint.pt`` (or None: reference policies on ``task`` only).
+        task: the task (taken from the checkpoint when given; must match it).
+        sets: any of "train", "test".
+        episodes: episodes per coalition (>= 1).
+        tier: dynamics tier (default: the checkpoint's training tier, else unicycle).
+        references: add the heuristic and random rows.
+    """
+    from comat.envs import make_vec_env
+    from comat.envs.base import resolve_coalitions
+    from comat.rl.algos import BASELINE_ROBOTS, uses_state
+    from comat.rl.runner import load_policy
+
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1 (per coalition), got {episodes!r}")
+    bad = [s for s in sets if s not in SETS]
+    if bad or not sets:
+        raise ValueError(f"sets must be a non-empty subset of {list(SETS)}, got {list(sets)!r}")
+    act, config = (None, None)
+    if checkpoint is not None:
+        act, config = load_policy(checkpoint, task=task)
+        task = config.task
+    elif task not in ("pcp", "hmt"):
+        raise ValueError(f"task must be 'pcp' or 'hmt' when no checkpoint is given, got {task!r}")
+    tier = tier or (config.tier if config else "unicycle")
+    if tier not in ("wheels", "unicycle"):
+        raise ValueError(f"tier must be 'wheels' or 'unicycle', got {tier!r}")
+    slots = BASELINE_ROBOTS if config is not None and config.algo != "comat" else None
+    use_state = config is not None and uses_state(config.algo)
+    rows = []
+    for split in sets:
+        teams = resolve_coalitions(split, task) * episodes
+        # One process: the heuristic reads the env's task state directly.
+        env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=split,
+                           max_robots=slots)
+        policies = _policies(config, act, env, seed)
+        if not references:
+            policies = {k: v for k, v in policies.items() if k not in ("heuristic", "random")}
+        for name, policy in policies.items():
+            t0 = time.perf_counter()
+            eps = run_episodes(env, policy, teams, seed, use_state=use_state and name == config.algo)
+            rows.append({"policy": name, "task": task, "set": split, "tier": tier, "episodes": len(eps),
+                         "metrics": summarize_ci(eps), "per_episode": eps})
+            progress(f"  {name:<10} {split:<5} {len(eps)} episodes in {time.perf_counter() - t0:.0f} s")
+    return {"checkpoint": None if checkpoint is None else str(checkpoint),
+            "algo": None if config is None else config.algo, "trained_tier": None if config is None else config.tier,
+            "task": task, "tier": tier, "seed": seed, "episodes_per_coalition": episodes, "rows": rows}
+
+
+def print_table(result: dict, out=print) -> None:
+    """The rows as a fixed-width table, ``mean ± 95 % CI``."""
+    names = {"return": "return", "steps": "steps", "completion": "progress", "success": "completion*",
+             "collisions": "collisions", "violations": "violations", "interventions": "interv.", "fallbacks": "brakes"}
+    head = f"{'policy':<10}{'set':<6}{'n':>4}" + "".join(f"{names[m]:>17}" for m in REPORTED)
+    out(head + "\n" + "-" * len(head))
+    for r in result["rows"]:
+        cells = []
+        for m in REPORTED:
+            v = r["metrics"][m]
+            cells.append(f"{v['mean']:.2f} ± {v['ci95']:.2f}".rjust(17))
+        out(f"{r['policy']:<10}{r['set']:<6}{r['episodes']:>4}" + "".join(cells))
+    out("completion* = share of episodes with every prey captured / all material delivered (the paper's "
+        "completion); progress = fraction captured / delivered; ± = 95 % confidence interval over episodes")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_results(result: dict, out_dir: str | Path, stem: str = "eval") -> list[Path]:
+    """``<stem>.json`` and ``<stem>.csv`` in ``out_dir`` (which must exist)."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        raise FileNotFoundError(f"output folder {str(out_dir)!r} does not exist")
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(["policy", "task", "set", "tier", "episodes", "metric", "mean", "ci95"])
+    for r in result["rows"]:
+        for m in REPORTED:
+            writer.writerow([r["policy"], r["task"], r["set"], r["tier"], r["episodes"], m,
+                             r["metrics"][m]["mean"], r["metrics"][m]["ci95"]])
+    paths = [out_dir / f"{stem}.json", out_dir / f"{stem}.csv"]
+    _atomic_write(paths[0], json.dumps(result, indent=1))
+    _atomic_write(paths[1], buf.getvalue())
+    return paths

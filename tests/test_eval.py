@@ -1,0 +1,144 @@
+"""Evaluation: confidence intervals on hand-made episodes, `comat eval`, `comat report` on
+hand-made run folders, and a two-job `comat sweep` on a local Ray instance."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from comat.cli import main
+from comat.eval.metrics import REPORTED, mean_ci, summarize_ci, violations
+from comat.eval.report import PAPER_TABLE1, make_report
+from comat.eval.sweep import plan, run_sweep
+
+T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
+
+
+def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
+    return {"return": ret, "steps": steps, "completion": completion, "success": success, "collisions": collisions,
+            "robotarium_collisions": rc, "boundary_exits": be, "actuator_errors": ae, "interventions": 3.0,
+            "fallbacks": 0.0}
+
+
+# -- metrics ---------------------------------------------------------------------------------------
+def test_mean_ci_by_hand():
+    mean, half = mean_ci([1.0, 2.0, 3.0, 4.0])
+    assert mean == 2.5
+    assert half == pytest.approx(T_975_3 * np.std([1, 2, 3, 4], ddof=1) / 2, rel=1e-9)
+    assert mean_ci([5.0, 5.0, 5.0]) == (5.0, 0.0)
+    m, h = mean_ci([7.0])
+    assert m == 7.0 and math.isnan(h)
+    assert mean_ci([0.0, 1.0], confidence=0.5)[1] == pytest.approx(0.5, rel=1e-9)  # t(0.75, 1) = 1
+    with pytest.raises(ValueError, match="non-empty"):
+        mean_ci([])
+    with pytest.raises(ValueError, match="confidence"):
+        mean_ci([1.0, 2.0], confidence=1.5)
+
+
+def test_summarize_ci_by_hand():
+    eps = [_episode(10.0, success=1.0, rc=1.0, be=2.0), _episode(20.0, ae=1.0), _episode(30.0, collisions=3.0),
+           _episode(40.0, success=1.0)]
+    assert [violations(e) for e in eps] == [3.0, 1.0, 0.0, 0.0]
+    table = summarize_ci(eps)
+    assert list(table) == list(REPORTED)
+    assert table["return"]["mean"] == 25.0 and table["return"]["n"] == 4
+    assert table["return"]["ci95"] == pytest.approx(T_975_3 * np.std([10, 20, 30, 40], ddof=1) / 2)
+    assert table["success"]["mean"] == 0.5
+    assert table["violations"]["mean"] == 1.0
+    assert table["collisions"]["mean"] == 0.75
+    assert table["interventions"] == {"mean": 3.0, "ci95": 0.0, "n": 4}
+
+
+# -- comat eval -------------------------------------------------------------------------------------
+def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
+    from test_rl import tiny
+    from comat.rl.runner import train
+
+    train(tiny("comat"), tmp_path / "run", quiet=True)
+    ckpt = tmp_path / "run" / "checkpoint.pt"
+    assert main(["eval", "--checkpoint", str(ckpt), "--set", "test"]) == 0
+    out = capsys.readouterr().out
+    assert "comat" in out and "heuristic" in out and "random" in out and "±" in out
+    result = json.loads((tmp_path / "run" / "evaluation_unicycle.json").read_text())
+    rows = {r["policy"]: r for r in result["rows"]}
+    assert set(rows) == {"comat", "heuristic", "random"} and all(r["set"] == "test" for r in rows.values())
+    assert all(r["episodes"] == 20 for r in rows.values())  # the 20 unseen coalitions, one episode each
+    # the table's numbers are the per-episode metrics' means
+    for r in rows.values():
+        assert r["metrics"]["return"]["mean"] == pytest.approx(np.mean([e["return"] for e in r["per_episode"]]))
+    assert rows["heuristic"]["metrics"]["success"]["mean"] > rows["random"]["metrics"]["success"]["mean"]
+    csv_text = (tmp_path / "run" / "evaluation_unicycle.csv").read_text().splitlines()
+    assert csv_text[0] == "policy,task,set,tier,episodes,metric,mean,ci95" and len(csv_text) == 1 + 3 * len(REPORTED)
+    # bad input: clear errors before anything runs
+    assert main(["eval", "--checkpoint", str(ckpt), "--task", "hmt"]) == 2
+    assert "pcp" in capsys.readouterr().err
+    assert main(["eval", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
+    assert main(["eval", "--task", "pcp", "--out", str(tmp_path / "nowhere")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["eval", "--checkpoint", str(ckpt), "--episodes", "0"]) == 2
+
+
+# -- comat report --------------------------------------------------------------------------------------
+def _fake_run(folder, algo, task, seed, train_return, test_return, success):
+    folder.mkdir(parents=True)
+    config = {"algo": algo, "task": task, "seed": seed, "tier": "unicycle"}
+    (folder / "config.yaml").write_text(yaml.safe_dump({"config": config}))
+    lines = ["env_steps,updates,episode_return"] + [f"{2560 * k},{k},{train_return * k / 10}" for k in range(1, 11)]
+    (folder / "progress.csv").write_text("\n".join(lines) + "\n")
+
+    def row(split, ret):
+        eps = [_episode(ret - 1.0, success=success), _episode(ret + 1.0, success=success)]
+        return {"policy": algo, "task": task, "set": split, "tier": "unicycle", "episodes": 2,
+                "metrics": summarize_ci(eps), "per_episode": eps}
+
+    result = {"rows": [row("train", train_return), row("test", test_return)]}
+    (folder / "evaluation_unicycle.json").write_text(json.dumps(result))
+
+
+def test_report_on_fake_runs(tmp_path):
+    _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0)
+    _fake_run(tmp_path / "b", "comat", "pcp", 1, 60.0, 50.0, 0.5)
+    out = tmp_path / "results"
+    out.mkdir()
+    result = make_report([tmp_path / "a", tmp_path / "b"], out)
+    assert result["groups"] == {"comat/pcp": 2}
+    for name in ("table1.md", "table1.csv", "generalization.csv", "fig4_training_return.png", "fig5_generalization.png"):
+        assert (out / name).stat().st_size > 0
+    for name in ("fig4_training_return.png", "fig5_generalization.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (out / "table1.md").read_text()
+    # mean over the two seeds ± t(0.975, 1) · sd/√2 = 12.706 · 14.142 / 1.414
+    assert "| PCP | Mean return | 50.00 ± 127.06 | 82.47 |" in md
+    assert "| PCP | Completion | 75.0% ± 317.7 | 92.8% |" in md
+    gen = result["generalization"][0]
+    assert gen["train_return"] == 50.0 and gen["test_return"] == 40.0 and gen["retention"] == pytest.approx(0.8)
+    assert gen["paper_retention"] == 0.88
+    assert PAPER_TABLE1[("pcp", "return")][3] == 82.47
+    with pytest.raises(FileNotFoundError, match="not a run folder"):
+        make_report([tmp_path / "results"], out)
+
+
+# -- comat sweep ---------------------------------------------------------------------------------------
+def test_sweep_two_tiny_jobs_then_skip(tmp_path):
+    from test_rl import TINY_MODELS
+
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(yaml.safe_dump({
+        "total_env_steps": 6, "eval_every_steps": 10**9, "eval_episodes_per_team": 0, "checkpoint_every_steps": 6,
+        "tier": "unicycle", "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1},
+        "models": TINY_MODELS}))
+    root = tmp_path / "sweep"
+    args = dict(algos=["comat", "mat"], tasks=["pcp"], seeds=[0], preset=str(preset), eval_sets=(), num_cpus=2,
+                progress=lambda _m: None)
+    first = run_sweep(root, **args)
+    assert sorted(r["algo"] for r in first) == ["comat", "mat"] and not any(r["skipped"] for r in first)
+    assert all("error" not in r and r["env_steps"] == 6 for r in first)
+    assert all((root / f"{a}_pcp_s0" / "summary.json").is_file() for a in ("comat", "mat"))
+    again = run_sweep(root, **args)
+    assert all(r["skipped"] for r in again) and len(again) == 2
+    # with an evaluation asked for, the finished runs still need it
+    assert {j["state"] for j in plan(root, ["comat"], ["pcp"], [0], eval_sets=("train",))} == {"resume"}
+    with pytest.raises(ValueError, match="algos"):
+        run_sweep(root, ["ppo"], ["pcp"], [0], preset=str(preset))
