@@ -94,11 +94,12 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
 def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     from comat.envs import make_vec_env
     from comat.envs.heuristics import heuristic_actions, random_actions
-    from comat.envs.rollout import episodes_per_team
+    from comat.eval.episodes import run_episodes
     from comat.team import generate_coalitions
 
     rng = np.random.default_rng(seed)
-    policies = {"heuristic": lambda env: heuristic_actions(env.core), "random": lambda env: random_actions(rng, env.agent_mask)}
+    policies = {"heuristic": lambda env: (lambda obs, mask, state: heuristic_actions(env.core)),
+                "random": lambda env: (lambda obs, mask, state: random_actions(rng, mask))}
     print(f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task state")
     head = f"{'task':<5}{'set':<7}{'policy':<11}{'success':>8}{'completion':>11}{'steps':>7}{'return':>8}{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
     print(head + "\n" + "-" * len(head))
@@ -109,7 +110,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
             for name, policy in policies.items():
                 env = make_vec_env(f"{task}_v0", len(teams), seed=seed, tier=tier, coalitions=teams)
                 t0 = time.perf_counter()
-                res = episodes_per_team(env, policy, teams)
+                res = run_episodes(env, policy(env), teams, seed)
                 mean = {k: float(np.mean([r[k] for r in res])) for k in res[0]}
                 viol = mean["robotarium_collisions"] + mean["boundary_exits"]
                 ok &= mean["collisions"] == 0 and viol == 0

@@ -5,7 +5,7 @@ import pytest
 
 from comat.envs import make_env, make_vec_env
 from comat.envs.heuristics import heuristic_actions, random_actions
-from comat.envs.rollout import episodes_per_team
+from comat.eval.episodes import run_episodes
 from comat.team import generate_coalitions
 
 
@@ -76,7 +76,7 @@ def test_bad_vector_actions():
 def _heuristic_episodes(task: str, tier: str):
     teams = generate_coalitions(task, "train")
     env = make_vec_env(f"{task}_v0", len(teams), seed=0, tier=tier, coalitions=teams)
-    return episodes_per_team(env, lambda e: heuristic_actions(e.core), teams)
+    return run_episodes(env, lambda obs, mask, state: heuristic_actions(env.core), teams, seed=0)
 
 
 def _check_heuristic(results):
