@@ -214,7 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", choices=["comat", "mat", "mappo", "qmix"], help="algorithm (required for a new run)")
     p.add_argument("--task", choices=["hmt", "pcp"], help="task (required for a new run)")
     p.add_argument("--preset", default="paper",
-                   help="preset name in train/configs/ (paper, quick, learning) or a YAML path (default: %(default)s)")
+                   help="preset name in train/configs/ (paper, quick, learning, sweep) or a YAML path (default: %(default)s)")
     p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="dynamics tier (default: the preset's)")
     p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")

@@ -248,3 +248,12 @@ def test_bad_checkpoints_are_refused_and_nothing_is_overwritten(tmp_path, capsys
         load_checkpoint(corrupt)
     with pytest.raises(CheckpointError, match="does not exist"):
         load_checkpoint(tmp_path / "missing.pt")
+
+
+@pytest.mark.parametrize("name", ["paper", "quick", "learning", "sweep"])
+def test_every_preset_resolves_for_every_algo_and_task(name):
+    preset = load_preset(name)
+    for algo in ("comat", "mat", "mappo", "qmix"):
+        for task in ("pcp", "hmt"):
+            config = resolve(preset, algo, task)
+            assert config.total_env_steps == preset["total_env_steps"] and config.tier == "unicycle"
