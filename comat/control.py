@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,6 +88,9 @@ class SafeTeams:
         self.timing = TickTiming()
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
+        self.tick_observers: list[Callable[[np.ndarray, np.ndarray, TickEvents, SafetyInfo], None]] = []
+        """Called after every tick with (nominal (R, 2), filtered (R, 2), events, info); e.g. a
+        :mod:`comat.viz` recorder. Empty by default (nothing to pay when not recording)."""
 
     @property
     def poses(self) -> np.ndarray:
@@ -142,4 +145,6 @@ class SafeTeams:
         self.timing.total = time.perf_counter() - t0
         self.timing.physics = self.world.last_physics_s
         self.timing.solver = self.filter.last_solver_s
+        for observe in self.tick_observers:
+            observe(dxi, safe, events, info)
         return events, info

@@ -1,0 +1,374 @@
+"""Episode recorder: what one team did in an episode, and why, into a Rerun recording.
+
+``EpisodeRecorder(recording)`` is bound to a ``rerun.RecordingStream`` that the caller owns
+(no global Rerun state); ``EpisodeRecorder(None)`` is disabled and every method returns at
+once, so code that drives episodes calls it unconditionally.
+
+Per episode::
+
+    recorder.begin(core, b, episode=k, metadata={...})   # after core/env reset
+    recorder.step(actions (n,), reward, terms)            # after every env step
+    recorder.end()                                        # before the next reset
+
+``begin`` logs the static scene (:mod:`comat.viz.scene`) and hooks a
+:class:`~comat.viz.tap.TickTap` into the team's control ticks; ``step`` only appends arrays
+to buffers; ``end`` sends every per-step entity in one ``send_columns`` call each, on the
+timelines ``step`` (sequence) and ``sim_time`` (duration, step × ticks × 0.033 s). Row counts
+per entity for an episode of T steps: state entities (robots, prey, task series) T + 1 rows,
+steps 0…T; per-step outcomes (rewards, trails, safety arrows, events markers, safety series)
+T rows, steps 1…T; actions T rows, steps 0…T−1 (the state they were chosen in).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from comat import constants as C
+from comat.sim.kinematics import projected_points
+from comat.task_logic import waypoint_goals
+from comat.viz.scene import (
+    LOAD_BAR_M_PER_UNIT,
+    LOAD_BAR_OFFSET_M,
+    PREY_COLORS,
+    episode_path,
+    log_static_scene,
+    meta_markdown,
+)
+from comat.viz.tap import EVENT_KINDS, StepSummary, TickTap
+
+__all__ = ["HEADING_ARROW_M", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP", "EpisodeRecorder"]
+
+TRAIL_POINTS_PER_STEP = 8
+"""Path points kept per robot and env step (evenly spaced ticks, the last one always)."""
+HEADING_ARROW_M = 0.09
+"""Length of the heading arrows."""
+SAFETY_ARROW_S = 0.6
+"""Velocity arrows show where the point would be after this long (0.2 m/s → 0.12 m)."""
+SAFETY_COUNTS = (
+    "interventions",
+    "fallbacks",
+    "collisions",
+    "robotarium_collisions",
+    "boundary_exits",
+    "actuator_errors",
+)
+
+
+def _when_enabled(method):
+    """Run ``method`` only on an enabled recorder, adding the thread CPU time it takes to ``cpu_s``."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        if self.recording is None:
+            return None
+        t0 = time.thread_time()
+        try:
+            return method(self, *args, **kwargs)
+        finally:
+            self.cpu_s += time.thread_time() - t0
+
+    return wrapper
+
+
+class EpisodeRecorder:
+    """Records episodes of one environment of a :class:`comat.envs.core.TaskCore`.
+
+    Args:
+        recording: the stream to log into, or None for a recorder that does nothing.
+
+    Attributes:
+        cpu_s: CPU seconds spent recording on the calling thread so far (this object's methods
+            and its per-tick taps; Rerun's own encoder and writer threads not included).
+    """
+
+    def __init__(self, recording: rr.RecordingStream | None) -> None:
+        if recording is not None and not isinstance(recording, rr.RecordingStream):
+            raise TypeError(
+                f"recording must be a rerun.RecordingStream or None, got {type(recording).__name__}"
+            )
+        self.recording = recording
+        self.cpu_s = 0.0
+        self._core = None
+
+    @property
+    def enabled(self) -> bool:
+        return self.recording is not None
+
+    # -- episode ------------------------------------------------------------------------------------
+    @_when_enabled
+    def begin(self, core, b: int = 0, *, episode: int = 0, metadata: Mapping[str, Any] | None = None) -> None:
+        """Start recording env ``b`` of ``core`` (just reset) as episode ``episode``.
+
+        ``metadata`` (e.g. policy, seed) joins what the env knows (task, tier, ticks per step,
+        the team) in ``E/meta``, with the episode's outcome added at :meth:`end`.
+        """
+        if self._core is not None:
+            raise RuntimeError("begin() called while an episode is being recorded; call end() first")
+        team = core.teams[b]
+        if team is None:
+            raise ValueError(f"environment {b} has no team yet; reset it before begin()")
+        if core.task.name not in _TASKS:
+            raise ValueError(f"task must be one of {sorted(_TASKS)} to be recorded, got {core.task.name!r}")
+        self._core, self._b, self._n = core, b, team.size
+        self._prefix = episode_path(episode)
+        # What the env itself knows is recorded whatever the caller passes.
+        self._meta = {
+            "task": core.task.name,
+            "tier": core.sim_config.tier,
+            "ticks per step": core.ticks_per_step,
+            **dict(metadata or {}),
+        }
+        self._proj = core.safety_config.projection_distance_m
+        self._tap = TickTap(core.safe, b, core.ticks_per_step, self._proj)
+        core.safe.tick_observers.append(self._tap)
+        log_static_scene(self.recording, self._prefix, core, b)
+        self._poses = [core.poses()[b, : self._n].copy()]
+        self._task = [_TASKS[core.task.name][0](core, b, self._n)]
+        self._actions: list[np.ndarray] = []
+        self._action_origin: list[np.ndarray] = []
+        self._action_vec: list[np.ndarray] = []
+        self._rewards: list[float] = []
+        self._terms: dict[str, list[float]] = {name: [] for name in core.task.reward_terms}
+        self._summaries: list[StepSummary] = []
+
+    @_when_enabled
+    def step(self, actions: np.ndarray, reward: float, terms: Mapping[str, float]) -> None:
+        """Record the env step just taken with ``actions`` (n,) (this team's robots) and its
+        reward and named reward terms."""
+        if self._core is None:
+            raise RuntimeError("step() called outside an episode; call begin() first")
+        core, b, n = self._core, self._b, self._n
+        actions = np.asarray(actions)
+        if actions.shape != (n,):
+            raise ValueError(f"actions must have shape ({n},) (this team's robots), got {actions.shape}")
+        points = projected_points(self._poses[-1], self._proj)
+        goals = waypoint_goals(points, actions, core.task.step_lengths(core.caps[b, :n]))
+        self._actions.append(actions.astype(np.int64))
+        self._action_origin.append(points)
+        self._action_vec.append(goals - points)
+        self._summaries.append(self._tap.summarize())
+        self._poses.append(core.poses()[b, :n].copy())
+        self._task.append(_TASKS[core.task.name][0](core, b, n))
+        self._rewards.append(float(reward))
+        for name in self._terms:
+            self._terms[name].append(float(terms[name]))
+
+    @_when_enabled
+    def end(self) -> dict[str, float] | None:
+        """Send the episode's per-step data; returns its metrics (None when disabled)."""
+        if self._core is None:
+            raise RuntimeError("end() called outside an episode; call begin() first")
+        core, b = self._core, self._b
+        try:
+            core.safe.tick_observers.remove(self._tap)
+            self.cpu_s += self._tap.cpu_s
+            outcome = core.episode_metrics(b)
+            self._send()
+            meta = {"title": f"{self._prefix}: {core.task.name.upper()}", **self._meta}
+            text = meta_markdown(meta, core.teams[b], outcome)
+            rec = self.recording
+            team = core.teams[b]
+            values = {k.replace(" ", "_"): str(v) for k, v in self._meta.items()}
+            values.update(
+                robot_types=[r.type for r in team.robots],
+                capabilities=core.caps[b, : team.size].ravel(),
+                capability_names=list(core.task.capabilities),
+                **{f"outcome_{k}": v for k, v in outcome.items()},
+            )
+            rec.log(
+                f"{self._prefix}/meta",
+                rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN),
+                rr.AnyValues(**values),
+                static=True,
+            )
+        finally:
+            self._core = None
+        return outcome
+
+    # -- sending --------------------------------------------------------------------------------------
+    def _send(self) -> None:
+        rec, p, n, core = self.recording, self._prefix, self._n, self._core
+        T = len(self._rewards)
+        dt = core.ticks_per_step * C.CONTROL_DT_S
+        steps = np.arange(T + 1)
+
+        def index(s: np.ndarray) -> list[rr.TimeColumn]:
+            return [rr.TimeColumn("step", sequence=s), rr.TimeColumn("sim_time", duration=s * dt)]
+
+        states, after, chosen = index(steps), index(steps[1:]), index(steps[:-1])
+        poses = np.stack(self._poses)  # (T+1, n, 3)
+        w = f"{p}/world"
+        xy = poses[..., :2].reshape(-1, 2)
+        every = [n] * (T + 1)
+        rec.send_columns(f"{w}/robots", states, rr.Points2D.columns(positions=xy).partition(every))
+        heading = HEADING_ARROW_M * np.stack([np.cos(poses[..., 2]), np.sin(poses[..., 2])], -1).reshape(
+            -1, 2
+        )
+        rec.send_columns(
+            f"{w}/robots/heading", states, rr.Arrows2D.columns(origins=xy, vectors=heading).partition(every)
+        )
+        if T:
+            self._send_steps(after, chosen, poses)
+        _TASKS[core.task.name][1](rec, p, core, self._b, self._task, states, poses)
+        if T:
+            rewards = np.asarray(self._rewards)
+            _series(rec, f"{p}/reward/total", after, {"reward": rewards, "return": np.cumsum(rewards)})
+            _series(rec, f"{p}/reward/terms", after, {k: np.asarray(v) for k, v in self._terms.items()})
+
+    def _send_steps(self, after, chosen, poses: np.ndarray) -> None:
+        rec, p, n = self.recording, self._prefix, self._n
+        w = f"{p}/world"
+        T = len(self._summaries)
+        rows = [n] * T
+        actions = np.concatenate(self._actions)
+        rec.send_columns(
+            f"{w}/actions",
+            chosen,
+            rr.Arrows2D.columns(
+                origins=np.concatenate(self._action_origin),
+                vectors=np.concatenate(self._action_vec),
+                class_ids=actions,
+            ).partition(rows),
+        )
+        # Trails: each step adds only its own piece of every path (never the whole path again).
+        paths = np.stack([s.path for s in self._summaries])  # (T, n, K+1, 2)
+        K = paths.shape[2] - 1
+        keep = np.unique(np.round(np.linspace(0, K, min(K, TRAIL_POINTS_PER_STEP) + 1)).astype(np.int64))
+        strips = paths[:, :, keep].reshape(T * n, keep.size, 2)
+        rec.send_columns(f"{w}/trails", after, rr.LineStrips2D.columns(strips=strips).partition(rows))
+        # Barrier interventions: nominal vs filtered velocity of the robots it changed.
+        hit = np.stack([s.intervened for s in self._summaries])  # (T, n)
+        lengths = hit.sum(axis=1)
+        origin = np.concatenate([s.origin[s.intervened] for s in self._summaries])
+        for name in ("nominal", "filtered"):
+            vec = np.concatenate([getattr(s, name)[s.intervened] for s in self._summaries]) * SAFETY_ARROW_S
+            rec.send_columns(
+                f"{w}/safety/{name}",
+                after,
+                rr.Arrows2D.columns(origins=origin, vectors=vec).partition(lengths),
+            )
+        counts = {
+            k: np.array([s.counts[k] for s in self._summaries], dtype=np.float64) for k in SAFETY_COUNTS
+        }
+        _series(rec, f"{p}/safety/counts", after, counts)
+        # Events: a marker at each robot that had one, and a log line per step that had any.
+        ev = np.stack([s.events for s in self._summaries])  # (T, n, E)
+        anyev = ev.any(axis=2)
+        where = np.argwhere(anyev)
+        labels = [f"robot_{i}: " + ", ".join(np.asarray(EVENT_KINDS)[ev[t, i]]) for t, i in where]
+        xy = np.stack([s.event_xy for s in self._summaries])[anyev]
+        rec.send_columns(
+            f"{w}/events",
+            after,
+            rr.Points2D.columns(positions=xy, labels=labels).partition(anyev.sum(axis=1)),
+        )
+        fallback = counts["fallbacks"] > 0
+        log_steps = np.flatnonzero(anyev.any(axis=1) | fallback)
+        if log_steps.size:
+            by_step = {int(t): [] for t in log_steps}
+            for (t, _), text in zip(where, labels):
+                by_step[int(t)].append(text)
+            for t in np.flatnonzero(fallback):
+                by_step[int(t)].append(
+                    f"barrier fallback (team braked) in {int(counts['fallbacks'][t])} ticks"
+                )
+            text = [f"step {t + 1}: " + "; ".join(v) for t, v in by_step.items()]
+            level = ["ERROR" if fallback[t] else "WARN" for t in by_step]
+            idx = np.array(list(by_step)) + 1
+            dt = self._core.ticks_per_step * C.CONTROL_DT_S
+            rec.send_columns(
+                f"{p}/events",
+                [rr.TimeColumn("step", sequence=idx), rr.TimeColumn("sim_time", duration=idx * dt)],
+                rr.TextLog.columns(text=text, level=level),
+            )
+
+
+def _series(
+    rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], series: dict[str, np.ndarray]
+) -> None:
+    """Several named time series (T,) on one entity: one row of len(series) scalars per time,
+    so the per-row index is paid once rather than once per series."""
+    values = np.stack([np.asarray(v, dtype=np.float64) for v in series.values()], axis=1)  # (T, S)
+    rec.log(path, rr.SeriesLines(names=list(series)), static=True)
+    rec.send_columns(
+        path, index, rr.Scalars.columns(scalars=values.ravel()).partition([values.shape[1]] * values.shape[0])
+    )
+
+
+# -- task state: per task, a snapshot after every step and how the episode's snapshots are sent --
+def _pcp_snapshot(core, b: int, n: int) -> dict[str, np.ndarray]:
+    return {"sensed": core.state["sensed"][b].copy(), "captured": core.state["captured"][b].copy()}
+
+
+def _send_pcp(rec, p: str, core, b: int, snaps: list[dict], states, poses: np.ndarray) -> None:
+    """Prey colour by state; prey counts; sensing and capture discs (poses (T+1, n, 3))."""
+    w = f"{p}/world"
+    T1, n = poses.shape[:2]
+    sensed = np.stack([s["sensed"] for s in snaps])  # (T+1, K)
+    captured = np.stack([s["captured"] for s in snaps])
+    state = np.where(captured, 2, np.where(sensed, 1, 0))
+    rec.send_columns(
+        f"{w}/prey",
+        states,
+        rr.Points2D.columns(colors=PREY_COLORS[state.ravel()]).partition([sensed.shape[1]] * T1),
+    )
+    _series(rec, f"{p}/task/prey", states, {"sensed": sensed.sum(1), "captured": captured.sum(1)})
+    types = core.type_ids[b, :n]
+    for k, name in enumerate(("sensing", "capture")):
+        mine = poses[:, types == k, :2]
+        rec.send_columns(
+            f"{w}/capabilities/{name}",
+            states,
+            rr.Points2D.columns(positions=mine.reshape(-1, 2)).partition([mine.shape[1]] * T1),
+        )
+
+
+def _hmt_snapshot(core, b: int, n: int) -> dict[str, np.ndarray]:
+    st = core.state
+    return {
+        "left": st["left"][b].copy(),
+        "load": st["load"][b, :n].copy(),
+        "delivered": np.array(st["delivered"][b]),
+    }
+
+
+def _send_hmt(rec, p: str, core, b: int, snaps: list[dict], states, poses: np.ndarray) -> None:
+    """Material series and zone labels; payload bars filled to each robot's load."""
+    w = f"{p}/world"
+    T1, n = poses.shape[:2]
+    left = np.stack([s["left"] for s in snaps])  # (T+1, 2)
+    load = np.stack([s["load"] for s in snaps])  # (T+1, n)
+    delivered = np.array([float(s["delivered"]) for s in snaps])
+    initial = core.state["initial"][b]
+    material = {
+        "left in zone 1": left[:, 0],
+        "left in zone 2": left[:, 1],
+        "carried": load.sum(1),
+        "delivered": delivered,
+    }
+    _series(rec, f"{p}/task/material", states, material)
+    for z, archetype in enumerate((rr.LineStrips2D, rr.Boxes2D)):
+        labels = [f"zone {z + 1}: {v:.1f} of {initial[z]:.1f} left" for v in left[:, z]]
+        rec.send_columns(f"{w}/zones/material_{z + 1}", states, archetype.columns(labels=labels))
+    labels = [f"drop-off: {v:.1f} delivered" for v in delivered]
+    rec.send_columns(f"{w}/zones/dropoff", states, rr.Boxes2D.columns(labels=labels))
+    payload = core.caps[b, :n, 1]
+    width = payload * LOAD_BAR_M_PER_UNIT
+    centre = poses[..., :2] + np.array([0.0, LOAD_BAR_OFFSET_M])  # (T+1, n, 2)
+    rows = [n] * T1
+    rec.send_columns(
+        f"{w}/capabilities/payload", states, rr.Boxes2D.columns(centers=centre.reshape(-1, 2)).partition(rows)
+    )
+    left_end = centre - np.stack([width / 2, np.zeros(n)], -1)
+    fill = left_end + np.stack([width * load / np.maximum(payload, 1e-9), np.zeros_like(load)], -1)
+    bars = np.stack([left_end, fill], axis=2).reshape(-1, 2, 2)  # (T+1)·n strips of 2 points
+    rec.send_columns(f"{w}/capabilities/load", states, rr.LineStrips2D.columns(strips=bars).partition(rows))
+
+
+_TASKS = {"pcp": (_pcp_snapshot, _send_pcp), "hmt": (_hmt_snapshot, _send_hmt)}

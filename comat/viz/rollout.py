@@ -1,0 +1,315 @@
+"""Rollouts to ``.rrd`` files: run a policy for some episodes and record every one of them.
+
+``record_episodes(path, task, policy, ...)`` checks everything first — the output path (folder
+exists, is writable, name ends in ``.rrd``), the policy (``"heuristic"``, ``"random"``, a
+callable, or a checkpoint whose task must match), the episode count — and only then runs.
+The file is written next to its target under a temporary name and renamed into place when
+complete, so a failed rollout never leaves a half-written ``.rrd`` behind.
+
+Policies take the evaluation convention ``act(obs (B, N, D), mask (B, N), state (B, S) or
+None) -> actions (B, N)`` with B = 1 here (:mod:`comat.eval.episodes`). The scripted heuristic
+reads the environment's task state (privileged; :mod:`comat.envs.heuristics`); ``"random"``
+draws uniform actions from a generator seeded by the rollout seed.
+
+Episode k starts from ``reset(seed=seed + k)``: with ``teams``, episode k runs ``teams[k]``;
+otherwise its team is drawn from the coalition set by that seed.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from comat.envs.heuristics import heuristic_actions, random_actions
+from comat.team import TeamSpec
+from comat.viz.blueprint import rollout_blueprint
+from comat.viz.recorder import EpisodeRecorder
+
+__all__ = [
+    "POLICY_NAMES",
+    "PolicySpec",
+    "RolloutResult",
+    "check_rrd_path",
+    "play_episodes",
+    "record_episodes",
+    "resolve_policy",
+]
+
+POLICY_NAMES = ("heuristic", "random")
+"""Built-in policies; any other ``--policy`` value is a checkpoint path."""
+TASKS = ("pcp", "hmt")
+
+Act = Callable[[np.ndarray, np.ndarray, "np.ndarray | None"], np.ndarray]
+
+
+@dataclass(frozen=True)
+class PolicySpec:
+    """A policy ready to bind to an environment.
+
+    Attributes:
+        name: what the recording calls it (``heuristic``, ``random``, ``comat checkpoint …``).
+        bind: ``bind(env, seed) -> act`` for a freshly made :class:`comat.envs.TaskEnv`.
+        use_state: act needs the centralized state (MAPPO).
+        max_robots: robot slots the policy expects (None: any).
+        tier: the dynamics tier it was trained on (None: no preference).
+    """
+
+    name: str
+    bind: Callable[[Any, int], Act]
+    use_state: bool = False
+    max_robots: int | None = None
+    tier: str | None = None
+
+
+@dataclass
+class RolloutResult:
+    """What a rollout produced: the file, each episode's metrics, sizes and timing.
+
+    Attributes:
+        recorder_cpu_s: CPU seconds the recording took on the rollout's own thread (scene,
+            per-tick taps, per-step buffers, sending, opening and closing the file).
+        background_cpu_s: CPU seconds of the process's other threads meanwhile (Rerun's
+            encoder and file writer; the simulation itself runs on one thread).
+    """
+
+    path: Path | None
+    episodes: list[dict[str, float]] = field(default_factory=list)
+    steps: int = 0
+    robot_steps: int = 0
+    bytes: int = 0
+    wall_s: float = 0.0
+    recorder_cpu_s: float = 0.0
+    background_cpu_s: float = 0.0
+
+    @property
+    def bytes_per_robot_step(self) -> float:
+        return self.bytes / max(self.robot_steps, 1)
+
+
+def _heuristic(env, seed: int) -> Act:
+    core = env.core
+    return lambda obs, mask, state: heuristic_actions(core)
+
+
+def _random(env, seed: int) -> Act:
+    rng = np.random.default_rng(seed)
+    return lambda obs, mask, state: random_actions(rng, mask)
+
+
+def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
+    """A :class:`PolicySpec` from ``"heuristic"``, ``"random"``, a checkpoint path or a callable.
+
+    Raises:
+        ValueError: an unknown name that is no file either, or a checkpoint for another task
+            (:class:`comat.rl.checkpoint.CheckpointError`).
+    """
+    if task not in TASKS:
+        raise ValueError(f"task must be one of {TASKS}, got {task!r}")
+    if callable(policy):
+        return PolicySpec(getattr(policy, "__name__", "policy"), lambda env, seed: policy)
+    if not isinstance(policy, (str, Path)):
+        raise TypeError(
+            f"policy must be 'heuristic', 'random', a checkpoint path or a callable, got {type(policy).__name__}"
+        )
+    if str(policy) == "heuristic":
+        return PolicySpec("heuristic", _heuristic)
+    if str(policy) == "random":
+        return PolicySpec("random", _random)
+    if not Path(policy).is_file():
+        raise ValueError(
+            f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} (no such file)"
+        )
+    from comat.rl.algos import BASELINE_ROBOTS, uses_state
+    from comat.rl.runner import load_policy
+
+    act, config = load_policy(policy, task=task)  # CheckpointError (a ValueError) names a task mismatch
+    return PolicySpec(
+        f"{config.algo} checkpoint {Path(policy).name}",
+        lambda env, seed: act,
+        use_state=uses_state(config.algo),
+        max_robots=None if config.algo == "comat" else BASELINE_ROBOTS,
+        tier=config.tier,
+    )
+
+
+def check_rrd_path(path: str | Path) -> Path:
+    """``path`` as a Path once it is known that an ``.rrd`` file can be written there.
+
+    Raises:
+        ValueError: naming the path and what is wrong: not ``.rrd``, a folder, a missing
+            folder, a parent that is a file, or a folder where no file can be created.
+    """
+    p = Path(path)
+    if p.suffix != ".rrd":
+        raise ValueError(f"out must be a file name ending in .rrd, got {str(p)!r}")
+    if p.is_dir():
+        raise ValueError(f"out must be a file, got {str(p)!r}, which is a folder")
+    parent = p.parent
+    if not parent.exists():
+        raise ValueError(f"out: folder {str(parent)!r} does not exist (create it first), got {str(p)!r}")
+    if not parent.is_dir():
+        raise ValueError(f"out: {str(parent)!r} is not a folder, got {str(p)!r}")
+    try:  # permissions, read-only mounts, quotas: only trying tells
+        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        raise ValueError(
+            f"out: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}"
+        ) from err
+    if p.exists() and not os.access(p, os.W_OK):
+        raise ValueError(f"out: {str(p)!r} exists and is not writable")
+    return p
+
+
+def _check_count(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def play_episodes(
+    env,
+    act: Act,
+    recorder: EpisodeRecorder,
+    *,
+    episodes: int,
+    seed: int,
+    use_state: bool = False,
+    teams: Sequence[TeamSpec] | None = None,
+    metadata: dict[str, Any] | None = None,
+) -> list[dict]:
+    """Run ``episodes`` episodes of a :class:`comat.envs.TaskEnv`, each one recorded by ``recorder``
+    (a disabled recorder records nothing); returns each episode's metrics plus ``team_size``."""
+    core = env.core
+    results = []
+    for k in range(episodes):
+        options = {"team": teams[k]} if teams is not None else None
+        env.reset(seed=seed + k, options=options)
+        recorder.begin(
+            core, 0, episode=k, metadata={**(metadata or {}), "seed": seed + k, "team_size": env.team.size}
+        )
+        n = env.team.size
+        metrics: dict[str, float] = {}
+        while env.agents:
+            actions = np.asarray(act(core.observe(), core.mask, core.global_state() if use_state else None))[
+                0, :n
+            ]
+            _, rewards, _, _, infos = env.step({a: int(actions[i]) for i, a in enumerate(env.agents)})
+            info = infos["robot_0"]
+            recorder.step(
+                actions, rewards["robot_0"], {t: info[f"reward/{t}"] for t in core.task.reward_terms}
+            )
+            if not env.agents:
+                metrics = {k_[len("episode/") :]: v for k_, v in info.items() if k_.startswith("episode/")}
+        recorder.end()
+        results.append({**metrics, "team_size": n})
+    return results
+
+
+def record_episodes(
+    path: str | Path | None,
+    task: str,
+    policy: str | Path | Act | PolicySpec = "heuristic",
+    *,
+    episodes: int | None = None,
+    teams: Sequence[TeamSpec] | None = None,
+    coalitions: str = "train",
+    seed: int = 0,
+    tier: str | None = None,
+    ticks_per_step: int | None = None,
+    use_state: bool | None = None,
+    max_robots: int | None = None,
+    policy_name: str | None = None,
+) -> RolloutResult:
+    """Run and record episodes of ``task`` ("pcp" or "hmt") to the ``.rrd`` file ``path``.
+
+    Args:
+        path: output file; None runs the same episodes without recording (benchmarks).
+        policy: "heuristic", "random", a checkpoint path, an ``act`` callable, or a PolicySpec.
+        episodes: how many (default: one per entry of ``teams``, else 1).
+        teams: the team of each episode (else drawn from ``coalitions``, "train" or "test").
+        seed: episode k resets with ``seed + k``.
+        tier: dynamics tier (default: the checkpoint's, else "wheels").
+        ticks_per_step: control ticks per env step (default: the task's).
+        use_state, max_robots: override what the policy declares (a trainer's own policy).
+        policy_name: how the recording names the policy.
+
+    Returns:
+        A :class:`RolloutResult`; the file holds one recording, each episode under ``episode_<k>/``.
+    """
+    out = None if path is None else check_rrd_path(path)
+    spec = policy if isinstance(policy, PolicySpec) else resolve_policy(policy, task)
+    if teams is not None:
+        teams = list(teams)
+        if not teams or not all(isinstance(t, TeamSpec) for t in teams):
+            raise ValueError(f"teams must be a non-empty list of TeamSpec, got {teams!r:.200}")
+        wrong = [i for i, t in enumerate(teams) if t.task != task]
+        if wrong:
+            raise ValueError(
+                f"teams[{wrong[0]}] is a {teams[wrong[0]].task!r} team, but the rollout runs {task!r}"
+            )
+    episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
+    if teams is not None and len(teams) < episodes:
+        raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
+    if coalitions not in ("train", "test"):
+        raise ValueError(f"coalitions must be 'train' or 'test', got {coalitions!r}")
+    import comat
+
+    tier = tier or spec.tier or "wheels"
+    slots = max_robots if max_robots is not None else spec.max_robots
+    env = comat.make_env(
+        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots
+    )
+    act = spec.bind(env, seed)
+    meta = {
+        "policy": policy_name or spec.name,
+        "coalition set": "given teams" if teams is not None else coalitions,
+    }
+    state = spec.use_state if use_state is None else use_state
+    rec = tmp = None
+    t0, thread0, others0 = time.perf_counter(), time.thread_time(), time.process_time() - time.thread_time()
+    if out is not None:
+        tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
+        rec = rr.RecordingStream("comat", recording_id=f"{out.stem}-{task}-{spec.name}-seed{seed}")
+        # Content, not wall-clock ticks: the same rollout gives the same data.
+        rec.set_log_time_enabled(False)
+        rec.set_log_tick_enabled(False)
+    try:
+        if rec is not None:
+            rec.save(tmp, default_blueprint=rollout_blueprint(range(episodes)))
+        file_cpu = time.thread_time() - thread0
+        recorder = EpisodeRecorder(rec)
+        results = play_episodes(
+            env, act, recorder, episodes=episodes, seed=seed, use_state=state, teams=teams, metadata=meta
+        )
+        if rec is not None:
+            thread1 = time.thread_time()
+            rec.disconnect()  # writes the footer: the file is complete only now
+            os.replace(tmp, out)
+            file_cpu += time.thread_time() - thread1
+    except BaseException:
+        if rec is not None:
+            rec.disconnect()
+            tmp.unlink(missing_ok=True)
+        raise
+    result = _result(out, results, time.perf_counter() - t0)
+    if rec is not None:
+        result.recorder_cpu_s = file_cpu + recorder.cpu_s
+        result.background_cpu_s = time.process_time() - time.thread_time() - others0
+    return result
+
+
+def _result(path: Path | None, episodes: list[dict], wall_s: float) -> RolloutResult:
+    steps = int(sum(e["steps"] for e in episodes))
+    robot_steps = int(sum(e["steps"] * e["team_size"] for e in episodes))
+    size = path.stat().st_size if path is not None else 0
+    return RolloutResult(path, episodes, steps, robot_steps, size, wall_s)
