@@ -14,6 +14,9 @@ import time
 __all__ = ["main"]
 
 
+from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
+
+
 def _single_thread() -> None:
     # Benchmarks and rollouts are measured on one core unless the user says otherwise.
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
@@ -74,7 +77,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
     print(f"comat train: {config.algo} on {config.task} ({config.tier} tier), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
-    summary = train(config, out, resume=args.resume, quiet=args.quiet)
+    summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every)
     ev = summary["eval_train"]
     result = "" if ev is None else (
         f"; on the training coalitions (deterministic): return {ev['return']:.2f}, completion "
@@ -179,6 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    add_rollout_parser(sub)
 
     p = sub.add_parser("mjcf", help="write the generated MJCF files (robot, arena, scenes)",
                        description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).")
@@ -224,6 +228,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="run folder (default: runs/<algo>_<task>_s<seed>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.add_argument("--rrd-every", type=int, default=0, metavar="K",
+                   help="record 2 evaluation episodes to RUN/rrd/eval_<steps>.rrd every K-th evaluation "
+                   "(and the last); 0: never (default)")
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("eval", help="evaluate a checkpoint (and reference policies) on training and unseen coalitions",
@@ -313,6 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seeds", type=int, default=50, help="random command sequences per tier (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/fidelity.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
+    add_viz_bench_parser(bsub)
     return parser
 
 

@@ -54,6 +54,7 @@ def test_summarize_ci_by_hand():
 # -- comat eval -------------------------------------------------------------------------------------
 def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     from test_rl import tiny
+
     from comat.rl.runner import train
 
     train(tiny("comat"), tmp_path / "run", quiet=True)
@@ -130,8 +131,8 @@ def test_sweep_two_tiny_jobs_then_skip(tmp_path):
         "tier": "unicycle", "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1},
         "models": TINY_MODELS}))
     root = tmp_path / "sweep"
-    args = dict(algos=["comat", "mat"], tasks=["pcp"], seeds=[0], preset=str(preset), eval_sets=(), num_cpus=2,
-                progress=lambda _m: None)
+    args = {"algos": ["comat", "mat"], "tasks": ["pcp"], "seeds": [0], "preset": str(preset), "eval_sets": (), "num_cpus": 2,
+                "progress": lambda _m: None}
     first = run_sweep(root, **args)
     assert sorted(r["algo"] for r in first) == ["comat", "mat"] and not any(r["skipped"] for r in first)
     assert all("error" not in r and r["env_steps"] == 6 for r in first)

@@ -1,6 +1,11 @@
 """Trainers and runs: GAE against a plain loop, masking in PPO updates, QMIX's TD target,
 checkpoint -> resume equality, policies from checkpoints on unseen team sizes, bad input."""
 
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -257,3 +262,16 @@ def test_every_preset_resolves_for_every_algo_and_task(name):
         for task in ("pcp", "hmt"):
             config = resolve(preset, algo, task)
             assert config.total_env_steps == preset["total_env_steps"] and config.tier == "unicycle"
+
+
+def test_train_records_evaluation_episodes(tmp_path):
+    config = tiny("comat", steps=6, eval_every_steps=6, eval_episodes_per_team=1)
+    train(config, tmp_path / "run", quiet=True, rrd_every=1)
+    files = sorted((tmp_path / "run" / "rrd").glob("*.rrd"))
+    assert [f.name for f in files] == ["eval_000000000006.rrd"]
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    assert subprocess.run([rerun, "rrd", "verify", str(files[0])], capture_output=True, check=False).returncode == 0
+    with pytest.raises(ValueError, match="eval_episodes_per_team is 0"):
+        train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=1)
+    with pytest.raises(ValueError, match="rrd_every must be"):
+        train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=-1)

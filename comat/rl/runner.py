@@ -7,6 +7,7 @@ Run folder (``--out``)::
     progress.csv     one row per update: env steps, wall time, env-steps/s, episode metrics, losses
     eval.csv         one row per evaluation on the training coalitions (deterministic actions)
     tb/              TensorBoard events of both tables
+    rrd/             Rerun recordings of evaluation episodes (``rrd_every``), ``eval_<env steps>.rrd``
     summary.json     the final evaluation, written when the run finishes
 
 ``train(..., resume=True)`` continues from ``checkpoint.pt``: weights, optimizer, normalizers,
@@ -80,9 +81,32 @@ def _next_multiple(steps: int, every: int) -> int:
     return (steps // every + 1) * every
 
 
-def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False) -> dict:
+def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: int = 2) -> Path:
+    """Record ``episodes`` evaluation episodes (the first training coalitions) to ``out/rrd``."""
+    from comat.viz import record_episodes
+
+    path = out / "rrd" / f"eval_{steps:012d}.rrd"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for m in modules.values():
+        m.eval()
+    try:
+        record_episodes(path, config.task, policy_act(config.algo, modules),
+                        teams=resolve_coalitions("train", config.task)[:episodes],
+                        seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier, use_state=uses_state(config.algo),
+                        max_robots=None if config.algo == "comat" else BASELINE_ROBOTS,
+                        policy_name=f"{config.algo} after {steps:,} env steps")
+    finally:
+        for m in modules.values():
+            m.train()
+    return path
+
+
+def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0) -> dict:
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
     the final evaluation on the training coalitions (None if evaluation is off).
+
+    ``rrd_every`` = K > 0 records two evaluation episodes to ``out/rrd/`` at every K-th
+    evaluation and the last (a viewing aid; not part of the run's identity).
 
     Raises:
         FileExistsError: ``out`` already holds a run and ``resume`` is False (nothing is touched).
@@ -97,7 +121,11 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         if saved.to_dict() != {**config.to_dict(), "total_env_steps": saved.total_env_steps}:
             raise CheckpointError(f"checkpoint {str(ckpt_path)!r} was written with another configuration; "
                                   "resume it with its own (see config.yaml), or start a new run in another --out")
-    elif ckpt_path.exists() or (out / "config.yaml").exists():
+    if isinstance(rrd_every, bool) or not isinstance(rrd_every, int) or rrd_every < 0:
+        raise ValueError(f"rrd_every must be an integer >= 0 (every K-th evaluation; 0 = never), got {rrd_every!r}")
+    if rrd_every and not config.eval_episodes_per_team:
+        raise ValueError("rrd_every records evaluation episodes, but this run's eval_episodes_per_team is 0")
+    if not resume and (ckpt_path.exists() or (out / "config.yaml").exists()):
         raise FileExistsError(f"{str(out)!r} already holds a run; pass --resume to continue it, or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(config.torch_threads)
@@ -148,6 +176,11 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                 last_eval = evaluate(config, learner.modules)
                 logger.log("eval", steps, last_eval)
                 next_eval = _next_multiple(steps, config.eval_every_steps)
+                evals = steps // config.eval_every_steps
+                if rrd_every and (evals % rrd_every == 0 or finished):
+                    rrd = _record(config, learner.modules, out, steps)
+                    if not quiet:
+                        print(f"\nrecorded {rrd} (open with: rerun {rrd})", file=sys.stderr)
                 if not quiet:
                     print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, completion "
                           f"{last_eval['completion']:.0%}, steps {last_eval['steps']:.1f}, collisions "
