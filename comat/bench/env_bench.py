@@ -96,14 +96,9 @@ def run_env_bench(
     progress(head + "\n" + "-" * len(head))
     for r in rows:
         progress(f"{r.system:<20}{r.task:<6}{r.tier:<10}{r.n_robots:>4}{r.batch:>5}{r.env_steps_per_s:>14.1f}")
-    for name, c in checks.items():
-        progress(f"  {'PASS' if c['pass'] else 'FAIL'}  {name}: {c['value']:.3g} (target {c['target']})")
-    if out:
-        from comat.bench.sim_bench import _write_json
+    from comat.bench.sim_bench import finish
 
-        _write_json(out, result)
-        progress(f"wrote {out}")
-    return result
+    return finish(result, checks, out, progress)
 
 
 def _checks(rows: list[EnvBenchRow]) -> dict:

@@ -160,11 +160,6 @@ def run_learn_bench(algos=("comat", "mat", "mappo", "qmix"), workers=(1, 2), ite
     for r in train:
         progress(f"{r['algo']:<7}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
                  f"{r['learn_s']:>9.2f}{r['env_only_steps_per_s']:>12.1f}")
-    for name, c in checks.items():
-        progress(f"  {'PASS' if c['pass'] else 'FAIL'}  {name}: {c['value']:.3g} (target {c['target']})")
-    if out:
-        from comat.bench.sim_bench import _write_json
+    from comat.bench.sim_bench import finish
 
-        _write_json(out, result)
-        progress(f"wrote {out}")
-    return result
+    return finish(result, checks, out, progress)

@@ -203,14 +203,9 @@ def run_sim_bench(
         "checks": checks,
     }
     progress(_table(all_rows, rps_rows))
-    for name, c in checks.items():
-        progress(f"  {'PASS' if c['pass'] else 'FAIL'}  {name}: {c['value']:.3g} (target {c['target']})")
     if not have_rps:
         progress("  (rps not installed: `pip install -e .[robotarium]` for the Robotarium comparison)")
-    if out:
-        _write_json(out, result)
-        progress(f"wrote {out}")
-    return result
+    return finish(result, checks, out, progress)
 
 
 def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
@@ -238,6 +233,16 @@ def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
                     "value": ratio, "target": ">= 5", "pass": ratio >= 5
                 }
     return checks
+
+
+def finish(result: dict, checks: dict, out: str | None, progress=print) -> dict:
+    """Print every check as PASS/FAIL and write ``result`` as JSON to ``out`` (if given)."""
+    for name, c in checks.items():
+        progress(f"  {'PASS' if c['pass'] else 'FAIL'}  {name}: {c['value']:.3g} (target {c['target']})")
+    if out:
+        _write_json(out, result)
+        progress(f"wrote {out}")
+    return result
 
 
 def _write_json(path: str, data: dict) -> None:

@@ -109,6 +109,16 @@ def _atomic(path: Path, data: bytes | str) -> None:
     os.replace(tmp, path)
 
 
+def _save(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    _atomic(path, buf.getvalue())
+
+
 def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]:
     buf = io.StringIO()
     writer = csv.writer(buf)
@@ -179,11 +189,7 @@ def _fig4(groups: dict, tasks: list[str], algos: list[str], path: Path) -> None:
         ax.set_ylabel("return")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    _atomic(path, buf.getvalue())
+    _save(fig, path)
 
 
 def _fig5(rows: list[dict], tasks: list[str], algos: list[str], path: Path) -> None:
@@ -210,11 +216,7 @@ def _fig5(rows: list[dict], tasks: list[str], algos: list[str], path: Path) -> N
         ax.set_title(f"{task.upper()}: return, train vs unseen (retention %)")
         ax.axhline(0, color="k", lw=0.5)
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    _atomic(path, buf.getvalue())
+    _save(fig, path)
 
 
 def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None = None) -> dict:
