@@ -100,8 +100,10 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     rng = np.random.default_rng(seed)
     policies = {"heuristic": lambda env: (lambda obs, mask, state: heuristic_actions(env.core)),
                 "random": lambda env: (lambda obs, mask, state: random_actions(rng, mask))}
-    print(f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task state")
-    head = f"{'task':<5}{'set':<7}{'policy':<11}{'success':>8}{'completion':>11}{'steps':>7}{'return':>8}{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
+    print(f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task "
+          "state; completion = share of episodes finished (all prey captured / all material delivered), progress = "
+          "fraction captured / delivered")
+    head = f"{'task':<5}{'set':<7}{'policy':<11}{'completion':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
     print(head + "\n" + "-" * len(head))
     rows, ok = [], True
     for task in ("pcp", "hmt"):
@@ -115,7 +117,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
                 viol = mean["robotarium_collisions"] + mean["boundary_exits"]
                 ok &= mean["collisions"] == 0 and viol == 0
                 print(
-                    f"{task:<5}{split:<7}{name:<11}{mean['success']:>8.2f}{mean['completion']:>11.2f}{mean['steps']:>7.1f}"
+                    f"{task:<5}{split:<7}{name:<11}{mean['success']:>11.2f}{mean['completion']:>9.2f}{mean['steps']:>7.1f}"
                     f"{mean['return']:>8.2f}{mean['collisions']:>11.1f}{viol:>11.1f}{mean['interventions']:>9.0f}"
                     f"{time.perf_counter() - t0:>8.1f}"
                 )
@@ -139,7 +141,7 @@ def _train(seed: int) -> dict:
     act, _ = load_policy(out / "checkpoint.pt")
     rng = np.random.default_rng(seed)
     rows = []
-    head = f"{'policy':<16}{'set':<7}{'completion':>11}{'success':>9}{'steps':>7}{'return':>8}{'collisions':>11}"
+    head = f"{'policy':<16}{'set':<7}{'completion':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}"
     print(f"trained in {minutes:.1f} min; one deterministic episode per coalition:\n{head}\n{'-' * len(head)}")
     for split in ("train", "test"):
         teams = resolve_coalitions(split, "pcp")
@@ -148,7 +150,7 @@ def _train(seed: int) -> dict:
         random = summarize(run_episodes(env, lambda o, m, s: np.where(m, rng.integers(0, 5, m.shape), 0), teams,
                                         seed + EVAL_SEED_OFFSET))
         for name, r in (("COMAT (quick)", trained), ("random", random)):
-            print(f"{name:<16}{split:<7}{r['completion']:>11.2f}{r['success']:>9.2f}{r['steps']:>7.1f}"
+            print(f"{name:<16}{split:<7}{r['success']:>11.2f}{r['completion']:>9.2f}{r['steps']:>7.1f}"
                   f"{r['return']:>8.2f}{r['collisions']:>11.1f}")
             rows.append({"policy": name, "set": split, **r})
     print(f"continue training with: comat train --resume --out {out} --steps 1000000")

@@ -87,7 +87,7 @@ def _clock(seconds: float) -> str:
 
 
 class ProgressLine:
-    """``[####------] 12,800/100,000 steps | 410 steps/s | return 12.3 | completion 41% | ETA 0:03:57``.
+    """``[####------] 12,800/100,000 steps | 410 steps/s | return 12.3 | completion 21% (progress 41%) | ETA 0:03:57``.
 
     Redrawn in place on a terminal; elsewhere (logs, CI) printed at most every ``every_s``.
     """
@@ -100,14 +100,16 @@ class ProgressLine:
         self._t0 = time.perf_counter()
         self._last_print = -math.inf
 
-    def update(self, steps: int, ret: float, completion: float, final: bool = False) -> None:
+    def update(self, steps: int, ret: float, completion: float, progress: float, final: bool = False) -> None:
+        """``completion``: share of recent episodes that finished the task (the paper's
+        completion); ``progress``: their mean fraction of prey captured / material delivered."""
         elapsed = time.perf_counter() - self._t0
         rate = (steps - self.start) / elapsed if elapsed > 0 else 0.0
         eta = (self.total - steps) / rate if rate > 0 else math.inf
         frac = min(1.0, steps / self.total)
         bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
         line = (f"[{bar}] {steps:,}/{self.total:,} steps | {rate:,.0f} steps/s | return {ret:.2f} | "
-                f"completion {completion:.0%} | ETA {_clock(eta)}")
+                f"completion {completion:.0%} (progress {progress:.0%}) | ETA {_clock(eta)}")
         if self.tty:
             self.stream.write("\r" + line + ("\n" if final else ""))
             self.stream.flush()

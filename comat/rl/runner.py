@@ -171,7 +171,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
             finished = steps >= config.total_env_steps
             if bar is not None and recent:
                 tail = summarize(recent[-64:])
-                bar.update(steps, tail["return"], tail["completion"], final=finished)
+                bar.update(steps, tail["return"], tail["success"], tail["completion"], final=finished)
             if config.eval_episodes_per_team and (steps >= next_eval or finished):
                 last_eval = evaluate(config, learner.modules)
                 logger.log("eval", steps, last_eval)
@@ -183,7 +183,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                         print(f"\nrecorded {rrd} (open with: rerun {rrd})", file=sys.stderr)
                 if not quiet:
                     print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, completion "
-                          f"{last_eval['completion']:.0%}, steps {last_eval['steps']:.1f}, collisions "
+                          f"{last_eval['success']:.0%} (progress {last_eval['completion']:.0%}), steps {last_eval['steps']:.1f}, collisions "
                           f"{last_eval['collisions']:.2f}", file=sys.stderr)
             if steps >= next_ckpt or finished:
                 checkpoint()
