@@ -177,8 +177,8 @@ def _fig4(groups: dict, tasks: list[str], algos: list[str], path: Path) -> None:
             ys = []
             for r in runs:
                 x, y = np.asarray(r["curve"]["env_steps"]), np.asarray(r["curve"]["return"])
-                k = max(1, len(y) // 20)  # smooth over ~5 % of the run, as training curves usually are
-                y = np.convolve(y, np.ones(k) / k, mode="same") if len(y) > k else y
+                k = max(1, len(y) // 20)  # trailing mean over ~5 % of the run (no padding at the ends)
+                y = np.convolve(y, np.ones(k))[: len(y)] / np.minimum(np.arange(1, len(y) + 1), k)
                 ys.append(np.interp(grid, x, y))
             ys = np.asarray(ys)
             mean, std = ys.mean(0), ys.std(0)
