@@ -131,12 +131,15 @@ def test_sweep_two_tiny_jobs_then_skip(tmp_path):
         "tier": "unicycle", "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1},
         "models": TINY_MODELS}))
     root = tmp_path / "sweep"
+    (root / "mat_pcp_s0").mkdir(parents=True)  # a run stopped before its first checkpoint
+    (root / "mat_pcp_s0" / "config.yaml").write_text("partial")
     args = {"algos": ["comat", "mat"], "tasks": ["pcp"], "seeds": [0], "preset": str(preset), "eval_sets": (), "num_cpus": 2,
                 "progress": lambda _m: None}
     first = run_sweep(root, **args)
     assert sorted(r["algo"] for r in first) == ["comat", "mat"] and not any(r["skipped"] for r in first)
     assert all("error" not in r and r["env_steps"] == 6 for r in first)
     assert all((root / f"{a}_pcp_s0" / "summary.json").is_file() for a in ("comat", "mat"))
+    assert (root / ".aborted" / "mat_pcp_s0-1" / "config.yaml").read_text() == "partial"  # kept, set aside
     again = run_sweep(root, **args)
     assert all(r["skipped"] for r in again) and len(again) == 2
     # with an evaluation asked for, the finished runs still need it

@@ -3,8 +3,10 @@
 Every job is one run folder ``<root>/<algo>_<task>_s<seed>``: train (or resume) it, then
 evaluate the final checkpoint on the sets and tiers asked for (``evaluation_<tier>.json``, as
 ``comat eval`` writes it). A job whose folder already has ``summary.json`` and every requested
-evaluation is skipped; one with a checkpoint but no summary is resumed. So a sweep can be
-stopped at any moment and re-run with the same command to finish it.
+evaluation is skipped; one with a checkpoint but no summary is resumed; one stopped before its
+first checkpoint is set aside (``<root>/.aborted/``) and started over. So a sweep can be
+stopped at any moment and re-run with the same command to finish it. A job that fails (or
+whose worker dies) is reported and the others go on; the sweep then exits non-zero.
 
 Ray: a local instance by default (``num_cpus`` = the jobs run at once, each job one CPU), or an
 existing cluster with ``address`` (``"auto"`` or ``ray://host:10001``); the run folders must
@@ -45,6 +47,17 @@ Job = dict
 """One grid cell: ``algo``, ``task``, ``seed``, ``folder``, ``state``."""
 
 
+def _set_aside_partial(folder: Path) -> None:
+    """A run stopped before its first checkpoint cannot resume: move what it wrote to
+    ``<root>/.aborted/<name>-<k>`` (kept, out of report globs) so the job can start over."""
+    if (folder / "checkpoint.pt").is_file() or not folder.is_dir() or not any(folder.iterdir()):
+        return
+    aside = folder.parent / ".aborted"
+    aside.mkdir(exist_ok=True)
+    k = 1 + sum(1 for p in aside.glob(f"{folder.name}-*"))
+    folder.rename(aside / f"{folder.name}-{k}")
+
+
 def run_job(job: Job, preset: str, steps: int | None, tier: str | None, eval_tiers, eval_sets, episodes: int,
             env_workers: int | None = None) -> dict:
     """Train (or resume) one run and evaluate it; returns a short summary. Runs in a Ray worker."""
@@ -57,6 +70,7 @@ def run_job(job: Job, preset: str, steps: int | None, tier: str | None, eval_tie
     torch.set_num_threads(1)
     folder = Path(job["folder"])
     t0 = time.perf_counter()
+    _set_aside_partial(folder)
     config = resolve(load_preset(preset), job["algo"], job["task"], seed=job["seed"], tier=tier,
                      total_env_steps=steps, env_workers=env_workers)
     resume = (folder / "checkpoint.pt").is_file()
@@ -110,10 +124,11 @@ def run_sweep(root: str | Path, algos, tasks, seeds, preset: str = "paper", step
                 progress(f"  done {job['algo']}/{job['task']}/s{job['seed']}: {rec['env_steps']:,} env steps in "
                          f"{rec['wall_s'] / 60:.1f} min ({len(pending)} left)")
                 records.append({**rec, "skipped": False})
-            except ray.exceptions.RayTaskError as exc:
-                progress(f"  FAILED {job['algo']}/{job['task']}/s{job['seed']}: {exc.cause!r} (its folder keeps "
+            except ray.exceptions.RayError as exc:  # the job raised, or its worker died
+                cause = getattr(exc, "cause", None) or exc
+                progress(f"  FAILED {job['algo']}/{job['task']}/s{job['seed']}: {cause!r:.300} (its folder keeps "
                          "what it wrote; re-run the sweep to resume it)")
-                records.append({**job, "skipped": False, "error": repr(exc.cause)})
+                records.append({**job, "skipped": False, "error": repr(cause)})
     finally:
         if address is None:
             ray.shutdown()
