@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-demo: $(STAMP)  ## safety filter, the tasks, then a quick COMAT trained on PCP (about 5 minutes)
+demo: $(STAMP)  ## safety filter, the tasks, then a quick COMAT trained on PCP (about 10 minutes)
 	$(BIN)/comat demo
 
 test: $(STAMP)  ## the fast suite (about a minute)

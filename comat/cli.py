@@ -201,7 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="1) Teams of robots swap places through the arena centre, every command passing "
                        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
                        "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) A quick COMAT trains on "
-                       "PCP (about 3 minutes) and plays the training and unseen coalitions next to a random policy.")
+                       "PCP (about 5 minutes) and plays the training and unseen coalitions next to a random policy.")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels", help="dynamics tier (default: %(default)s)")
     p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
     p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")

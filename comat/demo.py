@@ -5,7 +5,7 @@
    episodes run once more unfiltered, to show what it prevents.
 2. Tasks: the scripted heuristic and a random policy play PCP and HMT on training (U_train) and
    unseen (U_test) coalitions; the paper's metrics per row.
-3. Learning: a quick COMAT (``--preset quick``, 25,600 env steps) trains on PCP's training
+3. Learning: a quick COMAT (``--preset quick``, 51,200 env steps) trains on PCP's training
    coalitions, then plays every training and unseen coalition next to a random policy.
 """
 
