@@ -16,7 +16,7 @@ setup: $(STAMP)
 demo: $(STAMP)  ## safety filter, the tasks, then a quick COMAT trained on PCP (about 10 minutes)
 	$(BIN)/comat demo
 
-test: $(STAMP)  ## the fast suite (about a minute)
+test: $(STAMP)  ## the fast suite (about 7 minutes on 2 cores)
 	$(BIN)/python -m pytest -q
 
 test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario and tier, fidelity spread
