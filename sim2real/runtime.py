@@ -1,0 +1,341 @@
+"""COMAT policy in numpy: the deployment forward pass shipped inside a Robotarium submission.
+
+The Robotarium runs plain Python with numpy but no torch, so this module imports numpy and the
+standard library only (a test parses its imports) and is copied verbatim into the submission.
+It computes exactly what ``comat.models.comat.Comat.encode`` and its autoregressive decoder
+compute, for one team of real robots (no batch, no padding):
+
+=================  ==========================================================================
+Input              obs (N, D) float, one row per robot, the task's layout
+                   [x, y, cos θ, sin θ | type one-hot (T) | capabilities (C) | task features]
+Encoder            edge features from obs (mirror of ``comat.models.features.edge_features``),
+                   ``heat_blocks`` HEAT blocks (type-specific node transforms, edge-feature and
+                   edge-type embeddings, K-head LeakyReLU scores, softmax over neighbours, heads
+                   averaged), LayerNorm with a residual after the first block -> rep (N, E)
+Decoder            robot by robot, m = 0..N−1: token (start or a_{m−1}) embedding, causal
+                   self-attention over tokens 0..m, action-embedding block, cross-attention of
+                   rep_m over embedded actions 0..m, per-type actor head on [h_m ‖ c_m]
+Output             ``action_probs(obs)`` -> actions (N,) int64 (argmax, deterministic) and the
+                   probability vectors (N, A) they were chosen from, A = 5
+Not included       the critic (deployment needs no values); sampling (argmax only)
+Arithmetic         float64 throughout (weights are stored as float32, as trained)
+=================  ==========================================================================
+
+Weights file: ONE ``.npy`` readable with ``np.load(path, allow_pickle=False)``. It holds a 0-d
+structured array with two fields:
+
+* ``manifest``: uint8 (L,), UTF-8 JSON ``{"format": "comat-numpy-weights", "version": 1,
+  "config": {obs_dim, n_types, n_caps, embed, heads, heat_blocks, edge_embed},
+  "arrays": [[name, shape, offset], ...]}``;
+* ``params``: float32 (P,), every array flattened (C order) and concatenated; array ``name``
+  is ``params[offset : offset + prod(shape)].reshape(shape)``.
+
+Names are the torch ``state_dict`` keys (``heat.0.node.1.weight``, ``cross_attn.kv.bias``, ...),
+critic excluded, so every array can be traced back to the module that trained it. The manifest
+lives in the data rather than in the .npy header: the header stays a few hundred bytes, under
+numpy's ``max_header_size`` on every version, and no pickle is ever needed. ``pack_weights`` /
+``save_weights`` write the format, ``load_weights`` reads and checks it;
+``sim2real.weights`` turns a torch model into the arrays.
+
+Version history: v1 — first format.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+__all__ = [
+    "FORMAT",
+    "N_ACTIONS",
+    "VERSION",
+    "ComatRuntime",
+    "edge_features",
+    "expected_shapes",
+    "load_weights",
+    "pack_weights",
+    "save_weights",
+    "unpack_weights",
+]
+
+FORMAT, VERSION = "comat-numpy-weights", 1
+N_ACTIONS = 5
+CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", "edge_embed")
+LN_EPS = 1e-5  # torch.nn.LayerNorm's default, which every LayerNorm in COMAT uses
+SLOPE = 0.2  # LeakyReLU negative slope of the HEAT blocks
+
+
+# -- weights file ----------------------------------------------------------------------------------
+def expected_shapes(config: Mapping[str, int]) -> dict[str, tuple[int, ...]]:
+    """Name -> shape of every array the runtime needs, for a COMAT ``config`` (see CONFIG_KEYS)."""
+    missing = [k for k in CONFIG_KEYS if k not in config]
+    if missing:
+        raise ValueError(f"config must have keys {list(CONFIG_KEYS)}, missing {missing}")
+    D, T, C = config["obs_dim"], config["n_types"], config["n_caps"]
+    E, K, L, de = config["embed"], config["heads"], config["heat_blocks"], config["edge_embed"]
+    A = N_ACTIONS
+    shapes: dict[str, tuple[int, ...]] = {}
+    for k in range(L):
+        p = f"heat.{k}."
+        for t in range(T):
+            shapes[f"{p}node.{t}.weight"] = (E, D if k == 0 else E)
+        shapes.update({
+            f"{p}edge_attr.weight": (de, 5), f"{p}edge_type.weight": (T * T, de),
+            f"{p}att_i.weight": (K, E), f"{p}att_attr.weight": (K, de),
+            f"{p}att_type.weight": (K, de), f"{p}att_j.weight": (K, E),
+            f"{p}msg_attr.weight": (E, de), f"{p}msg_type.weight": (E, de), f"{p}msg_j.weight": (E, E),
+            f"heat_norm.{k}.weight": (E,), f"heat_norm.{k}.bias": (E,),
+        })
+    shapes["token.0.weight"] = (E, A + 1)
+    for att in ("self_attn", "cross_attn"):
+        shapes.update({
+            f"{att}.q.weight": (E, E), f"{att}.q.bias": (E,), f"{att}.kv.weight": (2 * E, E),
+            f"{att}.kv.bias": (2 * E,), f"{att}.o.weight": (E, E), f"{att}.o.bias": (E,),
+        })
+    for name in ("ln1", "ln2", "ln3", "ln4"):
+        shapes.update({f"{name}.weight": (E,), f"{name}.bias": (E,)})
+    for name in ("fc", "fc2"):
+        shapes.update({f"{name}.0.weight": (E, E), f"{name}.0.bias": (E,),
+                       f"{name}.2.weight": (E, E), f"{name}.2.bias": (E,)})
+    shapes.update({"heads.first.weight": (T * E, E + C), "heads.first.bias": (T * E,),
+                   "heads.w2": (T, E, A), "heads.b2": (T, A)})
+    return shapes
+
+
+def _check_arrays(arrays: Mapping[str, np.ndarray], config: Mapping[str, int], source: str) -> None:
+    """Raise ValueError naming every missing, unexpected or misshapen array."""
+    want = expected_shapes(config)
+    missing = sorted(set(want) - set(arrays))
+    extra = sorted(set(arrays) - set(want))
+    wrong = [f"{n}: expected {want[n]}, got {tuple(np.shape(arrays[n]))}"
+             for n in want if n in arrays and tuple(np.shape(arrays[n])) != want[n]]
+    if missing or extra or wrong:
+        raise ValueError(
+            f"{source} does not match a COMAT model with config {dict(config)}: "
+            f"missing {missing[:5]}{'…' if len(missing) > 5 else ''}, "
+            f"unexpected {extra[:5]}{'…' if len(extra) > 5 else ''}, "
+            f"wrong shapes {wrong[:5]}{'…' if len(wrong) > 5 else ''}"
+        )
+
+
+def pack_weights(arrays: Mapping[str, np.ndarray], config: Mapping[str, int]) -> np.ndarray:
+    """The 0-d structured array of the weights file (see module docstring); arrays are checked."""
+    _check_arrays(arrays, config, "arrays")
+    config = {k: int(config[k]) for k in CONFIG_KEYS}
+    names = list(expected_shapes(config))  # a fixed order, so equal models give equal files
+    entries, offset = [], 0
+    for n in names:
+        entries.append([n, list(np.shape(arrays[n])), offset])
+        offset += int(np.size(arrays[n]))
+    params = np.concatenate([np.asarray(arrays[n], dtype=np.float32).ravel() for n in names])
+    manifest = json.dumps({"format": FORMAT, "version": VERSION, "config": config, "arrays": entries},
+                          separators=(",", ":")).encode()
+    record = np.zeros((), dtype=[("manifest", np.uint8, (len(manifest),)), ("params", np.float32, (offset,))])
+    record["manifest"] = np.frombuffer(manifest, dtype=np.uint8)
+    record["params"] = params
+    return record
+
+
+def unpack_weights(record: np.ndarray, source: str = "record") -> tuple[dict[str, int], dict[str, np.ndarray]]:
+    """(config, name -> float32 array) from a structured array made by :func:`pack_weights`."""
+    names = record.dtype.names or ()
+    if record.shape != () or set(names) != {"manifest", "params"}:
+        raise ValueError(f"{source} is not a {FORMAT} file: expected a 0-d record with fields "
+                         f"('manifest', 'params'), got shape {record.shape} and fields {names}")
+    try:
+        manifest = json.loads(record["manifest"].tobytes().decode())
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ValueError(f"{source}: unreadable manifest ({err})") from err
+    if manifest.get("format") != FORMAT or manifest.get("version") != VERSION:
+        raise ValueError(f"{source}: expected format {FORMAT!r} version {VERSION}, "
+                         f"got {manifest.get('format')!r} version {manifest.get('version')}")
+    params = record["params"]
+    arrays = {}
+    for name, shape, offset in manifest["arrays"]:
+        size = math.prod(shape)
+        if offset + size > params.size:
+            raise ValueError(f"{source}: array {name} {tuple(shape)} at offset {offset} runs past "
+                             f"the {params.size} stored parameters")
+        arrays[name] = params[offset : offset + size].reshape(shape)
+    config = manifest["config"]
+    _check_arrays(arrays, config, source)
+    return config, arrays
+
+
+def save_weights(path, arrays: Mapping[str, np.ndarray], config: Mapping[str, int]) -> None:
+    """Write the weights file (one ``.npy``, no pickle) at ``path``."""
+    np.save(path, pack_weights(arrays, config), allow_pickle=False)
+
+
+def load_weights(path) -> tuple[dict[str, int], dict[str, np.ndarray]]:
+    """(config, arrays) from a weights file written by :func:`save_weights`."""
+    return unpack_weights(np.load(path, allow_pickle=False), source=f"weights file {path}")
+
+
+# -- building blocks (mirrors of comat.models.layers) --------------------------------------------
+def _leaky(x: np.ndarray) -> np.ndarray:
+    return np.where(x >= 0, x, SLOPE * x)
+
+
+def _relu(x: np.ndarray) -> np.ndarray:
+    return np.maximum(x, 0.0)
+
+
+def _softmax(x: np.ndarray, axis: int = -1) -> np.ndarray:
+    e = np.exp(x - x.max(axis=axis, keepdims=True))
+    return e / e.sum(axis=axis, keepdims=True)
+
+
+def _layer_norm(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    mu = x.mean(-1, keepdims=True)
+    var = ((x - mu) ** 2).mean(-1, keepdims=True)  # biased, as torch's LayerNorm
+    return (x - mu) / np.sqrt(var + LN_EPS) * w + b
+
+
+def edge_features(obs: np.ndarray, n_types: int) -> tuple[np.ndarray, np.ndarray]:
+    """Dense team graph with self-loops (mirror of ``comat.models.features.edge_features``).
+
+    Returns edge_attr (N, N, 5): for [i, j], robot j seen from robot i — position in i's frame
+    (2), distance (1), relative heading cos, sin (2); and edge_type (N, N): type_i · T + type_j.
+    """
+    xy, c, s = obs[:, 0:2], obs[:, 2], obs[:, 3]
+    d = xy[None, :, :] - xy[:, None, :]  # [i, j] = p_j − p_i
+    ci, si = c[:, None], s[:, None]
+    local_x = ci * d[..., 0] + si * d[..., 1]
+    local_y = -si * d[..., 0] + ci * d[..., 1]
+    # The 1e-12 keeps torch's sqrt differentiable at 0; kept so the numbers match it.
+    dist = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + 1e-12) * (1 - np.eye(len(obs)))
+    cj, sj = c[None, :], s[None, :]
+    edge_attr = np.stack([local_x, local_y, dist, ci * cj + si * sj, ci * sj - si * cj], axis=-1)
+    types = obs[:, 4 : 4 + n_types].argmax(-1)
+    return edge_attr, types[:, None] * n_types + types[None, :]
+
+
+class _Attention:
+    """Multi-head scaled dot-product attention, incremental: keys/values appended per step."""
+
+    def __init__(self, w: Mapping[str, np.ndarray], prefix: str, heads: int) -> None:
+        self.heads = heads
+        self.wq, self.bq = w[f"{prefix}.q.weight"], w[f"{prefix}.q.bias"]
+        self.wkv, self.bkv = w[f"{prefix}.kv.weight"], w[f"{prefix}.kv.bias"]
+        self.wo, self.bo = w[f"{prefix}.o.weight"], w[f"{prefix}.o.bias"]
+
+    def query(self, x: np.ndarray) -> np.ndarray:
+        """x (L, E) -> per-head queries (L, H, E/H)."""
+        return (x @ self.wq.T + self.bq).reshape(len(x), self.heads, -1)
+
+    def kv(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x (E,) -> key and value (H, E/H) each (head h = features h·dh .. (h+1)·dh, as torch)."""
+        k, v = np.split(self.wkv @ x + self.bkv, 2)
+        return k.reshape(self.heads, -1), v.reshape(self.heads, -1)
+
+    def attend(self, q: np.ndarray, keys: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """q (H, dh) over keys, values (L, H, dh) -> (E,) after the output projection."""
+        scores = np.einsum("hd,lhd->hl", q, keys) * q.shape[-1] ** -0.5
+        return np.einsum("hl,lhd->hd", _softmax(scores), values).reshape(-1) @ self.wo.T + self.bo
+
+
+# -- the policy -----------------------------------------------------------------------------------
+class ComatRuntime:
+    """A trained COMAT policy, evaluated in numpy (see module docstring).
+
+    ``ComatRuntime(config, arrays)`` or ``ComatRuntime.from_file(path)``; then
+    ``actions, probs = policy.action_probs(obs)`` with obs (N, D).
+    """
+
+    def __init__(self, config: Mapping[str, int], arrays: Mapping[str, np.ndarray]) -> None:
+        _check_arrays(arrays, config, "arrays")
+        self.config = {k: int(config[k]) for k in CONFIG_KEYS}
+        self.w = {k: np.asarray(v, dtype=np.float64) for k, v in arrays.items()}
+        self.self_attn = _Attention(self.w, "self_attn", self.config["heads"])
+        self.cross_attn = _Attention(self.w, "cross_attn", self.config["heads"])
+
+    @classmethod
+    def from_file(cls, path) -> ComatRuntime:
+        return cls(*load_weights(path))
+
+    # -- encoder --------------------------------------------------------------------------------
+    def _heat(self, k: int, x: np.ndarray, types: np.ndarray, attr: np.ndarray, etype: np.ndarray) -> np.ndarray:
+        """HEAT block k: x (N, d_in) -> (N, E); see Comat's HEATBlock for the algebra."""
+        w, p = self.w, f"heat.{k}."
+        node = np.stack([w[f"{p}node.{t}.weight"] for t in range(self.config["n_types"])])  # (T, E, d_in)
+        xt = _leaky(np.einsum("ni,nei->ne", x, node[types]))  # each robot through its type's W
+        ea = _leaky(attr @ w[f"{p}edge_attr.weight"].T)  # (N, N, de)
+        et = _leaky(w[f"{p}edge_type.weight"])  # (T², de): one row per ordered type pair
+        score = ((xt @ w[f"{p}att_i.weight"].T)[:, None] + ea @ w[f"{p}att_attr.weight"].T
+                 + (et @ w[f"{p}att_type.weight"].T)[etype] + (xt @ w[f"{p}att_j.weight"].T)[None])
+        # All robots are real and every robot has its self-loop, so no edge is masked.
+        alpha = _softmax(_leaky(score), axis=1).mean(-1)  # (N, N): softmax over j, heads averaged
+        return ((alpha[..., None] * ea).sum(1) @ w[f"{p}msg_attr.weight"].T
+                + (alpha[..., None] * et[etype]).sum(1) @ w[f"{p}msg_type.weight"].T
+                + (alpha @ xt) @ w[f"{p}msg_j.weight"].T)
+
+    def encode(self, obs: np.ndarray) -> np.ndarray:
+        """Robot representations rep (N, E) from obs (N, D)."""
+        T = self.config["n_types"]
+        attr, etype = edge_features(obs, T)
+        types = obs[:, 4 : 4 + T].argmax(-1)
+        h = obs
+        for k in range(self.config["heat_blocks"]):
+            out = self._heat(k, h, types, attr, etype)
+            h = _layer_norm(out if k == 0 else h + out, self.w[f"heat_norm.{k}.weight"], self.w[f"heat_norm.{k}.bias"])
+        return h
+
+    # -- decoder --------------------------------------------------------------------------------
+    def _mlp(self, name: str, x: np.ndarray) -> np.ndarray:
+        w = self.w
+        return _relu(x @ w[f"{name}.0.weight"].T + w[f"{name}.0.bias"]) @ w[f"{name}.2.weight"].T + w[f"{name}.2.bias"]
+
+    def _ln(self, name: str, x: np.ndarray) -> np.ndarray:
+        return _layer_norm(x, self.w[f"{name}.weight"], self.w[f"{name}.bias"])
+
+    def _actor(self, h: np.ndarray, obs_m: np.ndarray) -> np.ndarray:
+        """Logits (A,) of the actor head of robot m's type, on [h_m ‖ c_m]."""
+        T, C, E = self.config["n_types"], self.config["n_caps"], self.config["embed"]
+        x = np.concatenate([h, obs_m[4 + T : 4 + T + C]])
+        hidden = _relu(self.w["heads.first.weight"] @ x + self.w["heads.first.bias"]).reshape(T, E)
+        out = np.einsum("th,tha->ta", hidden, self.w["heads.w2"]) + self.w["heads.b2"]  # every type's head
+        return (out * obs_m[4 : 4 + T, None]).sum(0)  # its own type's, by the one-hot as in torch
+
+    def action_probs(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Deterministic decoding robot by robot.
+
+        Args:
+            obs: (N, D) observations of one team, N >= 1, all robots real.
+
+        Returns:
+            actions (N,) int64, each the argmax of its row of probs (N, A), the action
+            distributions robot m's choice was made from (given the actions of robots 0..m−1).
+        """
+        obs = np.asarray(obs, dtype=np.float64)
+        D = self.config["obs_dim"]
+        if obs.ndim != 2 or obs.shape[0] < 1 or obs.shape[1] != D:
+            raise ValueError(f"obs must have shape (N, {D}) with N >= 1, got {obs.shape}")
+        if not np.isfinite(obs).all():
+            raise ValueError("obs must be finite, got NaN or inf")
+        N, A = len(obs), N_ACTIONS
+        rep = self.encode(obs)
+        cross_q = self.cross_attn.query(rep)  # queries of every robot in one matmul
+        heads, dh = self.config["heads"], self.config["embed"] // self.config["heads"]
+        # Keys/values of the tokens and of the embedded actions decoded so far (causal masks).
+        self_k, self_v, cross_k, cross_v = (np.empty((N, heads, dh)) for _ in range(4))
+        actions = np.zeros(N, dtype=np.int64)
+        probs = np.zeros((N, A))
+        token = 0  # index 0 = start token, a + 1 = action a
+        for m in range(N):
+            e = _relu(self.w["token.0.weight"][:, token])  # a one-hot token picks one column
+            self_k[m], self_v[m] = self.self_attn.kv(e)
+            att = self.self_attn.attend(self.self_attn.query(e[None])[0], self_k[: m + 1], self_v[: m + 1])
+            x = self._ln("ln1", e + att)
+            a_hat = self._ln("ln2", x + self._mlp("fc", x))
+            cross_k[m], cross_v[m] = self.cross_attn.kv(a_hat)
+            att = self.cross_attn.attend(cross_q[m], cross_k[: m + 1], cross_v[: m + 1])
+            h = self._ln("ln3", rep[m] + att)
+            h = self._ln("ln4", h + self._mlp("fc2", h))
+            probs[m] = _softmax(self._actor(h, obs[m]))
+            actions[m] = int(probs[m].argmax())
+            token = actions[m] + 1
+        return actions, probs
