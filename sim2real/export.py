@@ -1,0 +1,297 @@
+"""Robotarium submission folder from a COMAT policy: ``export_submission`` and ``check_submission``.
+
+=====================  ========================================================================
+Folder (flat)          ``main.py`` (``sim2real/templates/main.py``, verbatim), ``runtime.py``
+                       (``sim2real/runtime.py``, verbatim), ``task_logic.py``
+                       (``comat/task_logic.py``, verbatim: numpy only, so the very file the
+                       MuJoCo envs run is shipped), ``weights.npy`` (pickle-free weights),
+                       ``submission_config.py`` (``CONFIG = {...}``: task, team, start poses,
+                       prey, ticks per step, controller constants)
+File types             ``.py`` and ``.npy`` only (the Robotarium accepts .m .jpg .jpeg .png .gif
+                       .tiff .bmp .py .mat .npy .mexa64 and no folders; JSON is not accepted,
+                       hence the config as a Python literal)
+Policy                 a COMAT checkpoint (``checkpoint.pt`` of ``comat train --algo comat``) or
+                       a ``comat.models.comat.Comat`` module; other algorithms raise ValueError
+Start poses            (3, N) float, default: the MuJoCo env's own spawn (and PCP prey) for
+                       ``seed``; must be >= WALL_MARGIN_M inside the arena, >= MIN_SPACING_M apart
+Team                   TeamSpec or mapping, 1..20 robots (the Robotarium's hardware limit)
+Atomicity              written into ``<out>.tmp-*`` next to ``out`` and renamed at the end; on any
+                       error nothing is left; an existing ``out`` is an error
+=====================  ========================================================================
+
+``check_submission(folder)`` runs the folder's ``main.py`` with the installed ``rps`` in a
+subprocess (figures off) and the same policy, team, start poses and prey in the MuJoCo env
+(``comat.envs``), and returns both sets of metrics.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pprint
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import comat.task_logic as task_logic_module
+from comat import constants as C
+from comat.envs.core import WAYPOINT_GAIN
+from comat.team import TeamSpec
+
+__all__ = [
+    "ACCEPTED_EXTENSIONS",
+    "ALLOWED_IMPORTS",
+    "MIN_SPACING_M",
+    "SHIPPED_FILES",
+    "WALL_MARGIN_M",
+    "check_submission",
+    "export_submission",
+]
+
+HERE = Path(__file__).resolve().parent
+ACCEPTED_EXTENSIONS = (".m", ".jpg", ".jpeg", ".png", ".gif", ".tiff", ".bmp", ".py", ".mat", ".npy", ".mexa64")
+"""File types the Robotarium's upload form accepts (reference §3.2)."""
+ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps"})
+"""Third-party top-level packages shipped code may import (besides the standard library and the
+folder's own modules)."""
+SHIPPED_FILES = ("main.py", "runtime.py", "task_logic.py", "submission_config.py", "weights.npy")
+MIN_SPACING_M = 0.3
+"""Start poses closer than this risk barrier deadlocks in V2's initialization phase (§7.2)."""
+WALL_MARGIN_M = 0.1
+"""Start poses must be this far inside the arena."""
+MAX_ROBOTS = C.MAX_ROBOTS_HARDWARE
+
+
+# -- inputs ----------------------------------------------------------------------------------------
+def _comat_model(checkpoint_or_policy, task: str):
+    """The torch Comat module of a checkpoint path or of a Comat instance."""
+    if isinstance(checkpoint_or_policy, (str, Path)):
+        from comat.rl.algos import Dims, build_modules
+        from comat.rl.checkpoint import load_checkpoint
+        from comat.rl.config import RunConfig
+
+        data = load_checkpoint(checkpoint_or_policy)
+        if data["algo"] != "comat":
+            raise ValueError(f"export supports COMAT checkpoints only: {str(checkpoint_or_policy)!r} is a "
+                             f"{data['algo']!r} checkpoint (expected algo 'comat')")
+        if data["task"] != task:
+            raise ValueError(f"checkpoint {str(checkpoint_or_policy)!r} is for task {data['task']!r}, expected {task!r}")
+        config = RunConfig.from_dict(data["config"])
+        modules = build_modules("comat", Dims(**data["progress"]["dims"]), config.model)
+        modules["policy"].load_state_dict(data["trainer"]["policy"])
+        return modules["policy"].eval()
+    from comat.models.comat import Comat
+
+    if isinstance(checkpoint_or_policy, Comat):
+        return checkpoint_or_policy.eval()
+    raise TypeError(f"checkpoint_or_policy must be a COMAT checkpoint path or a Comat model, "
+                    f"got {type(checkpoint_or_policy).__name__} (export supports COMAT only)")
+
+
+def _team(team: Any, task: str) -> TeamSpec:
+    if isinstance(team, Mapping):
+        team = TeamSpec.from_dict({"task": task, **team})
+    if not isinstance(team, TeamSpec):
+        raise TypeError(f"team must be a TeamSpec or a mapping with 'robots', got {type(team).__name__}")
+    if team.task != task:
+        raise ValueError(f"team is a {team.task!r} team, expected a {task!r} team")
+    if team.size > MAX_ROBOTS:
+        raise ValueError(f"team must have at most {MAX_ROBOTS} robots (Robotarium hardware limit), got {team.size}")
+    return team
+
+
+def _task(task: str):
+    if task == "pcp":
+        return task_logic_module.PCP()
+    if task == "hmt":
+        return task_logic_module.HMT()
+    raise ValueError(f"task must be 'pcp' or 'hmt', got {task!r}")
+
+
+def check_start_poses(poses: Any, n: int) -> np.ndarray:
+    """Start poses as float (3, n), inside the arena by WALL_MARGIN_M, >= MIN_SPACING_M apart."""
+    try:
+        p = np.array(poses, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"start_poses must be a numeric (3, {n}) array, got {poses!r}") from err
+    if p.shape != (3, n) or not np.isfinite(p).all():
+        raise ValueError(f"start_poses must be a finite (3, {n}) array (x, y, θ rows, one column per robot), "
+                         f"got shape {p.shape}")
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    m = WALL_MARGIN_M
+    outside = (p[0] < x0 + m) | (p[0] > x1 - m) | (p[1] < y0 + m) | (p[1] > y1 - m)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise ValueError(f"start_poses: robot {i} at ({p[0, i]:.3f}, {p[1, i]:.3f}) must be >= {m} m inside the "
+                         f"arena x [{x0}, {x1}], y [{y0}, {y1}]")
+    if n > 1:
+        d = np.hypot(p[0][:, None] - p[0][None], p[1][:, None] - p[1][None]) + np.eye(n) * 1e9
+        i, j = np.unravel_index(np.argmin(d), d.shape)
+        if d[i, j] < MIN_SPACING_M:
+            raise ValueError(f"start_poses: robots {min(i, j)} and {max(i, j)} are {d[i, j]:.3f} m apart, "
+                             f"expected >= {MIN_SPACING_M} m")
+    p[2] = np.arctan2(np.sin(p[2]), np.cos(p[2]))
+    return p
+
+
+def mujoco_start(task: str, team: TeamSpec, seed: int, tier: str = "unicycle") -> tuple[np.ndarray, np.ndarray]:
+    """The MuJoCo env's spawn for ``seed``: start poses (3, N) and PCP prey (K, 2) (HMT: (0, 2))."""
+    from comat.envs import make_env
+
+    env = make_env(f"{task}_v0", team=team, tier=tier)
+    env.reset(seed=seed)
+    poses = env.core.poses()[0, : team.size].T.copy()
+    prey = env.core.state["prey"][0].copy() if task == "pcp" else np.zeros((0, 2))
+    return poses, prey
+
+
+# -- export ----------------------------------------------------------------------------------------
+def _config(task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int, seed: int) -> dict:
+    return {
+        "task": task,
+        "seed": int(seed),
+        "types": [r.type for r in team.robots],
+        "capabilities": [[float(c) for c in r.capabilities] for r in team.robots],
+        "start_poses": [[float(v) for v in row] for row in poses],
+        "prey": [[float(v) for v in row] for row in prey],
+        "ticks_per_step": int(ticks),
+        "projection_distance_m": float(C.PROJECTION_DISTANCE_M),
+        "waypoint_gain": float(WAYPOINT_GAIN),
+        "max_speed_mps": 0.2,
+        "wheel_radius_m": float(C.DEFAULT_PROFILE.wheel_radius_m),
+        "base_length_m": float(C.DEFAULT_PROFILE.base_length_m),
+        "max_wheel_radps": 0.999 * float(C.DEFAULT_PROFILE.max_wheel_velocity_radps),
+        "collision_offset_m": float(C.COLLISION_OFFSET_M),
+        "collision_distance_m": 0.135,
+        "min_spacing_m": MIN_SPACING_M - 1e-9,
+        "wall_margin_m": WALL_MARGIN_M - 1e-9,
+    }
+
+
+def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start_poses: Any = None,
+                      seed: int = 0, ticks_per_step: int | None = None) -> Path:
+    """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
+
+    Args:
+        checkpoint_or_policy: COMAT checkpoint path or a ``Comat`` model.
+        task: "pcp" or "hmt".
+        team: TeamSpec or ``{"robots": [...]}``, 1..20 robots.
+        out_dir: folder to create (must not exist).
+        start_poses: (3, N) x, y, θ; default the MuJoCo env's spawn for ``seed``.
+        seed: seed of the default spawn and PCP prey.
+        ticks_per_step: Robotarium iterations per env step (default the task's: PCP 29, HMT 74).
+
+    Returns:
+        The folder's path.
+    """
+    from sim2real.weights import export_weights
+
+    task_obj = _task(task)
+    team = _team(team, task)
+    out = Path(out_dir)
+    if out.exists():
+        raise FileExistsError(f"out_dir {str(out)!r} already exists; choose a new folder")
+    ticks = task_obj.ticks_per_step if ticks_per_step is None else ticks_per_step
+    if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
+        raise ValueError(f"ticks_per_step must be a positive integer, got {ticks!r}")
+    model = _comat_model(checkpoint_or_policy, task)
+    want_dim = task_obj.obs_size()
+    if model.layout.obs_dim != want_dim:
+        raise ValueError(f"policy observes {model.layout.obs_dim} features, task {task!r} has {want_dim}")
+    default_poses, prey = mujoco_start(task, team, seed)
+    poses = check_start_poses(default_poses if start_poses is None else start_poses, team.size)
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        shutil.copyfile(HERE / "templates" / "main.py", tmp / "main.py")
+        shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
+        shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
+        export_weights(model, tmp / "weights.npy")
+        config = _config(task, team, poses, prey, ticks, seed)
+        text = ('"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
+                f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n")
+        (tmp / "submission_config.py").write_text(text)
+        names = sorted(p.name for p in tmp.iterdir())
+        assert names == sorted(SHIPPED_FILES), names
+        os.chmod(tmp, 0o755)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+# -- check -----------------------------------------------------------------------------------------
+def _load_config(folder: Path) -> dict:
+    import ast
+
+    tree = ast.parse((folder / "submission_config.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "CONFIG" for t in node.targets):
+            return ast.literal_eval(node.value)
+    raise ValueError(f"{folder / 'submission_config.py'} has no CONFIG literal")
+
+
+def run_rps(folder, timeout_s: float = 1800.0) -> dict:
+    """Run ``folder/main.py`` under the installed rps (figures off); its COMAT_RESULT dict + output."""
+    folder = Path(folder)
+    env = {**os.environ, "COMAT_SHOW_FIGURE": "0", "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1"}
+    env.pop("PYTHONPATH", None)  # only the folder's own modules and the installed packages
+    proc = subprocess.run([sys.executable, "main.py", "--no-figure"], cwd=folder, env=env, capture_output=True,
+                          text=True, timeout=timeout_s, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{folder / 'main.py'} failed under rps (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_RESULT ")]
+    if not lines:
+        raise RuntimeError(f"{folder / 'main.py'} printed no COMAT_RESULT line:\n{proc.stdout[-3000:]}")
+    result = json.loads(lines[-1][len("COMAT_RESULT "):])
+    result["stdout"] = proc.stdout
+    return result
+
+
+def run_mujoco(folder, tier: str = "wheels") -> dict:
+    """The same policy (the folder's weights through the numpy runtime), team, start poses and prey
+    in the MuJoCo env; its episode metrics."""
+    from comat.envs import make_env
+    from sim2real.runtime import ComatRuntime
+
+    folder = Path(folder)
+    cfg = _load_config(folder)
+    task = cfg["task"]
+    team = TeamSpec.from_dict({"task": task, "robots": [{"type": t, "capabilities": c}
+                                                         for t, c in zip(cfg["types"], cfg["capabilities"])]})
+    env = make_env(f"{task}_v0", team=team, tier=tier, ticks_per_step=cfg["ticks_per_step"])
+    env.reset(seed=cfg["seed"])
+    core = env.core
+    core.safe.reset(np.array(cfg["start_poses"], dtype=float).T)
+    if task == "pcp":
+        core.state["prey"][0] = np.array(cfg["prey"], dtype=float)
+    policy = ComatRuntime.from_file(folder / "weights.npy")
+    n = team.size
+    while True:
+        obs = core.observe()[0, :n]
+        actions, _ = policy.action_probs(obs)
+        act = np.zeros((1, core.N), dtype=np.int64)
+        act[0, :n] = actions
+        res = core.step(act)
+        if res.terminated[0] or res.truncated[0]:
+            return core.episode_metrics(0)
+
+
+def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0) -> dict:
+    """{"rps": ..., "mujoco": ..., "gap": {completion, return}} for an exported folder."""
+    folder = Path(folder)
+    missing = [f for f in SHIPPED_FILES if not (folder / f).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
+    rps = run_rps(folder, timeout_s)
+    mj = run_mujoco(folder, tier)
+    gap = {"completion_points": 100.0 * (rps["completion"] - mj["completion"]), "return": rps["return"] - mj["return"]}
+    return {"rps": rps, "mujoco": mj, "gap": gap}
