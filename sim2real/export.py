@@ -71,6 +71,9 @@ MAX_ROBOTS = C.MAX_ROBOTS_HARDWARE
 # -- inputs ----------------------------------------------------------------------------------------
 def _comat_model(checkpoint_or_policy, task: str):
     """The torch Comat module of a checkpoint path or of a Comat instance."""
+    if isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic":
+        raise ValueError("export supports COMAT policies only: the scripted 'heuristic' reads privileged env "
+                         "state and cannot run on the Robotarium (expected a COMAT checkpoint path or model)")
     if isinstance(checkpoint_or_policy, (str, Path)):
         from comat.rl.algos import Dims, build_modules
         from comat.rl.checkpoint import load_checkpoint

@@ -32,11 +32,10 @@ import os
 import sys
 
 import numpy as np
-import rps.robotarium as robotarium
+import task_logic
+from rps import robotarium
 from rps.utilities import barrier_certificates as rps_barriers
 from rps.utilities import transformations as rps_transformations
-
-import task_logic
 from runtime import ComatRuntime
 from submission_config import CONFIG
 
@@ -90,14 +89,14 @@ def checked_poses(poses, n):
     """Start poses as a float (3, N) array inside the arena, robots >= min spacing apart."""
     p = np.array(poses, dtype=float)
     if p.shape != (3, n) or not np.isfinite(p).all():
-        raise ValueError("start poses must be a finite (3, %d) array, got shape %r" % (n, p.shape))
+        raise ValueError(f"start poses must be a finite (3, {n}) array, got shape {p.shape!r}")
     x0, x1, y0, y1 = task_logic.ARENA
     m = CONFIG["wall_margin_m"]
     if (p[0] < x0 + m).any() or (p[0] > x1 - m).any() or (p[1] < y0 + m).any() or (p[1] > y1 - m).any():
-        raise ValueError("start poses must be at least %.2f m inside the arena %r" % (m, task_logic.ARENA))
+        raise ValueError(f"start poses must be at least {m:.2f} m inside the arena {task_logic.ARENA!r}")
     d = np.hypot(p[0][:, None] - p[0][None], p[1][:, None] - p[1][None]) + np.eye(n) * 1e9
     if n > 1 and d.min() < CONFIG["min_spacing_m"]:
-        raise ValueError("start poses must be >= %.2f m apart, got %.3f m" % (CONFIG["min_spacing_m"], d.min()))
+        raise ValueError(f"start poses must be >= {CONFIG['min_spacing_m']:.2f} m apart, got {d.min():.3f} m")
     return p
 
 
