@@ -15,6 +15,7 @@ __all__ = ["main"]
 
 
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
+from sim2real.cli import add_export_parser
 
 
 def _single_thread() -> None:
@@ -183,6 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_rollout_parser(sub)
+    add_export_parser(sub)
 
     p = sub.add_parser("mjcf", help="write the generated MJCF files (robot, arena, scenes)",
                        description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).")

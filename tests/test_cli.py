@@ -11,7 +11,7 @@ def test_every_command_has_help(capsys):
     parser = build_parser()
     for argv in (["--help"], ["mjcf", "--help"], ["demo", "--help"], ["bench", "sim", "--help"], ["bench", "fidelity", "--help"],
                  ["bench", "env", "--help"], ["bench", "learn", "--help"], ["bench", "viz", "--help"], ["train", "--help"],
-                 ["eval", "--help"], ["report", "--help"], ["sweep", "--help"], ["rollout", "--help"],
+                 ["eval", "--help"], ["report", "--help"], ["sweep", "--help"], ["rollout", "--help"], ["export", "--help"],
                  ["coalitions", "--help"]):
         with pytest.raises(SystemExit) as exc:
             parser.parse_args(argv)
