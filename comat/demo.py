@@ -127,6 +127,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
 
 def _train(seed: int) -> dict:
     from comat.envs.base import resolve_coalitions
+    from comat.envs.heuristics import random_actions
     from comat.eval.episodes import run_episodes, summarize
     from comat.rl.config import load_preset, resolve
     from comat.rl.runner import EVAL_SEED_OFFSET, _make_env, load_policy, train
@@ -147,7 +148,7 @@ def _train(seed: int) -> dict:
         teams = resolve_coalitions(split, "pcp")
         env = _make_env(config, len(teams), seed + EVAL_SEED_OFFSET, split)
         trained = summarize(run_episodes(env, act, teams, seed + EVAL_SEED_OFFSET))
-        random = summarize(run_episodes(env, lambda o, m, s: np.where(m, rng.integers(0, 5, m.shape), 0), teams,
+        random = summarize(run_episodes(env, lambda obs, mask, state: random_actions(rng, mask), teams,
                                         seed + EVAL_SEED_OFFSET))
         for name, r in (("COMAT (quick)", trained), ("random", random)):
             print(f"{name:<16}{split:<7}{r['success']:>11.2f}{r['completion']:>9.2f}{r['steps']:>7.1f}"

@@ -248,8 +248,8 @@ def finish(result: dict, checks: dict, out: str | None, progress=print) -> dict:
 def _write_json(path: str, data: dict) -> None:
     from pathlib import Path
 
+    from comat.files import write_atomic
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_suffix(p.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=float) + "\n")
-    tmp.replace(p)
+    write_atomic(p, json.dumps(data, indent=2, default=float) + "\n")

@@ -50,7 +50,13 @@ def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -
     if workers != 1:
         return ShardedVectorEnv(env_id, num_envs, workers=workers, **options)
     _check_options(env_id, options, extra=("seed", "shard"))
+    task, rest = _make_task(env_id, options)
+    return VectorEnv(task, num_envs, **rest)
+
+
+def _make_task(env_id: str, options: dict[str, Any]):
+    """The task-logic instance from the task's own options, and the remaining (env) options."""
     cls = _env_class(env_id)
     task_keys = set(inspect.signature(cls.task_cls.__init__).parameters) - {"self"}
     task = cls.task_cls(**{k: v for k, v in options.items() if k in task_keys})
-    return VectorEnv(task, num_envs, **{k: v for k, v in options.items() if k not in task_keys})
+    return task, {k: v for k, v in options.items() if k not in task_keys}

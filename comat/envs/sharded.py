@@ -82,7 +82,7 @@ class ShardedVectorEnv:
     """
 
     def __init__(self, env_id: str, num_envs: int, *, workers: int, seed: int | None = None, **options: Any) -> None:
-        from comat.envs import _check_options, _env_class
+        from comat.envs import _check_options, _make_task
 
         _check_options(env_id, options)
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
@@ -90,7 +90,7 @@ class ShardedVectorEnv:
         if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= num_envs:
             raise ValueError(f"workers must be an integer in [1, num_envs={num_envs}], got {workers!r}")
         self.num_envs, self.workers = num_envs, workers
-        self.task = _env_class(env_id).task_cls(**{k: v for k, v in options.items() if k in _task_keys(env_id)})
+        self.task = _make_task(env_id, options)[0]
         seed = int(np.random.SeedSequence().entropy) if seed is None else seed
         bounds = np.linspace(0, num_envs, workers + 1).round().astype(int)
         self._slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
@@ -211,14 +211,6 @@ class ShardedVectorEnv:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _task_keys(env_id: str) -> set[str]:
-    import inspect
-
-    from comat.envs import _env_class
-
-    return set(inspect.signature(_env_class(env_id).task_cls.__init__).parameters) - {"self"}
 
 
 def _merge_infos(infos: list[dict], obs: list[np.ndarray], state_size: int) -> dict[str, Any]:

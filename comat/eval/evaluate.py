@@ -15,7 +15,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -24,6 +23,7 @@ import numpy as np
 
 from comat.eval.episodes import run_episodes
 from comat.eval.metrics import REPORTED, summarize_ci
+from comat.files import write_atomic
 
 __all__ = ["EVAL_SEED", "evaluate_policies", "print_table", "write_results"]
 
@@ -33,14 +33,14 @@ SETS = ("train", "test")
 
 
 def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
-    from comat.envs.heuristics import heuristic_actions
+    from comat.envs.heuristics import heuristic_actions, random_actions
 
     rng = np.random.default_rng(seed)
     out = {}
     if checkpoint_act is not None:
         out[config.algo] = checkpoint_act
     out["heuristic"] = lambda obs, mask, state: heuristic_actions(env.core)
-    out["random"] = lambda obs, mask, state: np.where(mask, rng.integers(0, 5, mask.shape), 0)
+    out["random"] = lambda obs, mask, state: random_actions(rng, mask)
     return out
 
 
@@ -114,12 +114,6 @@ def print_table(result: dict, out=print) -> None:
         "completion); progress = fraction captured / delivered; ± = 95 % confidence interval over episodes")
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def write_results(result: dict, out_dir: str | Path, stem: str = "eval") -> list[Path]:
     """``<stem>.json`` and ``<stem>.csv`` in ``out_dir`` (which must exist)."""
     out_dir = Path(out_dir)
@@ -133,6 +127,6 @@ def write_results(result: dict, out_dir: str | Path, stem: str = "eval") -> list
             writer.writerow([r["policy"], r["task"], r["set"], r["tier"], r["episodes"], m,
                              r["metrics"][m]["mean"], r["metrics"][m]["ci95"]])
     paths = [out_dir / f"{stem}.json", out_dir / f"{stem}.csv"]
-    _atomic_write(paths[0], json.dumps(result, indent=1))
-    _atomic_write(paths[1], buf.getvalue())
+    write_atomic(paths[0], json.dumps(result, indent=1))
+    write_atomic(paths[1], buf.getvalue())
     return paths

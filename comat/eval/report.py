@@ -23,12 +23,12 @@ import csv
 import io
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from comat.eval.metrics import mean_ci
+from comat.files import write_atomic
 
 __all__ = ["PAPER_RETENTION", "PAPER_TABLE1", "load_run", "make_report"]
 
@@ -103,12 +103,6 @@ def _fmt(mean: float, half: float, metric: str) -> str:
     return f"{mean:.2f}" + ("" if math.isnan(half) else f" ± {half:.2f}")
 
 
-def _atomic(path: Path, data: bytes | str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data) if isinstance(data, bytes) else tmp.write_text(data)
-    os.replace(tmp, path)
-
-
 def _save(fig, path: Path) -> None:
     import matplotlib.pyplot as plt
 
@@ -116,7 +110,7 @@ def _save(fig, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
-    _atomic(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]:
@@ -236,7 +230,7 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     rows, gen_csv = _generalization(groups, tasks, algos)
     files = {"table1.md": md, "table1.csv": table_csv, "generalization.csv": gen_csv}
     for name, text in files.items():
-        _atomic(out / name, text)
+        write_atomic(out / name, text)
     _fig4(groups, tasks, algos, out / "fig4_training_return.png")
     _fig5(rows, tasks, algos, out / "fig5_generalization.png")
     return {"runs": len(runs), "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()},

@@ -19,7 +19,6 @@ the uninterrupted run would have taken.
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -29,6 +28,7 @@ import torch
 import comat
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
+from comat.files import write_atomic
 from comat.rl.algos import BASELINE_ROBOTS, Dims, build_modules, make_learner, policy_act, uses_state
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
 from comat.rl.config import RunConfig
@@ -47,18 +47,12 @@ def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
                               tier=config.tier, coalitions=coalitions, max_robots=slots)
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None) -> None:
     import yaml
 
     doc = {"config": config.to_dict(), "versions": versions(), "command": sys.argv,
            "resumed_at_env_steps": resumed_at}
-    _write_atomic(out / "config.yaml", yaml.safe_dump(doc, sort_keys=False))
+    write_atomic(out / "config.yaml", yaml.safe_dump(doc, sort_keys=False))
 
 
 def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions="train") -> dict:
@@ -195,7 +189,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         last_eval = evaluate(config, learner.modules)
     summary = {"algo": config.algo, "task": config.task, "seed": config.seed, "tier": config.tier,
                "env_steps": progress["env_steps"], "wall_s": progress["wall_s"], "eval_train": last_eval}
-    _write_atomic(out / "summary.json", json.dumps(summary, indent=2))
+    write_atomic(out / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 
