@@ -1,4 +1,5 @@
-"""Task logic of PCP and HMT in plain numpy: waypoints, task state, rewards, observations.
+"""Task logic of PCP and HMT in plain numpy: waypoints, task state, rewards, observations, and
+the scripted reference policy (``scripted_actions``).
 
 This module imports numpy only, on purpose: the MuJoCo environments (``comat.envs``) and the
 exported Robotarium script (``sim2real``) run this same file, so the two cannot drift. Arrays
@@ -18,6 +19,7 @@ __all__ = [
     "HMT",
     "PCP",
     "heading_features",
+    "toward",
     "waypoint_goals",
 ]
 
@@ -41,6 +43,27 @@ def waypoint_goals(points: np.ndarray, actions: np.ndarray, step: np.ndarray) ->
     goals = points + ACTIONS[actions] * step[..., None]
     x0, x1, y0, y1 = WAYPOINT_LIMITS
     return np.stack([np.clip(goals[..., 0], x0, x1), np.clip(goals[..., 1], y0, y1)], axis=-1)
+
+
+def toward(points: np.ndarray, targets: np.ndarray, step: np.ndarray, has_target: np.ndarray) -> np.ndarray:
+    """Actions (B, N) moving points (B, N, 2) toward targets along the larger axis; stay when
+    within half a step on both axes or without a target."""
+    d = targets - points
+    ax = np.abs(d)
+    along_x = ax[..., 0] >= ax[..., 1]
+    act = np.where(along_x, np.where(d[..., 0] > 0, 1, 2), np.where(d[..., 1] > 0, 3, 4))
+    close = np.maximum(ax[..., 0], ax[..., 1]) < 0.5 * step
+    return np.where(has_target & ~close, act, 0)
+
+
+def _nearest(points: np.ndarray, candidates: np.ndarray, allowed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For points (B, N, 2), the nearest allowed candidate (B, K, 2) / allowed (B, N, K), and
+    whether there was one (B, N)."""
+    d = candidates[:, None, :, :] - points[:, :, None, :]
+    dist = np.where(allowed, d[..., 0] ** 2 + d[..., 1] ** 2, np.inf)
+    k = np.argmin(dist, axis=-1)
+    target = np.take_along_axis(candidates[:, None, :, :].repeat(points.shape[1], 1), k[..., None, None], 2)[..., 0, :]
+    return target, np.isfinite(np.take_along_axis(dist, k[..., None], -1))[..., 0]
 
 
 def heading_features(poses: np.ndarray) -> np.ndarray:
@@ -119,6 +142,22 @@ class _Task:
     def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         raise NotImplementedError
 
+    def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The scripted policy's target per robot (B, N, 2) and whether it has one (B, N)."""
+        raise NotImplementedError
+
+    def scripted_actions(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray,
+                         mask: np.ndarray) -> np.ndarray:
+        """Actions (B, N) of the scripted reference policy (padded slots: stay).
+
+        It reads the full task state (prey positions, material left), which the learners do not
+        get: a reference showing the task is solvable, and a policy for checking a Robotarium
+        deployment end to end.
+        """
+        centres = poses[..., :2]
+        target, ok = self.scripted_targets(state, centres, type_ids)
+        return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
+
 
 class PredatorCapturePrey(_Task):
     """PCP: sensing robots find static prey, capture robots capture the sensed ones.
@@ -196,6 +235,22 @@ class PredatorCapturePrey(_Task):
         _B, N = mask.shape
         progress = np.stack([state["sensed"].mean(1), state["captured"].mean(1)], -1)[:, None, :].repeat(N, 1)
         return np.concatenate([seen[..., None].astype(float), near, progress], axis=-1)
+
+    def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Sensing robots: the nearest prey nobody has sensed yet; capture robots: the nearest
+        sensed, uncaptured prey; either, when it has none: the nearest uncaptured prey (to be
+        close when it is sensed)."""
+        B, N = type_ids.shape
+        K = state["prey"].shape[1]
+        open_prey = ~state["captured"]
+        sensing = (type_ids == 0)[..., None]
+        t_sense, ok_sense = _nearest(centres, state["prey"], np.broadcast_to((~state["sensed"] & open_prey)[:, None], (B, N, K)))
+        t_capture, ok_capture = _nearest(centres, state["prey"], np.broadcast_to((state["sensed"] & open_prey)[:, None], (B, N, K)))
+        t_any, ok_any = _nearest(centres, state["prey"], np.broadcast_to(open_prey[:, None], (B, N, K)))
+        target = np.where(sensing, np.where(ok_sense[..., None], t_sense, t_any),
+                          np.where(ok_capture[..., None], t_capture, t_any))
+        ok = np.where(sensing[..., 0], ok_sense | ok_any, ok_capture | ok_any)
+        return target, ok
 
     def global_features(self, state: dict) -> np.ndarray:
         """(B, 4K) prey positions, sensed and captured flags."""
@@ -291,6 +346,20 @@ class MaterialTransport(_Task):
              ZONE1_CENTRE[0] - x, ZONE1_CENTRE[1] - y, ZONE2_X - x, -ZONE2_X - x],
             axis=-1,
         )
+
+    def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A loaded robot: the drop-off; an empty one: a zone with material, fast robots
+        preferring zone 2 (far, smaller) and slow robots zone 1 (near, larger)."""
+        left = state["left"]  # (B, 2)
+        loaded = state["load"] > 0
+        y = np.clip(centres[..., 1], -0.8, 0.8)
+        drop = np.stack([np.full_like(y, -ZONE2_X - 0.25), y], -1)
+        zone1 = np.broadcast_to(np.array(ZONE1_CENTRE), centres.shape)
+        zone2 = np.stack([np.full_like(y, ZONE2_X + 0.25), y], -1)
+        has1, has2 = (left[:, 0] > 0)[:, None], (left[:, 1] > 0)[:, None]
+        prefer2 = np.where(type_ids == 0, has2, has2 & ~has1)
+        empty_target = np.where((prefer2 | (has2 & ~has1))[..., None], zone2, zone1)
+        return np.where(loaded[..., None], drop, empty_target), loaded | has1 | has2
 
     def global_features(self, state: dict) -> np.ndarray:
         """(B, 4) material left and initial per zone."""

@@ -1,17 +1,22 @@
-"""Robotarium submission folder from a COMAT policy: ``export_submission`` and ``check_submission``.
+"""Robotarium submission folder from a COMAT policy (or the scripted one): ``export_submission``
+and ``check_submission``.
 
 =====================  ========================================================================
 Folder (flat)          ``main.py`` (``sim2real/templates/main.py``, verbatim), ``runtime.py``
                        (``sim2real/runtime.py``, verbatim), ``task_logic.py``
                        (``comat/task_logic.py``, verbatim: numpy only, so the very file the
                        MuJoCo envs run is shipped), ``weights.npy`` (pickle-free weights),
-                       ``submission_config.py`` (``CONFIG = {...}``: task, team, start poses,
-                       prey, ticks per step, controller constants)
+                       ``submission_config.py`` (``CONFIG = {...}``: policy, task, team, start
+                       poses, prey, ticks per step, controller constants); the scripted
+                       policy's folder has no ``runtime.py`` and ``weights.npy``
 File types             ``.py`` and ``.npy`` only (the Robotarium accepts .m .jpg .jpeg .png .gif
                        .tiff .bmp .py .mat .npy .mexa64 and no folders; JSON is not accepted,
                        hence the config as a Python literal)
-Policy                 a COMAT checkpoint (``checkpoint.pt`` of ``comat train --algo comat``) or
-                       a ``comat.models.comat.Comat`` module; other algorithms raise ValueError
+Policy                 a COMAT checkpoint (``checkpoint.pt`` of ``comat train --algo comat``), a
+                       ``comat.models.comat.Comat`` module, or ``"heuristic"``: the scripted
+                       reference policy of ``task_logic`` (it reads the task state, which the
+                       script keeps anyway; for checking a deployment end to end); other
+                       algorithms raise ValueError
 Start poses            (3, N) float, default: the MuJoCo env's own spawn (and PCP prey) for
                        ``seed``; must be >= WALL_MARGIN_M inside the arena, >= MIN_SPACING_M apart
 Team                   TeamSpec or mapping, 1..20 robots (the Robotarium's hardware limit)
@@ -19,9 +24,10 @@ Atomicity              written into ``<out>.tmp-*`` next to ``out`` and renamed 
                        error nothing is left; an existing ``out`` is an error
 =====================  ========================================================================
 
-``check_submission(folder)`` runs the folder's ``main.py`` with the installed ``rps`` in a
-subprocess (figures off) and the same policy, team, start poses and prey in the MuJoCo env
-(``comat.envs``), and returns both sets of metrics.
+``check_submission(folder)`` runs the folder's ``main.py`` with the installed ``rps`` (or the
+one in ``rps_path``, e.g. a checkout of the 2026 V2 simulator) in a subprocess (figures off) and
+the same policy, team, start poses and prey in the MuJoCo env (``comat.envs``), and returns both
+sets of metrics.
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from comat.team import TeamSpec
 __all__ = [
     "ACCEPTED_EXTENSIONS",
     "ALLOWED_IMPORTS",
+    "HEURISTIC_FILES",
     "MIN_SPACING_M",
     "SHIPPED_FILES",
     "WALL_MARGIN_M",
@@ -61,6 +68,9 @@ ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps"})
 """Third-party top-level packages shipped code may import (besides the standard library and the
 folder's own modules)."""
 SHIPPED_FILES = ("main.py", "runtime.py", "task_logic.py", "submission_config.py", "weights.npy")
+"""The folder of a COMAT policy."""
+HEURISTIC_FILES = ("main.py", "task_logic.py", "submission_config.py")
+"""The folder of the scripted policy."""
 MIN_SPACING_M = 0.3
 """Start poses closer than this risk barrier deadlocks in V2's initialization phase (§7.2)."""
 WALL_MARGIN_M = 0.1
@@ -71,9 +81,6 @@ MAX_ROBOTS = C.MAX_ROBOTS_HARDWARE
 # -- inputs ----------------------------------------------------------------------------------------
 def _comat_model(checkpoint_or_policy, task: str):
     """The torch Comat module of a checkpoint path or of a Comat instance."""
-    if isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic":
-        raise ValueError("export supports COMAT policies only: the scripted 'heuristic' reads privileged env "
-                         "state and cannot run on the Robotarium (expected a COMAT checkpoint path or model)")
     if isinstance(checkpoint_or_policy, (str, Path)):
         from comat.rl.algos import Dims, build_modules
         from comat.rl.checkpoint import load_checkpoint
@@ -81,8 +88,8 @@ def _comat_model(checkpoint_or_policy, task: str):
 
         data = load_checkpoint(checkpoint_or_policy)
         if data["algo"] != "comat":
-            raise ValueError(f"export supports COMAT checkpoints only: {str(checkpoint_or_policy)!r} is a "
-                             f"{data['algo']!r} checkpoint (expected algo 'comat')")
+            raise ValueError(f"export supports COMAT checkpoints (and the scripted 'heuristic') only: "
+                             f"{str(checkpoint_or_policy)!r} is a {data['algo']!r} checkpoint (expected algo 'comat')")
         if data["task"] != task:
             raise ValueError(f"checkpoint {str(checkpoint_or_policy)!r} is for task {data['task']!r}, expected {task!r}")
         config = RunConfig.from_dict(data["config"])
@@ -93,8 +100,8 @@ def _comat_model(checkpoint_or_policy, task: str):
 
     if isinstance(checkpoint_or_policy, Comat):
         return checkpoint_or_policy.eval()
-    raise TypeError(f"checkpoint_or_policy must be a COMAT checkpoint path or a Comat model, "
-                    f"got {type(checkpoint_or_policy).__name__} (export supports COMAT only)")
+    raise TypeError(f"checkpoint_or_policy must be a COMAT checkpoint path, a Comat model or 'heuristic', "
+                    f"got {type(checkpoint_or_policy).__name__} (export supports COMAT and the scripted policy only)")
 
 
 def _team(team: Any, task: str) -> TeamSpec:
@@ -155,8 +162,10 @@ def mujoco_start(task: str, team: TeamSpec, seed: int, tier: str = "unicycle") -
 
 
 # -- export ----------------------------------------------------------------------------------------
-def _config(task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int, seed: int) -> dict:
+def _config(policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int,
+            seed: int) -> dict:
     return {
+        "policy": policy,
         "task": task,
         "seed": int(seed),
         "types": [r.type for r in team.robots],
@@ -182,7 +191,8 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
 
     Args:
-        checkpoint_or_policy: COMAT checkpoint path or a ``Comat`` model.
+        checkpoint_or_policy: COMAT checkpoint path, a ``Comat`` model, or ``"heuristic"`` (the
+            scripted policy).
         task: "pcp" or "hmt".
         team: TeamSpec or ``{"robots": [...]}``, 1..20 robots.
         out_dir: folder to create (must not exist).
@@ -203,9 +213,10 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     ticks = task_obj.ticks_per_step if ticks_per_step is None else ticks_per_step
     if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
         raise ValueError(f"ticks_per_step must be a positive integer, got {ticks!r}")
-    model = _comat_model(checkpoint_or_policy, task)
+    scripted = isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic"
+    model = None if scripted else _comat_model(checkpoint_or_policy, task)
     want_dim = task_obj.obs_size()
-    if model.layout.obs_dim != want_dim:
+    if model is not None and model.layout.obs_dim != want_dim:
         raise ValueError(f"policy observes {model.layout.obs_dim} features, task {task!r} has {want_dim}")
     default_poses, prey = mujoco_start(task, team, seed)
     poses = check_start_poses(default_poses if start_poses is None else start_poses, team.size)
@@ -214,15 +225,16 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
         shutil.copyfile(HERE / "templates" / "main.py", tmp / "main.py")
-        shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
         shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
-        export_weights(model, tmp / "weights.npy")
-        config = _config(task, team, poses, prey, ticks, seed)
+        if model is not None:
+            shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
+            export_weights(model, tmp / "weights.npy")
+        config = _config("heuristic" if scripted else "comat", task, team, poses, prey, ticks, seed)
         text = ('"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
                 f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n")
         (tmp / "submission_config.py").write_text(text)
         names = sorted(p.name for p in tmp.iterdir())
-        assert names == sorted(SHIPPED_FILES), names
+        assert names == sorted(HEURISTIC_FILES if scripted else SHIPPED_FILES), names
         os.chmod(tmp, 0o755)
         tmp.rename(out)
     except BaseException:
@@ -242,12 +254,28 @@ def _load_config(folder: Path) -> dict:
     raise ValueError(f"{folder / 'submission_config.py'} has no CONFIG literal")
 
 
-def run_rps(folder, timeout_s: float = 1800.0) -> dict:
-    """Run ``folder/main.py`` under the installed rps (figures off); its COMAT_RESULT dict + output."""
+def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool = False,
+            max_steps: int | None = None) -> dict:
+    """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
+    backend); its COMAT_RESULT dict + output.
+
+    ``rps_path``: a folder holding an ``rps`` package (e.g. a checkout of the 2026 V2 simulator)
+    used instead of the installed one. ``max_steps``: stop after that many env steps.
+    """
     folder = Path(folder)
-    env = {**os.environ, "COMAT_SHOW_FIGURE": "0", "MPLBACKEND": "Agg", "PYTHONDONTWRITEBYTECODE": "1"}
+    env = {**os.environ, "COMAT_SHOW_FIGURE": "1" if show_figure else "0", "MPLBACKEND": "Agg",
+           "PYTHONDONTWRITEBYTECODE": "1"}
     env.pop("PYTHONPATH", None)  # only the folder's own modules and the installed packages
-    proc = subprocess.run([sys.executable, "main.py", "--no-figure"], cwd=folder, env=env, capture_output=True,
+    if rps_path is not None:
+        rps_path = Path(rps_path).resolve()
+        if not (rps_path / "rps" / "__init__.py").is_file():
+            raise FileNotFoundError(f"rps_path {str(rps_path)!r} must be a folder holding the rps package "
+                                    f"(rps/__init__.py), e.g. a robotarium_python_simulator checkout")
+        env["PYTHONPATH"] = str(rps_path)
+    if max_steps is not None:
+        env["COMAT_MAX_STEPS"] = str(int(max_steps))
+    argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
+    proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True,
                           text=True, timeout=timeout_s, check=False)
     if proc.returncode != 0:
         raise RuntimeError(f"{folder / 'main.py'} failed under rps (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
@@ -276,25 +304,34 @@ def run_mujoco(folder, tier: str = "wheels") -> dict:
     core.safe.reset(np.array(cfg["start_poses"], dtype=float).T)
     if task == "pcp":
         core.state["prey"][0] = np.array(cfg["prey"], dtype=float)
-    policy = ComatRuntime.from_file(folder / "weights.npy")
-    n = team.size
+    if cfg.get("policy", "comat") == "heuristic":
+        from comat.envs.heuristics import heuristic_actions
+
+        def act_fn():
+            return heuristic_actions(core)
+    else:
+        policy = ComatRuntime.from_file(folder / "weights.npy")
+
+        def act_fn():
+            act = np.zeros((1, core.N), dtype=np.int64)
+            act[0, : team.size] = policy.action_probs(core.observe()[0, : team.size])[0]
+            return act
     while True:
-        obs = core.observe()[0, :n]
-        actions, _ = policy.action_probs(obs)
-        act = np.zeros((1, core.N), dtype=np.int64)
-        act[0, :n] = actions
-        res = core.step(act)
+        res = core.step(act_fn())
         if res.terminated[0] or res.truncated[0]:
             return core.episode_metrics(0)
 
 
-def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0) -> dict:
-    """{"rps": ..., "mujoco": ..., "gap": {completion, return}} for an exported folder."""
+def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None) -> dict:
+    """{"rps": ..., "mujoco": ..., "gap": {completion, return}} for an exported folder (``rps_path``:
+    see :func:`run_rps`)."""
     folder = Path(folder)
-    missing = [f for f in SHIPPED_FILES if not (folder / f).is_file()]
+    missing = [f for f in HEURISTIC_FILES if not (folder / f).is_file()]
+    if not missing and _load_config(folder).get("policy", "comat") == "comat":
+        missing = [f for f in SHIPPED_FILES if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
-    rps = run_rps(folder, timeout_s)
+    rps = run_rps(folder, timeout_s, rps_path)
     mj = run_mujoco(folder, tier)
     gap = {"completion_points": 100.0 * (rps["completion"] - mj["completion"]), "return": rps["return"] - mj["return"]}
     return {"rps": rps, "mujoco": mj, "gap": gap}

@@ -1,8 +1,14 @@
 """Robotarium export: the folder per task runs under the PyPI rps with zero collision and
-boundary errors; only accepted file types; shipped code imports only numpy/scipy/matplotlib/rps
-and the standard library; bad input raises clearly and leaves no folder."""
+boundary errors, and the scripted policy's folder completes each task there as in MuJoCo; only
+accepted file types; shipped code imports only numpy/scipy/matplotlib/rps and the standard
+library; the task is drawn on the figure; bad input raises clearly and leaves no folder.
+
+The 2026 V2 simulator is not on PyPI: with ``COMAT_RPS_V2=<checkout of
+robotarium/robotarium_python_simulator>`` the V2 tests run against it (else they are skipped)."""
 
 import ast
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -17,9 +23,11 @@ from sim2real.cli import parse_team
 from sim2real.export import (
     ACCEPTED_EXTENSIONS,
     ALLOWED_IMPORTS,
+    HEURISTIC_FILES,
     SHIPPED_FILES,
     check_submission,
     export_submission,
+    run_rps,
 )
 
 pytest.importorskip("rps")
@@ -127,8 +135,10 @@ def test_bad_input(exported, tmp_path):
     torch.save(data, tmp_path / "mat.pt")
     with pytest.raises(ValueError, match="export supports COMAT"):
         export_submission(tmp_path / "mat.pt", "pcp", team, tmp_path / "sub")
-    with pytest.raises(ValueError, match="COMAT policies only"):
-        export_submission("heuristic", "pcp", team, tmp_path / "sub")
+    with pytest.raises(ValueError, match="task must be 'pcp' or 'hmt'"):
+        export_submission("heuristic", "pcpx", team, tmp_path / "sub")
+    with pytest.raises(FileNotFoundError, match="rps_path"):
+        run_rps(exported["pcp"][1], rps_path=tmp_path)
     with pytest.raises(TypeError, match="COMAT"):
         export_submission(object(), "pcp", team, tmp_path / "sub")
     assert _no_leftovers(tmp_path) == []
@@ -143,3 +153,108 @@ def test_parse_team(tmp_path):
         parse_team("train:99", "hmt")
     with pytest.raises(ValueError, match="JSON file"):
         parse_team(str(tmp_path / "none.json"), "pcp")
+
+
+# -- the scripted policy: completes each task under rps --------------------------------------------
+@pytest.fixture(scope="module")
+def scripted(tmp_path_factory):
+    """task -> (folder, check report) of the scripted policy for a 4-robot unseen (test-set) team."""
+    tmp = tmp_path_factory.mktemp("scripted")
+    out = {}
+    for task in ("pcp", "hmt"):
+        folder = export_submission("heuristic", task, parse_team("test:3", task), tmp / f"sub_{task}", seed=1)
+        out[task] = (folder, check_submission(folder, tier="unicycle"))
+    return out
+
+
+@pytest.mark.parametrize("task", ["pcp", "hmt"])
+def test_scripted_policy_completes_the_task_under_rps(scripted, task):
+    folder, report = scripted[task]
+    rps, mj = report["rps"], report["mujoco"]
+    assert sorted(p.name for p in folder.iterdir() if p.name != "__pycache__") == sorted(HEURISTIC_FILES)
+    assert rps["policy"] == "heuristic" and rps["rps"] == "legacy"
+    assert rps["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, rps["rps_errors"]
+    assert rps["offset_collision_pair_iterations"] == 0 and rps["boundary_iterations"] == 0
+    assert rps["success"] == 1.0 and rps["completion"] == 1.0, rps
+    assert mj["success"] == 1.0
+    assert abs(report["gap"]["completion_points"]) <= 10.0
+    assert abs(rps["steps"] - mj["steps"]) <= 5, (rps["steps"], mj["steps"])
+
+
+_DRAW = """
+import json, matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import main, task_logic
+from submission_config import CONFIG
+task = task_logic.PCP(n_prey=len(CONFIG["prey"])) if CONFIG["task"] == "pcp" else task_logic.HMT()
+n = len(CONFIG["types"])
+caps = np.array([CONFIG["capabilities"]], dtype=float)
+state = task.new_state(1, n)
+task.reset_env(state, 0, np.random.default_rng(0), caps[0])
+if CONFIG["task"] == "pcp":
+    state["prey"][0] = np.array(CONFIG["prey"])
+    state["sensed"][0, 0] = state["captured"][0, 1] = state["sensed"][0, 1] = True
+else:
+    state["load"][0, 0] = 7.5
+x = np.array(CONFIG["start_poses"])
+fig, ax = plt.subplots()
+figure = main.TaskFigure(ax, task, state, caps, CONFIG["types"])
+figure.update(state, x)
+fig.savefig("frame.png")
+out = {"patches": len(ax.patches), "texts": [t.get_text() for t in ax.texts], "artists": len(figure.artists)}
+if CONFIG["task"] == "pcp":
+    out["colours"] = [list(map(float, p.get_facecolor())) for p in figure.prey[:3]]
+    out["centres"] = [list(map(float, p.center)) for p in figure.radii]
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.parametrize("task", ["pcp", "hmt"])
+def test_task_is_drawn_on_the_figure(scripted, task):
+    import matplotlib.colors as mcolors
+
+    folder = scripted[task][0]
+    proc = subprocess.run([sys.executable, "-c", _DRAW], cwd=folder, capture_output=True, text=True, check=True,
+                          env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    out = __import__("json").loads(proc.stdout.strip().splitlines()[-1])
+    assert (folder / "frame.png").stat().st_size > 1000
+    (folder / "frame.png").unlink()
+    if task == "pcp":
+        assert out["artists"] == 6 + 4 and out["patches"] == 10  # six prey, one radius per robot
+        sensed, captured = mcolors.to_rgba("tab:orange"), mcolors.to_rgba("tab:green")
+        assert [tuple(c) for c in out["colours"][:2]] == [sensed, captured]
+        start = np.array(_config(folder)["start_poses"])
+        np.testing.assert_allclose(out["centres"], start[:2].T)
+    else:
+        assert out["patches"] == 3  # zone 1, zone 2, drop-off
+        assert "7.5" in out["texts"] and sum(t.endswith(" left") for t in out["texts"]) == 2
+
+
+def _config(folder):
+    from sim2real.export import _load_config
+
+    return _load_config(folder)
+
+
+# -- the 2026 V2 simulator (opt-in: not on PyPI) --------------------------------------------------
+V2 = os.environ.get("COMAT_RPS_V2")
+needs_v2 = pytest.mark.skipif(not V2, reason="set COMAT_RPS_V2 to a robotarium_python_simulator (V2) checkout")
+
+
+@needs_v2
+@pytest.mark.parametrize("task", ["pcp", "hmt"])
+def test_scripted_policy_under_rps_v2(scripted, task):
+    report = check_submission(scripted[task][0], tier="unicycle", rps_path=V2)
+    rps = report["rps"]
+    assert rps["rps"] == "v2" and "Initializing" in rps["stdout"]
+    assert rps["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, rps["rps_errors"]
+    assert rps["success"] == 1.0 and abs(report["gap"]["completion_points"]) <= 10.0
+
+
+@needs_v2
+def test_figure_under_rps_v2(scripted, tmp_path):
+    folder = scripted["hmt"][0]
+    result = run_rps(folder, rps_path=V2, show_figure=True, max_steps=2)
+    assert result["rps"] == "v2" and result["steps"] == 2 and result["figure_artists"] > 0
