@@ -5,9 +5,10 @@
   --team TEAM --out DIR [--seed S]``       heuristic``, the scripted policy), team (a JSON
                                            file ``{"robots": [...]}`` or ``train:K``/``test:K``,
                                            the K-th coalition of the paper's set)
-``comat export --check DIR [--tier W]      check_submission: runs DIR/main.py under the installed
+``comat export --check DIR… [--tier W]     check_submission: runs DIR/main.py under the installed
   [--rps PATH]``                           rps (or the one in PATH, e.g. a V2 checkout; figures
-                                           off) and the MuJoCo env; prints both
+                                           off) and the MuJoCo env; prints both (several folders:
+                                           a line each and the means, the sim-to-sim gap)
 =========================================  ==================================================
 
 Wired into ``comat/cli.py`` by ``add_export_parser(sub)`` in ``build_parser``.
@@ -40,24 +41,51 @@ def parse_team(value: str, task: str):
     return TeamSpec.from_dict({"task": task, **data})
 
 
+def _print_check(report: dict, tier: str) -> None:
+    rps, mj = report["rps"], report["mujoco"]
+    print(rps.pop("stdout").rstrip())
+    print(f"\n{'metric':<22}{'rps (' + rps['rps'] + ')':>16}{'MuJoCo (' + tier + ')':>18}")
+    for key in ("return", "steps", "completion", "success"):
+        print(f"{key:<22}{rps[key]:>16.3f}{mj[key]:>18.3f}")
+    errors = rps["rps_errors"]
+    print(f"{'boundary errors':<22}{errors.get('boundary', float('nan')):>16}{mj['boundary_exits']:>18.0f}")
+    print(f"{'collision errors':<22}{errors.get('collision', float('nan')):>16}{mj['robotarium_collisions']:>18.0f}")
+    print(f"{'actuator errors':<22}{errors.get('actuator', float('nan')):>16}{mj['actuator_errors']:>18.0f}")
+    gap = report["gap"]
+    print(f"gap rps - MuJoCo: completion {gap['completion_points']:+.1f} points, return {gap['return']:+.3f}")
+
+
+def _print_checks(folders: list[str], reports: list[dict], tier: str) -> None:
+    """One line per folder, then the means: the sim-to-sim gap over several teams."""
+    print(f"{'folder':<28}{'robots':>7}{'rps errors b/c/a':>18}{'completion rps / MuJoCo':>26}"
+          f"{'return rps / MuJoCo':>24}{'steps':>12}")
+    for folder, r in zip(folders, reports):
+        rps, mj, e = r["rps"], r["mujoco"], r["rps"]["rps_errors"]
+        errors = f"{e.get('boundary', '-')}/{e.get('collision', '-')}/{e.get('actuator', '-')}"
+        print(f"{Path(folder).name[:27]:<28}{rps['robots']:>7}{errors:>18}{rps['completion']:>15.3f} / {mj['completion']:<8.3f}"
+              f"{rps['return']:>13.2f} / {mj['return']:<8.2f}{rps['steps']:>5.0f} / {mj['steps']:<4.0f}")
+    mean = {}
+    for side in ("rps", "mujoco"):
+        for k in ("completion", "return", "steps"):
+            mean[side, k] = sum(r[side][k] for r in reports) / len(reports)
+    print(f"mean over {len(reports)} folders (rps {reports[0]['rps']['rps']}, MuJoCo {tier}): completion "
+          f"{100 * mean['rps', 'completion']:.1f} % vs {100 * mean['mujoco', 'completion']:.1f} % "
+          f"(gap {100 * (mean['rps', 'completion'] - mean['mujoco', 'completion']):+.1f} points), return "
+          f"{mean['rps', 'return']:.2f} vs {mean['mujoco', 'return']:.2f}, steps {mean['rps', 'steps']:.1f} vs "
+          f"{mean['mujoco', 'steps']:.1f}")
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
     from sim2real.export import check_submission, export_submission
 
     if args.check:
-        report = check_submission(args.check, tier=args.tier, rps_path=args.rps)
-        rps, mj = report["rps"], report["mujoco"]
-        print(rps.pop("stdout").rstrip())
-        print(f"\n{'metric':<22}{'rps (' + rps['rps'] + ')':>16}{'MuJoCo (' + args.tier + ')':>18}")
-        for key in ("return", "steps", "completion", "success"):
-            print(f"{key:<22}{rps[key]:>16.3f}{mj[key]:>18.3f}")
-        errors = rps["rps_errors"]
-        print(f"{'boundary errors':<22}{errors.get('boundary', float('nan')):>16}{mj['boundary_exits']:>18.0f}")
-        print(f"{'collision errors':<22}{errors.get('collision', float('nan')):>16}"
-              f"{mj['robotarium_collisions']:>18.0f}")
-        print(f"{'actuator errors':<22}{errors.get('actuator', float('nan')):>16}{mj['actuator_errors']:>18.0f}")
-        gap = report["gap"]
-        print(f"gap rps - MuJoCo: completion {gap['completion_points']:+.1f} points, return {gap['return']:+.3f}")
-        bad = errors.get("boundary", 0) + errors.get("collision", 0)
+        reports = [check_submission(folder, tier=args.tier, rps_path=args.rps) for folder in args.check]
+        if len(reports) == 1:
+            _print_check(reports[0], args.tier)
+        else:
+            _print_checks(args.check, reports, args.tier)
+        bad = sum(r["rps"]["rps_errors"].get("boundary", 0) + r["rps"]["rps_errors"].get("collision", 0)
+                  for r in reports)
         return 1 if bad else 0
     if args.checkpoint is not None and args.policy == "heuristic":
         raise ValueError("comat export takes --checkpoint (a COMAT policy) or --policy heuristic, not both")
@@ -87,7 +115,8 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--team", help="'train:K' / 'test:K' (coalition K of the paper's set) or a JSON team file")
     p.add_argument("--out", help="folder to create (must not exist)")
     p.add_argument("--seed", type=int, default=0, help="seed of the start poses and prey (default: %(default)s)")
-    p.add_argument("--check", metavar="DIR", help="check an exported folder instead of exporting")
+    p.add_argument("--check", metavar="DIR", nargs="+",
+                   help="check exported folders instead of exporting (several: one line each, then the means)")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels",
                    help="MuJoCo tier of --check's comparison (default: %(default)s)")
     p.add_argument("--rps", metavar="PATH", help="--check against the rps package in PATH (e.g. a checkout of "
