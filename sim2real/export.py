@@ -76,6 +76,8 @@ MIN_SPACING_M = 0.3
 WALL_MARGIN_M = 0.1
 """Start poses must be this far inside the arena."""
 MAX_ROBOTS = C.MAX_ROBOTS_HARDWARE
+MAX_EPISODE_S = 600.0
+"""Longest episode exported (s of Robotarium time): well inside the 15-minute experiment limit."""
 
 
 # -- inputs ----------------------------------------------------------------------------------------
@@ -213,6 +215,11 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     ticks = task_obj.ticks_per_step if ticks_per_step is None else ticks_per_step
     if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
         raise ValueError(f"ticks_per_step must be a positive integer, got {ticks!r}")
+    episode_s = task_obj.horizon * ticks * C.CONTROL_DT_S
+    if episode_s > MAX_EPISODE_S:
+        raise ValueError(f"ticks_per_step={ticks}: a {task_obj.horizon}-step episode would take {episode_s:.0f} s on "
+                         f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
+                         f"with the drive to the start poses)")
     scripted = isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic"
     model = None if scripted else _comat_model(checkpoint_or_policy, task)
     want_dim = task_obj.obs_size()

@@ -135,6 +135,8 @@ def test_bad_input(exported, tmp_path):
     torch.save(data, tmp_path / "mat.pt")
     with pytest.raises(ValueError, match="export supports COMAT"):
         export_submission(tmp_path / "mat.pt", "pcp", team, tmp_path / "sub")
+    with pytest.raises(ValueError, match="would take 1914 s"):
+        export_submission("heuristic", "pcp", team, tmp_path / "sub", ticks_per_step=725)
     with pytest.raises(ValueError, match="task must be 'pcp' or 'hmt'"):
         export_submission("heuristic", "pcpx", team, tmp_path / "sub")
     with pytest.raises(FileNotFoundError, match="rps_path"):
@@ -258,3 +260,19 @@ def test_figure_under_rps_v2(scripted, tmp_path):
     folder = scripted["hmt"][0]
     result = run_rps(folder, rps_path=V2, show_figure=True, max_steps=2)
     assert result["rps"] == "v2" and result["steps"] == 2 and result["figure_artists"] > 0
+
+
+def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tmp_path, capsys):
+    from comat.cli import main
+
+    assert main(["export", "--policy", "heuristic", "--task", "pcp", "--team", "test:3", "--seed", "1",
+                 "--out", str(tmp_path / "cli_pcp")]) == 0
+    assert sorted(p.name for p in (tmp_path / "cli_pcp").iterdir()) == sorted(HEURISTIC_FILES)
+    capsys.readouterr()
+    assert main(["export", "--check", str(tmp_path / "cli_pcp"), str(scripted["pcp"][0]), "--tier", "unicycle"]) == 0
+    out = capsys.readouterr().out
+    assert "cli_pcp" in out and "sub_pcp" in out
+    assert "mean over 2 folders (rps legacy, MuJoCo unicycle): completion 100.0 % vs 100.0 %" in out
+    assert main(["export", "--policy", "heuristic", "--checkpoint", "x.pt", "--task", "pcp", "--team", "test:3",
+                 "--out", str(tmp_path / "y")]) == 2
+    assert "not both" in capsys.readouterr().err and not (tmp_path / "y").exists()
