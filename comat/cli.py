@@ -131,9 +131,32 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_sweep_status(args: argparse.Namespace) -> int:
+    from comat.eval.sweep import sweep_status
+
+    rows = sweep_status(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
+                        args.eval_tiers, [] if args.no_eval else ["train", "test"])
+    print(f"{'job':<18}{'state':<8}{'env steps':>22}{'env-steps/s':>13}{'time left':>11}")
+    for r in rows:
+        rate = "-" if r["env_steps_per_s"] is None else f"{r['env_steps_per_s']:.0f}"
+        minutes = None if r["hours_left"] is None else round(60 * r["hours_left"])
+        left = "?" if minutes is None else f"{minutes // 60}:{minutes % 60:02d}"
+        steps = f"{r['env_steps']:,} / {r['total_env_steps']:,}"
+        print(f"{os.path.basename(r['folder']):<18}{r['state']:<8}{steps:>22}{rate:>13}{left:>11}")
+    known = [r["hours_left"] for r in rows if r["hours_left"] is not None]
+    jobs = args.jobs or os.cpu_count() or 1
+    unknown = sum(r["hours_left"] is None for r in rows)
+    print(f"{sum(r['state'] == 'done' for r in rows)} of {len(rows)} jobs done; about {sum(known):.1f} job-hours of "
+          f"training left, {sum(known) / jobs:.1f} h at {jobs} jobs at once"
+          + (f" (+ {unknown} jobs with no rate yet)" if unknown else ""))
+    return 0
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from comat.eval.sweep import run_sweep
 
+    if args.status:
+        return _print_sweep_status(args)
     records = run_sweep(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
                         args.eval_tiers, [] if args.no_eval else ["train", "test"], args.episodes, args.address,
                         args.jobs)
@@ -278,6 +301,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=None, help="jobs at once on a local Ray instance (default: CPUs)")
     p.add_argument("--address", default=None, help="an existing Ray cluster ('auto' or ray://host:10001)")
     p.add_argument("--out", default="runs/sweep", help="root folder of the run folders (default: %(default)s)")
+    p.add_argument("--status", action="store_true",
+                   help="print where each job stands (env steps, rate, hours left) and start nothing")
     p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("bench", help="benchmarks (JSON + table)", description="Performance and fidelity benchmarks.")

@@ -11,7 +11,7 @@ import yaml
 from comat.cli import main
 from comat.eval.metrics import REPORTED, mean_ci, summarize_ci, violations
 from comat.eval.report import PAPER_TABLE1, make_report
-from comat.eval.sweep import plan, run_sweep
+from comat.eval.sweep import plan, run_sweep, sweep_status
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
@@ -146,3 +146,33 @@ def test_sweep_two_tiny_jobs_then_skip(tmp_path):
     assert {j["state"] for j in plan(root, ["comat"], ["pcp"], [0], eval_sets=("train",))} == {"resume"}
     with pytest.raises(ValueError, match="algos"):
         run_sweep(root, ["ppo"], ["pcp"], [0], preset=str(preset))
+
+
+def _progress(folder, rows):
+    folder.mkdir(parents=True)
+    folder.joinpath("progress.csv").write_text("env_steps,updates,wall_s\n" + "".join(f"{e},1,{w}\n" for e, w in rows))
+
+
+def test_sweep_status_on_hand_made_folders(tmp_path, capsys):
+    preset = tmp_path / "p.yaml"
+    preset.write_text(yaml.safe_dump({"total_env_steps": 10000}))
+    root = tmp_path / "sweep"
+    _progress(root / "comat_pcp_s0", [(5000, 50.0), (10240, 100.0)])  # done: summary + evaluation
+    for name in ("summary.json", "evaluation_unicycle.json", "checkpoint.pt"):
+        (root / "comat_pcp_s0" / name).write_text("{}")
+    _progress(root / "comat_pcp_s1", [(2000, 40.0), (4000, 80.0)])  # 50 env-steps/s, 6000 left
+    (root / "comat_pcp_s1" / "checkpoint.pt").write_text("")
+    rows = {r["seed"]: r for r in sweep_status(root, ["comat"], ["pcp", "hmt"], [0, 1, 2], preset=str(preset))
+            if r["task"] == "pcp"}
+    assert [rows[s]["state"] for s in (0, 1, 2)] == ["done", "resume", "new"]
+    assert rows[0]["hours_left"] == 0.0 and rows[0]["env_steps_per_s"] == pytest.approx(102.4)
+    assert rows[1]["env_steps"] == 4000 and rows[1]["hours_left"] == pytest.approx(6000 / 50 / 3600)
+    # a job not started: the mean rate of the task's other runs, (102.4 + 50) / 2
+    assert rows[2]["hours_left"] == pytest.approx(10000 / 76.2 / 3600)
+    hmt = [r for r in sweep_status(root, ["comat"], ["hmt"], [0], preset=str(preset))]
+    assert hmt[0]["state"] == "new" and hmt[0]["hours_left"] is None  # no HMT run yet: no rate
+    assert main(["sweep", "--status", "--preset", str(preset), "--algos", "comat", "--tasks", "pcp",
+                 "--jobs", "2", "--out", str(root)]) == 0
+    out = capsys.readouterr().out
+    assert "comat_pcp_s1 resume 4,000 / 10,000 50 0:02" in [" ".join(line.split()) for line in out.splitlines()]
+    assert "1 of 3 jobs done" in out and not (root / "comat_pcp_s2").exists()

@@ -15,11 +15,12 @@ then be on storage every node sees.
 
 from __future__ import annotations
 
+import csv
 import itertools
 import time
 from pathlib import Path
 
-__all__ = ["Job", "plan", "run_job", "run_sweep"]
+__all__ = ["Job", "plan", "run_job", "run_sweep", "sweep_status"]
 
 
 def _job_dir(root: Path, algo: str, task: str, seed: int) -> Path:
@@ -45,6 +46,44 @@ def plan(root: str | Path, algos, tasks, seeds, eval_tiers=("unicycle",), eval_s
 
 Job = dict
 """One grid cell: ``algo``, ``task``, ``seed``, ``folder``, ``state``."""
+
+
+def _trained(folder: Path) -> tuple[int, float]:
+    """(env steps, wall s) of a run's last progress row (0, 0.0 without one)."""
+    path = folder / "progress.csv"
+    if not path.is_file():
+        return 0, 0.0
+    with path.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    return (int(rows[-1]["env_steps"]), float(rows[-1]["wall_s"])) if rows else (0, 0.0)
+
+
+def sweep_status(root: str | Path, algos, tasks, seeds, preset: str = "paper", steps: int | None = None,
+                 tier: str | None = None, eval_tiers=("unicycle",), eval_sets=("train", "test")) -> list[dict]:
+    """Where each job of the grid stands, without running anything.
+
+    Per job: its :func:`plan` state, env steps trained of the budget, its rate (env steps per
+    second of its own training so far) and the hours left at that rate — or, for a job not
+    started, at the mean rate of the grid's other runs of the same task (None if there is none).
+    Evaluation time is not included.
+    """
+    from comat.rl.config import load_preset, resolve
+
+    rows = []
+    for job in plan(root, algos, tasks, seeds, eval_tiers, eval_sets):
+        total = resolve(load_preset(preset), job["algo"], job["task"], seed=job["seed"], tier=tier,
+                        total_env_steps=steps).total_env_steps
+        done, wall = _trained(Path(job["folder"]))
+        rate = done / wall if done and wall > 0 else None
+        rows.append({**job, "env_steps": done, "total_env_steps": total, "env_steps_per_s": rate})
+    for row in rows:
+        rate = row["env_steps_per_s"]
+        if rate is None:
+            same = [r["env_steps_per_s"] for r in rows if r["task"] == row["task"] and r["env_steps_per_s"]]
+            rate = sum(same) / len(same) if same else None
+        left = 0 if row["state"] == "done" else max(row["total_env_steps"] - row["env_steps"], 0)
+        row["hours_left"] = 0.0 if left == 0 else (left / rate / 3600 if rate else None)
+    return rows
 
 
 def _set_aside_partial(folder: Path) -> None:
