@@ -176,6 +176,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         run_sim_bench(sizes, tuple(args.batches), tuple(args.tiers), args.ticks, args.rps_ticks, args.out)
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
+    if args.what == "env" and args.rollout:
+        from comat.bench.env_bench import run_rollout_bench
+
+        out = "benchmarks/results/env_rollout.json" if args.out == "benchmarks/results/env.json" else args.out
+        run_rollout_bench(args.tasks[0], args.tiers[-1], args.rollout_batch, 2, max(args.steps // 2, 4), out)
+        return 0
     if args.what == "env":
         from comat.bench.env_bench import run_env_bench
 
@@ -325,7 +331,13 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 16], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
-    b.add_argument("--out", default="benchmarks/results/env.json", help="JSON output (default: %(default)s)")
+    b.add_argument("--out", default="benchmarks/results/env.json",
+                   help="JSON output (default: %(default)s; with --rollout: benchmarks/results/env_rollout.json)")
+    b.add_argument("--rollout", action="store_true",
+                   help="instead: where a rollout step's time goes (training coalitions, --rollout-batch envs; "
+                   "physics, OSQP, the rest) for all of them in one process, for each half two env processes would "
+                   "hold, and for one env; first of --tasks, last of --tiers")
+    b.add_argument("--rollout-batch", type=int, default=32, help="environments for --rollout (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("learn", help="cached vs uncached decoding; training env-steps/s per algorithm",
                         description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "

@@ -57,3 +57,19 @@ def test_bench_sim_small_grid_writes_json(tmp_path):
     rows = {(r["system"], r["batch"]) for r in data["rows"]}
     assert ("comat", 1) in rows and ("comat", 2) in rows
     assert all(r["tick_us"] > 0 for r in data["rows"])
+
+
+def test_bench_env_rollout_split_adds_up(tmp_path, capsys):
+    out = tmp_path / "rollout.json"
+    assert main(["bench", "env", "--rollout", "--tasks", "pcp", "--tiers", "unicycle", "--rollout-batch", "4",
+                 "--steps", "2", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    whole, shards = data["whole"], data["shards"]
+    assert [s["envs"] for s in shards] == [[0, 1], [2, 3]] and data["single_env"]["envs"] == [0, 0]
+    # the same environments (same seed streams) in one process and in two halves
+    assert sum(s["robots"] for s in shards) == whole["robots"]
+    for row in [whole, *shards]:
+        parts = row["physics_ms"] + row["osqp_ms"] + row["tick_rest_ms"] + row["outside_ticks_ms"]
+        assert abs(parts - row["step_ms"]) < 1e-6 and row["physics_ms"] > 0 and row["tick_rest_ms"] > 0
+    assert data["sharded_step_ms_lower_bound"] == max(s["step_ms"] for s in shards)
+    assert "2 env processes: a step costs at least" in capsys.readouterr().out

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["EnvBenchRow", "bench_env", "run_env_bench"]
+__all__ = ["EnvBenchRow", "bench_env", "bench_rollout_split", "run_env_bench", "run_rollout_bench"]
 
 MARBLER_PCP4_REPORTED = 15.0
 """MARBLER PCP, 4 robots, barrier every iteration: env-steps/s measured on this machine class."""
@@ -109,3 +109,72 @@ def _checks(rows: list[EnvBenchRow]) -> dict:
             ratio = r.env_steps_per_s / MARBLER_PCP4_REPORTED
             checks[f"pcp4_{tier}_B64_vs_marbler"] = {"value": ratio, "target": f">= {factor}", "pass": ratio >= factor}
     return checks
+
+
+def _timed_shard(task: str, tier: str, first: int, count: int, total: int, steps: int, seed: int) -> dict:
+    """ms per vector step of environments first..first+count-1 of ``total`` (training coalitions,
+    random actions), split into physics, OSQP, the rest of the ticks and the rest of the step."""
+    from comat.envs import make_vec_env
+    from comat.envs.heuristics import random_actions
+
+    env = make_vec_env(f"{task}_v0", count, seed=seed, tier=tier, shard=(first, total))
+    rng = np.random.default_rng(seed + first)
+    env.reset()
+    for _ in range(2):  # first-call set-ups out of the timing
+        env.step(random_actions(rng, env.agent_mask))
+    split = np.zeros(3)
+
+    def observe(*_):
+        t = env.core.safe.timing
+        split[:] += (t.total, t.physics, t.solver)
+
+    env.core.safe.tick_observers.append(observe)
+    robots = 0
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        robots += int(env.agent_mask.sum())
+        env.step(random_actions(rng, env.agent_mask))
+    step_ms = (time.perf_counter() - t0) / steps * 1e3
+    ticks, physics, osqp = split / steps * 1e3
+    return {"envs": [first, first + count - 1], "robots": robots / steps, "step_ms": step_ms, "physics_ms": physics,
+            "osqp_ms": osqp, "tick_rest_ms": ticks - physics - osqp, "outside_ticks_ms": step_ms - ticks}
+
+
+def bench_rollout_split(task: str = "pcp", tier: str = "unicycle", batch: int = 32, workers: int = 2,
+                        steps: int = 8, seed: int = 0) -> dict:
+    """Where a rollout step's time goes: the whole batch in one process, then each of the
+    ``workers`` shards an env process would hold, timed one after the other (their maximum is
+    what a step with that many processes costs at best), plus a single environment (the fixed
+    part)."""
+    from comat.envs.sharded import shard_slices
+
+    whole = _timed_shard(task, tier, 0, batch, batch, steps, seed)
+    shards = [_timed_shard(task, tier, sl.start, sl.stop - sl.start, batch, steps, seed)
+              for sl in shard_slices(batch, workers)]
+    single = _timed_shard(task, tier, 0, 1, batch, steps, seed)
+    best = max(r["step_ms"] for r in shards)
+    return {"task": task, "tier": tier, "batch": batch, "workers": workers, "steps": steps, "whole": whole,
+            "shards": shards, "single_env": single, "sharded_step_ms_lower_bound": best,
+            "sharding_speedup_upper_bound": whole["step_ms"] / best}
+
+
+def run_rollout_bench(task: str = "pcp", tier: str = "unicycle", batch: int = 32, workers: int = 2, steps: int = 8,
+                      out=None, progress=print) -> dict:
+    """``comat bench env --rollout``: :func:`bench_rollout_split` as a table and JSON."""
+    r = bench_rollout_split(task, tier, batch, workers, steps)
+    head = f"{'environments':<16}{'robots':>8}{'step ms':>9}{'physics':>9}{'OSQP':>7}{'tick rest':>11}{'outside':>9}"
+    progress(f"comat bench env --rollout: {task}, {tier}, training coalitions, random actions, {steps} steps\n"
+             + head + "\n" + "-" * len(head))
+    for label, row in [("all", r["whole"])] + [(f"shard {i}", x) for i, x in enumerate(r["shards"])] + [
+            ("one env", r["single_env"])]:
+        progress(f"{label + ' ' + str(row['envs'][0]) + '-' + str(row['envs'][1]):<16}{row['robots']:>8.0f}"
+                 f"{row['step_ms']:>9.1f}{row['physics_ms']:>9.1f}{row['osqp_ms']:>7.1f}{row['tick_rest_ms']:>11.1f}"
+                 f"{row['outside_ticks_ms']:>9.1f}")
+    progress(f"{workers} env processes: a step costs at least {r['sharded_step_ms_lower_bound']:.1f} ms (the slowest "
+             f"shard), at most {r['sharding_speedup_upper_bound']:.2f}x faster than one process")
+    from comat.bench.sim_bench import finish
+
+    result = {"benchmark": "env-rollout",
+              "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
+              **r}
+    return finish(result, {}, out, progress)

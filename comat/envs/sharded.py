@@ -26,11 +26,17 @@ import numpy as np
 from comat.envs.core import EPISODE_METRICS
 from comat.team import TeamSpec
 
-__all__ = ["ShardedVectorEnv", "WorkerError"]
+__all__ = ["ShardedVectorEnv", "WorkerError", "shard_slices"]
 
 
 class WorkerError(RuntimeError):
     """An environment worker failed; the message carries its traceback."""
+
+
+def shard_slices(num_envs: int, workers: int) -> list[slice]:
+    """The environments each worker process holds: contiguous, near-equal slices in order."""
+    bounds = np.linspace(0, num_envs, workers + 1).round().astype(int)
+    return [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
 
 
 def _worker(conn, env_id: str, num_envs: int, first: int, total: int, seed: int, options: dict) -> None:
@@ -92,8 +98,7 @@ class ShardedVectorEnv:
         self.num_envs, self.workers = num_envs, workers
         self.task = _make_task(env_id, options)[0]
         seed = int(np.random.SeedSequence().entropy) if seed is None else seed
-        bounds = np.linspace(0, num_envs, workers + 1).round().astype(int)
-        self._slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+        self._slices = shard_slices(num_envs, workers)
         ctx = mp.get_context("spawn")
         self._conns, self._procs = [], []
         for sl in self._slices:
