@@ -25,7 +25,7 @@ Weights file: ONE ``.npy`` readable with ``np.load(path, allow_pickle=False)``. 
 structured array with two fields:
 
 * ``manifest``: uint8 (L,), UTF-8 JSON ``{"format": "comat-numpy-weights", "version": 1,
-  "config": {obs_dim, n_types, n_caps, embed, heads, heat_blocks, edge_embed},
+  "config": {obs_dim, n_types, n_caps, embed, heads, heat_blocks, edge_embed, root_weight},
   "arrays": [[name, shape, offset], ...]}``;
 * ``params``: float32 (P,), every array flattened (C order) and concatenated; array ``name``
   is ``params[offset : offset + prod(shape)].reshape(shape)``.
@@ -63,7 +63,13 @@ __all__ = [
 
 FORMAT, VERSION = "comat-numpy-weights", 1
 N_ACTIONS = 5
-CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", "edge_embed")
+CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", "edge_embed", "root_weight")
+OPTIONAL_KEYS = {"root_weight": 0}
+"""Config keys added later, with the value files written before them mean."""
+
+
+def _config(config: Mapping[str, int]) -> dict[str, int]:
+    return {k: int(config[k] if k in config or k not in OPTIONAL_KEYS else OPTIONAL_KEYS[k]) for k in CONFIG_KEYS}
 LN_EPS = 1e-5  # torch.nn.LayerNorm's default, which every LayerNorm in COMAT uses
 SLOPE = 0.2  # LeakyReLU negative slope of the HEAT blocks
 
@@ -71,7 +77,7 @@ SLOPE = 0.2  # LeakyReLU negative slope of the HEAT blocks
 # -- weights file ----------------------------------------------------------------------------------
 def expected_shapes(config: Mapping[str, int]) -> dict[str, tuple[int, ...]]:
     """Name -> shape of every array the runtime needs, for a COMAT ``config`` (see CONFIG_KEYS)."""
-    missing = [k for k in CONFIG_KEYS if k not in config]
+    missing = [k for k in CONFIG_KEYS if k not in config and k not in OPTIONAL_KEYS]
     if missing:
         raise ValueError(f"config must have keys {list(CONFIG_KEYS)}, missing {missing}")
     D, T, C = config["obs_dim"], config["n_types"], config["n_caps"]
@@ -124,7 +130,7 @@ def _check_arrays(arrays: Mapping[str, np.ndarray], config: Mapping[str, int], s
 def pack_weights(arrays: Mapping[str, np.ndarray], config: Mapping[str, int]) -> np.ndarray:
     """The 0-d structured array of the weights file (see module docstring); arrays are checked."""
     _check_arrays(arrays, config, "arrays")
-    config = {k: int(config[k]) for k in CONFIG_KEYS}
+    config = _config(config)
     names = list(expected_shapes(config))  # a fixed order, so equal models give equal files
     entries, offset = [], 0
     for n in names:
@@ -248,7 +254,7 @@ class ComatRuntime:
 
     def __init__(self, config: Mapping[str, int], arrays: Mapping[str, np.ndarray]) -> None:
         _check_arrays(arrays, config, "arrays")
-        self.config = {k: int(config[k]) for k in CONFIG_KEYS}
+        self.config = _config(config)
         self.w = {k: np.asarray(v, dtype=np.float64) for k, v in arrays.items()}
         self.self_attn = _Attention(self.w, "self_attn", self.config["heads"])
         self.cross_attn = _Attention(self.w, "cross_attn", self.config["heads"])
@@ -271,7 +277,7 @@ class ComatRuntime:
         alpha = _softmax(_leaky(score), axis=1).mean(-1)  # (N, N): softmax over j, heads averaged
         return ((alpha[..., None] * ea).sum(1) @ w[f"{p}msg_attr.weight"].T
                 + (alpha[..., None] * et[etype]).sum(1) @ w[f"{p}msg_type.weight"].T
-                + (alpha @ xt) @ w[f"{p}msg_j.weight"].T)
+                + (alpha @ xt) @ w[f"{p}msg_j.weight"].T + (xt if self.config["root_weight"] else 0.0))
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
         """Robot representations rep (N, E) from obs (N, D)."""

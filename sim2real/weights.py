@@ -22,7 +22,8 @@ def comat_arrays(model) -> tuple[dict[str, int], dict[str, np.ndarray]]:
     if layout is None or cfg is None or not hasattr(model, "state_dict"):
         raise TypeError(f"model must be a comat Comat (with .layout, .config, .state_dict), got {type(model).__name__}")
     config = {"obs_dim": layout.obs_dim, "n_types": layout.n_types, "n_caps": layout.n_caps,
-              "embed": cfg.embed, "heads": cfg.heads, "heat_blocks": cfg.heat_blocks, "edge_embed": cfg.edge_embed}
+              "embed": cfg.embed, "heads": cfg.heads, "heat_blocks": cfg.heat_blocks, "edge_embed": cfg.edge_embed,
+              "root_weight": int(cfg.root_weight)}
     assert set(config) == set(CONFIG_KEYS)
     # Only the critic is dropped: any other entry the runtime does not know (a changed model)
     # must fail the shape check below rather than vanish from the export.

@@ -85,15 +85,25 @@ def test_runtime_matches_torch(task, kind, tmp_path):
     assert types_seen == {2}  # every team mixes both robot types
 
 
-def test_runtime_matches_torch_other_sizes(tmp_path):
-    """Non-default widths, heads and depth: nothing in the runtime assumes the defaults."""
-    model = make_model("hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=3, edge_embed=8))
+@pytest.mark.parametrize("root", [False, True])
+def test_runtime_matches_torch_other_sizes(tmp_path, root):
+    """Non-default widths, heads, depth and the HEAT root term: nothing in the runtime assumes
+    the defaults."""
+    model = make_model("hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=3, edge_embed=8, root_weight=root))
     policy = ComatRuntime(*comat_arrays(model))
     obs = team_obs("hmt", 5)
     actions, probs = policy.action_probs(obs)
     actions_t, probs_t = torch_probs(model, obs)
     np.testing.assert_allclose(probs, probs_t, atol=1e-5, rtol=0)
     np.testing.assert_array_equal(actions, actions_t)
+
+
+def test_weights_files_without_root_weight_still_load(tmp_path):
+    """Files written before the root_weight key read as root_weight = 0 (no root term)."""
+    config, arrays = comat_arrays(make_model("pcp", "trained"))
+    del config["root_weight"]
+    save_weights(tmp_path / "old.npy", arrays, config)
+    assert ComatRuntime.from_file(tmp_path / "old.npy").config["root_weight"] == 0
 
 
 def test_weights_file_round_trips(tmp_path):

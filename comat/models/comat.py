@@ -48,6 +48,10 @@ class ComatConfig:
     """Stacked HEAT blocks in the encoder."""
     edge_embed: int = 32
     """Width of the edge-feature and edge-type embeddings."""
+    root_weight: bool = False
+    """Add each robot's own transformed features x̃_i to its HEAT output (PyG ``HEATConv``'s root
+    term). False: a robot's own features reach it only through its self-loop, as in the
+    reference HEAT and the paper's eq. 3."""
 
 
 class HEATBlock(nn.Module):
@@ -59,9 +63,9 @@ class HEATBlock(nn.Module):
     its share of the message are looked up per pair rather than computed per edge.
     """
 
-    def __init__(self, d_in: int, d: int, n_types: int, d_edge: int, heads: int) -> None:
+    def __init__(self, d_in: int, d: int, n_types: int, d_edge: int, heads: int, root: bool = False) -> None:
         super().__init__()
-        self.n_types, self.heads = n_types, heads
+        self.n_types, self.heads, self.root = n_types, heads, root
         self.node = nn.ModuleList(init_linear(nn.Linear(d_in, d, bias=False)) for _ in range(n_types))
         self.edge_attr = init_linear(nn.Linear(5, d_edge, bias=False))
         self.edge_type = nn.Embedding(n_types * n_types, d_edge)
@@ -88,8 +92,8 @@ class HEATBlock(nn.Module):
         pair = F.one_hot(edge_type, et.shape[0]).to(alpha.dtype)  # (B, N, N, T²)
         w = alpha[..., None]
         # Elementwise weighted sums: tiny batched matmuls are slower on CPU.
-        return (self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et)
-                + self.msg_j(alpha @ xt))
+        out = self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et) + self.msg_j(alpha @ xt)
+        return out + xt if self.root else out
 
 
 class Comat(AutoregressivePolicy):
@@ -101,7 +105,8 @@ class Comat(AutoregressivePolicy):
         self.layout, self.config = layout, cfg
         E, K, T = cfg.embed, cfg.heads, layout.n_types
         self.heat = nn.ModuleList(
-            HEATBlock(layout.obs_dim if k == 0 else E, E, T, cfg.edge_embed, K) for k in range(cfg.heat_blocks)
+            HEATBlock(layout.obs_dim if k == 0 else E, E, T, cfg.edge_embed, K, cfg.root_weight)
+            for k in range(cfg.heat_blocks)
         )
         self.heat_norm = nn.ModuleList(nn.LayerNorm(E) for _ in range(cfg.heat_blocks))
         self.critic = mlp([E, E, 1])
