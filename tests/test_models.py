@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from comat.envs import make_vec_env
-from comat.models.comat import Comat
+from comat.models.comat import Comat, ComatConfig
 from comat.models.features import ObsLayout, edge_features
 from comat.models.mappo import Mappo
 from comat.models.mat import Mat, MatConfig
@@ -31,10 +31,12 @@ def fake_obs(B: int, N: int, layout: ObsLayout = LAYOUT, seed: int = 0, n_real=N
 
 def models():
     torch.manual_seed(0)
-    return {"comat": Comat(LAYOUT), "mat": Mat(LAYOUT, MatConfig(max_robots=64))}
+    return {"comat": Comat(LAYOUT), "mat": Mat(LAYOUT, MatConfig(max_robots=64)),
+            # the encoder options (HEAT root term, per-robot feed-forward sublayer)
+            "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True))}
 
 
-@pytest.mark.parametrize("name", ["comat", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_options", "mat"])
 @pytest.mark.parametrize("n", list(range(1, 17)))
 def test_autoregressive_logps_equal_teacher_forced(name, n):
     model = models()[name]
@@ -47,7 +49,7 @@ def test_autoregressive_logps_equal_teacher_forced(name, n):
     assert (entropy > 0).all() and (logp < 0).all()
 
 
-@pytest.mark.parametrize("name", ["comat", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_options", "mat"])
 @pytest.mark.parametrize("n", [1, 3, 8, 16])
 def test_cached_decoding_equals_uncached(name, n):
     model = models()[name]

@@ -121,6 +121,8 @@ def test_weights_file_round_trips(tmp_path):
 
 
 def test_weights_of_another_model_are_refused(tmp_path):
+    with pytest.raises(ValueError, match=r"does not match the numpy runtime.*unexpected \['node_ffn"):
+        comat_arrays(make_model("pcp", "init", ComatConfig(node_ffn=True)))  # not in the runtime: refused
     config, arrays = comat_arrays(make_model("pcp", "init"))
     # HMT observations are wider than PCP's: an HMT config cannot take PCP weights.
     hmt_config = {**config, "obs_dim": ObsLayout.for_task(MaterialTransport()).obs_dim}

@@ -48,6 +48,10 @@ class ComatConfig:
     """Stacked HEAT blocks in the encoder."""
     edge_embed: int = 32
     """Width of the edge-feature and edge-type embeddings."""
+    node_ffn: bool = False
+    """After each HEAT block, a per-robot feed-forward sublayer h = LN(h + MLP(h)), as in a
+    transformer encoder (MAT has one; the paper's HEAT does not). Not supported by the numpy
+    runtime (export refuses it)."""
     root_weight: bool = False
     """Add each robot's own transformed features x̃_i to its HEAT output (PyG ``HEATConv``'s root
     term). False: a robot's own features reach it only through its self-loop, as in the
@@ -109,6 +113,9 @@ class Comat(AutoregressivePolicy):
             for k in range(cfg.heat_blocks)
         )
         self.heat_norm = nn.ModuleList(nn.LayerNorm(E) for _ in range(cfg.heat_blocks))
+        if cfg.node_ffn:
+            self.node_ffn = nn.ModuleList(mlp([E, E, E]) for _ in range(cfg.heat_blocks))
+            self.node_ffn_norm = nn.ModuleList(nn.LayerNorm(E) for _ in range(cfg.heat_blocks))
         self.critic = mlp([E, E, 1])
         # θ¹: action embedding block.
         self.token = nn.Sequential(init_linear(nn.Linear(self.n_actions + 1, E, bias=False)), nn.ReLU())
@@ -130,6 +137,8 @@ class Comat(AutoregressivePolicy):
         for k, (block, norm) in enumerate(zip(self.heat, self.heat_norm)):
             out = block(h, types, edge_attr, edge_type, edge_mask)
             h = norm(out if k == 0 else h + out)
+            if self.config.node_ffn:
+                h = self.node_ffn_norm[k](h + self.node_ffn[k](h))
         return h, self.critic(h)[..., 0]
 
     # -- decoder ------------------------------------------------------------------------------------
