@@ -275,3 +275,16 @@ def test_train_records_evaluation_episodes(tmp_path):
         train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=1)
     with pytest.raises(ValueError, match="rrd_every must be"):
         train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=-1)
+
+
+def test_progress_line_eta_never_negative():
+    import io
+
+    from comat.rl.logger import ProgressLine
+
+    out = io.StringIO()
+    line = ProgressLine(total=1000, stream=out)
+    line.update(400, 1.0, 0.0, 0.5)
+    line.update(1024, 2.0, 0.5, 0.9, final=True)  # the last rollout overshoots the budget
+    assert out.getvalue().rstrip().endswith("ETA 0:00:00")
+    assert "1,024/1,000 steps" in out.getvalue()

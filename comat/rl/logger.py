@@ -105,7 +105,7 @@ class ProgressLine:
         completion); ``progress``: their mean fraction of prey captured / material delivered."""
         elapsed = time.perf_counter() - self._t0
         rate = (steps - self.start) / elapsed if elapsed > 0 else 0.0
-        eta = (self.total - steps) / rate if rate > 0 else math.inf
+        eta = max(self.total - steps, 0) / rate if rate > 0 else math.inf  # the last rollout may overshoot
         frac = min(1.0, steps / self.total)
         bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
         line = (f"[{bar}] {steps:,}/{self.total:,} steps | {rate:,.0f} steps/s | return {ret:.2f} | "
