@@ -179,14 +179,15 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "env" and args.rollout:
         from comat.bench.env_bench import run_rollout_bench
 
-        out = "benchmarks/results/env_rollout.json" if args.out == "benchmarks/results/env.json" else args.out
-        run_rollout_bench(args.tasks[0], args.tiers[-1], args.rollout_batch, 2, max(args.steps // 2, 4), out)
+        run_rollout_bench(args.tasks[0], args.tiers[-1], args.rollout_batch, 2, max(args.steps // 2, 4),
+                          args.out or "benchmarks/results/env_rollout.json")
         return 0
     if args.what == "env":
         from comat.bench.env_bench import run_env_bench
 
         t0 = time.perf_counter()
-        run_env_bench(tuple(args.tasks), tuple(args.tiers), tuple(args.sizes), tuple(args.batches), args.steps, args.out)
+        run_env_bench(tuple(args.tasks), tuple(args.tiers), tuple(args.sizes), tuple(args.batches), args.steps,
+                      args.out or "benchmarks/results/env.json")
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "learn":
@@ -331,8 +332,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 16], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
-    b.add_argument("--out", default="benchmarks/results/env.json",
-                   help="JSON output (default: %(default)s; with --rollout: benchmarks/results/env_rollout.json)")
+    b.add_argument("--out", default=None,
+                   help="JSON output (default: benchmarks/results/env.json; with --rollout: "
+                   "benchmarks/results/env_rollout.json)")
     b.add_argument("--rollout", action="store_true",
                    help="instead: where a rollout step's time goes (training coalitions, --rollout-batch envs; "
                    "physics, OSQP, the rest) for all of them in one process, for each half two env processes would "

@@ -71,6 +71,11 @@ SHIPPED_FILES = ("main.py", "runtime.py", "task_logic.py", "submission_config.py
 """The folder of a COMAT policy."""
 HEURISTIC_FILES = ("main.py", "task_logic.py", "submission_config.py")
 """The folder of the scripted policy."""
+
+
+def _files(policy: str) -> tuple[str, ...]:
+    """The files of a folder whose CONFIG["policy"] is ``policy`` ("comat" or "heuristic")."""
+    return HEURISTIC_FILES if policy == "heuristic" else SHIPPED_FILES
 MIN_SPACING_M = 0.3
 """Start poses closer than this risk barrier deadlocks in V2's initialization phase (§7.2)."""
 WALL_MARGIN_M = 0.1
@@ -220,8 +225,8 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         raise ValueError(f"ticks_per_step={ticks}: a {task_obj.horizon}-step episode would take {episode_s:.0f} s on "
                          f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
                          f"with the drive to the start poses)")
-    scripted = isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic"
-    model = None if scripted else _comat_model(checkpoint_or_policy, task)
+    policy = "heuristic" if isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic" else "comat"
+    model = None if policy == "heuristic" else _comat_model(checkpoint_or_policy, task)
     want_dim = task_obj.obs_size()
     if model is not None and model.layout.obs_dim != want_dim:
         raise ValueError(f"policy observes {model.layout.obs_dim} features, task {task!r} has {want_dim}")
@@ -236,12 +241,12 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         if model is not None:
             shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
             export_weights(model, tmp / "weights.npy")
-        config = _config("heuristic" if scripted else "comat", task, team, poses, prey, ticks, seed)
+        config = _config(policy, task, team, poses, prey, ticks, seed)
         text = ('"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
                 f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n")
         (tmp / "submission_config.py").write_text(text)
         names = sorted(p.name for p in tmp.iterdir())
-        assert names == sorted(HEURISTIC_FILES if scripted else SHIPPED_FILES), names
+        assert names == sorted(_files(policy)), names
         os.chmod(tmp, 0o755)
         tmp.rename(out)
     except BaseException:
@@ -295,8 +300,8 @@ def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool 
 
 
 def run_mujoco(folder, tier: str = "wheels") -> dict:
-    """The same policy (the folder's weights through the numpy runtime), team, start poses and prey
-    in the MuJoCo env; its episode metrics."""
+    """The same policy (the folder's weights through the numpy runtime, or the scripted policy),
+    team, start poses and prey in the MuJoCo env; its episode metrics."""
     from comat.envs import make_env
     from sim2real.runtime import ComatRuntime
 
@@ -333,9 +338,9 @@ def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rp
     """{"rps": ..., "mujoco": ..., "gap": {completion, return}} for an exported folder (``rps_path``:
     see :func:`run_rps`)."""
     folder = Path(folder)
-    missing = [f for f in HEURISTIC_FILES if not (folder / f).is_file()]
-    if not missing and _load_config(folder).get("policy", "comat") == "comat":
-        missing = [f for f in SHIPPED_FILES if not (folder / f).is_file()]
+    missing = [f for f in HEURISTIC_FILES if not (folder / f).is_file()]  # what every folder has
+    if not missing:
+        missing = [f for f in _files(_load_config(folder).get("policy", "comat")) if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
     rps = run_rps(folder, timeout_s, rps_path)

@@ -1,16 +1,10 @@
-"""Scripted reference policies over a :class:`~comat.envs.core.TaskCore`: show each task is
-solvable, and a reference row in evaluations.
+"""Reference policies over a :class:`~comat.envs.core.TaskCore`: show each task is solvable,
+and reference rows in evaluations.
 
-The scripted policy itself is :meth:`comat.task_logic` ``scripted_actions`` (numpy only, so the
-exported Robotarium script runs the same code). It reads the environment's full task state
-(prey positions, material left): *privileged* information the learners do not get. Batched over
-B environments; padded slots get ``stay``.
-
-* PCP: each sensing robot heads for the nearest prey nobody has sensed yet; each capture robot
-  for the nearest sensed, uncaptured prey (else the nearest uncaptured one, to be close when it
-  is sensed).
-* HMT: a loaded robot heads for the drop-off; an empty one for its zone — fast robots prefer
-  zone 2 (far, smaller) and slow robots zone 1 (near, larger) while both have material.
+The scripted policy is the tasks' ``scripted_actions`` in :mod:`comat.task_logic` (numpy only,
+so the exported Robotarium script runs the same code; each task's ``scripted_targets`` says
+what it does). It reads the full task state (prey positions, material left): *privileged*
+information the learners do not get. Batched over B environments; padded slots get ``stay``.
 """
 
 from __future__ import annotations

@@ -69,9 +69,10 @@ def sweep_status(root: str | Path, algos, tasks, seeds, preset: str = "paper", s
     """
     from comat.rl.config import load_preset, resolve
 
+    settings = load_preset(preset)
     rows = []
     for job in plan(root, algos, tasks, seeds, eval_tiers, eval_sets):
-        total = resolve(load_preset(preset), job["algo"], job["task"], seed=job["seed"], tier=tier,
+        total = resolve(settings, job["algo"], job["task"], seed=job["seed"], tier=tier,
                         total_env_steps=steps).total_env_steps
         done, wall = _trained(Path(job["folder"]))
         rate = done / wall if done and wall > 0 else None
