@@ -83,15 +83,20 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
         env.reset()
         learner = make_learner(config, env, Dims.of(env))
         clock = {"env": 0.0}
-        step = env.step
 
-        def timed_step(actions):
-            t0 = time.perf_counter()
-            out = step(actions)
-            clock["env"] += time.perf_counter() - t0
-            return out
+        def timed(call):
+            def wrapper(*args, **kwargs):
+                t0 = time.perf_counter()
+                out = call(*args, **kwargs)
+                clock["env"] += time.perf_counter() - t0
+                return out
+            return wrapper
 
-        env.step = timed_step
+        # Time spent waiting for the environments: their whole step in one process; with
+        # several workers, only what the policy's turn on the other shards did not hide.
+        for name in ("step", "step_recv"):
+            if hasattr(env, name):
+                setattr(env, name, timed(getattr(env, name)))
         learner.iterate()  # warm-up: QP set-ups per team-size tuple, allocator, caches
         steps = collect_s = update_s = env_s = 0.0
         for _ in range(iterations):
@@ -119,7 +124,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
     return {"algo": algo, "task": "pcp", "tier": "unicycle", "num_envs": config.trainer.num_envs,
             "env_workers": env_workers, "torch_threads": config.torch_threads, "env_steps": int(steps),
             "env_steps_per_s": steps / total, "env_s": env_s, "act_s": collect_s - env_s, "learn_s": update_s,
-            "env_only_steps_per_s": steps / env_s}
+            "env_only_steps_per_s": steps / env_s if env_workers == 1 else None}
 
 
 def _checks(decode: list[dict], train: list[dict]) -> dict:
@@ -165,8 +170,11 @@ def run_learn_bench(algos=("comat", "mat", "mappo", "qmix"), workers=(1, 2), ite
     head = f"{'algo':<7}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}{'env only/s':>12}"
     progress(head + "\n" + "-" * len(head))
     for r in train:
+        env_only = "-" if r["env_only_steps_per_s"] is None else f"{r['env_only_steps_per_s']:.1f}"
         progress(f"{r['algo']:<7}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
-                 f"{r['learn_s']:>9.2f}{r['env_only_steps_per_s']:>12.1f}")
+                 f"{r['learn_s']:>9.2f}{env_only:>12}")
+    progress("env s: waiting for the environments (with several workers, the part of their steps that the "
+             "policy's turns on other shards did not hide); act s: the rest of collecting.")
     from comat.bench.sim_bench import finish
 
     return finish(result, checks, out, progress)

@@ -59,6 +59,8 @@ def _worker(conn, env_id: str, num_envs: int, first: int, total: int, seed: int,
         try:
             if cmd == "step":
                 result = env.step(arg)
+            elif cmd == "step_state":
+                result = (*env.step(arg), env.state())
             elif cmd == "reset":
                 result = env.reset(*arg)
             elif cmd == "state":
@@ -119,21 +121,21 @@ class ShardedVectorEnv:
         self._mask = np.zeros((num_envs, self.max_robots), dtype=bool)
 
     # -- plumbing ---------------------------------------------------------------------------------
+    def _recv(self, i: int) -> Any:
+        try:
+            status, value, trace = self._conns[i].recv()
+        except EOFError:
+            self.close()
+            raise WorkerError(f"environment worker {i} exited unexpectedly") from None
+        if status == "error":
+            self.close()
+            if isinstance(value, (ValueError, TypeError)):
+                raise value  # bad input: the same error as from a single-process env
+            raise WorkerError(f"environment worker {i} failed:\n{trace}")
+        return value
+
     def _gather(self) -> list[Any]:
-        results = []
-        for i, conn in enumerate(self._conns):
-            try:
-                status, value, trace = conn.recv()
-            except EOFError:
-                self.close()
-                raise WorkerError(f"environment worker {i} exited unexpectedly") from None
-            if status == "error":
-                self.close()
-                if isinstance(value, (ValueError, TypeError)):
-                    raise value  # bad input: the same error as from a single-process env
-                raise WorkerError(f"environment worker {i} failed:\n{trace}")
-            results.append(value)
-        return results
+        return [self._recv(i) for i in range(len(self._conns))]
 
     def _call(self, cmd: str, args: list[Any] | None = None) -> list[Any]:
         if self._closed:
@@ -170,6 +172,34 @@ class ShardedVectorEnv:
         info = _merge_infos([r[4] for r in results], [r[0] for r in results], self._state_size)
         self._mask = info["agent_mask"]
         return obs, rewards, terminated, truncated, info
+
+    # -- one shard at a time (overlapping the policy with the other shards' physics) ---------------
+    @property
+    def slices(self) -> list[slice]:
+        """The environments of each worker (see :func:`shard_slices`)."""
+        return list(self._slices)
+
+    def step_send(self, i: int, actions: np.ndarray, with_state: bool = False) -> None:
+        """Start worker ``i``'s env step with its actions (n_i, N); :meth:`step_recv` collects it.
+
+        Other workers may be sent their step before this one is collected: that is how a
+        trainer computes the next actions of one shard while the others simulate.
+        """
+        if self._closed:
+            raise RuntimeError("the environment is closed")
+        sl = self._slices[i]
+        actions = np.asarray(actions)
+        if actions.shape != (sl.stop - sl.start, self.max_robots):
+            raise ValueError(f"actions of worker {i} must have shape ({sl.stop - sl.start}, {self.max_robots}) "
+                             f"(its envs, robot slots), got {actions.shape}")
+        self._conns[i].send(("step_state" if with_state else "step", actions))
+
+    def step_recv(self, i: int) -> tuple:
+        """Worker ``i``'s step results, as :meth:`step` returns them for its environments only
+        (plus its (n_i, S) states when sent ``with_state``)."""
+        result = self._recv(i)
+        self._mask[self._slices[i]] = result[4]["agent_mask"]
+        return result
 
     def state(self) -> np.ndarray:
         """(B, S) centralized states."""

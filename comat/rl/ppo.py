@@ -26,6 +26,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from comat.envs.sharded import ShardedVectorEnv
 from comat.rl.gae import gae
 from comat.rl.valuenorm import ValueNorm
 
@@ -83,6 +84,33 @@ def _team_value(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     return (values * mask).sum(-1) / mask.sum(-1).clamp(min=1)
 
 
+class _Parts:
+    """How :meth:`PPOTrainer.collect` steps the environments: as one part, the policy and the
+    env taking turns; or, for a :class:`~comat.envs.ShardedVectorEnv` of several workers, one
+    part per worker, the policy choosing one shard's next actions while the others simulate
+    (their steps overlap; the sampling stream is drawn shard by shard)."""
+
+    def __init__(self, env, with_state: bool) -> None:
+        self.env, self.with_state = env, with_state
+        self.overlapped = isinstance(env, ShardedVectorEnv) and env.workers > 1
+        self.slices = env.slices if self.overlapped else [slice(0, env.num_envs)]
+        self._actions: np.ndarray | None = None
+
+    def send(self, p: int, actions: np.ndarray) -> None:
+        if self.overlapped:
+            self.env.step_send(p, actions, self.with_state)
+        else:
+            self._actions = actions
+
+    def recv(self, p: int) -> tuple:
+        """(obs, rewards, terminated, truncated, info, state or None) of part ``p``'s step."""
+        if self.overlapped:
+            result = self.env.step_recv(p)
+            return result if self.with_state else (*result, None)
+        result = self.env.step(self._actions)
+        return (*result, self.env.state() if self.with_state else None)
+
+
 class PPOTrainer:
     """Trains ``policy`` (COMAT, MAT or MAPPO interface) on a :class:`comat.envs.VectorEnv`.
 
@@ -113,40 +141,62 @@ class PPOTrainer:
         return self.value_norm.denormalize(values)
 
     # -- 1. collect -----------------------------------------------------------------------------
+    def _act_send(self, parts: _Parts, p: int, obs, mask, state):
+        actions, logp, values = self.policy.act(obs, mask, state, generator=self.generator)
+        parts.send(p, actions.numpy())
+        return actions, logp, values
+
     @torch.no_grad()
     def collect(self) -> Rollout:
         env, T = self.env, self.config.rollout_steps or self.env.task.horizon
+        parts = _Parts(env, self.use_state)
         obs_np, info = env.reset()
-        obs = torch.as_tensor(obs_np, dtype=torch.float32)
-        mask = torch.as_tensor(info["agent_mask"])
-        state = self._state()
-        steps: dict[str, list] = {k: [] for k in ("obs", "mask", "state", "actions", "logp", "values", "rewards",
-                                                  "terminated", "dones", "next_obs", "next_mask", "next_state")}
+        state_all = self._state()
+        # Per part: current obs (b, N, D), mask (b, N), state (b, S) or None.
+        cur = [(torch.as_tensor(obs_np[sl], dtype=torch.float32), torch.as_tensor(info["agent_mask"][sl]),
+                None if state_all is None else state_all[sl]) for sl in parts.slices]
+        keys = ("obs", "mask", "state", "actions", "logp", "values", "rewards", "terminated", "dones", "next_obs",
+                "next_mask", "next_state")
+        steps: list[dict[str, list]] = [{k: [] for k in keys} for _ in parts.slices]
         episodes: list[dict] = []
-        for _ in range(T):
-            actions, logp, values = self.policy.act(obs, mask, state, generator=self.generator)
-            next_np, rewards, terminated, truncated, info = env.step(actions.numpy())
-            next_obs = torch.as_tensor(next_np, dtype=torch.float32)
-            next_mask = torch.as_tensor(info["agent_mask"])
-            next_state = self._state()
-            done = terminated | truncated
-            # The next state of the same episode: the final observation where it just ended.
-            ep_obs, ep_mask, ep_state = next_obs.clone(), next_mask.clone(), None if next_state is None else next_state.clone()
-            if done.any():
-                d = torch.as_tensor(done)
-                ep_obs[d] = torch.as_tensor(info["final_obs"], dtype=torch.float32)[d]
-                ep_mask[d] = mask[d]
-                if ep_state is not None:
-                    ep_state[d] = torch.as_tensor(info["final_state"], dtype=torch.float32)[d]
-                for b in np.flatnonzero(done):
-                    episodes.append({k: float(v[b]) for k, v in info["episode"].items()})
-            for key, value in (("obs", obs), ("mask", mask), ("state", state), ("actions", actions), ("logp", logp),
-                               ("values", values), ("rewards", torch.as_tensor(rewards, dtype=torch.float32)),
-                               ("terminated", torch.as_tensor(terminated)), ("dones", torch.as_tensor(done)),
-                               ("next_obs", ep_obs), ("next_mask", ep_mask), ("next_state", ep_state)):
-                steps[key].append(value)
-            obs, mask, state = next_obs, next_mask, next_state
-        stacked = {k: (torch.stack(v) if v[0] is not None else None) for k, v in steps.items()}
+        threads = torch.get_num_threads()
+        if parts.overlapped:
+            torch.set_num_threads(1)  # the env workers have the other cores
+        try:
+            acted = [self._act_send(parts, p, *cur[p]) for p in range(len(parts.slices))]
+            for t in range(T):
+                for p in range(len(parts.slices)):
+                    obs, mask, state = cur[p]
+                    actions, logp, values = acted[p]
+                    next_np, rewards, terminated, truncated, info, next_state_np = parts.recv(p)
+                    next_obs = torch.as_tensor(next_np, dtype=torch.float32)
+                    next_mask = torch.as_tensor(info["agent_mask"])
+                    next_state = None if next_state_np is None else torch.as_tensor(next_state_np, dtype=torch.float32)
+                    done = terminated | truncated
+                    # The next state of the same episode: the final observation where it just ended.
+                    ep_obs, ep_mask = next_obs.clone(), next_mask.clone()
+                    ep_state = None if next_state is None else next_state.clone()
+                    if done.any():
+                        d = torch.as_tensor(done)
+                        ep_obs[d] = torch.as_tensor(info["final_obs"], dtype=torch.float32)[d]
+                        ep_mask[d] = mask[d]
+                        if ep_state is not None:
+                            ep_state[d] = torch.as_tensor(info["final_state"], dtype=torch.float32)[d]
+                        for b in np.flatnonzero(done):
+                            episodes.append({k: float(v[b]) for k, v in info["episode"].items()})
+                    for key, value in (("obs", obs), ("mask", mask), ("state", state), ("actions", actions),
+                                       ("logp", logp), ("values", values),
+                                       ("rewards", torch.as_tensor(rewards, dtype=torch.float32)),
+                                       ("terminated", torch.as_tensor(terminated)), ("dones", torch.as_tensor(done)),
+                                       ("next_obs", ep_obs), ("next_mask", ep_mask), ("next_state", ep_state)):
+                        steps[p][key].append(value)
+                    cur[p] = (next_obs, next_mask, next_state)
+                    if t + 1 < T:
+                        acted[p] = self._act_send(parts, p, *cur[p])
+        finally:
+            torch.set_num_threads(threads)
+        stacked = {k: (torch.cat([torch.stack(s[k]) for s in steps], dim=1) if steps[0][k][0] is not None else None)
+                   for k in keys}
         return Rollout(**stacked, episodes=episodes)
 
     # -- 2-4. update ----------------------------------------------------------------------------
