@@ -80,3 +80,26 @@ def test_sharded_rng_state_round_trip_and_errors():
         make_vec_env("pcp_v0", 2, workers=3, **OPTS)
     with pytest.raises(ValueError, match="unknown option"):
         make_vec_env("pcp_v0", 2, workers=2, colour="red")
+
+
+def test_shard_by_shard_steps_equal_whole_steps():
+    """step_send/step_recv, one worker at a time and overlapping, give what step() gives."""
+    with make_vec_env("pcp_v0", 5, workers=2, seed=5, **OPTS) as whole, \
+            make_vec_env("pcp_v0", 5, workers=2, seed=5, **OPTS) as parts:
+        rng = np.random.default_rng(2)
+        _, info = whole.reset()
+        parts.reset()
+        assert [(s.start, s.stop) for s in parts.slices] == [(0, 2), (2, 5)]
+        for _ in range(4):
+            actions = np.where(info["agent_mask"], rng.integers(0, 5, info["agent_mask"].shape), 0)
+            obs, rewards, terminated, truncated, info = whole.step(actions)
+            for i, sl in enumerate(parts.slices):  # both in flight before either is collected
+                parts.step_send(i, actions[sl], with_state=i == 1)
+            got = [parts.step_recv(i) for i in range(2)]
+            assert len(got[0]) == 5 and len(got[1]) == 6
+            np.testing.assert_array_equal(np.concatenate([g[0] for g in got]), obs)
+            np.testing.assert_array_equal(np.concatenate([g[1] for g in got]), rewards)
+            np.testing.assert_array_equal(parts.agent_mask, info["agent_mask"])
+            np.testing.assert_array_equal(got[1][5], whole.state()[2:])
+        with pytest.raises(ValueError, match=r"actions of worker 1 must have shape \(3, "):
+            parts.step_send(1, actions)
