@@ -32,12 +32,13 @@ class AutoregressivePolicy(nn.Module):
         """Teacher-forced logits (B, N, A) from tokens (B, N, A+1) (start, a_0, …, a_{N−2})."""
         raise NotImplementedError
 
-    def decode_init(self, rep: torch.Tensor):
-        """Fresh per-sequence decoding state (caches) for representations (B, N, D)."""
+    def decode_init(self, rep: torch.Tensor, obs: torch.Tensor):
+        """Fresh per-sequence decoding state (caches, per-sequence tables) for representations
+        (B, N, D) of observations (B, N, D_obs)."""
         raise NotImplementedError
 
-    def decode_step(self, state, rep_m, token_m, obs_m, m: int) -> torch.Tensor:
-        """Logits (B, A) of robot m, from its representation (B, 1, D) and token (B, 1, A+1)."""
+    def decode_step(self, state, m: int, token: torch.Tensor) -> torch.Tensor:
+        """Logits (B, A) of robot m, given the token index (B,) of robot m−1's action (0 = start)."""
         raise NotImplementedError
 
     # -- public interface ----------------------------------------------------------------------
@@ -67,16 +68,22 @@ class AutoregressivePolicy(nn.Module):
         """
         B, N, _ = obs.shape
         rep, values = self.encode(obs, mask)
-        dec = self.decode_init(rep)
-        token = self._start(B, obs.device)
-        actions, logps = [], []
+        dec = self.decode_init(rep, obs)
+        if not deterministic:
+            # Every robot's Gumbel noise in one draw: the same stream as one draw per robot.
+            u = torch.rand((N, B, self.n_actions), generator=generator, device=obs.device).clamp_(1e-20, 1.0)
+            noise = -torch.log(-torch.log(u))
+        token = torch.zeros(B, dtype=torch.long, device=obs.device)  # the start token
+        actions, logits = [], []
         for m in range(N):
-            logits = self.decode_step(dec, rep[:, m : m + 1], token, obs[:, m : m + 1], m)
-            a = torch.where(mask[:, m], self._choose(logits, deterministic, generator), 0)
-            logps.append(torch.log_softmax(logits, -1).gather(-1, a[:, None])[:, 0] * mask[:, m])
+            logits_m = self.decode_step(dec, m, token)
+            a = torch.where(mask[:, m], (logits_m if deterministic else logits_m + noise[m]).argmax(-1), 0)
             actions.append(a)
-            token = self._token(a)[:, None]
-        return torch.stack(actions, 1), torch.stack(logps, 1), values * mask
+            logits.append(logits_m)
+            token = a + 1
+        actions_t = torch.stack(actions, 1)
+        logp = torch.log_softmax(torch.stack(logits, 1), -1).gather(-1, actions_t[..., None])[..., 0]
+        return actions_t, logp * mask, values * mask
 
     def act_uncached(self, obs, mask, deterministic: bool = True, generator: torch.Generator | None = None):
         """Reference: the whole decoder re-run on the prefix for every robot (slow)."""

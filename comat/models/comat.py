@@ -162,14 +162,42 @@ class Comat(AutoregressivePolicy):
         a_hat = self._embed_actions(e, self.self_attn(e, e, e, m))
         return self._decide(rep, self.cross_attn(rep, a_hat, a_hat, m), obs)
 
-    def decode_init(self, rep):
-        # Queries of θ² for every robot in one matmul; caches of both attentions.
-        N = rep.shape[1]
-        return KVCache(N), KVCache(N), self.cross_attn.project_query(rep)
+    def decode_init(self, rep, obs):
+        # θ¹'s token embedding and its attention's queries, keys and values depend on the token
+        # alone: tabulated for the A+1 tokens once per sequence, looked up per robot. θ²'s
+        # queries for every robot in one matmul; the actor's capability share likewise.
+        sa = self.self_attn
+        e = self.token(torch.eye(self.n_actions + 1, device=rep.device))[:, None]  # (A+1, 1, E)
+        k, v = sa._kv(e, e)
+        return _Decoding(
+            rep=rep, types=obs[..., 4 : 4 + self.layout.n_types], e=e, q=sa.project_query(e), k=k, v=v,
+            self_cache=KVCache(rep.shape[1]), cross_cache=KVCache(rep.shape[1]),
+            cross_q=self.cross_attn.project_query(rep), caps=self.heads.partial(self.layout.capabilities(obs)),
+        )
 
-    def decode_step(self, state, rep_m, token_m, obs_m, m: int):
-        self_cache, cross_cache, cross_q = state
-        e = self.token(token_m)
-        a_hat = self._embed_actions(e, self.self_attn.step(self.self_attn.project_query(e), e, e, self_cache))
-        attended = self.cross_attn.step(cross_q[:, :, m : m + 1], a_hat, a_hat, cross_cache)
-        return self._decide(rep_m, attended, obs_m)[:, 0]
+    def decode_step(self, st: _Decoding, m: int, token):
+        e = st.e[token]  # (B, 1, E)
+        attended = self.self_attn.step_projected(st.q[token], st.k[token], st.v[token], st.self_cache)
+        a_hat = self._embed_actions(e, attended)
+        attended = self.cross_attn.step(st.cross_q[:, :, m : m + 1], a_hat, a_hat, st.cross_cache)
+        h = self.ln3(st.rep[:, m : m + 1] + attended)
+        h = self.ln4(h + self.fc2(h))[:, 0]
+        return self.heads.finish(h, st.caps[:, m], st.types[:, m])
+
+
+@dataclass
+class _Decoding:
+    """Per-sequence state of cached decoding: representations (B, N, E), type one-hots
+    (B, N, T), token tables e (A+1, 1, E) and q/k/v (A+1, K, 1, E/K), the two attentions'
+    caches, θ²'s queries (B, K, N, E/K) and the actor's capability share (B, N, T·E)."""
+
+    rep: torch.Tensor
+    types: torch.Tensor
+    e: torch.Tensor
+    q: torch.Tensor
+    k: torch.Tensor
+    v: torch.Tensor
+    self_cache: KVCache
+    cross_cache: KVCache
+    cross_q: torch.Tensor
+    caps: torch.Tensor

@@ -118,7 +118,11 @@ class Attention(nn.Module):
         return self._merge(self._attend(self.project_query(query), k, v, mask))
 
     def step(self, q: torch.Tensor, key, value, cache: KVCache) -> torch.Tensor:
-        k, v = cache.append(*self._kv(key, value))
+        return self.step_projected(q, *self._kv(key, value), cache)
+
+    def step_projected(self, q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, cache: KVCache) -> torch.Tensor:
+        """:meth:`step` with the new key and value already projected and split, (B, H, 1, dh)."""
+        k, v = cache.append(k, v)
         return self._merge(self._attend(q, k, v))
 
 
@@ -140,6 +144,18 @@ class TypeHeads(nn.Module):
         self.b2 = nn.Parameter(torch.zeros(n_types, d_out))
 
     def forward(self, x: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
-        h = F.relu(self.first(x)).unflatten(-1, (self.n_types, self.hidden))  # (B, L, T, H)
-        out = torch.einsum("blth,tho->blto", h, self.w2) + self.b2  # (B, L, T, out)
+        return self._second(F.relu(self.first(x)), type_onehot)
+
+    def _second(self, h: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
+        h = h.unflatten(-1, (self.n_types, self.hidden))  # (..., T, H)
+        out = torch.einsum("...th,tho->...to", h, self.w2) + self.b2  # (..., T, out)
         return (out * type_onehot[..., None]).sum(-2)
+
+    def partial(self, c: torch.Tensor) -> torch.Tensor:
+        """The first layer's share of trailing input features c (..., C), bias included: for
+        inputs [h ‖ c] whose c is known before h (a decoder's capability vectors)."""
+        return F.linear(c, self.first.weight[:, -c.shape[-1] :], self.first.bias)
+
+    def finish(self, h: torch.Tensor, part: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
+        """``forward([h ‖ c], type_onehot)`` from h (..., D_h) and ``part = partial(c)``."""
+        return self._second(F.relu(F.linear(h, self.first.weight[:, : h.shape[-1]]) + part), type_onehot)

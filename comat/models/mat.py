@@ -109,12 +109,15 @@ class Mat(AutoregressivePolicy):
             x = block(x, rep, m)
         return self.head(x)
 
-    def decode_init(self, rep):
+    def decode_init(self, rep, obs):
+        # The embedded token depends on the token alone: tabulated once per sequence.
         N = rep.shape[1]
-        return [(KVCache(N), KVCache(N)) for _ in self.decoder]
+        table = self.dec_ln(self.action_encoder(torch.eye(self.n_actions + 1, device=rep.device)))[:, None]
+        return rep, table, [(KVCache(N), KVCache(N)) for _ in self.decoder]
 
-    def decode_step(self, state, rep_m, token_m, obs_m, m: int):
-        x = self.dec_ln(self.action_encoder(token_m))
-        for block, caches in zip(self.decoder, state):
-            x = block.step(x, rep_m, caches)
+    def decode_step(self, state, m: int, token):
+        rep, table, caches = state
+        x = table[token]  # (B, 1, E)
+        for block, block_caches in zip(self.decoder, caches):
+            x = block.step(x, rep[:, m : m + 1], block_caches)
         return self.head(x)[:, 0]
