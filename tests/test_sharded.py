@@ -99,6 +99,7 @@ def test_shard_by_shard_steps_equal_whole_steps():
             assert len(got[0]) == 5 and len(got[1]) == 6
             np.testing.assert_array_equal(np.concatenate([g[0] for g in got]), obs)
             np.testing.assert_array_equal(np.concatenate([g[1] for g in got]), rewards)
+            np.testing.assert_array_equal(np.concatenate([g[2] | g[3] for g in got]), terminated | truncated)
             np.testing.assert_array_equal(parts.agent_mask, info["agent_mask"])
             np.testing.assert_array_equal(got[1][5], whole.state()[2:])
         with pytest.raises(ValueError, match=r"actions of worker 1 must have shape \(3, "):
