@@ -4,7 +4,9 @@
 ``[a_i, b_i)`` in worker i (an ordinary ``VectorEnv`` with ``shard=(a_i, num_envs)``), so every
 environment draws its teams and starts from the same seed stream as in one ``VectorEnv`` of
 ``num_envs``. Per step the actions (B, N) are split, the workers step in parallel and the
-results are concatenated back in environment order.
+results are concatenated back in environment order. ``step_send(i, …)`` / ``step_recv(i)`` step
+one worker's environments asynchronously, so a trainer can compute one shard's next actions
+while the others simulate (:meth:`comat.rl.ppo.PPOTrainer.collect` does).
 
 Results are deterministic for a given ``workers``; they equal the single-process env's up to
 the safety QP's tolerance, not bit for bit (each worker solves one QP for its own teams, and

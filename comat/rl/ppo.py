@@ -5,7 +5,8 @@ One update:
 1. **Collect** ``rollout_steps`` vector steps from fresh episodes (every environment is reset at
    the start of a rollout, so an update depends only on the parameters and the random streams —
    which is what makes ``--resume`` continue exactly). Autoreset is same-step; where an episode
-   ended, the next state of *that* episode is the env's ``final_obs``.
+   ended, the next state of *that* episode is the env's ``final_obs``. With environments in
+   several worker processes, the policy acts on one shard while the others simulate.
 2. **Advantages** (eq. 9): joint GAE on V̂ = the mean of the robots' values, shared by the team's
    robots and normalized over the batch.
 3. **Critic** (eq. 6): each robot's value regresses (Huber) to r_t + γ·V̄(o'_t) from a *target*
