@@ -4,7 +4,7 @@ A checkpoint is a ``torch.save`` dict loaded with ``weights_only=True`` (tensors
 only, so loading one never runs code):
 
     format "comat-checkpoint", format_version, algo, task, config (the resolved run config),
-    versions (comat, torch, mujoco, numpy, python), progress (env steps, updates, …),
+    versions (comat, its git commit, torch, mujoco, numpy, python), progress (env steps, updates, …),
     trainer (the trainer's state: weights, optimizer, normalizers, generators, buffers),
     env_rngs (the vector environment's generators), torch_rng.
 
@@ -14,8 +14,10 @@ target, so a crash leaves either the old checkpoint or the new one, never half o
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
+import subprocess
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -33,13 +35,29 @@ class CheckpointError(ValueError):
     """A checkpoint that cannot be used: missing, corrupt, another format, algo or task."""
 
 
+@functools.cache
+def source_commit() -> str:
+    """The git commit of the comat source in use (``-dirty`` with uncommitted changes to tracked
+    files), or ``"unknown"`` outside a git checkout: which code made a run."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        def git(*args: str) -> str:
+            return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True,
+                                  timeout=10).stdout.strip()
+
+        commit = git("rev-parse", "HEAD")
+        return commit + ("-dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
 def versions() -> dict[str, str]:
     import mujoco
 
     from comat import __version__
 
-    return {"comat": __version__, "torch": str(torch.__version__), "mujoco": str(mujoco.__version__),
-            "numpy": str(np.__version__), "python": platform.python_version()}
+    return {"comat": __version__, "commit": source_commit(), "torch": str(torch.__version__),
+            "mujoco": str(mujoco.__version__), "numpy": str(np.__version__), "python": platform.python_version()}
 
 
 def to_plain(obj: Any) -> Any:
