@@ -7,6 +7,7 @@ Commands: ``train`` (COMAT, MAT, MAPPO, QMIX on HMT or PCP), ``demo``, ``bench``
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -124,8 +125,11 @@ def _cmd_report(args: argparse.Namespace) -> int:
     print(f"comat report: {result['runs']} runs ({', '.join(f'{k}: {v}' for k, v in result['groups'].items())})")
     print((out / "table1.md").read_text())
     for row in result["generalization"]:
+        if not row["seeds"]:
+            continue  # no runs of this algorithm on this task (yet)
+        retention = "undefined (train return <= 0)" if math.isnan(row["retention"]) else f"{100 * row['retention']:.0f}%"
         print(f"  {row['algo']:<6}{row['task']:<4} train return {row['train_return']:.2f}, unseen "
-              f"{row['test_return']:.2f}, retention {100 * row['retention']:.0f}%")
+              f"{row['test_return']:.2f}, retention {retention}")
     for name in result["files"]:
         print(f"wrote {out / name}")
     return 0
