@@ -121,6 +121,16 @@ def test_report_on_fake_runs(tmp_path):
         make_report([tmp_path / "results"], out)
 
 
+def test_report_cli_lists_only_pairs_with_runs(tmp_path, capsys):
+    _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0)
+    _fake_run(tmp_path / "b", "mat", "hmt", 0, -2.0, 3.0, 0.0)
+    assert main(["report", str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(tmp_path / "out")]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "train return" in line]
+    assert len(lines) == 2  # no line for algorithm/task pairs without runs
+    assert lines[0].split()[:2] == ["comat", "pcp"] and lines[0].endswith("retention 75%")
+    assert lines[1].split()[:2] == ["mat", "hmt"] and lines[1].endswith("retention undefined (train return <= 0)")
+
+
 # -- comat sweep ---------------------------------------------------------------------------------------
 def test_sweep_two_tiny_jobs_then_skip(tmp_path):
     from test_rl import TINY_MODELS
