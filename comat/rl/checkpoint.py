@@ -45,6 +45,8 @@ def source_commit() -> str:
             return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True,
                                   timeout=10).stdout.strip()
 
+        if Path(git("rev-parse", "--show-toplevel")).resolve() != root:
+            return "unknown"  # installed somewhere inside another repository (e.g. a venv in one)
         commit = git("rev-parse", "HEAD")
         return commit + ("-dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
     except (OSError, subprocess.SubprocessError):

@@ -21,7 +21,7 @@ Padded robot slots are masked out of every loss and statistic (mask (T, B, N)).
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import torch
@@ -156,8 +156,7 @@ class PPOTrainer:
         # Per part: current obs (b, N, D), mask (b, N), state (b, S) or None.
         cur = [(torch.as_tensor(obs_np[sl], dtype=torch.float32), torch.as_tensor(info["agent_mask"][sl]),
                 None if state_all is None else state_all[sl]) for sl in parts.slices]
-        keys = ("obs", "mask", "state", "actions", "logp", "values", "rewards", "terminated", "dones", "next_obs",
-                "next_mask", "next_state")
+        keys = tuple(f.name for f in fields(Rollout) if f.name != "episodes")
         steps: list[dict[str, list]] = [{k: [] for k in keys} for _ in parts.slices]
         episodes: list[dict] = []
         threads = torch.get_num_threads()
