@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from comat import constants as C
+from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.safety import SafetyFilter, SafetyInfo
@@ -33,15 +35,32 @@ def go_to_goal(points: np.ndarray, goals: np.ndarray, gain: float = 1.0, max_spe
 
 
 def waypoint_controller(
-    points: np.ndarray, goals: np.ndarray, poses: np.ndarray, gain: float = 4.0, projection_distance: float = 0.025
+    points: np.ndarray | None,
+    goals: np.ndarray,
+    poses: np.ndarray,
+    gain: float = 4.0,
+    projection_distance: float = 0.025,
+    cos_sin: tuple[np.ndarray, np.ndarray] | None = None,
+    max_speed: float = 0.2,
 ) -> np.ndarray:
     """The envs' nominal controller: :func:`go_to_goal` saturated to what the wheels can do.
 
     Saturating here (closed form, per robot) means the safety filter only changes commands for
-    safety: its intervention count measures the barrier, not the motors.
+    safety: its intervention count measures the barrier, not the motors. ``points`` None: the
+    projected points of ``poses``; ``cos_sin`` may pass the headings' cosines and sines.
     """
-    dxi = go_to_goal(points, goals, gain, max_speed=0.2)
-    return limit_to_wheels(dxi, poses, projection_distance)
+    c, s = cos_sin if cos_sin is not None else (np.cos(poses[..., 2]), np.sin(poses[..., 2]))
+    if kernels.enabled() and poses.ndim == 2:
+        profile = C.DEFAULT_PROFILE
+        k = profile.base_length_m / (2.0 * projection_distance)
+        v = profile.wheel_radius_m * profile.max_wheel_velocity_radps * 1.0
+        out = np.empty((poses.shape[0], 2))
+        kernels.waypoint_nominal(points, poses, c, s, goals, gain, projection_distance, max_speed, k, v, out)
+        return out
+    if points is None:
+        points = projected_points(poses, projection_distance)
+    dxi = go_to_goal(points, goals, gain, max_speed)
+    return limit_to_wheels(dxi, poses, projection_distance, cos_sin=(c, s))
 
 
 @dataclass
@@ -138,8 +157,9 @@ class SafeTeams:
         t0 = time.perf_counter()
         dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
         poses = self.world._poses  # read-only here; our own arrays skip the public checks
-        safe, info = self.filter._filter(poses, dxi)
-        events = self.world._step(si_to_uni(safe, poses, self.safety_config.projection_distance_m))
+        cos_sin = self.world.cos_sin()
+        safe, info = self.filter._filter(poses, dxi, cos_sin)
+        events = self.world._step(si_to_uni(safe, poses, self.safety_config.projection_distance_m, cos_sin))
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.timing.total = time.perf_counter() - t0

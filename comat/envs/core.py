@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from comat import kernels
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, waypoint_controller
 from comat.task_logic import waypoint_goals
@@ -167,12 +168,24 @@ class TaskCore:
         steps = task.step_lengths(self.caps)[self.mask]
         goals = waypoint_goals(safe.points, flat_actions, steps)
         starts = lay.offsets[:-1]
+        d = self.safety_config.projection_distance_m
         violations = np.zeros(self.B)
         s = self.stats.values
         last = self._last_contact
         for _ in range(self.ticks_per_step):
+            if kernels.enabled():
+                world = safe.world
+                nominal = waypoint_controller(None, goals, world._poses, WAYPOINT_GAIN, d, world.cos_sin())
+                events, info = safe.tick(nominal)
+                kernels.episode_stats_add(
+                    starts, events.robot_contact, last, events.boundary, events.actuator, events.collision_pairs,
+                    info.intervention, info.fallback, s["collisions"], s["boundary_exits"], s["actuator_errors"],
+                    s["robotarium_collisions"], s["interventions"], s["fallbacks"], violations,
+                )  # fmt: skip
+                last = events.robot_contact
+                continue
             world_poses = safe.world._poses
-            nominal = waypoint_controller(safe.points, goals, world_poses, WAYPOINT_GAIN, self.safety_config.projection_distance_m)
+            nominal = waypoint_controller(safe.points, goals, world_poses, WAYPOINT_GAIN, d)
             events, info = safe.tick(nominal)
             per_robot = np.stack([events.robot_contact & ~last, events.boundary, events.actuator], axis=1).astype(np.int64)
             last = events.robot_contact

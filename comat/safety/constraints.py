@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from comat import constants as C
+from comat import kernels
 from comat.sim.layout import TeamLayout, team_layout
 
 __all__ = ["OSQP_INFINITY", "Layout", "RowValues", "make_layout", "reference_rows", "row_values"]
@@ -94,6 +95,10 @@ class RowValues:
     def products(self, u: np.ndarray) -> np.ndarray:
         """A @ u for stacked velocities u (2R,), without forming A."""
         t = self.layout.teams
+        if kernels.enabled():
+            out = np.empty(self.layout.n_rows)
+            kernels.row_products(self.e, self.cos, self.sin, self.k, t.pair_i, t.pair_j, u, out)
+            return out
         U = u.reshape(-1, 2)
         du = np.take(U, t.pair_i, axis=0) - np.take(U, t.pair_j, axis=0)
         pair = -2.0 * (self.e[:, 0] * du[:, 0] + self.e[:, 1] * du[:, 1])
@@ -131,6 +136,9 @@ def row_values(
     and sines when the caller has them already.
     """
     t = layout.teams
+    c, s = cos_sin if cos_sin is not None else (np.cos(headings), np.sin(headings))
+    if kernels.enabled():
+        return _row_values_compiled(layout, points, cfg, profile, c, s)
     # np.take: several times faster than fancy indexing for these row gathers.
     e = np.take(points, t.pair_i, axis=0) - np.take(points, t.pair_j, axis=0)  # (P, 2)
     h = e[:, 0] ** 2 + e[:, 1] ** 2 - cfg.safety_distance_m**2
@@ -146,7 +154,21 @@ def row_values(
     upper[P : P + 2 * R] = (cfg.boundary_gain * ((x1 - m, y1 - m) - points)).ravel()
     lower[P + 2 * R :] = -speed
     upper[P + 2 * R :] = speed
-    c, s = cos_sin if cos_sin is not None else (np.cos(headings), np.sin(headings))
+    return RowValues(layout, e, c, s, k, lower, upper)
+
+
+def _row_values_compiled(layout: Layout, points: np.ndarray, cfg, profile: C.RobotProfile, c, s) -> RowValues:
+    t = layout.teams
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    m = cfg.boundary_margin_m
+    k, speed = _limits(cfg, profile)
+    e = np.empty((t.n_pairs, 2))
+    lower, upper = np.empty(layout.n_rows), np.empty(layout.n_rows)
+    lo, hi = np.array((x0 + m, y0 + m)), np.array((x1 - m, y1 - m))
+    kernels.row_bounds_into(
+        points, t.pair_i, t.pair_j, cfg.safety_distance_m**2, cfg.barrier_gain, -cfg.boundary_gain,
+        cfg.boundary_gain, lo, hi, speed, e, lower, upper,
+    )  # fmt: skip
     return RowValues(layout, e, c, s, k, lower, upper)
 
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from comat import constants as C
+from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
 from comat.safety.qp import BarrierQP
@@ -194,11 +195,11 @@ class SafetyFilter:
         return out, info
 
     # -- internals ------------------------------------------------------------------------------
-    def _filter(self, poses: np.ndarray, dxi: np.ndarray) -> tuple[np.ndarray, SafetyInfo]:
+    def _filter(self, poses: np.ndarray, dxi: np.ndarray, cos_sin=None) -> tuple[np.ndarray, SafetyInfo]:
         lay, cfg, full = self.layout, self.config, self._full
         t = lay.teams
         self.last_solver_s = self.last_solver_c_s = 0.0
-        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        c, s = cos_sin if cos_sin is not None else (np.cos(poses[:, 2]), np.sin(poses[:, 2]))
         points = poses[:, :2] + cfg.projection_distance_m * np.stack([c, s], axis=1)
         vals = full.rows(points, poses[:, 2], (c, s))
         self._data = None  # nonzeros of A, built only if a QP is solved
@@ -314,9 +315,13 @@ class SafetyFilter:
 
     def _info(self, vals, out, u_nom, Au, fallback, status) -> SafetyInfo:
         t = self.layout.teams
-        diff = out - u_nom
-        robot_norm2 = diff[0::2] ** 2 + diff[1::2] ** 2
-        intervention = np.sqrt(np.bincount(t.robot_team, weights=robot_norm2, minlength=t.n_teams))
+        if kernels.enabled():
+            robot_norm2, intervention = np.empty(t.n_robots), np.empty(t.n_teams)
+            kernels.interventions(out, u_nom, t.robot_team, t.n_teams, robot_norm2, intervention)
+        else:
+            diff = out - u_nom
+            robot_norm2 = diff[0::2] ** 2 + diff[1::2] ** 2
+            intervention = np.sqrt(np.bincount(t.robot_team, weights=robot_norm2, minlength=t.n_teams))
         return SafetyInfo(self, vals, Au, intervention, robot_norm2 > 0.0, fallback, status, self.last_solver_c_s)
 
     def _explain(self, teams: np.ndarray, points: np.ndarray, status: str) -> str:

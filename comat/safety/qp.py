@@ -10,6 +10,7 @@ import osqp
 import scipy.sparse as sp
 
 from comat import constants as C
+from comat import kernels
 from comat.config import SafetyConfig
 from comat.safety.constraints import Layout, RowValues, make_layout, row_values
 
@@ -76,10 +77,16 @@ class BarrierQP:
         """
         Au = vals.products(u) if Au is None else Au
         tol = self.config.feasibility_tol
+        t = self.layout.teams
+        wheel_factor = (1.0 + 1e-9) / self.config.wheel_speed_fraction
+        if kernels.enabled():
+            return kernels.team_violations(
+                Au, vals.lower, vals.upper, tol, t.n_pairs + 2 * t.n_robots, wheel_factor, self.layout.row_team, t.n_teams
+            )
         viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
         w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
         # (1e-9: rounding of commands exactly at the limit, as in kinematics.threshold_wheels)
-        limit = vals.upper[w] * ((1.0 + 1e-9) / self.config.wheel_speed_fraction)
+        limit = vals.upper[w] * wheel_factor
         viol[w] = np.abs(Au[w]) > limit
         return self.per_team(viol) == 0
 

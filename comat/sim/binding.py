@@ -41,11 +41,15 @@ class Binding:
         self.sensor_wall = np.array(
             [model.sensor_adr[model.sensor(f"robot_{i}/wall_contacts").id] for i in range(n_robots)]
         )
+        self.half_timestep = 0.5 * model.opt.timestep
+        self.wheel_geometry = (profile.wheel_radius_m, profile.base_length_m / 2.0)
+        """(wheel radius, half axle length) (m), as :meth:`ctrl` uses them."""
+        self.lateral_gain = 0.0
         if tier == "unicycle":
             gain = model.actuator_gainprm[model.actuator("robot_0/forward").id, 0]
             self._mass = float(model.body_subtreemass[self.body[0]])
             self._h_kv = model.opt.timestep * gain
-            self._lateral_gain = (2.0 * self._mass + self._h_kv) / self._h_kv
+            self.lateral_gain = (2.0 * self._mass + self._h_kv) / self._h_kv
         self.z0 = profile.wheel_radius_m
         self._pose_cols = (self.qadr[:, None] + np.arange(7 if tier == "wheels" else 3)).ravel()
 
@@ -85,16 +89,16 @@ class Binding:
         """
         v, w = dxu[..., 0], dxu[..., 1]
         if self.tier == "wheels":
-            r, half_l = self.profile.wheel_radius_m, self.profile.base_length_m / 2.0
+            r, half_l = self.wheel_geometry
             return np.stack([(v - half_l * w) / r, (v + half_l * w) / r], axis=-1).reshape(*dxu.shape[:-2], -1)
         # a = ωh/2 is tiny (|a| < 0.03 at 3.8 rad/s and h = 11 ms): series to machine precision
         # (next terms < 1e-14) instead of sin, cos and a division.
-        a = (0.5 * self.model.opt.timestep) * w
+        a = self.half_timestep * w
         a2 = a * a
         sinc_a = 1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0 - a2 / 5040.0))  # sin(a)/a
         cos_a = 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0 - a2 / 720.0))
         forward = v * sinc_a * cos_a
-        lateral = v * sinc_a * sinc_a * a * self._lateral_gain
+        lateral = v * sinc_a * sinc_a * a * self.lateral_gain
         return np.stack([forward, lateral, w], axis=-1).reshape(*dxu.shape[:-2], -1)
 
     # -- contacts ---------------------------------------------------------------------------------

@@ -6,6 +6,7 @@ speeds [left, right] (rad/s), ``dxi`` single-integrator velocities [ẋ, ẏ] (m
 row-per-robot: ``(..., N, 2)`` or ``(..., N, 3)``.
 
 These functions are the hot path and do not validate; the public classes that call them do.
+Flat (R, 2) float inputs go to their compiled twins in :mod:`comat.kernels` (same bits).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from comat import constants as C
+from comat import kernels
 
 __all__ = [
     "diff_to_uni",
@@ -57,6 +59,11 @@ def threshold_wheels(
             limit (the Robotarium's actuator error).
     """
     limit = profile.max_wheel_velocity_radps
+    if _flat(dxu):
+        out, overrun = np.empty_like(dxu), np.empty(dxu.shape[0], dtype=bool)
+        r, length = profile.wheel_radius_m, profile.base_length_m
+        any_over = kernels.threshold_wheels(dxu, r, length / 2.0, length, limit, 1.0 + 1e-9, out, overrun)
+        return (out if any_over else dxu), overrun
     dxdd = uni_to_diff(dxu, profile)
     # A hair of tolerance so that commands exactly at the limit (up to rounding) are not errors.
     over = np.abs(dxdd) > limit * (1.0 + 1e-9)
@@ -80,13 +87,23 @@ def uni_to_si(dxu: np.ndarray, poses: np.ndarray, distance: float = C.PROJECTION
     return np.stack([c * v - s * lw, s * v + c * lw], axis=-1)
 
 
-def si_to_uni(dxi: np.ndarray, poses: np.ndarray, distance: float = C.PROJECTION_DISTANCE_M) -> np.ndarray:
+def si_to_uni(
+    dxi: np.ndarray,
+    poses: np.ndarray,
+    distance: float = C.PROJECTION_DISTANCE_M,
+    cos_sin: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
     """Unicycle commands (..., N, 2) that move the projected point with velocity ``dxi``.
 
     The exact inverse of :func:`uni_to_si` (rps ``create_si_to_uni_mapping`` without its ω clip):
-    v = cosθ·ẋ + sinθ·ẏ, ω = (−sinθ·ẋ + cosθ·ẏ)/distance.
+    v = cosθ·ẋ + sinθ·ẏ, ω = (−sinθ·ẋ + cosθ·ẏ)/distance. ``cos_sin`` may pass the headings'
+    cosines and sines when the caller has them already.
     """
-    c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
+    c, s = cos_sin if cos_sin is not None else (np.cos(poses[..., 2]), np.sin(poses[..., 2]))
+    if _flat(dxi):
+        out = np.empty_like(dxi)
+        kernels.si_to_uni(dxi, c, s, distance, out)
+        return out
     dx, dy = dxi[..., 0], dxi[..., 1]
     return np.stack([c * dx + s * dy, (-s * dx + c * dy) / distance], axis=-1)
 
@@ -108,6 +125,10 @@ def limit_to_wheels(
     k = profile.base_length_m / (2.0 * distance)
     v = profile.wheel_radius_m * profile.max_wheel_velocity_radps * fraction
     c, s = cos_sin if cos_sin is not None else (np.cos(poses[..., 2]), np.sin(poses[..., 2]))
+    if _flat(dxi):
+        out = np.empty_like(dxi)
+        kernels.limit_to_wheels(dxi, c, s, k, v, out)
+        return out
     ux, uy = dxi[..., 0], dxi[..., 1]
     a = c * ux + s * uy
     b = c * uy - s * ux
@@ -120,6 +141,11 @@ def limit_to_wheels(
     a = np.copysign(pa, a)
     b = np.copysign(pb, b)
     return np.stack([c * a - s * b, s * a + c * b], axis=-1)
+
+
+def _flat(a: np.ndarray) -> bool:
+    """Whether a goes to the compiled twin: (R, 2) float64, kernels on."""
+    return kernels.enabled() and a.ndim == 2 and a.dtype == np.float64
 
 
 def euler_unicycle_step(poses: np.ndarray, dxu: np.ndarray, dt: float = C.CONTROL_DT_S) -> np.ndarray:

@@ -15,9 +15,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from comat import constants as C
+from comat import kernels
 from comat.sim.kinematics import projected_points
 
 __all__ = ["TickEvents", "Violations", "check_tick"]
+
+_BOUNDS = np.array(C.ARENA_BOUNDS_M, dtype=np.float64)  # x0, x1, y0, y1
 
 
 @dataclass
@@ -50,8 +53,19 @@ def check_tick(
     actuator: np.ndarray,
     robot_contact: np.ndarray,
     wall_contact: np.ndarray,
+    cos_sin: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> TickEvents:
-    """Robotarium checks on poses (R, 3) for the given same-team pairs (P,)."""
+    """Robotarium checks on poses (R, 3) for the given same-team pairs (P,).
+
+    ``cos_sin`` may pass the headings' cosines and sines when the caller has them already.
+    """
+    if kernels.enabled():
+        c, s = cos_sin if cos_sin is not None else (np.cos(poses[:, 2]), np.sin(poses[:, 2]))
+        R = poses.shape[0]
+        collision, boundary, pairs = np.empty(R, dtype=bool), np.empty(R, dtype=bool), np.empty(n_teams, np.int64)
+        d2 = C.COLLISION_DIAMETER_M**2
+        kernels.check_tick_into(poses, c, s, C.COLLISION_OFFSET_M, d2, pair_i, pair_j, pair_team, _BOUNDS, collision, pairs, boundary)
+        return TickEvents(collision, pairs, boundary, actuator, robot_contact, wall_contact)
     pts = projected_points(poses, C.COLLISION_OFFSET_M)
     d = np.take(pts, pair_i, axis=0) - np.take(pts, pair_j, axis=0)
     close = d[:, 0] ** 2 + d[:, 1] ** 2 <= C.COLLISION_DIAMETER_M**2
@@ -106,6 +120,13 @@ class Violations:
 
     def add(self, ev: TickEvents) -> None:
         self.collision_pairs += ev.collision_pairs
+        if kernels.enabled():
+            kernels.violations_add(
+                self.robot_team, ev.collision, ev.boundary, ev.actuator, ev.robot_contact, ev.wall_contact,
+                self._last_contact, self.collision_ticks, self.boundary_ticks, self.actuator_ticks,
+                self.contact_ticks, self.contact_onsets, self.wall_ticks,
+            )  # fmt: skip
+            return
         self.collision_ticks += ev.collision
         self.boundary_ticks += ev.boundary
         self.actuator_ticks += np.bincount(self.robot_team[ev.actuator], minlength=self.n_teams) > 0

@@ -62,6 +62,7 @@ class _TickMixin:
     profile: C.RobotProfile
     violations: Violations
     _poses: np.ndarray
+    _cos_sin: tuple[np.ndarray, np.ndarray] | None = None
     last_physics_s: float = 0.0
     """Wall time of the last tick's MuJoCo stepping calls alone (no Python around them)."""
 
@@ -79,9 +80,11 @@ class _TickMixin:
         """:meth:`step` without input checks, for commands made inside comat (the filter's)."""
         clipped, overrun = threshold_wheels(dxu, self.profile)
         poses, robot_contact, wall_contact = self._run_physics(clipped)
-        self._poses = poses
+        self._set_poses(poses)
         t = self.layout
-        ev = check_tick(poses, t.pair_i, t.pair_j, t.pair_team, t.n_teams, overrun, robot_contact, wall_contact)
+        ev = check_tick(
+            poses, t.pair_i, t.pair_j, t.pair_team, t.n_teams, overrun, robot_contact, wall_contact, self.cos_sin()
+        )
         self.violations.add(ev)
         self.ticks += 1
         return ev
@@ -90,6 +93,18 @@ class _TickMixin:
     def poses(self) -> np.ndarray:
         """(R, 3) current poses [x, y, θ] (a copy)."""
         return self._poses.copy()
+
+    def _set_poses(self, poses: np.ndarray) -> None:
+        """Replace (or, with ``poses=self._poses``, mark as rewritten) the current poses."""
+        self._poses = poses
+        self._cos_sin = None
+
+    def cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R,) cosines and sines of the current headings, computed once per tick (read-only)."""
+        if self._cos_sin is None:
+            th = self._poses[:, 2]
+            self._cos_sin = (np.cos(th), np.sin(th))
+        return self._cos_sin
 
 
 class World(_TickMixin):
@@ -116,7 +131,7 @@ class World(_TickMixin):
         self.layout = team_layout((n,))
         self.violations = Violations(self.layout.robot_team, 1)
         self.ticks = 0
-        self._poses = np.zeros((n, 3))
+        self._set_poses(np.zeros((n, 3)))
 
     @property
     def n_robots(self) -> int:
@@ -139,7 +154,7 @@ class World(_TickMixin):
         mujoco.mj_resetData(self.model, self.data)
         self.binding.write_poses(self.data.qpos, poses)
         mujoco.mj_forward(self.model, self.data)
-        self._poses = self.binding.poses(self.data.qpos)
+        self._set_poses(self.binding.poses(self.data.qpos))
         self.violations.reset()
         self.ticks = 0
 

@@ -1,0 +1,184 @@
+"""The compiled per-tick kernels equal their numpy references bit for bit."""
+
+import numpy as np
+import pytest
+
+from comat import constants as C
+from comat import kernels
+from comat.config import SafetyConfig, SimConfig
+from comat.control import waypoint_controller
+from comat.envs.vector import VectorEnv
+from comat.mjcf.scene import compiled_scene
+from comat.safety.constraints import make_layout, row_values
+from comat.safety.filter import SafetyFilter
+from comat.safety.qp import BarrierQP
+from comat.sim import BatchWorld
+from comat.sim.binding import Binding
+from comat.sim.kinematics import limit_to_wheels, si_to_uni, threshold_wheels
+from comat.sim.layout import team_layout
+from comat.sim.violations import Violations, check_tick
+from comat.task_logic import HMT, PCP
+
+
+def _both(fn):
+    """fn() with the kernels and with the numpy references."""
+    assert kernels.enabled()
+    fast = fn()
+    with kernels.reference_path():
+        slow = fn()
+    return fast, slow
+
+
+def _equal(fast, slow):
+    if isinstance(fast, tuple):
+        for f, s in zip(fast, slow, strict=True):
+            _equal(f, s)
+    else:
+        np.testing.assert_array_equal(fast, slow)
+        assert np.asarray(fast).dtype == np.asarray(slow).dtype
+
+
+def _poses(rng, R, spread=1.5):
+    p = rng.uniform([-spread, -0.9, -4 * np.pi], [spread, 0.9, 4 * np.pi], (R, 3))
+    p[:3, 2] = [np.pi, -np.pi, 2 * np.pi]  # wrap edge cases
+    return p
+
+
+def test_kinematics_twins(rng):
+    R = 200
+    poses = _poses(rng, R)
+    cs = (np.cos(poses[:, 2]), np.sin(poses[:, 2]))
+    dxi = rng.normal(0, 0.3, (R, 2))  # about half outside the wheel rhombus
+    _equal(*_both(lambda: limit_to_wheels(dxi, poses)))
+    _equal(*_both(lambda: limit_to_wheels(dxi, None, 0.03, C.DEFAULT_PROFILE, 0.8, cs)))
+    _equal(*_both(lambda: si_to_uni(dxi, poses, 0.025)))
+    dxu = np.stack([rng.normal(0, 0.2, R), rng.normal(0, 4, R)], axis=1)
+    fast, slow = _both(lambda: threshold_wheels(dxu))
+    assert slow[1].any() and not slow[1].all()
+    _equal(fast, slow)
+    small = dxu * 1e-3
+    fast, slow = _both(lambda: threshold_wheels(small))
+    assert fast[0] is small and slow[0] is small  # nothing clipped: the input itself
+    _equal(fast, slow)
+    goals = poses[:, :2] + rng.normal(0, 0.2, (R, 2))
+    points = poses[:, :2] + rng.normal(0, 0.01, (R, 2))
+    for pts in (None, points):
+        _equal(*_both(lambda pts=pts: waypoint_controller(pts, goals, poses, 4.0, 0.025, cs)))
+
+
+def test_filter_rows_products_feasibility_and_interventions(rng):
+    sizes = (3, 1, 5, 2, 4)
+    R = sum(sizes)
+    cfg = SafetyConfig()
+    lay = make_layout(sizes)
+    qp = BarrierQP(sizes, cfg, C.DEFAULT_PROFILE)
+    points = rng.uniform([-1.7, -1.1], [1.7, 1.1], (R, 2))  # some outside the margin
+    points[1] = points[0] + 0.05  # a pair inside the safety distance
+    th = rng.uniform(-np.pi, np.pi, R)
+    u = rng.normal(0, 0.15, 2 * R)
+    fast, slow = _both(lambda: row_values(lay, points, th, cfg, C.DEFAULT_PROFILE))
+    for name in ("e", "cos", "sin", "lower", "upper"):
+        _equal(getattr(fast, name), getattr(slow, name))
+    _equal(*_both(lambda: slow.products(u)))
+    ok = _both(lambda: qp.feasible(slow, u))
+    assert ok[1].any() and not ok[1].all()
+    _equal(*ok)
+    poses = np.concatenate([points, th[:, None]], axis=1)
+    f = SafetyFilter(sizes, cfg)
+    fast, slow = _both(lambda: f._filter(poses, u.reshape(-1, 2)))
+    _equal(fast[0], slow[0])
+    _equal(fast[1].intervention, slow[1].intervention)
+    _equal(fast[1].robot_intervened, slow[1].robot_intervened)
+    assert slow[1].robot_intervened.any()
+
+
+def test_checks_and_counters(rng):
+    sizes = (4, 2, 6)
+    t = team_layout(sizes)
+    R = t.n_robots
+    violations = [Violations(t.robot_team, t.n_teams) for _ in range(2)]
+    for tick in range(30):
+        poses = _poses(rng, R, spread=1.7)  # some outside the arena
+        poses[1, :2] = poses[0, :2] + 0.05  # a Robotarium collision
+        poses[2, 1] = -1.01  # outside the arena
+        flags = rng.random((3, R)) < 0.3
+        fast, slow = _both(
+            lambda p=poses, f=flags: check_tick(p, t.pair_i, t.pair_j, t.pair_team, t.n_teams, f[0], f[1], f[2])
+        )
+        for name in ("collision", "collision_pairs", "boundary", "actuator", "robot_contact", "wall_contact"):
+            _equal(getattr(fast, name), getattr(slow, name))
+        assert slow.collision_pairs.sum() >= 1 and slow.boundary.any()
+        violations[0].add(fast)
+        with kernels.reference_path():
+            violations[1].add(slow)
+        if tick == 10:
+            for v in violations:
+                v.reset(np.array([1]))
+    for name in ("collision_pairs", "collision_ticks", "boundary_ticks", "actuator_ticks", "contact_ticks", "contact_onsets", "wall_ticks"):
+        _equal(getattr(violations[0], name), getattr(violations[1], name))
+
+
+@pytest.mark.parametrize("tier", ["unicycle", "wheels"])
+def test_bindings_twins(tier, rng):
+    n, S = 3, 4
+    sim = SimConfig(tier=tier)
+    model = compiled_scene(n, tier, sim.profile, sim.resolved_substeps)
+    b = Binding(model, n, tier, C.PROFILES[sim.profile])
+    qpos = rng.normal(0, 1, (S + 2, model.nq))
+    qpos[:, b.qadr[0] + 2] = [np.pi, -np.pi, 3 * np.pi, 0.0, -5.0, 7.0]  # unicycle yaw edge cases
+    sims = np.array([0, 2, 3, 5])
+    rows = np.arange(S * n).reshape(S, n)[::-1].copy()  # robots scattered in reverse order
+    record = rng.choice([0.0, 0.0, 1.0, 2.0], (S, sim.resolved_substeps, model.nsensordata))
+    poses, robot, wall = np.zeros((S * n, 3)), np.empty(S * n, bool), np.empty(S * n, bool)
+    unicycle = tier == "unicycle"
+    kernels.group_read(record, qpos, sims, b.qadr, b.sensor_all, b.sensor_wall, rows, unicycle, poses, robot, wall)
+    ref_robot, ref_wall = b.contacts_any(record)
+    ref_poses = b.poses(qpos[sims])
+    np.testing.assert_array_equal(robot[rows], ref_robot)
+    np.testing.assert_array_equal(wall[rows], ref_wall)
+    np.testing.assert_array_equal(poses[rows][..., :2], ref_poses[..., :2])
+    if unicycle:
+        np.testing.assert_array_equal(poses[rows][..., 2], ref_poses[..., 2])
+    dxu = rng.normal(0, [0.2, 3.0], (S * n, 2))
+    ctrl = np.zeros((S + 2, model.nu))
+    kernels.group_ctrl(dxu, rows, sims, unicycle, b.half_timestep, b.lateral_gain, *b.wheel_geometry, ctrl)
+    np.testing.assert_array_equal(ctrl[sims], b.ctrl(dxu[rows]))
+    assert not ctrl[[1, 4]].any()  # other simulations untouched
+
+
+@pytest.mark.parametrize("tier", ["unicycle", "wheels"])
+def test_batch_world_ticks_equal(tier, rng):
+    def run():
+        r = np.random.default_rng(5)
+        world = BatchWorld((3, 5, 3, 2), SimConfig(tier=tier))
+        out = []
+        for sizes in ((3, 5, 3, 2), (2, 5, 4, 2)):
+            world.set_team_sizes(sizes)
+            starts = np.concatenate([np.stack([np.linspace(-1.2, 1.2, n), r.uniform(-0.6, 0.6, n), r.uniform(-3, 3, n)], 1) for n in sizes])
+            world.reset(starts)
+            for _ in range(15):
+                ev = world.step(r.uniform([-0.3, -5], [0.3, 5], (sum(sizes), 2)))
+                out += [world.poses, ev.actuator, ev.robot_contact, ev.wall_contact, ev.collision, ev.boundary]
+        return tuple(out)
+
+    _equal(*_both(run))
+
+
+@pytest.mark.parametrize(("task", "tier"), [(PCP, "unicycle"), (HMT, "unicycle"), (PCP, "wheels")])
+def test_env_rollouts_equal(task, tier):
+    def run():
+        env = VectorEnv(task(), 5, seed=3, tier=tier)
+        obs, _ = env.reset()
+        rng = np.random.default_rng(0)
+        out, ends = [obs], 0
+        for _ in range(90 if task is PCP else 12):
+            o, r, term, trunc, info = env.step(rng.integers(0, 5, (5, env.max_robots)))
+            out += [o, r, term, trunc, info["agent_mask"]]
+            if "episode" in info:
+                ends += 1
+                out += [info["episode"][k] for k in sorted(info["episode"])]
+        return tuple(out), ends
+
+    (fast, ends), (slow, _) = _both(run)
+    assert ends > 0 or task is HMT
+    _equal(fast, slow)
