@@ -34,6 +34,9 @@ class SimConfig:
     """Alternative to ``substeps``: the physics timestep, which must divide the 0.033 s tick."""
     profile: str = C.DEFAULT_PROFILE.name
     """Robot generation: ``"gritsbot"`` (axle 0.105 m) or ``"gternal"`` (axle 0.11 m)."""
+    threads: int = 1
+    """Threads MuJoCo's batch steps many teams on (1: the calling thread only). Results do not
+    depend on it: each team's simulation is independent."""
 
     def __post_init__(self) -> None:
         from comat.mjcf.robot import TIERS
@@ -42,6 +45,8 @@ class SimConfig:
             raise ValueError(f"SimConfig.tier must be one of {TIERS}, got {self.tier!r}")
         if self.profile not in C.PROFILES:
             raise ValueError(f"SimConfig.profile must be one of {sorted(C.PROFILES)}, got {self.profile!r}")
+        if isinstance(self.threads, bool) or not isinstance(self.threads, int) or self.threads < 1:
+            raise ValueError(f"SimConfig.threads must be a positive integer, got {self.threads!r}")
         if self.substeps is not None and (
             isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1
         ):

@@ -26,6 +26,7 @@ from numba import njit
 
 __all__ = [
     "check_tick_into",
+    "csc_matvec",
     "enabled",
     "episode_stats_add",
     "group_ctrl",
@@ -34,8 +35,11 @@ __all__ = [
     "limit_to_wheels",
     "reference_path",
     "row_bounds_into",
+    "row_data",
     "row_products",
     "si_to_uni",
+    "sub_problem_indices",
+    "take_teams",
     "team_violations",
     "threshold_wheels",
     "violations_add",
@@ -323,3 +327,86 @@ def episode_stats_add(
         interventions[b] += intervention[b] > 0
         fallbacks[b] += fallback[b]
         violations[b] += onsets + exits + collision_pairs[b]
+
+
+# -- safety filter QP stage ----------------------------------------------------------------------
+@_jit
+def row_data(e, c, s, k, out):
+    """:meth:`comat.safety.constraints.RowValues.data`: A's nonzeros in layout order into out."""
+    P, R = e.shape[0], c.size
+    for p in range(P):
+        out[4 * p] = -2.0 * e[p, 0]
+        out[4 * p + 1] = -2.0 * e[p, 1]
+        out[4 * p + 2] = 2.0 * e[p, 0]
+        out[4 * p + 3] = 2.0 * e[p, 1]
+    for q in range(4 * P, 4 * P + 2 * R):
+        out[q] = 1.0
+    w = 4 * P + 2 * R
+    for r in range(R):
+        out[w + 4 * r] = c[r] - k * s[r]
+        out[w + 4 * r + 1] = s[r] + k * c[r]
+        out[w + 4 * r + 2] = c[r] + k * s[r]
+        out[w + 4 * r + 3] = s[r] - k * c[r]
+
+
+@_jit
+def csc_matvec(indptr, indices, data, x, n_rows):
+    """A @ x for a CSC matrix, summed in scipy's order (column by column)."""
+    y = np.zeros(n_rows)
+    for j in range(indptr.size - 1):
+        for q in range(indptr[j], indptr[j + 1]):
+            y[indices[q]] += data[q] * x[j]
+    return y
+
+
+@_jit
+def take_teams(teams, robot_team, row_team, out, u, Au, Au_new):
+    """Adopt velocities u (2R,) and row products Au_new (rows,) for the teams flagged (B,)."""
+    for r in range(robot_team.size):
+        if teams[robot_team[r]]:
+            out[2 * r] = u[2 * r]
+            out[2 * r + 1] = u[2 * r + 1]
+    for q in range(row_team.size):
+        if teams[row_team[q]]:
+            Au[q] = Au_new[q]
+
+
+@_jit
+def sub_problem_indices(order, sizes, offsets, n_pairs, n_robots):
+    """Rows, columns and nonzeros of the full barrier QP that the teams ``order`` (k,) cover, in
+    the order of the sub-problem's own layout (teams in the given order).
+
+    Returns rows (n_rows_sub,), cols (2·R_sub,), nnz (nnz_sub,) as indices into the full
+    problem's rows, velocities and :meth:`RowValues.data` (see :mod:`comat.safety.constraints`).
+    """
+    P, R = n_pairs, n_robots
+    pair_start = np.zeros(sizes.size + 1, np.int64)
+    for b in range(sizes.size):
+        pair_start[b + 1] = pair_start[b] + sizes[b] * (sizes[b] - 1) // 2
+    sub_pairs = 0
+    sub_robots = 0
+    for b in order:
+        sub_pairs += sizes[b] * (sizes[b] - 1) // 2
+        sub_robots += sizes[b]
+    rows = np.empty(sub_pairs + 4 * sub_robots, np.int64)
+    cols = np.empty(2 * sub_robots, np.int64)
+    nnz = np.empty(4 * sub_pairs + 6 * sub_robots, np.int64)
+    p = 0
+    c = 0
+    for b in order:
+        for q in range(pair_start[b], pair_start[b + 1]):
+            rows[p] = q
+            for z in range(4):
+                nnz[4 * p + z] = 4 * q + z
+            p += 1
+        for q in range(2 * offsets[b], 2 * offsets[b + 1]):
+            cols[c] = q
+            c += 1
+    for m in range(2 * sub_robots):
+        q = cols[m]
+        rows[sub_pairs + m] = P + q  # boundary row of this velocity component
+        nnz[4 * sub_pairs + m] = 4 * P + q
+        rows[sub_pairs + 2 * sub_robots + m] = P + 2 * R + q  # wheel row
+        for z in range(2):
+            nnz[4 * sub_pairs + 2 * sub_robots + 2 * m + z] = 4 * P + 2 * R + 2 * q + z
+    return rows, cols, nnz

@@ -94,6 +94,30 @@ def test_filtered_batch_equals_filtered_single_teams(tier, rng):
     np.testing.assert_allclose(batch.poses, np.concatenate([s.poses for s in singles]), atol=1e-6)
 
 
+def test_filtered_sub_problems_equal_filtered_single_teams(rng):
+    """Teams needing the QP are solved together in a problem of size-ordered teams (a few of
+    many teams in conflict); each team still gets its own QP's commands."""
+    sizes = [3, 4, 2, 5, 3, 4, 2, 3, 5, 4, 3, 2, 4, 3, 5, 2]
+    starts = _starts(rng, sizes)
+    busy = {1, 3, 8, 12, 14}
+    goals = [-p[:, :2] if b in busy else p[:, :2] + 0.01 for b, p in enumerate(starts)]
+    batch = SafeTeams(sizes, SimConfig(tier="unicycle"))
+    batch.reset(np.concatenate(starts))
+    singles = [SafeTeams([n], SimConfig(tier="unicycle"), batched=False) for n in sizes]
+    for s, p in zip(singles, starts):
+        s.reset(p)
+    g_all = np.concatenate(goals)
+    for _ in range(120):
+        batch.tick(go_to_goal(batch.points, g_all))
+        for s, g in zip(singles, goals):
+            s.tick(go_to_goal(s.points, g))
+    sub_keys = [key for key, _ in batch._qp_cache if len(key) == 8]
+    assert sub_keys and all(list(key) == sorted(key) for key in sub_keys)  # sub-problems, size-ordered
+    assert sorted(np.flatnonzero(batch.interventions).tolist()) == sorted(busy)
+    # Each tick's answer is the optimum to ~1e-5 (qp.py), whatever shares the problem.
+    np.testing.assert_allclose(batch.poses, np.concatenate([s.poses for s in singles]), atol=5e-5)
+
+
 def test_team_sizes_change_between_episodes(rng):
     """Teams that keep their size keep running; a resized team restarts and equals a fresh world."""
     batch = BatchWorld([3, 2, 3])

@@ -80,16 +80,21 @@ def test_filter_rows_products_feasibility_and_interventions(rng):
     for name in ("e", "cos", "sin", "lower", "upper"):
         _equal(getattr(fast, name), getattr(slow, name))
     _equal(*_both(lambda: slow.products(u)))
+    _equal(*_both(lambda: slow.data()))
+    A = qp.matrix(slow.data())
+    _equal(*_both(lambda: qp._product(A, u)))
     ok = _both(lambda: qp.feasible(slow, u))
     assert ok[1].any() and not ok[1].all()
     _equal(*ok)
     poses = np.concatenate([points, th[:, None]], axis=1)
     f = SafetyFilter(sizes, cfg)
+    for order in ([3, 0, 4], [1, 2], [4, 3, 2, 1, 0]):
+        _equal(*_both(lambda order=order: f._sub_indices(np.array(order))))
     fast, slow = _both(lambda: f._filter(poses, u.reshape(-1, 2)))
     _equal(fast[0], slow[0])
     _equal(fast[1].intervention, slow[1].intervention)
     _equal(fast[1].robot_intervened, slow[1].robot_intervened)
-    assert slow[1].robot_intervened.any()
+    assert slow[1].robot_intervened.any() and slow[1].status != "skipped"  # the QP stage ran
 
 
 def test_checks_and_counters(rng):

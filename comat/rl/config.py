@@ -33,7 +33,7 @@ TIERS = ("wheels", "unicycle")
 PRESETS_DIR = Path(__file__).resolve().parents[2] / "train" / "configs"
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
-             "env_workers", "torch_threads")
+             "env_workers", "torch_threads", "physics_threads")
 _PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models")
 
 
@@ -60,6 +60,10 @@ class RunConfig:
     Part of the run's identity: results are exactly reproducible for the same value."""
     torch_threads: int = 2
     """``torch.set_num_threads`` for the learner (recorded: reductions depend on it)."""
+    physics_threads: int = 1
+    """Threads MuJoCo steps each environment process's teams on (:attr:`SimConfig.threads`;
+    results do not depend on it). More than 1 pays with ``env_workers: 1`` on an otherwise
+    idle machine: the learner's cores wait while the environments step."""
 
     @property
     def env_id(self) -> str:
@@ -131,7 +135,7 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
     if env_workers is not None:
         run["env_workers"] = env_workers
     defaults = {"total_env_steps": 4_000_000, "eval_every_steps": 200_000, "eval_episodes_per_team": 1,
-                "checkpoint_every_steps": 100_000, "env_workers": 1, "torch_threads": 2}
+                "checkpoint_every_steps": 100_000, "env_workers": 1, "torch_threads": 2, "physics_threads": 1}
     for key, default in defaults.items():
         value = run.setdefault(key, default)
         least = 0 if key == "eval_episodes_per_team" else 1

@@ -26,6 +26,7 @@ from pathlib import Path
 import torch
 
 import comat
+from comat.config import SimConfig
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
@@ -43,8 +44,9 @@ _SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "inte
 
 def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
     slots = None if config.algo == "comat" else BASELINE_ROBOTS
+    sim = SimConfig(tier=config.tier, threads=config.physics_threads)
     return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
-                              tier=config.tier, coalitions=coalitions, max_robots=slots)
+                              sim=sim, coalitions=coalitions, max_robots=slots)
 
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None) -> None:
@@ -112,7 +114,9 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
     if resume:
         data = load_checkpoint(ckpt_path, algo=config.algo, task=config.task)
         saved = RunConfig.from_dict(data["config"])
-        if saved.to_dict() != {**config.to_dict(), "total_env_steps": saved.total_env_steps}:
+        # Neither the step budget nor MuJoCo's thread count changes what the run computes.
+        same = {**config.to_dict(), "total_env_steps": saved.total_env_steps, "physics_threads": saved.physics_threads}
+        if saved.to_dict() != same:
             raise CheckpointError(f"checkpoint {str(ckpt_path)!r} was written with another configuration; "
                                   "resume it with its own (see config.yaml), or start a new run in another --out")
     if isinstance(rrd_every, bool) or not isinstance(rrd_every, int) or rrd_every < 0:

@@ -110,6 +110,10 @@ class RowValues:
     def data(self) -> np.ndarray:
         """Nonzeros of A in layout order."""
         c, s, k = self.cos, self.sin, self.k
+        if kernels.enabled():
+            out = np.empty(4 * self.e.shape[0] + 6 * c.size)
+            kernels.row_data(self.e, c, s, k, out)
+            return out
         pair = np.concatenate([-2.0 * self.e, 2.0 * self.e], axis=1).ravel()
         # ê ± k·n̂ with ê = (c, s), n̂ = (-s, c): rows (2r) for +, (2r+1) for -.
         wheel = np.stack([c - k * s, s + k * c, c + k * s, s - k * c], axis=1).ravel()

@@ -36,7 +36,7 @@ from comat.sim.kinematics import limit_to_wheels, si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
 
-_MAX_CACHED_QPS = 64
+_MAX_CACHED_QPS = 256
 
 
 class InfeasibleError(RuntimeError):
@@ -152,9 +152,10 @@ class SafetyFilter:
         self._all_cols = np.arange(2 * self.layout.teams.n_robots)
         lay = self.layout
         t = lay.teams
-        self._nnz_team = lay.row_team[lay.rows]
+        self._sizes = np.array(t.team_sizes, np.int64)
         kind = np.concatenate([np.zeros(t.n_pairs, np.int64), np.ones(2 * t.n_robots, np.int64), np.full(2 * t.n_robots, 2)])
         self._row_kind_team = kind * t.n_teams + lay.row_team  # (n_rows,) for counting per kind and team
+        self._nnz_kind_team = self._row_kind_team[lay.rows]
         self._teams_with_pairs = np.flatnonzero(np.array(t.team_sizes) > 1)
         self._pair_starts = np.searchsorted(t.pair_team, self._teams_with_pairs)
         self.last_solver_s = 0.0
@@ -239,6 +240,9 @@ class SafetyFilter:
     def _take(self, teams: np.ndarray, out, u, Au, Au_new) -> None:
         """Adopt ``u`` (and its row products) for the flagged teams."""
         lay = self.layout
+        if kernels.enabled():
+            kernels.take_teams(teams, lay.teams.robot_team, lay.row_team, out, u, Au, Au_new)
+            return
         robots = teams[lay.teams.robot_team]
         out[np.repeat(robots, 2)] = u[np.repeat(robots, 2)]
         rows = teams[lay.row_team]
@@ -269,19 +273,34 @@ class SafetyFilter:
         if k <= 1:
             return teams
         target = t.n_teams if 2 * k > t.n_teams else min(t.n_teams, -(-k // 8) * 8)
+        if target == t.n_teams:
+            return np.arange(t.n_teams)
         if target > k:
             teams = np.sort(np.concatenate([teams, np.flatnonzero(~need)[: target - k]]))
-        return teams
+        # Teams ordered by size: the problem depends only on how many teams of each size it
+        # holds (a few dozen problems to set up instead of hundreds).
+        return teams[np.argsort(self._sizes[teams], kind="stable")]
+
+    def _sub_indices(self, order: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The full problem's rows, columns and nonzeros of a sub-problem of teams ``order``."""
+        t = self.layout.teams
+        if kernels.enabled():
+            return kernels.sub_problem_indices(order, self._sizes, t.offsets, t.n_pairs, t.n_robots)
+        n = t.n_teams
+        rows = [np.flatnonzero(self._row_kind_team == kind * n + b) for kind in range(3) for b in order]
+        nnz = [np.flatnonzero(self._nnz_kind_team == kind * n + b) for kind in range(3) for b in order]
+        cols = [np.arange(2 * t.offsets[b], 2 * t.offsets[b + 1]) for b in order]
+        return np.concatenate(rows), np.concatenate(cols), np.concatenate(nnz)
 
     def _solve(self, teams: np.ndarray, vals, u_nom, config, x0):
         """Solve the QP of the given teams only.
 
-        The rows are those of the full problem restricted to the teams (same order). Warm
+        The rows are those of the full problem restricted to the teams, in the teams' order. Warm
         start: primal from the wheel projection, duals from each row's last solve (the set of
         teams in a problem changes from tick to tick, so the solver's own memory is not theirs).
 
         Returns:
-            x (2R_sub,), A_sub @ x, per-team trust (k,), the full-layout rows and the columns
+            x (2R_sub,), A_sub @ x, per-team trust (k,) in the order of ``teams``, the full-layout rows and the columns
             of ``u`` that the sub-problem covers, OSQP's status and the sub-problem's layout.
         """
         lay = self.layout
@@ -294,13 +313,10 @@ class SafetyFilter:
             self._duals = res.y
             rows, cols = self._all_rows, self._all_cols
         else:
-            in_qp = np.zeros(t.n_teams, dtype=bool)
-            in_qp[teams] = True
-            cols = np.flatnonzero(np.repeat(in_qp[t.robot_team], 2))
-            rows = np.flatnonzero(in_qp[lay.row_team])
-            qp = self._qp(tuple(t.team_sizes[b] for b in teams), config)
+            rows, cols, nnz = self._sub_indices(teams)
+            qp = self._qp(tuple(self._sizes[teams].tolist()), config)
             sub = _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
-            res = qp.solve(qp.matrix(self._data[in_qp[self._nnz_team]]), sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
+            res = qp.solve(qp.matrix(self._data[nnz]), sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
             self._duals[rows] = res.y
         self.last_solver_s += res.solver_wall_s
         self.last_solver_c_s += res.solver_c_s

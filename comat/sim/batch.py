@@ -63,12 +63,14 @@ class BatchWorld(_TickMixin):
     Args:
         team_sizes: robots per team.
         config: tier, substeps and profile, shared by all teams.
-        nthread: threads for MuJoCo's batch (1 = the calling thread only; 0 = all cores).
+        nthread: threads for MuJoCo's batch (1 = the calling thread only; 0 = all cores); None:
+            ``config.threads``.
     """
 
-    def __init__(self, team_sizes: Sequence[int], config: SimConfig | None = None, nthread: int = 1) -> None:
+    def __init__(self, team_sizes: Sequence[int], config: SimConfig | None = None, nthread: int | None = None) -> None:
         sizes = self._check_sizes(team_sizes)
         self.config = config or SimConfig()
+        nthread = self.config.threads if nthread is None else nthread
         self.profile = C.PROFILES[self.config.profile]
         self.substeps = self.config.resolved_substeps
         self._nthread = nthread
