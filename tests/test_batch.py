@@ -141,3 +141,19 @@ def test_team_sizes_change_between_episodes(rng):
     np.testing.assert_array_equal(batch.poses[3:7], ref.poses)
     with pytest.raises(ValueError, match=r"team_sizes must list 3 teams, got 2"):
         batch.set_team_sizes([3, 3])
+
+
+def test_physics_threads_do_not_change_results(rng):
+    sizes = [3, 5, 3, 4, 2, 5]
+    starts = np.concatenate(_starts(rng, sizes))
+    cmds = rng.uniform([-0.3, -5], [0.3, 5], (20, sum(sizes), 2))
+    poses = []
+    for threads in (1, 2):
+        world = BatchWorld(sizes, SimConfig(tier="wheels", threads=threads))
+        world.reset(starts)
+        for cmd in cmds:
+            world.step(cmd)
+        poses.append(world.poses)
+    np.testing.assert_array_equal(poses[0], poses[1])
+    with pytest.raises(ValueError, match=r"SimConfig.threads must be a positive integer, got 0"):
+        SimConfig(threads=0)
