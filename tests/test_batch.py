@@ -74,22 +74,27 @@ def test_reset_of_some_teams_leaves_the_others_running(rng):
         batch.reset(starts, teams=[2])
 
 
-@pytest.mark.parametrize("tier", TIERS)
-def test_filtered_batch_equals_filtered_single_teams(tier, rng):
-    """One block-diagonal QP for all teams gives each team the same commands as its own QP."""
-    sizes = [4, 4, 3]
-    starts = _starts(rng, sizes)
-    goals = [-s[:, :2] for s in starts]
+def _drive_filtered(sizes, starts, goals, tier, ticks=120):
+    """The teams driven to their goals through the filter, batched and each alone."""
     batch = SafeTeams(sizes, SimConfig(tier=tier))
     batch.reset(np.concatenate(starts))
     singles = [SafeTeams([n], SimConfig(tier=tier), batched=False) for n in sizes]
     for s, p in zip(singles, starts):
         s.reset(p)
     g_all = np.concatenate(goals)
-    for _ in range(120):
+    for _ in range(ticks):
         batch.tick(go_to_goal(batch.points, g_all))
         for s, g in zip(singles, goals):
             s.tick(go_to_goal(s.points, g))
+    return batch, singles
+
+
+@pytest.mark.parametrize("tier", TIERS)
+def test_filtered_batch_equals_filtered_single_teams(tier, rng):
+    """One block-diagonal QP for all teams gives each team the same commands as its own QP."""
+    sizes = [4, 4, 3]
+    starts = _starts(rng, sizes)
+    batch, singles = _drive_filtered(sizes, starts, [-s[:, :2] for s in starts], tier)
     assert batch.interventions.min() > 0
     np.testing.assert_allclose(batch.poses, np.concatenate([s.poses for s in singles]), atol=1e-6)
 
@@ -101,16 +106,7 @@ def test_filtered_sub_problems_equal_filtered_single_teams(rng):
     starts = _starts(rng, sizes)
     busy = {1, 3, 8, 12, 14}
     goals = [-p[:, :2] if b in busy else p[:, :2] + 0.01 for b, p in enumerate(starts)]
-    batch = SafeTeams(sizes, SimConfig(tier="unicycle"))
-    batch.reset(np.concatenate(starts))
-    singles = [SafeTeams([n], SimConfig(tier="unicycle"), batched=False) for n in sizes]
-    for s, p in zip(singles, starts):
-        s.reset(p)
-    g_all = np.concatenate(goals)
-    for _ in range(120):
-        batch.tick(go_to_goal(batch.points, g_all))
-        for s, g in zip(singles, goals):
-            s.tick(go_to_goal(s.points, g))
+    batch, singles = _drive_filtered(sizes, starts, goals, "unicycle")
     sub_keys = [key for key, _ in batch._qp_cache if len(key) == 8]
     assert sub_keys and all(list(key) == sorted(key) for key in sub_keys)  # sub-problems, size-ordered
     assert sorted(np.flatnonzero(batch.interventions).tolist()) == sorted(busy)
