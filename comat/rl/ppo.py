@@ -213,7 +213,8 @@ class PPOTrainer:
         mask = ro.mask.to(torch.float32)
         with torch.no_grad():
             v_hat = _team_value(self._denorm_values(ro.values), mask)
-            v_next_hat = _team_value(self._next_values(self.policy, ro), ro.next_mask.to(torch.float32))
+            next_values = self._next_values(self.policy, ro)
+            v_next_hat = _team_value(next_values, ro.next_mask.to(torch.float32))
             adv, _ = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
             adv = (adv - adv.mean()) / (adv.std() + 1e-8)
         flat = {
@@ -231,7 +232,10 @@ class PPOTrainer:
                 # Refresh V̄ and its TD targets r + γ·V̄(o'); update the normalizer on them.
                 self.target.load_state_dict(self.policy.state_dict())
                 with torch.no_grad():
-                    raw = ro.rewards[..., None] + cfg.gamma * self._next_values(self.target, ro)
+                    # In epoch 0 the target is the policy that gave next_values: no second pass.
+                    if epoch:
+                        next_values = self._next_values(self.target, ro)
+                    raw = ro.rewards[..., None] + cfg.gamma * next_values
                     self.value_norm.update(raw[ro.mask])
                     targets = self.value_norm.normalize(raw).reshape(T * B, N)
             order = self.rng.permutation(T * B)
