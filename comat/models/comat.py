@@ -170,9 +170,9 @@ class Comat(AutoregressivePolicy):
         e = self.token(torch.eye(self.n_actions + 1, device=rep.device))[:, None]  # (A+1, 1, E)
         k, v = sa._kv(e, e)
         return _Decoding(
-            rep=rep, types=obs[..., 4 : 4 + self.layout.n_types], e=e, q=sa.project_query(e), k=k, v=v,
-            self_cache=KVCache(rep.shape[1]), cross_cache=KVCache(rep.shape[1]),
-            cross_q=self.cross_attn.project_query(rep), caps=self.heads.partial(self.layout.capabilities(obs)),
+            rep=rep, types=obs[..., 4 : 4 + self.layout.n_types], e=e, q=sa.step_query(e), k=k, v=v,
+            self_cache=KVCache(), cross_cache=KVCache(),
+            cross_q=self.cross_attn.step_query(rep), caps=self.heads.partial(self.layout.capabilities(obs)),
         )
 
     def decode_step(self, st: _Decoding, m: int, token):
@@ -189,7 +189,8 @@ class Comat(AutoregressivePolicy):
 class _Decoding:
     """Per-sequence state of cached decoding: representations (B, N, E), type one-hots
     (B, N, T), token tables e (A+1, 1, E) and q/k/v (A+1, K, 1, E/K), the two attentions'
-    caches, θ²'s queries (B, K, N, E/K) and the actor's capability share (B, N, T·E)."""
+    caches, θ²'s queries (B, K, N, E/K) and the actor's capability share (B, N, T·E); queries
+    come scaled (:meth:`Attention.step_query`)."""
 
     rep: torch.Tensor
     types: torch.Tensor

@@ -40,31 +40,32 @@ def causal(length: int, device=None) -> torch.Tensor:
 
 
 class KVCache:
-    """Keys and values (B, H, L, dh) of the positions decoded so far, written one step at a time
-    into buffers sized for the whole sequence (no reallocation per step)."""
+    """Keys and values (B, H, L, dh) of the positions decoded so far, one step at a time.
 
-    def __init__(self, length: int) -> None:
-        self.length, self.n = length, 0
+    Grown by concatenation: for the few positions of a team that is 2 PyTorch calls per step,
+    where writing into preallocated buffers and slicing them back takes 6 (each call costs
+    more than the copy)."""
+
+    def __init__(self) -> None:
+        self.n = 0
         self.k: torch.Tensor | None = None
         self.v: torch.Tensor | None = None
 
     def append(self, k: torch.Tensor, v: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if self.k is None:
-            B, H, _, dh = k.shape
-            self.k = k.new_empty(B, H, self.length, dh)
-            self.v = v.new_empty(B, H, self.length, dh)
-        self.k[:, :, self.n : self.n + 1] = k
-        self.v[:, :, self.n : self.n + 1] = v
+            self.k, self.v = k, v
+        else:
+            self.k, self.v = torch.cat([self.k, k], 2), torch.cat([self.v, v], 2)
         self.n += 1
-        return self.k[:, :, : self.n], self.v[:, :, : self.n]
+        return self.k, self.v
 
 
 class Attention(nn.Module):
     """Multi-head scaled dot-product attention, with an incremental (cached) mode.
 
     ``forward(query (B, Lq, D), key (B, Lk, D), value (B, Lk, D), mask (B|1, Lq, Lk))``.
-    ``step(q (B, 1, D), key (B, 1, D), value (B, 1, D), cache)`` takes an already projected query
-    (:meth:`project_query`, which callers may compute for all positions at once), appends the
+    ``step(q (B, H, 1, dh), key (B, 1, D), value (B, 1, D), cache)`` takes a query from
+    :meth:`step_query` (which callers may compute for all positions at once), appends the
     new key and value to ``cache`` and attends over everything cached: equal to the causal
     forward pass at that position.
     """
@@ -96,16 +97,24 @@ class Attention(nn.Module):
         return self._split(k), self._split(v)
 
     @staticmethod
-    def _attend(q, k, v, mask: torch.Tensor | None = None) -> torch.Tensor:
+    def _attend(q, k, v, mask: torch.Tensor | None = None, scaled: bool = False) -> torch.Tensor:
         # Plain matmul–softmax–matmul: for a few robots it is several times cheaper on the CPU
-        # than the fused kernel, and the cached and full passes do the same arithmetic.
-        scores = (q @ k.transpose(-2, -1)) * (q.shape[-1] ** -0.5)
+        # than the fused kernel. ``scaled``: q already carries the 1/√dh (cached steps).
+        scores = q @ k.transpose(-2, -1)
+        if not scaled:
+            scores = scores * (q.shape[-1] ** -0.5)
         if mask is not None:
             scores = scores.masked_fill(~mask, float("-inf"))
         return torch.softmax(scores, dim=-1) @ v
 
     def project_query(self, query: torch.Tensor) -> torch.Tensor:
         return self._split(self.q(query))
+
+    def step_query(self, query: torch.Tensor) -> torch.Tensor:
+        """Queries (B, H, L, dh) for :meth:`step`: projected, split and scaled by 1/√dh (callers
+        may compute them for all positions, or all tokens, at once)."""
+        q = self.project_query(query)
+        return q * (q.shape[-1] ** -0.5)
 
     def forward(self, query, key, value, mask: torch.Tensor | None = None) -> torch.Tensor:
         k, v = self._kv(key, value)
@@ -123,7 +132,8 @@ class Attention(nn.Module):
     def step_projected(self, q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, cache: KVCache) -> torch.Tensor:
         """:meth:`step` with the new key and value already projected and split, (B, H, 1, dh)."""
         k, v = cache.append(k, v)
-        return self._merge(self._attend(q, k, v))
+        x = self._attend(q, k, v, scaled=True)  # (B, H, 1, dh): already in (B, 1, H·dh) order
+        return self.o(x.reshape(x.shape[0], 1, -1))
 
 
 class TypeHeads(nn.Module):

@@ -63,8 +63,8 @@ class _DecodeBlock(nn.Module):
 
     def step(self, x, rep_m, caches):
         self_cache, cross_cache = caches
-        x = self.ln1(x + self.self_attn.step(self.self_attn.project_query(x), x, x, self_cache))
-        x = self.ln2(rep_m + self.cross_attn.step(self.cross_attn.project_query(rep_m), x, x, cross_cache))
+        x = self.ln1(x + self.self_attn.step(self.self_attn.step_query(x), x, x, self_cache))
+        x = self.ln2(rep_m + self.cross_attn.step(self.cross_attn.step_query(rep_m), x, x, cross_cache))
         return self.ln3(x + self.mlp(x))
 
 
@@ -111,9 +111,8 @@ class Mat(AutoregressivePolicy):
 
     def decode_init(self, rep, obs):
         # The embedded token depends on the token alone: tabulated once per sequence.
-        N = rep.shape[1]
         table = self.dec_ln(self.action_encoder(torch.eye(self.n_actions + 1, device=rep.device)))[:, None]
-        return rep, table, [(KVCache(N), KVCache(N)) for _ in self.decoder]
+        return rep, table, [(KVCache(), KVCache()) for _ in self.decoder]
 
     def decode_step(self, state, m: int, token):
         rep, table, caches = state
