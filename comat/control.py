@@ -15,13 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.sim import BatchWorld, World
-from comat.sim.kinematics import limit_to_wheels, projected_points, si_to_uni
+from comat.sim.kinematics import limit_to_wheels, projected_points, si_to_uni, wheel_rhombus
 from comat.sim.violations import TickEvents
 
 __all__ = ["SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
@@ -51,9 +50,7 @@ def waypoint_controller(
     """
     c, s = cos_sin if cos_sin is not None else (np.cos(poses[..., 2]), np.sin(poses[..., 2]))
     if kernels.enabled() and poses.ndim == 2:
-        profile = C.DEFAULT_PROFILE
-        k = profile.base_length_m / (2.0 * projection_distance)
-        v = profile.wheel_radius_m * profile.max_wheel_velocity_radps * 1.0
+        k, v = wheel_rhombus(projection_distance)
         out = np.empty((poses.shape[0], 2))
         kernels.waypoint_nominal(points, poses, c, s, goals, gain, projection_distance, max_speed, k, v, out)
         return out

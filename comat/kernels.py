@@ -166,9 +166,9 @@ def group_ctrl(dxu, rows, sims, unicycle, half_h, lateral_gain, wheel_radius, ha
 def group_read(record, qpos, sims, qadr, sensor_all, sensor_wall, rows, unicycle, poses, robot, wall):
     """Contacts in any substep and poses of one group, scattered to the flat rows (S, n).
 
-    record (S, substeps, nsensordata) of simulations ``sims`` (S,); qpos (nsim, nq). Unicycle tier: poses[:, 2] gets the yaw
-    wrapped to (-π, π] as :meth:`Binding.poses`; wheels tier: the caller computes the yaw from
-    the quaternion (arctan2 stays in numpy), and poses[:, 2] is left untouched.
+    record (S, substeps, nsensordata) of simulations ``sims`` (S,); qpos (nsim, nq). Unicycle
+    tier: poses[:, 2] gets the yaw wrapped to (-π, π] as :meth:`Binding.poses`; wheels tier:
+    the caller computes the yaw from the quaternion (arctan2 stays in numpy).
     """
     two_pi = 2.0 * math.pi
     for i in range(rows.shape[0]):

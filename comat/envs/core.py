@@ -173,30 +173,10 @@ class TaskCore:
         s = self.stats.values
         last = self._last_contact
         for _ in range(self.ticks_per_step):
-            if kernels.enabled():
-                world = safe.world
-                nominal = waypoint_controller(None, goals, world._poses, WAYPOINT_GAIN, d, world.cos_sin())
-                events, info = safe.tick(nominal)
-                kernels.episode_stats_add(
-                    starts, events.robot_contact, last, events.boundary, events.actuator, events.collision_pairs,
-                    info.intervention, info.fallback, s["collisions"], s["boundary_exits"], s["actuator_errors"],
-                    s["robotarium_collisions"], s["interventions"], s["fallbacks"], violations,
-                )  # fmt: skip
-                last = events.robot_contact
-                continue
-            world_poses = safe.world._poses
-            nominal = waypoint_controller(safe.points, goals, world_poses, WAYPOINT_GAIN, d)
-            events, info = safe.tick(nominal)
-            per_robot = np.stack([events.robot_contact & ~last, events.boundary, events.actuator], axis=1).astype(np.int64)
+            world = safe.world
+            events, info = safe.tick(waypoint_controller(None, goals, world._poses, WAYPOINT_GAIN, d, world.cos_sin()))
+            self._count_tick(starts, events, info, last, violations)
             last = events.robot_contact
-            counts = np.add.reduceat(per_robot, starts, axis=0)  # (B, 3)
-            s["collisions"] += counts[:, 0]
-            s["boundary_exits"] += counts[:, 1]
-            s["actuator_errors"] += counts[:, 2] > 0
-            s["robotarium_collisions"] += events.collision_pairs
-            s["interventions"] += info.intervention > 0
-            s["fallbacks"] += info.fallback
-            violations += counts[:, 0] + counts[:, 1] + events.collision_pairs
         self._last_contact = last
         poses = self.poses()
         raw = task.update(self.state, poses, self.type_ids, self.caps, self.mask)
@@ -214,6 +194,27 @@ class TaskCore:
         s["completion"] = task.completion(self.state)
         s["success"] = terminated.astype(float)
         return StepResult(rewards, terms, terminated, truncated)
+
+    def _count_tick(self, starts: np.ndarray, events, info, last: np.ndarray, violations: np.ndarray) -> None:
+        """Add one tick's events to the episode counters and to this env step's violations (B,);
+        ``last``: the robots' contact flags of the tick before (onsets are counted)."""
+        s = self.stats.values
+        if kernels.enabled():
+            kernels.episode_stats_add(
+                starts, events.robot_contact, last, events.boundary, events.actuator, events.collision_pairs,
+                info.intervention, info.fallback, s["collisions"], s["boundary_exits"], s["actuator_errors"],
+                s["robotarium_collisions"], s["interventions"], s["fallbacks"], violations,
+            )  # fmt: skip
+            return
+        per_robot = np.stack([events.robot_contact & ~last, events.boundary, events.actuator], axis=1).astype(np.int64)
+        counts = np.add.reduceat(per_robot, starts, axis=0)  # (B, 3)
+        s["collisions"] += counts[:, 0]
+        s["boundary_exits"] += counts[:, 1]
+        s["actuator_errors"] += counts[:, 2] > 0
+        s["robotarium_collisions"] += events.collision_pairs
+        s["interventions"] += info.intervention > 0
+        s["fallbacks"] += info.fallback
+        violations += counts[:, 0] + counts[:, 1] + events.collision_pairs
 
     def episode_metrics(self, b: int) -> dict[str, float]:
         """The paper's metrics for env b's episode so far.

@@ -47,7 +47,6 @@ class KVCache:
     more than the copy)."""
 
     def __init__(self) -> None:
-        self.n = 0
         self.k: torch.Tensor | None = None
         self.v: torch.Tensor | None = None
 
@@ -56,7 +55,6 @@ class KVCache:
             self.k, self.v = k, v
         else:
             self.k, self.v = torch.cat([self.k, k], 2), torch.cat([self.v, v], 2)
-        self.n += 1
         return self.k, self.v
 
 

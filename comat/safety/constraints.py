@@ -24,6 +24,7 @@ import numpy as np
 
 from comat import constants as C
 from comat import kernels
+from comat.sim.kinematics import wheel_rhombus
 from comat.sim.layout import TeamLayout, team_layout
 
 __all__ = ["OSQP_INFINITY", "Layout", "RowValues", "make_layout", "reference_rows", "row_values"]
@@ -121,9 +122,7 @@ class RowValues:
 
 
 def _limits(cfg, profile: C.RobotProfile) -> tuple[float, float]:
-    k = profile.base_length_m / (2.0 * cfg.projection_distance_m)
-    speed = profile.wheel_radius_m * profile.max_wheel_velocity_radps * cfg.wheel_speed_fraction
-    return k, speed
+    return wheel_rhombus(cfg.projection_distance_m, profile, cfg.wheel_speed_fraction)
 
 
 def row_values(

@@ -25,6 +25,7 @@ __all__ = [
     "threshold_wheels",
     "uni_to_diff",
     "uni_to_si",
+    "wheel_rhombus",
     "wrap_angle",
 ]
 
@@ -108,6 +109,13 @@ def si_to_uni(
     return np.stack([c * dx + s * dy, (-s * dx + c * dy) / distance], axis=-1)
 
 
+def wheel_rhombus(distance: float, profile: C.RobotProfile = C.DEFAULT_PROFILE, fraction: float = 1.0) -> tuple[float, float]:
+    """(k, v) of the per-wheel limit seen at the projected point: |a| + k|b| <= v for velocity
+    components a along and b across the heading, k = l_axle / (2·distance) (1), v =
+    r·φ̇_max·fraction (m/s)."""
+    return profile.base_length_m / (2.0 * distance), profile.wheel_radius_m * profile.max_wheel_velocity_radps * fraction
+
+
 def limit_to_wheels(
     dxi: np.ndarray,
     poses: np.ndarray,
@@ -122,8 +130,7 @@ def limit_to_wheels(
     |a| + k|b| <= r·φ̇_max·fraction (a, b: components along and across the heading,
     k = l_axle / (2·distance)); points outside are projected onto it (closed form).
     """
-    k = profile.base_length_m / (2.0 * distance)
-    v = profile.wheel_radius_m * profile.max_wheel_velocity_radps * fraction
+    k, v = wheel_rhombus(distance, profile, fraction)
     c, s = cos_sin if cos_sin is not None else (np.cos(poses[..., 2]), np.sin(poses[..., 2]))
     if _flat(dxi):
         out = np.empty_like(dxi)
