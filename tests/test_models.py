@@ -1,10 +1,14 @@
-"""Models: autoregressive decoding agrees with teacher forcing and with itself uncached; padding
-is invisible; per-type sharing; QMIX's mixer is monotonic; graphs match the environment's."""
+"""Models: autoregressive decoding (torch step loop and compiled kernels) agrees with teacher
+forcing and with itself uncached; padding is invisible; per-type sharing; QMIX's mixer is
+monotonic; graphs match the environment's."""
+
+import contextlib
 
 import numpy as np
 import pytest
 import torch
 
+from comat import kernels
 from comat.envs import make_vec_env
 from comat.models.comat import Comat, ComatConfig
 from comat.models.features import ObsLayout, edge_features
@@ -36,26 +40,61 @@ def models():
             "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True))}
 
 
+def decoding(path: str):
+    """``act``'s decoding path: the torch step loop, or the compiled kernels (which it takes
+    when no gradient is recorded)."""
+    return kernels.reference_path() if path == "loop" else torch.no_grad()
+
+
+class _Spy:
+    """Counts a model's torch decoder steps (the compiled path takes none)."""
+
+    def __init__(self, model):
+        self.steps, self.model, self.step = 0, model, model.decode_step
+
+    def __call__(self, *args):
+        self.steps += 1
+        return self.step(*args)
+
+
+@contextlib.contextmanager
+def counting_steps(model):
+    spy = _Spy(model)
+    model.decode_step = spy
+    try:
+        yield spy
+    finally:
+        del model.decode_step
+
+
+PATHS = ["loop", "compiled"]
+
+
+@pytest.mark.parametrize("path", PATHS)
 @pytest.mark.parametrize("name", ["comat", "comat_options", "mat"])
 @pytest.mark.parametrize("n", list(range(1, 17)))
-def test_autoregressive_logps_equal_teacher_forced(name, n):
+def test_autoregressive_logps_equal_teacher_forced(name, n, path):
     model = models()[name]
     obs, mask = fake_obs(4, n, seed=n)
     gen = torch.Generator().manual_seed(n)
-    actions, logp, values = model.act(obs, mask, generator=gen)
+    with decoding(path), counting_steps(model) as spy:
+        actions, logp, values = model.act(obs, mask, generator=gen)
+    assert spy.steps == (n if path == "loop" else 0)
     logp_tf, entropy, values_tf = model.evaluate_actions(obs, mask, actions)
     torch.testing.assert_close(logp, logp_tf, atol=1e-5, rtol=0)
     torch.testing.assert_close(values, values_tf, atol=1e-6, rtol=0)
     assert (entropy > 0).all() and (logp < 0).all()
 
 
+@pytest.mark.parametrize("path", PATHS)
 @pytest.mark.parametrize("name", ["comat", "comat_options", "mat"])
 @pytest.mark.parametrize("n", [1, 3, 8, 16])
-def test_cached_decoding_equals_uncached(name, n):
+def test_cached_decoding_equals_uncached(name, n, path):
     model = models()[name]
     obs, mask = fake_obs(5, n, seed=100 + n, n_real=[n, max(1, n - 1), n, 1, max(1, n // 2)])
     for deterministic in (True, False):
-        a1, l1, v1 = model.act(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
+        with decoding(path):
+            a1, l1, v1 = model.act(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
         a2, l2, v2 = model.act_uncached(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
         assert torch.equal(a1, a2)
         torch.testing.assert_close(l1, l2, atol=1e-5, rtol=0)
@@ -84,10 +123,39 @@ def test_padding_slots_change_nothing(name):
     torch.testing.assert_close(e1 * mask, e2[:, :5] * mask, atol=1e-6, rtol=0)
     torch.testing.assert_close(v1, v2[:, :5], atol=1e-6, rtol=0)
     assert (l2[:, 5:] == 0).all() and (v2[:, 5:] == 0).all()
-    g1, g2 = torch.Generator().manual_seed(4), torch.Generator().manual_seed(4)
-    a1, _, _ = model.act(obs, mask, state, deterministic=True, generator=g1)
-    a2, _, _ = model.act(obs_p, mask_p, state, deterministic=True, generator=g2)
-    assert torch.equal(a1, a2[:, :5]) and (a2[:, 5:] == 0).all()
+    # Sampled too for the autoregressive models: their noise is drawn robot-major (N, B, A), so
+    # padding slots at the end leave the real robots' draws unchanged.
+    for path in PATHS:
+        for deterministic in (True, False) if name != "mappo" else (True,):
+            g1, g2 = torch.Generator().manual_seed(4), torch.Generator().manual_seed(4)
+            with decoding(path):
+                a1, _, _ = model.act(obs, mask, state, deterministic=deterministic, generator=g1)
+                a2, _, _ = model.act(obs_p, mask_p, state, deterministic=deterministic, generator=g2)
+            assert torch.equal(a1, a2[:, :5]) and (a2[:, 5:] == 0).all()
+
+
+@pytest.mark.parametrize("name", ["comat", "comat_heads", "mat", "mat_deep"])
+@pytest.mark.parametrize("batch", [1, 7, 64])
+def test_compiled_decoding_equals_the_torch_loop(name, batch):
+    """Same actions and logits (to float32 rounding) as the step-by-step torch reference, for
+    greedy and sampled decoding, teams of mixed sizes with padding, other head/block counts."""
+    torch.manual_seed(1)
+    layout = ObsLayout.for_task(MaterialTransport())  # three robot types
+    model = {"comat": Comat(layout), "comat_heads": Comat(layout, ComatConfig(embed=48, heads=3)),
+             "mat": Mat(layout, MatConfig(max_robots=64)),
+             "mat_deep": Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64))}[name]
+    for p in model.parameters():  # away from the near-zero initial heads: logits of order 1
+        p.data.add_(0.3 * torch.randn_like(p))
+    n_real = torch.randint(1, 10, (batch,), generator=torch.Generator().manual_seed(batch))
+    obs, mask = fake_obs(batch, 9, layout, seed=batch, n_real=n_real)
+    with torch.no_grad():
+        rep, _ = model.encode(obs, mask)
+        for noise in (None, -torch.log(-torch.log(torch.rand(9, batch, 5).clamp(1e-20, 1.0)))):
+            a_loop, logits_loop = model._decode_loop(rep, obs, mask, noise)
+            a_fast, logits_fast = model.decode_compiled(rep, obs, mask, noise)
+            assert torch.equal(a_fast, a_loop)
+            assert logits_loop.abs().max() > 0.5
+            torch.testing.assert_close(logits_fast, logits_loop, atol=2e-5, rtol=1e-5)
 
 
 @pytest.mark.parametrize("name", ["comat", "mat", "mappo"])

@@ -10,13 +10,21 @@ Padded robots (mask False) sit at the end of the sequence, take action 0 and get
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
-__all__ = ["N_ACTIONS", "AutoregressivePolicy"]
+from comat import kernels
+
+__all__ = ["N_ACTIONS", "AutoregressivePolicy", "numpy_view"]
 
 N_ACTIONS = 5
+
+
+def numpy_view(t: torch.Tensor) -> np.ndarray:
+    """A contiguous float32 tensor's data as numpy, without a copy (a copy if not contiguous)."""
+    return t.detach().contiguous().numpy()
 
 
 class AutoregressivePolicy(nn.Module):
@@ -68,22 +76,48 @@ class AutoregressivePolicy(nn.Module):
         """
         B, N, _ = obs.shape
         rep, values = self.encode(obs, mask)
-        dec = self.decode_init(rep, obs)
+        noise = None
         if not deterministic:
             # Every robot's Gumbel noise in one draw: the same stream as one draw per robot.
             u = torch.rand((N, B, self.n_actions), generator=generator, device=obs.device).clamp_(1e-20, 1.0)
             noise = -torch.log(-torch.log(u))
-        token = torch.zeros(B, dtype=torch.long, device=obs.device)  # the start token
+        if self._compiled_ok(rep, obs):
+            actions_t, logits_t = self.decode_compiled(rep, obs, mask, noise)
+        else:
+            actions_t, logits_t = self._decode_loop(rep, obs, mask, noise)
+        logp = torch.log_softmax(logits_t, -1).gather(-1, actions_t[..., None])[..., 0]
+        return actions_t, logp * mask, values * mask
+
+    def _decode_loop(self, rep, obs, mask, noise):
+        """Cached decoding step by step in torch (the reference of :meth:`decode_compiled`):
+        actions (B, N) and logits (B, N, A); argmax of logits (+ Gumbel noise (N, B, A))."""
+        dec = self.decode_init(rep, obs)
+        token = torch.zeros(rep.shape[0], dtype=torch.long, device=obs.device)  # the start token
         actions, logits = [], []
-        for m in range(N):
+        for m in range(rep.shape[1]):
             logits_m = self.decode_step(dec, m, token)
-            a = torch.where(mask[:, m], (logits_m if deterministic else logits_m + noise[m]).argmax(-1), 0)
+            a = torch.where(mask[:, m], (logits_m if noise is None else logits_m + noise[m]).argmax(-1), 0)
             actions.append(a)
             logits.append(logits_m)
             token = a + 1
-        actions_t = torch.stack(actions, 1)
-        logp = torch.log_softmax(torch.stack(logits, 1), -1).gather(-1, actions_t[..., None])[..., 0]
-        return actions_t, logp * mask, values * mask
+        return torch.stack(actions, 1), torch.stack(logits, 1)
+
+    def decode_compiled(self, rep, obs, mask, noise):
+        """:meth:`_decode_loop` in one compiled call (``comat.models.decode_kernels``), for
+        no-gradient CPU float32 calls; a model without one decodes with the loop."""
+        raise NotImplementedError
+
+    @staticmethod
+    def _compiled_inputs(noise, mask):
+        """Noise (N, B, A) (zeros when deterministic) and mask (B, N) as numpy for the kernels."""
+        B, N = mask.shape
+        noise_np = np.zeros((N, B, N_ACTIONS), np.float32) if noise is None else noise.contiguous().numpy()
+        return noise_np, mask.contiguous().numpy()
+
+    def _compiled_ok(self, rep: torch.Tensor, obs: torch.Tensor) -> bool:
+        return (type(self).decode_compiled is not AutoregressivePolicy.decode_compiled and kernels.enabled()
+                and not torch.is_grad_enabled() and rep.device.type == "cpu" and rep.dtype == torch.float32
+                and obs.dtype == torch.float32)
 
     def act_uncached(self, obs, mask, deterministic: bool = True, generator: torch.Generator | None = None):
         """Reference: the whole decoder re-run on the prefix for every robot (slow)."""

@@ -29,7 +29,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from comat.models.autoregressive import AutoregressivePolicy
+from comat.models.autoregressive import AutoregressivePolicy, numpy_view
+from comat.models.decode_kernels import comat_decode
 from comat.models.features import ObsLayout, edge_features
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
 
@@ -89,11 +90,12 @@ class HEATBlock(nn.Module):
         xt = F.leaky_relu(xt, 0.2)
         ea = F.leaky_relu(self.edge_attr(edge_attr), 0.2)  # (B, N, N, d_edge)
         et = F.leaky_relu(self.edge_type.weight, 0.2)  # (T², d_edge): one row per type pair
-        score = (self.att_i(xt)[:, :, None] + self.att_attr(ea) + self.att_type(et)[edge_type]
-                 + self.att_j(xt)[:, None])
+        pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
+        # The pair's score as a product with the one-hot rather than a lookup: the same values,
+        # and a backward pass several times cheaper than the lookup's scatter.
+        score = self.att_i(xt)[:, :, None] + self.att_attr(ea) + pair @ self.att_type(et) + self.att_j(xt)[:, None]
         score = F.leaky_relu(score, 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
         alpha = torch.softmax(score, dim=2).nan_to_num(0.0).mean(-1)  # (B, N, N): heads averaged
-        pair = F.one_hot(edge_type, et.shape[0]).to(alpha.dtype)  # (B, N, N, T²)
         w = alpha[..., None]
         # Elementwise weighted sums: tiny batched matmuls are slower on CPU.
         out = self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et) + self.msg_j(alpha @ xt)
@@ -183,6 +185,19 @@ class Comat(AutoregressivePolicy):
         h = self.ln3(st.rep[:, m : m + 1] + attended)
         h = self.ln4(h + self.fc2(h))[:, 0]
         return self.heads.finish(h, st.caps[:, m], st.types[:, m])
+
+    @torch.no_grad()
+    def decode_compiled(self, rep, obs, mask, noise):
+        sa, ca, heads = self.self_attn, self.cross_attn, self.heads
+        linears = (self.token[0], sa.q, sa.kv, sa.o, self.fc[0], self.fc[2], ca.q, ca.kv, ca.o,
+                   self.fc2[0], self.fc2[2], heads.first)
+        mats = [numpy_view(layer.weight) for layer in linears] + [numpy_view(heads.w2).reshape(-1, self.n_actions)]
+        vecs = [numpy_view(layer.bias) for layer in linears[1:]] + [numpy_view(heads.b2).reshape(-1)]
+        vecs += [numpy_view(p) for ln in (self.ln1, self.ln2, self.ln3, self.ln4) for p in (ln.weight, ln.bias)]
+        noise_np, mask_np = self._compiled_inputs(noise, mask)
+        actions, logits = comat_decode(tuple(mats), tuple(vecs), numpy_view(rep), numpy_view(obs), mask_np, noise_np,
+                                       noise is None, self.config.heads, self.layout.n_types)
+        return torch.from_numpy(actions), torch.from_numpy(logits)
 
 
 @dataclass

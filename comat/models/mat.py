@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from comat.models.autoregressive import AutoregressivePolicy
+from comat.models.autoregressive import AutoregressivePolicy, numpy_view
+from comat.models.decode_kernels import mat_decode
 from comat.models.features import ObsLayout
 from comat.models.layers import Attention, KVCache, causal, init_linear, mlp
 
@@ -113,6 +114,24 @@ class Mat(AutoregressivePolicy):
         # The embedded token depends on the token alone: tabulated once per sequence.
         table = self.dec_ln(self.action_encoder(torch.eye(self.n_actions + 1, device=rep.device)))[:, None]
         return rep, table, [(KVCache(), KVCache()) for _ in self.decoder]
+
+    @torch.no_grad()
+    def decode_compiled(self, rep, obs, mask, noise):
+        linears = [self.action_encoder[0]]
+        vecs = [self.dec_ln.weight, self.dec_ln.bias]
+        for block in self.decoder:
+            sa, ca = block.self_attn, block.cross_attn
+            block_linears = (sa.q, sa.kv, sa.o, ca.q, ca.kv, ca.o, block.mlp[0], block.mlp[2])
+            linears += block_linears
+            vecs += [layer.bias for layer in block_linears]
+            vecs += [p for ln in (block.ln1, block.ln2, block.ln3) for p in (ln.weight, ln.bias)]
+        linears += [self.head[0], self.head[3]]
+        vecs += [self.head[0].bias, self.head[3].bias, self.head[2].weight, self.head[2].bias]
+        noise_np, mask_np = self._compiled_inputs(noise, mask)
+        actions, logits = mat_decode(tuple(numpy_view(layer.weight) for layer in linears),
+                                     tuple(numpy_view(p) for p in vecs), numpy_view(rep), mask_np, noise_np,
+                                     noise is None, self.config.heads)
+        return torch.from_numpy(actions), torch.from_numpy(logits)
 
     def decode_step(self, state, m: int, token):
         rep, table, caches = state

@@ -128,7 +128,8 @@ class PPOTrainer:
             raise ValueError(f"env has {env.num_envs} environments, config.num_envs is {config.num_envs}")
         self.policy, self.env, self.config = policy, env, config
         self.use_state = use_state
-        self.optimizer = torch.optim.Adam(policy.parameters(), lr=config.lr, eps=1e-5)
+        # fused: one kernel for all parameters instead of a loop of small ones (~5 % of an update)
+        self.optimizer = torch.optim.Adam(policy.parameters(), lr=config.lr, eps=1e-5, fused=True)
         self.target = copy.deepcopy(policy).requires_grad_(False)
         self.value_norm = ValueNorm()
         self.generator = torch.Generator().manual_seed(seed)

@@ -138,7 +138,7 @@ class QmixTrainer:
             raise ValueError(f"env has {env.num_envs} environments, config.num_envs is {config.num_envs}")
         self.agents, self.mixer, self.env, self.config = agents, mixer, env, config
         self.params = list(agents.parameters()) + list(mixer.parameters())
-        self.optimizer = torch.optim.Adam(self.params, lr=config.lr)
+        self.optimizer = torch.optim.Adam(self.params, lr=config.lr, fused=True)  # as PPO's
         self.target_agents = copy.deepcopy(agents).requires_grad_(False)
         self.target_mixer = copy.deepcopy(mixer).requires_grad_(False)
         env.reset()

@@ -1,0 +1,233 @@
+"""Compiled (numba) cached decoding: COMAT's and MAT's whole robot-by-robot decoder in one call.
+
+Why: a cached decoder step is ~56 PyTorch calls on tensors of a few thousand numbers, so at the
+rollout batch (32) dispatch, not arithmetic, decides its cost. Here all N steps of one ``act``
+run in a single compiled call: matrix products through BLAS (``np.dot``), LayerNorm, softmax,
+the key/value caches and the action choice in loops.
+
+The torch step (``decode_step``) stays the reference: these kernels repeat its arithmetic in
+float32 but not its summation order, so logits agree to ~1e-6, not bit for bit
+(tests/test_models.py). ``AutoregressivePolicy.act`` uses them when no gradient is recorded,
+on CPU float32 tensors, with ``comat.kernels.enabled()``. Matrix products go to scipy's
+OpenBLAS, which should run on one thread (the ``comat`` command sets ``OPENBLAS_NUM_THREADS=1``
+before loading it): threads cost more than they save on these sizes, and the cores are the
+environments'.
+
+Arguments (B batch, N robots, E embedding, A actions, T types):
+
+* ``mats``: 2-D float32 weights as torch stores them, (out, in): views of the parameters, so
+  nothing is copied or cached per call;
+* ``vecs``: 1-D float32 biases and LayerNorm parameters;
+* ``mask`` (B, N) bool; ``noise`` (N, B, A) Gumbel noise, ignored if ``deterministic``;
+* returns actions (B, N) int64 (0 for padded robots) and logits (B, N, A).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["comat_decode", "mat_decode"]
+
+_jit = njit(cache=True, nogil=True)
+_EPS = 1e-5  # torch.nn.LayerNorm's default
+
+
+@_jit
+def _layer_norm(x, w, b):
+    B, E = x.shape
+    out = np.empty_like(x)
+    for i in range(B):
+        mean = np.float32(0.0)
+        for j in range(E):
+            mean += x[i, j]
+        mean /= E
+        var = np.float32(0.0)
+        for j in range(E):
+            d = x[i, j] - mean
+            var += d * d
+        inv = np.float32(1.0) / np.sqrt(var / E + np.float32(_EPS))
+        for j in range(E):
+            out[i, j] = (x[i, j] - mean) * inv * w[j] + b[j]
+    return out
+
+
+@_jit
+def _linear(x, w, b):
+    """x (B, in) through a torch-layout weight w (out, in) and bias b (out,)."""
+    return np.dot(x, w.T) + b
+
+
+@_jit
+def _relu(x):
+    return np.maximum(x, np.float32(0.0))
+
+
+@_jit
+def _gelu(x):
+    out = np.empty_like(x)
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            v = x[i, j]
+            out[i, j] = np.float32(0.5 * v * (1.0 + math.erf(v / math.sqrt(2.0))))
+    return out
+
+
+@_jit
+def _attend(q, keys, values, length, heads):
+    """Row i's query q[i] (E,), already scaled by 1/√dh, over keys/values[i, :length] (L, E)."""
+    B, E = q.shape
+    dh = E // heads
+    out = np.zeros_like(q)
+    scores = np.empty(length, dtype=np.float32)
+    for i in range(B):
+        for h in range(heads):
+            lo = h * dh
+            top = np.float32(-np.inf)
+            for j in range(length):
+                s = np.float32(0.0)
+                for d in range(lo, lo + dh):
+                    s += q[i, d] * keys[i, j, d]
+                scores[j] = s
+                top = max(top, s)
+            total = np.float32(0.0)
+            for j in range(length):
+                scores[j] = np.exp(scores[j] - top)
+                total += scores[j]
+            for j in range(length):
+                a = scores[j] / total
+                for d in range(lo, lo + dh):
+                    out[i, d] += a * values[i, j, d]
+    return out
+
+
+@_jit
+def _choose(logits, mask_m, noise_m, deterministic):
+    B, A = logits.shape
+    actions = np.zeros(B, dtype=np.int64)
+    for i in range(B):
+        if not mask_m[i]:
+            continue
+        best, arg = -np.inf, 0
+        for a in range(A):
+            v = logits[i, a] if deterministic else logits[i, a] + noise_m[i, a]
+            if v > best:
+                best, arg = v, a
+        actions[i] = arg
+    return actions
+
+
+@_jit
+def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_types):
+    """COMAT (``Comat.decode_step`` for m = 0..N−1) from its parameters, as stored by torch.
+
+    ``mats`` (out, in): token embedding (E, A+1); θ¹ q, kv (2E, E), out; fc (2); θ² q, kv, out;
+    fc2 (2); the actor's first layer (T·H, E + C); its second layers (T, H, A) as (T·H, A).
+    ``vecs``: the biases in that order (the actor's second as (T·A)), then ln1–ln4 weight and
+    bias. ``rep`` (B, N, E) encoder output; ``obs`` (B, N, D) for type one-hots and capabilities
+    (the task layout: [x, y, cos, sin | types (T) | capabilities (C) | …])."""
+    tok, sa_q, sa_kv, sa_o, fc_a, fc_b, ca_q, ca_kv, ca_o, fc2_a, fc2_b, act1, act2 = mats
+    (sa_qb, sa_kvb, sa_ob, fc_ab, fc_bb, ca_qb, ca_kvb, ca_ob, fc2_ab, fc2_bb, act1b, act2b,
+     ln1w, ln1b, ln2w, ln2b, ln3w, ln3b, ln4w, ln4b) = vecs
+    B, N, E = rep.shape
+    T = n_types
+    H = act1.shape[0] // T
+    A = act2.shape[1]
+    C = act1.shape[1] - E
+    scale = np.float32((E // heads) ** -0.5)
+    # θ¹'s embedding, query, key and value depend on the token alone: one row per token.
+    e_tab = _relu(np.ascontiguousarray(tok.T))
+    q_tab = _linear(e_tab, sa_q, sa_qb) * scale
+    kv_tab = _linear(e_tab, sa_kv, sa_kvb)
+    # θ²'s queries and the actor's capability share, for every robot at once.
+    cross_q = (_linear(np.ascontiguousarray(rep).reshape(B * N, E), ca_q, ca_qb) * scale).reshape(B, N, E)
+    caps = np.ascontiguousarray(obs[:, :, 4 + T : 4 + T + C]).reshape(B * N, C)
+    caps = (np.dot(caps, np.ascontiguousarray(act1[:, E:]).T) + act1b).reshape(B, N, T * H)
+    act1_h = np.ascontiguousarray(act1[:, :E])
+    self_k = np.empty((B, N, E), dtype=np.float32)
+    self_v = np.empty((B, N, E), dtype=np.float32)
+    cross_k = np.empty((B, N, E), dtype=np.float32)
+    cross_v = np.empty((B, N, E), dtype=np.float32)
+    actions = np.zeros((B, N), dtype=np.int64)
+    logits = np.zeros((B, N, A), dtype=np.float32)
+    token = np.zeros(B, dtype=np.int64)
+    e = np.empty((B, E), dtype=np.float32)
+    q = np.empty((B, E), dtype=np.float32)
+    for m in range(N):
+        for i in range(B):
+            t = token[i]
+            e[i] = e_tab[t]
+            q[i] = q_tab[t]
+            self_k[i, m] = kv_tab[t, :E]
+            self_v[i, m] = kv_tab[t, E:]
+        x = _layer_norm(e + _linear(_attend(q, self_k, self_v, m + 1, heads), sa_o, sa_ob), ln1w, ln1b)
+        a_hat = _layer_norm(x + _linear(_relu(_linear(x, fc_a, fc_ab)), fc_b, fc_bb), ln2w, ln2b)
+        kv = _linear(a_hat, ca_kv, ca_kvb)
+        cross_k[:, m] = kv[:, :E]
+        cross_v[:, m] = kv[:, E:]
+        attended = _linear(_attend(np.ascontiguousarray(cross_q[:, m]), cross_k, cross_v, m + 1, heads), ca_o, ca_ob)
+        h = _layer_norm(np.ascontiguousarray(rep[:, m]) + attended, ln3w, ln3b)
+        h = _layer_norm(h + _linear(_relu(_linear(h, fc2_a, fc2_ab)), fc2_b, fc2_bb), ln4w, ln4b)
+        hidden = _relu(np.dot(h, act1_h.T) + caps[:, m])  # (B, T·H)
+        for i in range(B):
+            for k in range(T):
+                w = obs[i, m, 4 + k]  # the type one-hot: the robot's own head
+                if w == 0.0:
+                    continue
+                for a in range(A):  # loops: a BLAS call per robot costs more than its H·A products
+                    s = np.float32(0.0)
+                    for j in range(k * H, (k + 1) * H):
+                        s += hidden[i, j] * act2[j, a]
+                    logits[i, m, a] += w * (s + act2b[k * A + a])
+        actions[:, m] = _choose(logits[:, m], mask[:, m], noise[m], deterministic)
+        token = actions[:, m] + 1
+    return actions, logits
+
+
+@_jit
+def mat_decode(mats, vecs, rep, mask, noise, deterministic, heads):
+    """MAT (``Mat.decode_step`` for m = 0..N−1) from its parameters, as stored by torch.
+
+    ``mats`` (out, in): the action encoder (E, A+1), then per decoder block self q, kv, out,
+    cross q, kv, out, mlp (2), then the head (2). ``vecs``: dec_ln weight and bias, per block
+    the 8 biases and ln1–ln3 weight and bias, then the head's two biases and its LayerNorm."""
+    B, N, E = rep.shape
+    n_blocks = (len(mats) - 3) // 8
+    A = mats[len(mats) - 1].shape[0]
+    scale = np.float32((E // heads) ** -0.5)
+    table = _layer_norm(_gelu(np.ascontiguousarray(mats[0].T)), vecs[0], vecs[1])  # embedded tokens
+    keys = np.empty((2 * n_blocks, B, N, E), dtype=np.float32)
+    values = np.empty((2 * n_blocks, B, N, E), dtype=np.float32)
+    actions = np.zeros((B, N), dtype=np.int64)
+    logits = np.zeros((B, N, A), dtype=np.float32)
+    token = np.zeros(B, dtype=np.int64)
+    x = np.empty((B, E), dtype=np.float32)
+    for m in range(N):
+        for i in range(B):
+            x[i] = table[token[i]]
+        rep_m = np.ascontiguousarray(rep[:, m])
+        y = x
+        for k in range(n_blocks):
+            w, v = 1 + 8 * k, 2 + 14 * k
+            kv = _linear(y, mats[w + 1], vecs[v + 1])
+            keys[2 * k, :, m] = kv[:, :E]
+            values[2 * k, :, m] = kv[:, E:]
+            q = _linear(y, mats[w], vecs[v]) * scale
+            att = _linear(_attend(q, keys[2 * k], values[2 * k], m + 1, heads), mats[w + 2], vecs[v + 2])
+            y = _layer_norm(y + att, vecs[v + 8], vecs[v + 9])
+            kv = _linear(y, mats[w + 4], vecs[v + 4])
+            keys[2 * k + 1, :, m] = kv[:, :E]
+            values[2 * k + 1, :, m] = kv[:, E:]
+            q = _linear(rep_m, mats[w + 3], vecs[v + 3]) * scale
+            att = _linear(_attend(q, keys[2 * k + 1], values[2 * k + 1], m + 1, heads), mats[w + 5], vecs[v + 5])
+            y = _layer_norm(rep_m + att, vecs[v + 10], vecs[v + 11])
+            y = _layer_norm(y + _linear(_gelu(_linear(y, mats[w + 6], vecs[v + 6])), mats[w + 7], vecs[v + 7]),
+                            vecs[v + 12], vecs[v + 13])
+        w, v = 1 + 8 * n_blocks, 2 + 14 * n_blocks
+        hidden = _layer_norm(_gelu(_linear(y, mats[w], vecs[v])), vecs[v + 2], vecs[v + 3])
+        logits[:, m] = _linear(hidden, mats[w + 1], vecs[v + 1])
+        actions[:, m] = _choose(logits[:, m], mask[:, m], noise[m], deterministic)
+        token = actions[:, m] + 1
+    return actions, logits
