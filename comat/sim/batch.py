@@ -30,6 +30,9 @@ from comat.sim.world import _TickMixin, validate_start_poses
 
 __all__ = ["BatchWorld"]
 
+# The extension's rollout behind mujoco.batch.Batch.rollout, as mujoco 4.0 calls it.
+_DIRECT_ROLLOUT = mujoco.__version__.startswith("4.0.") and hasattr(mujoco.batch.Batch, "_check")
+
 
 class _Group:
     """Every team of one size: a Batch of ``capacity`` simulations over their shared model."""
@@ -39,6 +42,7 @@ class _Group:
         self.n = n
         self.binding = Binding(model, n, config.tier, C.PROFILES[config.profile])
         self.batch = mujoco.batch.Batch(model, nsim=capacity, nthread=nthread)
+        self.nsim = capacity
         self.qpos = self.batch.bind("qpos")
         self.ctrl = self.batch.bind("ctrl")
         self.substeps = substeps
@@ -46,6 +50,7 @@ class _Group:
         self.owner = np.full(capacity, -1, dtype=np.int64)  # team using each simulation, -1 = free
         # Per layout: active simulations (sorted), their teams and robot rows (S, n).
         self.sims = np.zeros(0, np.int64)
+        self.sims32 = np.zeros(0, np.int32)
         self.teams = np.zeros(0, np.int64)
         self.rows = np.zeros((0, n), np.int64)
         self._records: dict[int, dict[str, np.ndarray]] = {}
@@ -54,6 +59,26 @@ class _Group:
         buf = self._records.get(count)
         if buf is None:
             buf = self._records[count] = {"sensordata": np.empty((count, self.substeps, self.nsensordata))}
+        return buf
+
+    def rollout(self, sims: np.ndarray | None) -> np.ndarray:
+        """``substeps`` physics steps of simulations ``sims`` (sorted and unique, None = all),
+        recording the sensors: (S, substeps, nsensordata).
+
+        With mujoco 4.0 the call goes to the extension directly: the public wrapper re-checks the
+        ids and rebuilds its record list on every call (~50 µs, 7 % of an env step with 16
+        environments), for ids that :meth:`BatchWorld.set_team_sizes` made valid once. The
+        reference path (``comat.kernels.reference_path``) keeps the wrapper; rollouts through
+        both are equal bit for bit (tests/test_kernels.py)."""
+        if not _DIRECT_ROLLOUT:
+            return self.batch.rollout(self.substeps, record=("sensordata",), ids=sims,
+                                      out=self.record(self.nsim if sims is None else sims.size))["sensordata"]
+        ids = None if sims is None else self.sims32
+        buf = self.record(self.nsim if sims is None else sims.size)["sensordata"]
+        failed = self.batch._b.rollout(ids, self.substeps, None, mujoco.mjtState.mjSTATE_CTRL.value,
+                                       [("sensordata", 0, buf)])
+        if failed:
+            self.batch._check(ids, failed)  # raises SimulationError, as the wrapper does
         return buf
 
 
@@ -132,6 +157,7 @@ class BatchWorld(_TickMixin):
             order = np.argsort(self._sim_of[teams])  # MuJoCo's batch calls take sorted ids
             group.teams = teams[order]
             group.sims = self._sim_of[group.teams]
+            group.sims32 = group.sims.astype(np.int32)
             group.rows = self.layout.offsets[group.teams][:, None] + np.arange(n)
             group.in_order = group.teams.size == B and np.array_equal(group.sims, np.arange(B))
         if old_poses is not None:
@@ -208,10 +234,8 @@ class BatchWorld(_TickMixin):
             b = g.binding
             unicycle = b.tier == "unicycle"
             kernels.group_ctrl(dxu, g.rows, g.sims, unicycle, b.half_timestep, b.lateral_gain, *b.wheel_geometry, g.ctrl)
-            sims = None if g.in_order else g.sims
             t0 = time.perf_counter()
-            out = g.record(g.sims.size)
-            rec = g.batch.rollout(g.substeps, record=("sensordata",), ids=sims, out=out)["sensordata"]
+            rec = g.rollout(None if g.in_order else g.sims)
             self.last_physics_s += time.perf_counter() - t0
             kernels.group_read(rec, g.qpos, g.sims, b.qadr, b.sensor_all, b.sensor_wall, g.rows, unicycle, poses, robot, wall)
             if not unicycle:  # the yaw from the quaternion: arctan2 stays in numpy
