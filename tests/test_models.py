@@ -82,7 +82,8 @@ def test_autoregressive_logps_equal_teacher_forced(name, n, path):
     assert spy.steps == (n if path == "loop" else 0)
     logp_tf, entropy, values_tf = model.evaluate_actions(obs, mask, actions)
     torch.testing.assert_close(logp, logp_tf, atol=1e-5, rtol=0)
-    torch.testing.assert_close(values, values_tf, atol=1e-6, rtol=0)
+    # COMAT's compiled path encodes compiled too: float32 rounding, not bit for bit
+    torch.testing.assert_close(values, values_tf, atol=1e-6 if path == "loop" else 1e-5, rtol=0)
     assert (entropy > 0).all() and (logp < 0).all()
 
 
@@ -98,7 +99,7 @@ def test_cached_decoding_equals_uncached(name, n, path):
         a2, l2, v2 = model.act_uncached(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
         assert torch.equal(a1, a2)
         torch.testing.assert_close(l1, l2, atol=1e-5, rtol=0)
-        torch.testing.assert_close(v1, v2, atol=0, rtol=0)
+        torch.testing.assert_close(v1, v2, atol=0 if path == "loop" else 1e-5, rtol=0)
 
 
 def _with_padding(obs, mask, extra: int, seed: int = 9):
@@ -132,6 +133,26 @@ def test_padding_slots_change_nothing(name):
                 a1, _, _ = model.act(obs, mask, state, deterministic=deterministic, generator=g1)
                 a2, _, _ = model.act(obs_p, mask_p, state, deterministic=deterministic, generator=g2)
             assert torch.equal(a1, a2[:, :5]) and (a2[:, 5:] == 0).all()
+
+
+@pytest.mark.parametrize("task", [PredatorCapturePrey(), MaterialTransport()], ids=["pcp", "hmt"])
+@pytest.mark.parametrize("config", [ComatConfig(), ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16,
+                                                              root_weight=True)], ids=["paper", "other"])
+def test_compiled_encoder_equals_torch(task, config):
+    """COMAT's compiled HEAT encoder and critic (used by ``act``) against ``encode``: teams of
+    every size 1–7 padded to 7, weights moved off their initialisation."""
+    layout = ObsLayout.for_task(task)
+    torch.manual_seed(0)
+    model = Comat(layout, config)
+    for p in model.parameters():
+        p.data.add_(0.3 * torch.randn_like(p))
+    obs, mask = fake_obs(9, 7, layout, seed=3, n_real=[7, 3, 5, 1, 2, 7, 4, 6, 5])
+    with torch.no_grad():
+        rep, values = model.encode(obs, mask)
+        rep_c, values_c = model.encode_compiled(obs, mask)
+    assert values.abs().max() > 1.0
+    torch.testing.assert_close(rep_c[mask], rep[mask], atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(values_c[mask], values[mask], atol=2e-5, rtol=1e-5)
 
 
 @pytest.mark.parametrize("name", ["comat", "comat_heads", "mat", "mat_deep"])

@@ -23,8 +23,9 @@ N_ACTIONS = 5
 
 
 def numpy_view(t: torch.Tensor) -> np.ndarray:
-    """A contiguous float32 tensor's data as numpy, without a copy (a copy if not contiguous)."""
-    return t.detach().contiguous().numpy()
+    """A tensor's data as C-contiguous numpy for the kernels: a view of a contiguous tensor (a
+    parameter), else a copy."""
+    return t.detach().numpy() if t.is_contiguous() else t.detach().contiguous().numpy()
 
 
 class AutoregressivePolicy(nn.Module):
@@ -75,13 +76,14 @@ class AutoregressivePolicy(nn.Module):
         Returns actions (B, N) long, log-probs (B, N), values (B, N); padded slots 0.
         """
         B, N, _ = obs.shape
-        rep, values = self.encode(obs, mask)
+        compiled = self._compiled_ok(obs)
+        rep, values = self.encode_compiled(obs, mask) if compiled else self.encode(obs, mask)
         noise = None
         if not deterministic:
             # Every robot's Gumbel noise in one draw: the same stream as one draw per robot.
             u = torch.rand((N, B, self.n_actions), generator=generator, device=obs.device).clamp_(1e-20, 1.0)
             noise = -torch.log(-torch.log(u))
-        if self._compiled_ok(rep, obs):
+        if compiled:
             actions_t, logits_t = self.decode_compiled(rep, obs, mask, noise)
         else:
             actions_t, logits_t = self._decode_loop(rep, obs, mask, noise)
@@ -114,10 +116,15 @@ class AutoregressivePolicy(nn.Module):
         noise_np = np.zeros((N, B, N_ACTIONS), np.float32) if noise is None else noise.contiguous().numpy()
         return noise_np, mask.contiguous().numpy()
 
-    def _compiled_ok(self, rep: torch.Tensor, obs: torch.Tensor) -> bool:
+    def encode_compiled(self, obs, mask):
+        """:meth:`encode` for :meth:`act` when it decodes compiled: a model with a compiled
+        encoder overrides this (COMAT); the others encode in torch."""
+        return self.encode(obs, mask)
+
+    def _compiled_ok(self, obs: torch.Tensor) -> bool:
         return (type(self).decode_compiled is not AutoregressivePolicy.decode_compiled and kernels.enabled()
-                and not torch.is_grad_enabled() and rep.device.type == "cpu" and rep.dtype == torch.float32
-                and obs.dtype == torch.float32)
+                and not torch.is_grad_enabled() and obs.device.type == "cpu" and obs.dtype == torch.float32
+                and next(self.parameters()).dtype == torch.float32)
 
     def act_uncached(self, obs, mask, deterministic: bool = True, generator: torch.Generator | None = None):
         """Reference: the whole decoder re-run on the prefix for every robot (slow)."""

@@ -30,7 +30,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
-from comat.models.decode_kernels import comat_decode
+from comat.models.decode_kernels import comat_decode, comat_encode
 from comat.models.features import ObsLayout, edge_features
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
 
@@ -185,6 +185,21 @@ class Comat(AutoregressivePolicy):
         h = self.ln3(st.rep[:, m : m + 1] + attended)
         h = self.ln4(h + self.fc2(h))[:, 0]
         return self.heads.finish(h, st.caps[:, m], st.types[:, m])
+
+    @torch.no_grad()
+    def encode_compiled(self, obs, mask):
+        if self.config.node_ffn:  # not in the kernel: the torch encoder
+            return self.encode(obs, mask)
+        node_ws = tuple(numpy_view(layer.weight) for block in self.heat for layer in block.node)
+        mats = [numpy_view(p) for block in self.heat for p in (
+            block.edge_attr.weight, block.edge_type.weight, block.att_i.weight, block.att_attr.weight,
+            block.att_type.weight, block.att_j.weight, block.msg_attr.weight, block.msg_type.weight, block.msg_j.weight)]
+        mats += [numpy_view(self.critic[0].weight), numpy_view(self.critic[2].weight)]
+        vecs = [numpy_view(p) for norm in self.heat_norm for p in (norm.weight, norm.bias)]
+        vecs += [numpy_view(self.critic[0].bias), numpy_view(self.critic[2].bias)]
+        rep, values = comat_encode(node_ws, tuple(mats), tuple(vecs), numpy_view(obs), mask.contiguous().numpy(),
+                                   self.config.heads, self.layout.n_types, self.config.root_weight)
+        return torch.from_numpy(rep), torch.from_numpy(values)
 
     @torch.no_grad()
     def decode_compiled(self, rep, obs, mask, noise):

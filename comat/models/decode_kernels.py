@@ -1,13 +1,16 @@
-"""Compiled (numba) cached decoding: COMAT's and MAT's whole robot-by-robot decoder in one call.
+"""Compiled (numba) acting: COMAT's and MAT's whole robot-by-robot decoder in one call, and
+COMAT's HEAT encoder with its critic in another.
 
 Why: a cached decoder step is ~56 PyTorch calls on tensors of a few thousand numbers, so at the
 rollout batch (32) dispatch, not arithmetic, decides its cost. Here all N steps of one ``act``
 run in a single compiled call: matrix products through BLAS (``np.dot``), LayerNorm, softmax,
 the key/value caches and the action choice in loops.
 
-The torch step (``decode_step``) stays the reference: these kernels repeat its arithmetic in
-float32 but not its summation order, so logits agree to ~1e-6, not bit for bit
-(tests/test_models.py). ``AutoregressivePolicy.act`` uses them when no gradient is recorded,
+The torch step (``decode_step``) and ``Comat.encode`` stay the references: these kernels repeat
+their arithmetic in float32 but not its summation order, so logits and values agree to ~1e-6,
+not bit for bit (tests/test_models.py). The encoder kernel gives ``act`` ~4× faster encoding
+at the rollout batch (the torch HEAT pass is ~60 calls on (B, N, N, ·) tensors of a few
+thousand numbers). ``AutoregressivePolicy.act`` uses them when no gradient is recorded,
 on CPU float32 tensors, with ``comat.kernels.enabled()``. Matrix products go to scipy's
 OpenBLAS, which should run on one thread (the ``comat`` command sets ``OPENBLAS_NUM_THREADS=1``
 before loading it): threads cost more than they save on these sizes, and the cores are the
@@ -29,7 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["comat_decode", "mat_decode"]
+__all__ = ["comat_decode", "comat_encode", "mat_decode"]
 
 _jit = njit(cache=True, nogil=True)
 _EPS = 1e-5  # torch.nn.LayerNorm's default
@@ -231,3 +234,120 @@ def mat_decode(mats, vecs, rep, mask, noise, deterministic, heads):
         actions[:, m] = _choose(logits[:, m], mask[:, m], noise[m], deterministic)
         token = actions[:, m] + 1
     return actions, logits
+
+
+@_jit
+def _leaky(x):
+    return np.where(x >= 0, x, x * np.float32(0.2))
+
+
+@_jit
+def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root):
+    """COMAT's HEAT encoder and critic (``Comat.encode``, without ``node_ffn``): rep (B, N, E)
+    and values (B, N) from obs (B, N, D) and mask (B, N).
+
+    ``node_ws``: per block its T type-specific node transforms (E, d_in). ``mats`` per
+    block (out, in): edge-feature embedding (d_e, 5), edge-type embedding table (T², d_e),
+    attention on x̃_i (K, E), on ẽ^attr (K, d_e), on ẽ^type (K, d_e), on x̃_j (K, E), messages
+    from ẽ^attr (E, d_e), ẽ^type (E, d_e), x̃_j (E, E); then the critic's two layers. ``vecs``:
+    per block its LayerNorm weight and bias, then the critic's two biases."""
+    B, N, D = obs.shape
+    T = n_types
+    n_blocks = len(node_ws) // T
+    # The team graph, as comat.models.features.edge_features builds it.
+    types = np.zeros((B, N), dtype=np.int64)
+    for b in range(B):
+        for i in range(N):
+            best = obs[b, i, 4]
+            for t in range(1, T):
+                if obs[b, i, 4 + t] > best:
+                    best, types[b, i] = obs[b, i, 4 + t], t
+    attr = np.zeros((B, N, N, 5), dtype=np.float32)
+    for b in range(B):
+        for i in range(N):
+            ci, si = obs[b, i, 2], obs[b, i, 3]
+            for j in range(N):
+                dx, dy = obs[b, j, 0] - obs[b, i, 0], obs[b, j, 1] - obs[b, i, 1]
+                cj, sj = obs[b, j, 2], obs[b, j, 3]
+                attr[b, i, j, 0] = ci * dx + si * dy
+                attr[b, i, j, 1] = -si * dx + ci * dy
+                if i != j:
+                    attr[b, i, j, 2] = np.sqrt(dx * dx + dy * dy + np.float32(1e-12))
+                attr[b, i, j, 3] = ci * cj + si * sj
+                attr[b, i, j, 4] = ci * sj - si * cj
+    attr2 = attr.reshape(B * N * N, 5)
+    x = np.ascontiguousarray(obs).reshape(B * N, D)
+    h = x
+    alpha = np.zeros((B, N, N), dtype=np.float32)
+    for k in range(n_blocks):
+        E = node_ws[k * T].shape[0]
+        m = 9 * k
+        edge_w, type_tab, att_i, att_a, att_t, att_j, msg_a, msg_t, msg_j = (
+            mats[m], mats[m + 1], mats[m + 2], mats[m + 3], mats[m + 4], mats[m + 5], mats[m + 6], mats[m + 7],
+            mats[m + 8])
+        K = att_i.shape[0]
+        xt = np.zeros((B * N, E), dtype=np.float32)
+        for t in range(T):
+            y = np.dot(h, node_ws[k * T + t].T)
+            for r in range(B * N):
+                if types[r // N, r % N] == t:
+                    xt[r] = y[r]
+        xt = _leaky(xt)
+        ea = _leaky(np.dot(attr2, edge_w.T))  # (B·N·N, d_e)
+        et = _leaky(type_tab)  # (T², d_e)
+        s_i = np.dot(xt, att_i.T)
+        s_j = np.dot(xt, att_j.T)
+        s_a = np.dot(ea, att_a.T)
+        s_t = np.dot(et, att_t.T)
+        scores = np.empty(N, dtype=np.float32)
+        for b in range(B):
+            for i in range(N):
+                for j in range(N):
+                    alpha[b, i, j] = 0.0
+                if not mask[b, i]:
+                    continue  # no real neighbour (not even itself): all weights 0, as nan_to_num gives
+                for kk in range(K):
+                    top = np.float32(-np.inf)
+                    for j in range(N):
+                        if mask[b, j]:
+                            pair = types[b, i] * T + types[b, j]
+                            s = s_i[b * N + i, kk] + s_a[(b * N + i) * N + j, kk] + s_t[pair, kk] + s_j[b * N + j, kk]
+                            s = s if s >= 0 else s * np.float32(0.2)
+                            scores[j] = s
+                            top = max(top, s)
+                    total = np.float32(0.0)
+                    for j in range(N):
+                        if mask[b, j]:
+                            scores[j] = np.exp(scores[j] - top)
+                            total += scores[j]
+                    for j in range(N):
+                        if mask[b, j]:
+                            alpha[b, i, j] += scores[j] / total
+                for j in range(N):
+                    alpha[b, i, j] /= K
+        d_e = ea.shape[1]
+        agg_a = np.zeros((B * N, d_e), dtype=np.float32)
+        agg_t = np.zeros((B * N, d_e), dtype=np.float32)
+        agg_x = np.zeros((B * N, E), dtype=np.float32)
+        for b in range(B):
+            for i in range(N):
+                r = b * N + i
+                for j in range(N):
+                    a = alpha[b, i, j]
+                    if a == 0.0:
+                        continue
+                    pair = types[b, i] * T + types[b, j]
+                    for d in range(d_e):
+                        agg_a[r, d] += a * ea[r * N + j, d]
+                        agg_t[r, d] += a * et[pair, d]
+                    for d in range(E):
+                        agg_x[r, d] += a * xt[b * N + j, d]
+        out = np.dot(agg_a, msg_a.T) + np.dot(agg_t, msg_t.T) + np.dot(agg_x, msg_j.T)
+        if root:
+            out = out + xt
+        h = _layer_norm(out if k == 0 else h + out, vecs[2 * k], vecs[2 * k + 1])
+    c = 9 * n_blocks
+    v = 2 * n_blocks
+    values = _linear(_relu(_linear(h, mats[c], vecs[v])), mats[c + 1], vecs[v + 1])
+    E = h.shape[1]
+    return h.reshape(B, N, E), values[:, 0].copy().reshape(B, N)
