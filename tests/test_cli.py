@@ -73,3 +73,13 @@ def test_bench_env_rollout_split_adds_up(tmp_path, capsys):
         assert abs(parts - row["step_ms"]) < 1e-6 and row["physics_ms"] > 0 and row["tick_rest_ms"] > 0
     assert data["sharded_step_ms_lower_bound"] == max(s["step_ms"] for s in shards)
     assert "2 env processes: a step costs at least" in capsys.readouterr().out
+
+
+def test_bench_decode_times_each_path_with_its_own_encoder():
+    from comat.bench.learn_bench import bench_decode
+
+    for model in ("comat", "mat"):
+        row = bench_decode(model, n_robots=4, batch=3, repeats=2)  # raises if cached != uncached actions
+        assert row["act_cached_ms"] > 0 and row["act_uncached_ms"] > 0 and row["decode_speedup"] > 0
+        # COMAT acts with its compiled encoder, MAT with the torch one
+        assert (row["encode_act_ms"] == row["encode_ms"]) == (model == "mat")
