@@ -105,7 +105,7 @@ class AutoregressivePolicy(nn.Module):
         return torch.stack(actions, 1), torch.stack(logits, 1)
 
     def decode_compiled(self, rep, obs, mask, noise):
-        """:meth:`_decode_loop` in one compiled call (``comat.models.decode_kernels``), for
+        """:meth:`_decode_loop` in one compiled call (``comat.models.act_kernels``), for
         no-gradient CPU float32 calls; a model without one decodes with the loop."""
         raise NotImplementedError
 

@@ -29,8 +29,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from comat.models.act_kernels import comat_decode, comat_encode
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
-from comat.models.decode_kernels import comat_decode, comat_encode
 from comat.models.features import ObsLayout, edge_features
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
 

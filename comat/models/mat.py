@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from comat.models.act_kernels import mat_decode
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
-from comat.models.decode_kernels import mat_decode
 from comat.models.features import ObsLayout
 from comat.models.layers import Attention, KVCache, causal, init_linear, mlp
 
