@@ -42,7 +42,6 @@ class _Group:
         self.n = n
         self.binding = Binding(model, n, config.tier, C.PROFILES[config.profile])
         self.batch = mujoco.batch.Batch(model, nsim=capacity, nthread=nthread)
-        self.nsim = capacity
         self.qpos = self.batch.bind("qpos")
         self.ctrl = self.batch.bind("ctrl")
         self.substeps = substeps
@@ -51,6 +50,7 @@ class _Group:
         # Per layout: active simulations (sorted), their teams and robot rows (S, n).
         self.sims = np.zeros(0, np.int64)
         self.sims32 = np.zeros(0, np.int32)
+        self.in_order = False
         self.teams = np.zeros(0, np.int64)
         self.rows = np.zeros((0, n), np.int64)
         self._records: dict[int, dict[str, np.ndarray]] = {}
@@ -61,25 +61,25 @@ class _Group:
             buf = self._records[count] = {"sensordata": np.empty((count, self.substeps, self.nsensordata))}
         return buf
 
-    def rollout(self, sims: np.ndarray | None) -> np.ndarray:
-        """``substeps`` physics steps of simulations ``sims`` (sorted and unique, None = all),
-        recording the sensors: (S, substeps, nsensordata).
+    def rollout(self) -> np.ndarray:
+        """``substeps`` physics steps of this layout's simulations, recording the sensors:
+        (S, substeps, nsensordata) in the order of :attr:`sims`.
 
         With mujoco 4.0 the call goes to the extension directly: the public wrapper re-checks the
         ids and rebuilds its record list on every call (~50 µs, 7 % of an env step with 16
         environments), for ids that :meth:`BatchWorld.set_team_sizes` made valid once. The
         reference path (``comat.kernels.reference_path``) keeps the wrapper; rollouts through
         both are equal bit for bit (tests/test_kernels.py)."""
+        buf = self.record(self.sims.size)
         if not _DIRECT_ROLLOUT:
-            return self.batch.rollout(self.substeps, record=("sensordata",), ids=sims,
-                                      out=self.record(self.nsim if sims is None else sims.size))["sensordata"]
-        ids = None if sims is None else self.sims32
-        buf = self.record(self.nsim if sims is None else sims.size)["sensordata"]
+            return self.batch.rollout(self.substeps, record=("sensordata",), ids=None if self.in_order else self.sims,
+                                      out=buf)["sensordata"]
+        ids = None if self.in_order else self.sims32
         failed = self.batch._b.rollout(ids, self.substeps, None, mujoco.mjtState.mjSTATE_CTRL.value,
-                                       [("sensordata", 0, buf)])
+                                       [("sensordata", 0, buf["sensordata"])])
         if failed:
             self.batch._check(ids, failed)  # raises SimulationError, as the wrapper does
-        return buf
+        return buf["sensordata"]
 
 
 class BatchWorld(_TickMixin):
@@ -235,7 +235,7 @@ class BatchWorld(_TickMixin):
             unicycle = b.tier == "unicycle"
             kernels.group_ctrl(dxu, g.rows, g.sims, unicycle, b.half_timestep, b.lateral_gain, *b.wheel_geometry, g.ctrl)
             t0 = time.perf_counter()
-            rec = g.rollout(None if g.in_order else g.sims)
+            rec = g.rollout()
             self.last_physics_s += time.perf_counter() - t0
             kernels.group_read(rec, g.qpos, g.sims, b.qadr, b.sensor_all, b.sensor_wall, g.rows, unicycle, poses, robot, wall)
             if not unicycle:  # the yaw from the quaternion: arctan2 stays in numpy
