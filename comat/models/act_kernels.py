@@ -1,16 +1,16 @@
 """Compiled (numba) acting: COMAT's and MAT's whole robot-by-robot decoder in one call, and
 COMAT's HEAT encoder with its critic in another.
 
-Why: a cached decoder step is ~56 PyTorch calls on tensors of a few thousand numbers, so at the
+Why: a cached decoder step in torch is ~56 PyTorch calls on tensors of a few thousand numbers, so at the
 rollout batch (32) dispatch, not arithmetic, decides its cost. Here all N steps of one ``act``
 run in a single compiled call: matrix products through BLAS (``np.dot``), LayerNorm, softmax,
 the key/value caches and the action choice in loops.
 
 The torch step (``decode_step``) and ``Comat.encode`` stay the references: these kernels repeat
 their arithmetic in float32 but not its summation order, so logits and values agree to ~1e-6,
-not bit for bit (tests/test_models.py). The encoder kernel gives ``act`` ~4× faster encoding
-at the rollout batch (the torch HEAT pass is ~60 calls on (B, N, N, ·) tensors of a few
-thousand numbers). ``AutoregressivePolicy.act`` uses them when no gradient is recorded,
+not bit for bit (tests/test_models.py). The encoder kernel pays at small batches, where the
+torch HEAT pass (~60 calls on (B, N, N, ·) tensors) is dispatch-bound: ~4× for one team of 8,
+~1.2× at batch 32, even at 256 (`comat bench learn`). ``AutoregressivePolicy.act`` uses them when no gradient is recorded,
 on CPU float32 tensors, with ``comat.kernels.enabled()``. Matrix products go to scipy's
 OpenBLAS, which should run on one thread (the ``comat`` command sets ``OPENBLAS_NUM_THREADS=1``
 before loading it): threads cost more than they save on these sizes, and the cores are the
