@@ -236,9 +236,12 @@ def mat_decode(mats, vecs, rep, mask, noise, deterministic, heads):
     return actions, logits
 
 
+_SLOPE = np.float32(0.2)  # HEAT's LeakyReLU negative slope (comat.models.comat)
+
+
 @_jit
 def _leaky(x):
-    return np.where(x >= 0, x, x * np.float32(0.2))
+    return np.where(x >= 0, x, x * _SLOPE)
 
 
 @_jit
@@ -312,7 +315,7 @@ def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root):
                         if mask[b, j]:
                             pair = types[b, i] * T + types[b, j]
                             s = s_i[b * N + i, kk] + s_a[(b * N + i) * N + j, kk] + s_t[pair, kk] + s_j[b * N + j, kk]
-                            s = s if s >= 0 else s * np.float32(0.2)
+                            s = s if s >= 0 else s * _SLOPE
                             scores[j] = s
                             top = max(top, s)
                     total = np.float32(0.0)
