@@ -361,9 +361,14 @@ class MaterialTransport(_Task):
         empty_target = np.where((prefer2 | (has2 & ~has1))[..., None], zone2, zone1)
         return np.where(loaded[..., None], drop, empty_target), loaded | has1 | has2
 
+    state_amount_scale = 160.0
+    """Material units per 1.0 in :meth:`global_features`: eight robots' loads at the payload
+    scale (8 × 20). Raw amounts reach ~155; centralized critics and QMIX's mixer take the state
+    unnormalized, and MAPPO's critic diverged on raw amounts (results/README.md)."""
+
     def global_features(self, state: dict) -> np.ndarray:
-        """(B, 4) material left and initial per zone."""
-        return np.concatenate([state["left"], state["initial"]], axis=-1)
+        """(B, 4) material left and initial per zone, in units of :attr:`state_amount_scale`."""
+        return np.concatenate([state["left"], state["initial"]], axis=-1) / self.state_amount_scale
 
 
 PCP = PredatorCapturePrey

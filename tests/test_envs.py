@@ -112,6 +112,19 @@ def test_reset_with_an_explicit_team_and_observation_layout():
     assert env.state().shape == env.state_space.shape
 
 
+@pytest.mark.parametrize("task", ["pcp", "hmt"])
+def test_global_state_is_order_one_for_the_largest_teams(task):
+    # Centralized critics and QMIX's mixer take the state as it is: no entry may carry raw
+    # amounts (HMT's material reached ~155 before it was scaled, and MAPPO's critic diverged).
+    env = comat.make_vec_env(f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=8, coalitions="test")
+    obs, info = env.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        state = env.state()
+        assert np.abs(state).max() <= 3.0, np.abs(state).max(axis=0)
+        env.step(np.where(info["agent_mask"], rng.integers(0, 5, info["agent_mask"].shape), 0))
+
+
 def test_graph_inputs_any_size():
     team = random_team(np.random.default_rng(0), "pcp", "train", 12)
     env = make_env("pcp_v0", team=team, tier="unicycle")
