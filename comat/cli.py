@@ -114,6 +114,23 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_probe(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from comat.eval.probe import print_probe, probe_checkpoint, write_probe
+
+    if not Path(args.checkpoint).is_file():
+        raise FileNotFoundError(f"--checkpoint {args.checkpoint!r} does not exist")
+    out = Path(args.out) if args.out else Path(args.checkpoint).parent
+    if not out.is_dir():
+        raise FileNotFoundError(f"--out folder {str(out)!r} does not exist (create it first)")
+    print(f"comat probe: {args.checkpoint}", file=sys.stderr)
+    result = probe_checkpoint(args.checkpoint, seed=args.seed, num_envs=args.envs)
+    print_probe(result)
+    print(f"wrote {write_probe(result, out)}")
+    return 0
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -284,6 +301,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-references", action="store_true", help="skip the heuristic and random rows")
     p.add_argument("--out", default=None, help="output folder (default: the checkpoint's folder)")
     p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("probe", help="a checkpoint's value estimates next to the rewards its policy earns",
+                       description="Diagnose a trained learner: for COMAT, MAT and MAPPO one training rollout "
+                       "(value V̂, GAE return and normalized advantage per team size, the robot-weighted mean "
+                       "advantage the policy loss sees); for QMIX greedy episodes (Q_tot at the start against "
+                       "the discounted return, the agents' action gap, the mixer's gain, greedy action shares). "
+                       "Both next to the bound max step reward / (1 - gamma). A table and probe.json in --out.")
+    p.add_argument("--checkpoint", required=True, help="a run's checkpoint.pt")
+    p.add_argument("--seed", type=int, default=None, help="environment and sampling seed (default: the run's)")
+    p.add_argument("--envs", type=int, default=None, help="environments (default: the run's num_envs)")
+    p.add_argument("--out", default=None, help="output folder (default: the checkpoint's folder)")
+    p.set_defaults(func=_cmd_probe)
 
     p = sub.add_parser("report", help="Table I, Fig. 4 and Fig. 5 from run folders",
                        description="Aggregate run folders (algorithms x tasks x seeds) into the paper's Table I "

@@ -117,12 +117,12 @@ def test_global_state_is_order_one_for_the_largest_teams(task):
     # Centralized critics and QMIX's mixer take the state as it is: no entry may carry raw
     # amounts (HMT's material reached ~155 before it was scaled, and MAPPO's critic diverged).
     env = comat.make_vec_env(f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=8, coalitions="test")
-    obs, info = env.reset()
+    _, info = env.reset()
     rng = np.random.default_rng(0)
     for _ in range(5):
         state = env.state()
         assert np.abs(state).max() <= 3.0, np.abs(state).max(axis=0)
-        env.step(np.where(info["agent_mask"], rng.integers(0, 5, info["agent_mask"].shape), 0))
+        info = env.step(np.where(info["agent_mask"], rng.integers(0, 5, info["agent_mask"].shape), 0))[-1]
 
 
 def test_graph_inputs_any_size():

@@ -186,3 +186,55 @@ def test_sweep_status_on_hand_made_folders(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "comat_pcp_s1 resume 4,000 / 10,000 50 0:02" in [" ".join(line.split()) for line in out.splitlines()]
     assert "1 of 3 jobs done" in out and not (root / "comat_pcp_s2").exists()
+
+
+# -- comat probe ---------------------------------------------------------------------------------------
+def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
+    from test_rl import tiny
+
+    from comat.rl.runner import train
+
+    train(tiny("mappo", "hmt"), tmp_path / "run", quiet=True)
+    ckpt = tmp_path / "run" / "checkpoint.pt"
+    assert main(["probe", "--checkpoint", str(ckpt), "--envs", "4"]) == 0
+    assert "robot-weighted mean advantage" in capsys.readouterr().out
+    result = json.loads((tmp_path / "run" / "probe.json").read_text())
+    assert result["kind"] == "ppo" and result["algo"] == "mappo" and result["num_envs"] == 4
+    rows = result["by_team_size"]
+    assert result["team_steps"] == 4 * 3  # tiny preset: rollouts of 3 steps
+    assert sum(r["share"] for r in rows) == pytest.approx(1.0)
+    # advantages are normalized over team-steps: their team-step mean is 0 ...
+    assert sum(r["share"] * r["advantage"] for r in rows) == pytest.approx(0.0, abs=1e-5)
+    # ... and the robot-weighted mean is the same numbers weighted by team size
+    weighted = sum(r["share"] * r["size"] * r["advantage"] for r in rows) / sum(r["share"] * r["size"] for r in rows)
+    assert result["robot_weighted_advantage"] == pytest.approx(weighted, abs=1e-5)
+    assert 0.0 < result["entropy"] <= math.log(5) + 1e-6
+    again = json.loads(json.dumps(__import__("comat.eval.probe", fromlist=["x"]).probe_checkpoint(ckpt, num_envs=4)))
+    assert again["by_team_size"] == rows  # same seed, same rollout
+    assert main(["probe", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):
+    import torch
+    from test_rl import tiny
+
+    from comat.eval.probe import probe_checkpoint
+    from comat.rl.runner import train
+
+    train(tiny("qmix", "pcp"), tmp_path / "run", quiet=True)
+    ckpt = tmp_path / "run" / "checkpoint.pt"
+    result = probe_checkpoint(ckpt, num_envs=3)
+    assert result["kind"] == "qmix" and result["episodes"] == 3
+    assert result["action_gap"] > 0.0 and result["mixer_gain"] > 0.0  # abs() weights: monotonic mixing
+    for shares in result["greedy_actions"].values():
+        assert sum(shares.values()) == pytest.approx(1.0, abs=1e-3)
+    # agents whose Q ignores the action: no gap, and every robot's greedy choice is action 0
+    data = torch.load(ckpt, weights_only=False)
+    agents = data["trainer"]["agents"]
+    for k in ("net.w2", "net.b2"):  # the type heads' output layer
+        agents[k] = torch.zeros_like(agents[k])
+    torch.save(data, tmp_path / "flat.pt")
+    flat = probe_checkpoint(tmp_path / "flat.pt", num_envs=3)
+    assert flat["action_gap"] == 0.0
+    assert all(shares["stay"] == 1.0 for shares in flat["greedy_actions"].values())
