@@ -148,6 +148,25 @@ def test_qmix_learn_step_matches_a_per_step_reference():
     assert any(not torch.equal(agents[k], v) for k, v in tr.agents.state_dict().items())  # it learned
 
 
+@pytest.mark.parametrize("horizon_terminal", [False, True])
+def test_qmix_stores_the_time_limit_as_terminal_only_when_asked(horizon_terminal):
+    from comat.models.qmix import QmixAgents, QmixMixer, QmixNetConfig
+    from comat.rl.qmix import QmixConfig, QmixTrainer
+
+    env = make_vec_env("pcp_v0", 3, seed=2, tier="unicycle", max_robots=8)
+    env.reset()
+    net = QmixNetConfig(16, 8, 16)
+    tr = QmixTrainer(QmixAgents(ObsLayout.for_task(env.task), net), QmixMixer(env.core.state_size(), net), env,
+                     QmixConfig(num_envs=3, batch_episodes=2, buffer_episodes=4, epsilon_start=1.0,
+                                horizon_terminal=horizon_terminal), seed=0)
+    tr.collect()  # random actions: no team captures all prey, every episode hits the time limit
+    buf = tr.buffer
+    assert buf.size == 3 and buf.filled[:3].all()
+    last = buf.terminated[:3, -1]
+    assert last.all() if horizon_terminal else not last.any()
+    assert not buf.terminated[:3, :-1].any()
+
+
 # -- runs: checkpoint -> resume -----------------------------------------------------------------------
 @pytest.mark.parametrize("algo, steps", [("comat", 12), ("mat", 12), ("mappo", 12), ("qmix", 320)])
 def test_resume_continues_exactly(tmp_path, algo, steps):

@@ -14,6 +14,8 @@ One round:
 
        y_t = r_t + γ (1 − terminated_t) · Q_tot⁻(s_{t+1}, Q⁻(o_{t+1}, argmax_a Q(o_{t+1}, a)))
 
+   (``horizon_terminal``: the time limit counts as terminated too.)
+
    with the target networks (⁻) hard-copied every ``target_update_interval`` learner steps. Loss:
    mean squared TD error over filled steps. Rewards are standardized by running statistics.
 
@@ -53,6 +55,10 @@ class QmixConfig:
     epsilon_anneal_steps: int = 50_000
     """Env steps over which ε decays linearly."""
     standardize_rewards: bool = True
+    horizon_terminal: bool = False
+    """Treat the task's time limit as terminal (no bootstrap from the last state), as MARBLER's
+    QMIX runs did (its wrapper reports done at the horizon; EPyMARL's own limit was longer).
+    False: bootstrap there, the textbook choice for a policy that does not see the time."""
 
 
 class EpisodeBuffer:
@@ -181,8 +187,9 @@ class QmixTrainer:
         for t in range(T):
             actions = self.act(obs, mask, eps)
             next_obs, rewards, terminated, truncated, info = env.step(actions)
+            stops = terminated | truncated if self.config.horizon_terminal else terminated
             for k, v in (("obs", obs), ("state", state), ("actions", actions), ("rewards", rewards),
-                         ("terminated", terminated)):
+                         ("terminated", stops)):
                 traj[k].append(v)
             done = (terminated | truncated) & (ended < 0)
             for b in np.flatnonzero(done):
