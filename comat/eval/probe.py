@@ -22,7 +22,8 @@ QMIX — one greedy episode per environment, as the evaluation plays them:
 
 * ``q_tot_start``: Q_tot(s_0, greedy actions) at episode starts, in the learner's units
   (standardized rewards), against ``discounted_return``, Σ γ^t r̃_t of the episode plus
-  γ^L·Q_tot(s_L) where the time limit cut it (the learner's own target, bootstrapped alike);
+  γ^L·Q_tot(s_L) where the time limit cut it (the learner's own target, bootstrapped alike;
+  not with ``horizon_terminal``);
 * ``action_gap``: mean Q_i(best) − Q_i(second best) over robot-steps; ``mixer_gain``: mean
   ∂Q_tot/∂Q_i at episode starts (how much an agent's action can move Q_tot);
 * ``greedy_actions``: share of each action (stay, +x, −x, +y, −y) per robot type.
@@ -153,7 +154,7 @@ def _probe_qmix(trainer) -> dict:
             r = (rewards - mean) / std
             max_reward = max(max_reward, float(r[~ended].max())) if (~ended).any() else max_reward
             ret += np.where(ended, 0.0, disc * r)
-            cut = truncated & ~ended
+            cut = truncated & ~ended & (not cfg.horizon_terminal)
             if cut.any():  # the learner bootstraps at the time limit: so does the reference
                 tail, _ = q_tot(info["final_obs"], mask, info["final_state"])
                 ret += np.where(cut, disc * cfg.gamma * tail.numpy(), 0.0)
