@@ -192,6 +192,7 @@ def test_sweep_status_on_hand_made_folders(tmp_path, capsys):
 def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
     from test_rl import tiny
 
+    from comat.eval.probe import probe_checkpoint
     from comat.rl.runner import train
 
     train(tiny("mappo", "hmt"), tmp_path / "run", quiet=True)
@@ -209,7 +210,7 @@ def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
     weighted = sum(r["share"] * r["size"] * r["advantage"] for r in rows) / sum(r["share"] * r["size"] for r in rows)
     assert result["robot_weighted_advantage"] == pytest.approx(weighted, abs=1e-5)
     assert 0.0 < result["entropy"] <= math.log(5) + 1e-6
-    again = json.loads(json.dumps(__import__("comat.eval.probe", fromlist=["x"]).probe_checkpoint(ckpt, num_envs=4)))
+    again = json.loads(json.dumps(probe_checkpoint(ckpt, num_envs=4)))  # through JSON, as the file was
     assert again["by_team_size"] == rows  # same seed, same rollout
     assert main(["probe", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
     assert "does not exist" in capsys.readouterr().err

@@ -15,8 +15,8 @@ PPO learners (COMAT, MAT, MAPPO) — one training rollout (stochastic actions, e
 
 and overall ``robot_weighted_advantage`` = Σ n·Â / Σ n (n robots per team): the per-robot
 policy loss averages over robots, so at ratio 1 it equals minus this. Zero by construction
-when all teams have one size; away from zero, the loss pushes every sampled action of one team
-size down (which raises the policy's entropy) and of another up.
+when all teams have one size; away from zero, the critic's error differs by team size (a
+constant offset per team adds no gradient in expectation, but it adds variance).
 
 QMIX — one greedy episode per environment, as the evaluation plays them:
 
