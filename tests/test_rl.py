@@ -185,6 +185,18 @@ def test_resume_continues_exactly(tmp_path, algo, steps):
         r.split(",")[0] for r in (tmp_path / "straight" / "progress.csv").read_text().splitlines()[1:]]
 
 
+def test_resume_keeps_the_earlier_sittings_in_config_yaml(tmp_path):
+    import yaml
+
+    train(tiny("mappo", steps=6), tmp_path / "run", quiet=True)
+    train(tiny("mappo", steps=12), tmp_path / "run", resume=True, quiet=True)  # 6 env steps per update
+    train(tiny("mappo", steps=18), tmp_path / "run", resume=True, quiet=True)
+    doc = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
+    assert doc["resumed_at_env_steps"] == 12
+    assert [s["resumed_at_env_steps"] for s in doc["earlier_sittings"]] == [None, 6]
+    assert all(s["versions"]["torch"] == doc["versions"]["torch"] for s in doc["earlier_sittings"])
+
+
 def test_resume_with_env_workers_continues_exactly(tmp_path):
     """Environments in two worker processes: the run is still exactly reproducible and resumable."""
     straight = train(tiny("mappo", env_workers=2), tmp_path / "straight", quiet=True)

@@ -2,7 +2,8 @@
 
 Run folder (``--out``)::
 
-    config.yaml      the resolved RunConfig, versions and the command line (written first)
+    config.yaml      the resolved RunConfig, versions and the command line (written first; a resumed
+                     run keeps its earlier sittings' under ``earlier_sittings``)
     checkpoint.pt    latest checkpoint (atomic), every ``checkpoint_every_steps`` and at the end
     progress.csv     one row per update: env steps, wall time, env-steps/s, episode metrics, losses
     eval.csv         one row per evaluation on the training coalitions (deterministic actions)
@@ -50,11 +51,18 @@ def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
 
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None) -> None:
+    """``config.yaml``: the resolved config, versions and command line of this sitting; a resumed
+    run keeps those of its earlier sittings under ``earlier_sittings`` (which code trained what)."""
     import yaml
 
     doc = {"config": config.to_dict(), "versions": versions(), "command": sys.argv,
            "resumed_at_env_steps": resumed_at}
-    write_atomic(out / "config.yaml", yaml.safe_dump(doc, sort_keys=False))
+    path = out / "config.yaml"
+    if resumed_at is not None and path.is_file():
+        old = yaml.safe_load(path.read_text()) or {}
+        sitting = {k: old.get(k) for k in ("versions", "command", "resumed_at_env_steps")}
+        doc["earlier_sittings"] = [*old.get("earlier_sittings", []), sitting]
+    write_atomic(path, yaml.safe_dump(doc, sort_keys=False))
 
 
 def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions="train") -> dict:
