@@ -3,7 +3,7 @@
 Run folder (``--out``)::
 
     config.yaml      the resolved RunConfig, versions and the command line (written first; a resumed
-                     run keeps its earlier sittings' under ``earlier_sittings``)
+                     run keeps those of its earlier sittings under ``earlier_sittings``)
     checkpoint.pt    latest checkpoint (atomic), every ``checkpoint_every_steps`` and at the end
     progress.csv     one row per update: env steps, wall time, env-steps/s, episode metrics, losses
     eval.csv         one row per evaluation on the training coalitions (deterministic actions)
