@@ -86,16 +86,10 @@ def probe_checkpoint(checkpoint: str | Path, seed: int | None = None, num_envs: 
 
 @torch.no_grad()
 def _probe_ppo(trainer) -> dict:
-    from comat.rl.gae import gae
-    from comat.rl.ppo import _team_value
-
     cfg = trainer.config
     ro = trainer.collect()
     mask = ro.mask.to(torch.float32)
-    v_hat = _team_value(trainer._denorm_values(ro.values), mask)
-    v_next = _team_value(trainer._next_values(trainer.policy, ro), ro.next_mask.to(torch.float32))
-    adv, ret = gae(ro.rewards, v_hat, v_next, ro.dones, cfg.gamma, cfg.gae_lambda)
-    norm = (adv - adv.mean()) / (adv.std() + 1e-8)  # as PPOTrainer.update normalizes
+    v_hat, _, ret, norm = trainer.advantages(ro)  # exactly what the update sees
     n = mask.sum(-1)
     T, B, N, D = ro.obs.shape
     _, entropy, _ = trainer.policy.evaluate_actions(ro.obs.reshape(T * B, N, D), ro.mask.reshape(T * B, N),
@@ -119,9 +113,6 @@ def _probe_ppo(trainer) -> dict:
 def _probe_qmix(trainer) -> dict:
     env, cfg = trainer.env, trainer.config
     agents, mixer = trainer.agents, trainer.mixer
-    std = float(np.sqrt(max(trainer.reward_stats.var, 1e-8)))
-    mean = trainer.reward_stats.mean if cfg.standardize_rewards else 0.0
-    std = std if cfg.standardize_rewards else 1.0
 
     def q_tot(obs, mask, state):  # (B,) of the greedy joint action; agent Q (B, N, A)
         q = agents(torch.as_tensor(obs, dtype=torch.float32), torch.as_tensor(mask))
@@ -151,7 +142,7 @@ def _probe_qmix(trainer) -> dict:
             for ty, a in zip(info["type_ids"][live], actions[live]):
                 counts.setdefault(int(ty), np.zeros(len(_ACTIONS)))[a] += 1
             obs, rewards, terminated, truncated, info = env.step(actions)
-            r = (rewards - mean) / std
+            r = trainer.learner_rewards(rewards)
             max_reward = max(max_reward, float(r[~ended].max())) if (~ended).any() else max_reward
             ret += np.where(ended, 0.0, disc * r)
             cut = truncated & ~ended & (not cfg.horizon_terminal)
@@ -172,7 +163,9 @@ def _probe_qmix(trainer) -> dict:
         "action_gap": float(np.concatenate(gaps).mean()),
         "mixer_gain": mixer_gain,
         "greedy_actions": {str(ty): dict(zip(_ACTIONS, (c / c.sum()).round(4).tolist())) for ty, c in sorted(counts.items())},
-        "reward_mean": float(mean), "reward_std": float(std),
+        # the standardization learner_rewards applies (0 and 1: none)
+        "reward_mean": float(trainer.reward_stats.mean) if cfg.standardize_rewards else 0.0,
+        "reward_std": float(np.sqrt(max(trainer.reward_stats.var, 1e-8))) if cfg.standardize_rewards else 1.0,
     }
 
 

@@ -208,16 +208,21 @@ class PPOTrainer:
         v = net.values(ro.next_obs.reshape(T * B, N, D), ro.next_mask.reshape(T * B, N), state).reshape(T, B, N)
         return self._denorm_values(v) * (~ro.terminated)[..., None]
 
+    @torch.no_grad()
+    def advantages(self, ro: Rollout) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Step 2 for a rollout: V̂ (T, B), the robots' next values (T, B, N), the GAE returns
+        V̂ + Â (T, B) and the advantages normalized over the batch (T, B)."""
+        cfg = self.config
+        v_hat = _team_value(self._denorm_values(ro.values), ro.mask.to(torch.float32))
+        next_values = self._next_values(self.policy, ro)
+        v_next_hat = _team_value(next_values, ro.next_mask.to(torch.float32))
+        adv, returns = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
+        return v_hat, next_values, returns, (adv - adv.mean()) / (adv.std() + 1e-8)
+
     def update(self, ro: Rollout) -> dict[str, float]:
         cfg = self.config
         T, B, N, D = ro.obs.shape
-        mask = ro.mask.to(torch.float32)
-        with torch.no_grad():
-            v_hat = _team_value(self._denorm_values(ro.values), mask)
-            next_values = self._next_values(self.policy, ro)
-            v_next_hat = _team_value(next_values, ro.next_mask.to(torch.float32))
-            adv, _ = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
-            adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+        _, next_values, _, adv = self.advantages(ro)
         flat = {
             "obs": ro.obs.reshape(T * B, N, D),
             "mask": ro.mask.reshape(T * B, N),

@@ -224,15 +224,20 @@ class QmixTrainer:
         q_target = self.target_agents(o, m).gather(-1, greedy)[..., 0]
         return self.target_mixer(q_target, m, state.reshape(E * T1, -1)).reshape(E, T1)
 
+    def learner_rewards(self, rewards):
+        """Rewards in the units the TD targets use (standardized by the running statistics when
+        ``standardize_rewards``)."""
+        if not self.config.standardize_rewards:
+            return rewards
+        return (rewards - self.reward_stats.mean) / np.sqrt(max(self.reward_stats.var, 1e-8))
+
     def learn_step(self) -> dict[str, float]:
         cfg = self.config
         batch = self.buffer.sample(cfg.batch_episodes, self.rng)
         obs, state, mask = batch["obs"], batch["state"], batch["mask"]
         E, T1, N, D = obs.shape
         T = T1 - 1
-        rewards = batch["rewards"]
-        if cfg.standardize_rewards:
-            rewards = (rewards - self.reward_stats.mean) / np.sqrt(max(self.reward_stats.var, 1e-8))
+        rewards = self.learner_rewards(batch["rewards"])
         filled = batch["filled"].to(torch.float32)
         with torch.no_grad():
             next_q = self._q_tot_target(obs, mask, state)[:, 1:]
