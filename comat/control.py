@@ -151,8 +151,11 @@ class SafeTeams:
         self.fallbacks = np.zeros(len(sizes), np.int64)
     def tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
         """One control tick with nominal projected-point velocities (R, 2)."""
+        return self._tick(as_float_array("dxi", dxi, (self.world.layout.n_robots, 2)))
+
+    def _tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
+        """:meth:`tick` without input checks, for velocities made inside comat (float64, (R, 2))."""
         t0 = time.perf_counter()
-        dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
         poses = self.world._poses  # read-only here; our own arrays skip the public checks
         cos_sin = self.world.cos_sin()
         safe, info = self.filter._filter(poses, dxi, cos_sin)

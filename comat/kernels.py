@@ -29,16 +29,20 @@ __all__ = [
     "csc_matvec",
     "enabled",
     "episode_stats_add",
+    "filter_stages",
     "group_ctrl",
     "group_read",
     "interventions",
     "limit_to_wheels",
+    "qp_teams",
     "reference_path",
     "row_bounds_into",
     "row_data",
     "row_products",
     "si_to_uni",
+    "sub_problem_gather",
     "sub_problem_indices",
+    "sub_problem_scatter",
     "take_teams",
     "team_violations",
     "threshold_wheels",
@@ -372,6 +376,43 @@ def take_teams(teams, robot_team, row_team, out, u, Au, Au_new):
 
 
 @_jit
+def filter_stages(poses, c, s, u_nom, distance, pair_i, pair_j, safety_d2, barrier_gain, neg_boundary_gain,
+                  boundary_gain, lo, hi, speed, k, tol, wheel_factor, row_team, robot_team,
+                  points, e, lower, upper, out, Au, u_wheel, Au_wheel, need):
+    """:meth:`comat.safety.filter.SafetyFilter._filter`'s rows and stages 1–2 in one call.
+
+    Projected points (R, 2), rows (e, lower, upper), ``out`` (2R,) = the stage-1/2 answer with
+    its row products ``Au``; ``need`` (B,) the teams left for the QP. Returns how many are left;
+    ``u_wheel`` (2R,) and ``Au_wheel`` are filled only if stage 2 ran, as in the reference.
+    """
+    R, P, B = poses.shape[0], pair_i.size, need.size
+    for r in range(R):
+        points[r, 0] = poses[r, 0] + distance * c[r]
+        points[r, 1] = poses[r, 1] + distance * s[r]
+    row_bounds_into(points, pair_i, pair_j, safety_d2, barrier_gain, neg_boundary_gain, boundary_gain, lo, hi,
+                    speed, e, lower, upper)
+    out[:] = u_nom
+    row_products(e, c, s, k, pair_i, pair_j, u_nom, Au)
+    ok = team_violations(Au, lower, upper, tol, P + 2 * R, wheel_factor, row_team, B)
+    any_need = False
+    for b in range(B):
+        need[b] = not ok[b]
+        any_need |= need[b]
+    if not any_need:
+        return 0
+    limit_to_wheels(u_nom.reshape(R, 2), c, s, k, speed, u_wheel.reshape(R, 2))
+    row_products(e, c, s, k, pair_i, pair_j, u_wheel, Au_wheel)
+    ok = team_violations(Au_wheel, lower, upper, tol, P + 2 * R, wheel_factor, row_team, B)
+    left = 0
+    for b in range(B):
+        ok[b] &= need[b]
+        need[b] &= not ok[b]
+        left += need[b]
+    take_teams(ok, robot_team, row_team, out, u_wheel, Au, Au_wheel)
+    return left
+
+
+@_jit
 def sub_problem_indices(order, sizes, offsets, n_pairs, n_robots):
     """Rows, columns and nonzeros of the full barrier QP that the teams ``order`` (k,) cover, in
     the order of the sub-problem's own layout (teams in the given order).
@@ -410,3 +451,57 @@ def sub_problem_indices(order, sizes, offsets, n_pairs, n_robots):
         for z in range(2):
             nnz[4 * sub_pairs + 2 * sub_robots + 2 * m + z] = 4 * P + 2 * R + 2 * q + z
     return rows, cols, nnz
+
+
+@_jit
+def qp_teams(need, sizes, block):
+    """:meth:`comat.safety.filter.SafetyFilter._qp_teams`: the teams (k,) of this tick's QP."""
+    B = need.size
+    teams = np.flatnonzero(need)
+    k = teams.size
+    if k <= 1:
+        return teams
+    target = B if 2 * k > B else min(B, -(-k // block) * block)
+    if target == B:
+        return np.arange(B)
+    if target > k:
+        chosen = need.copy()
+        extra = target - k
+        for b in range(B):
+            if extra == 0:
+                break
+            if not chosen[b]:
+                chosen[b] = True
+                extra -= 1
+        teams = np.flatnonzero(chosen)
+    return teams[np.argsort(sizes[teams], kind="mergesort")]
+
+
+@_jit
+def sub_problem_gather(rows, cols, nnz, perm, data, lower, upper, u_nom, x0, duals, A_data, lower_s, upper_s, u_s, x0_s, y0_s):
+    """A sub-problem's inputs from the full problem's: its matrix's nonzeros in CSC order
+    (A_data[i] = data[nnz[perm[i]]]), row bounds and duals at ``rows``, velocities at ``cols``."""
+    for i in range(perm.size):
+        A_data[i] = data[nnz[perm[i]]]
+    for m in range(rows.size):
+        q = rows[m]
+        lower_s[m], upper_s[m], y0_s[m] = lower[q], upper[q], duals[q]
+    for m in range(cols.size):
+        q = cols[m]
+        u_s[m], x0_s[m] = u_nom[q], x0[q]
+
+
+@_jit
+def sub_problem_scatter(need, teams, good, robot_team_s, row_team_s, rows, cols, x, Ax, out, Au):
+    """A sub-problem's answer back into the full problem's velocities ``out`` and row products
+    ``Au``, for its teams (k,) that needed the QP (``need`` (B,)) and whose answer is ``good`` (k,)."""
+    take = np.empty(teams.size, dtype=np.bool_)
+    for m in range(teams.size):
+        take[m] = need[teams[m]] and good[m]
+    for r in range(robot_team_s.size):
+        if take[robot_team_s[r]]:
+            out[cols[2 * r]] = x[2 * r]
+            out[cols[2 * r + 1]] = x[2 * r + 1]
+    for m in range(rows.size):
+        if take[row_team_s[m]]:
+            Au[rows[m]] = Ax[m]

@@ -97,6 +97,43 @@ def test_filter_rows_products_feasibility_and_interventions(rng):
     assert slow[1].robot_intervened.any() and slow[1].status != "skipped"  # the QP stage ran
 
 
+def test_qp_team_selection(rng):
+    for sizes in ((3, 1, 5, 2, 4), tuple(rng.integers(1, 7, 20)), tuple(rng.integers(1, 7, 33))):
+        f = SafetyFilter(sizes)
+        for density in (0.0, 0.05, 0.2, 0.45, 0.7, 1.0):
+            need = rng.random(len(sizes)) < density
+            fast, slow = _both(lambda need=need, f=f: f._qp_teams(need))
+            _equal(fast, slow)
+            assert set(np.flatnonzero(need)) <= set(slow.tolist())
+
+
+def test_filter_sub_problems(rng):
+    """Ticks where a few of many teams need the QP: the sub-problem gather and scatter."""
+    sizes = tuple(int(n) for n in rng.integers(2, 6, 20))
+    t = team_layout(sizes)
+
+    def run():
+        r = np.random.default_rng(1)
+        f = SafetyFilter(sizes)
+        out = []
+        for _ in range(12):
+            poses = np.concatenate([np.stack([np.linspace(-1.2, 1.2, n), r.uniform(-0.7, 0.7, n), r.uniform(-3, 3, n)], 1) for n in sizes])
+            for b in r.choice(t.n_teams, 3, replace=False):  # in three teams, a pair facing each other
+                i = t.offsets[b]
+                poses[i, 2], poses[i + 1, 2] = 0.0, np.pi
+                poses[i + 1, :2] = poses[i, :2] + [C.SAFETY_DISTANCE_M + 2 * C.PROJECTION_DISTANCE_M + 0.01, 0.0]
+            dxi = r.normal(0, 0.01, (t.n_robots, 2))
+            dxi[t.offsets[:-1]] = [0.15, 0.0]  # the first robot of every team drives along +x
+            safe, info = f._filter(poses, dxi)
+            assert info.active_pairs.sum() == 3 and not info.fallback.any()
+            out += [safe, info.intervention, info._Au, f._duals.copy()]
+        return tuple(out), [key[0] for key in f._qps]
+
+    (fast, fast_keys), (slow, slow_keys) = _both(run)
+    assert fast_keys == slow_keys and all(len(k) == 8 for k in slow_keys)  # 3 teams padded to 8 of 20
+    _equal(fast, slow)
+
+
 def test_checks_and_counters(rng):
     sizes = (4, 2, 6)
     t = team_layout(sizes)

@@ -174,7 +174,7 @@ class TaskCore:
         last = self._last_contact
         for _ in range(self.ticks_per_step):
             world = safe.world
-            events, info = safe.tick(waypoint_controller(None, goals, world._poses, WAYPOINT_GAIN, d, world.cos_sin()))
+            events, info = safe._tick(waypoint_controller(None, goals, world._poses, WAYPOINT_GAIN, d, world.cos_sin()))
             self._count_tick(starts, events, info, last, violations)
             last = events.robot_contact
         self._last_contact = last

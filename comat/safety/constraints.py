@@ -27,7 +27,7 @@ from comat import kernels
 from comat.sim.kinematics import wheel_rhombus
 from comat.sim.layout import TeamLayout, team_layout
 
-__all__ = ["OSQP_INFINITY", "Layout", "RowValues", "make_layout", "reference_rows", "row_values"]
+__all__ = ["OSQP_INFINITY", "Layout", "RowValues", "make_layout", "reference_rows", "row_constants", "row_values"]
 
 OSQP_INFINITY = 1e30
 """OSQP's infinity: bounds at or beyond it are treated as absent (pair rows have no lower bound)."""
@@ -160,14 +160,20 @@ def row_values(
     return RowValues(layout, e, c, s, k, lower, upper)
 
 
-def _row_values_compiled(layout: Layout, points: np.ndarray, cfg, profile: C.RobotProfile, c, s) -> RowValues:
-    t = layout.teams
+def row_constants(cfg, profile: C.RobotProfile) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """What the compiled row kernels take besides the state: wheel rhombus (k, v) and the
+    arena shrunk by the margin, lower (2,) and upper (2,) corners."""
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
     m = cfg.boundary_margin_m
     k, speed = _limits(cfg, profile)
+    return k, speed, np.array((x0 + m, y0 + m)), np.array((x1 - m, y1 - m))
+
+
+def _row_values_compiled(layout: Layout, points: np.ndarray, cfg, profile: C.RobotProfile, c, s) -> RowValues:
+    t = layout.teams
+    k, speed, lo, hi = row_constants(cfg, profile)
     e = np.empty((t.n_pairs, 2))
     lower, upper = np.empty(layout.n_rows), np.empty(layout.n_rows)
-    lo, hi = np.array((x0 + m, y0 + m)), np.array((x1 - m, y1 - m))
     kernels.row_bounds_into(
         points, t.pair_i, t.pair_j, cfg.safety_distance_m**2, cfg.barrier_gain, -cfg.boundary_gain,
         cfg.boundary_gain, lo, hi, speed, e, lower, upper,

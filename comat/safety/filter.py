@@ -31,12 +31,15 @@ from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
+from comat.safety.constraints import RowValues, row_constants
 from comat.safety.qp import BarrierQP
 from comat.sim.kinematics import limit_to_wheels, si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
 
 _MAX_CACHED_QPS = 256
+_QP_TEAM_BLOCK = 8
+"""Teams of a QP are padded up to a multiple of this (see :meth:`SafetyFilter._qp_teams`)."""
 
 
 class InfeasibleError(RuntimeError):
@@ -158,9 +161,9 @@ class SafetyFilter:
         self._nnz_kind_team = self._row_kind_team[lay.rows]
         self._teams_with_pairs = np.flatnonzero(np.array(t.team_sizes) > 1)
         self._pair_starts = np.searchsorted(t.pair_team, self._teams_with_pairs)
+        self._row_constants = row_constants(self.config, profile)
         self.last_solver_s = 0.0
         self.last_solver_c_s = 0.0
-
 
     # -- public ---------------------------------------------------------------------------------
     @property
@@ -201,30 +204,38 @@ class SafetyFilter:
         t = lay.teams
         self.last_solver_s = self.last_solver_c_s = 0.0
         c, s = cos_sin if cos_sin is not None else (np.cos(poses[:, 2]), np.sin(poses[:, 2]))
-        points = poses[:, :2] + cfg.projection_distance_m * np.stack([c, s], axis=1)
-        vals = full.rows(points, poses[:, 2], (c, s))
         self._data = None  # nonzeros of A, built only if a QP is solved
         u_nom = dxi.ravel()
-        out = u_nom.copy()
-        Au = vals.products(u_nom)  # A @ out, kept current through the stages (for SafetyInfo)
         status = "skipped"
         fallback = np.zeros(t.n_teams, dtype=bool)
-        # Stage 1: the nominal command as it is.
-        need = ~full.feasible(vals, u_nom, Au=Au)
-        if need.any():  # Stage 2: per-robot projection onto the wheel-limit rhombus.
-            u_wheel = self._project_wheels(u_nom, c, s)
-            Au_wheel = vals.products(u_wheel)
-            ok = need & full.feasible(vals, u_wheel, Au=Au_wheel)
-            self._take(ok, out, u_wheel, Au, Au_wheel)
-            need &= ~ok
-        if need.any():  # Stage 3: the QP for the teams still left.
+        if kernels.enabled():
+            points, vals, out, Au, need, u_wheel, left = self._stages_compiled(poses, u_nom, c, s)
+        else:
+            points = poses[:, :2] + cfg.projection_distance_m * np.stack([c, s], axis=1)
+            vals = full.rows(points, poses[:, 2], (c, s))
+            out = u_nom.copy()
+            Au = vals.products(u_nom)  # A @ out, kept current through the stages (for SafetyInfo)
+            # Stage 1: the nominal command as it is.
+            need = ~full.feasible(vals, u_nom, Au=Au)
+            if need.any():  # Stage 2: per-robot projection onto the wheel-limit rhombus.
+                u_wheel = self._project_wheels(u_nom, c, s)
+                Au_wheel = vals.products(u_wheel)
+                ok = need & full.feasible(vals, u_wheel, Au=Au_wheel)
+                self._take(ok, out, u_wheel, Au, Au_wheel)
+                need &= ~ok
+            left = need.any()
+        if left:  # Stage 3: the QP for the teams still left.
             teams = self._qp_teams(need)
             x, Ax, good, rows, cols, status, sub = self._solve(teams, vals, u_nom, self.config, u_wheel)
-            take = need[teams] & good  # padding teams keep their stage-2 answer
-            take_c = np.repeat(take[sub.teams.robot_team], 2)
-            out[cols[take_c]] = x[take_c]
-            take_r = take[sub.row_team]
-            Au[rows[take_r]] = Ax[take_r]
+            # Teams that needed the QP take its answer; padding teams keep their stage-2 answer.
+            if kernels.enabled():
+                kernels.sub_problem_scatter(need, teams, good, sub.teams.robot_team, sub.row_team, rows, cols, x, Ax, out, Au)
+            else:
+                take = need[teams] & good
+                take_c = np.repeat(take[sub.teams.robot_team], 2)
+                out[cols[take_c]] = x[take_c]
+                take_r = take[sub.row_team]
+                Au[rows[take_r]] = Ax[take_r]
             for b in teams[need[teams] & ~good]:  # rare: re-solve alone, precisely, or brake
                 x_b, Ax_b, (good_b,), rows_b, cols_b, _, _ = self._solve(np.array([b]), vals, u_nom, self._precise, u_wheel)
                 if good_b:
@@ -236,6 +247,24 @@ class SafetyFilter:
             if fallback.any() and cfg.strict:
                 raise InfeasibleError(self._explain(np.flatnonzero(fallback), points, status))
         return out.reshape(-1, 2), self._info(vals, out, u_nom, Au, fallback, status)
+
+    def _stages_compiled(self, poses: np.ndarray, u_nom: np.ndarray, c: np.ndarray, s: np.ndarray):
+        """Rows and stages 1–2 of :meth:`_filter` in one kernel call (the numpy branch there is
+        its reference): points, rows, answer so far, its row products, teams left (mask and
+        count), u_wheel."""
+        lay, cfg = self.layout, self.config
+        t = lay.teams
+        R, n_rows = t.n_robots, lay.n_rows
+        k, speed, lo, hi = self._row_constants
+        points, e = np.empty((R, 2)), np.empty((t.n_pairs, 2))
+        lower, upper, Au, Au_wheel = np.empty(n_rows), np.empty(n_rows), np.empty(n_rows), np.empty(n_rows)
+        out, u_wheel, need = np.empty(2 * R), np.empty(2 * R), np.empty(t.n_teams, dtype=bool)
+        left = kernels.filter_stages(
+            poses, c, s, u_nom, cfg.projection_distance_m, t.pair_i, t.pair_j, cfg.safety_distance_m**2,
+            cfg.barrier_gain, -cfg.boundary_gain, cfg.boundary_gain, lo, hi, speed, k, cfg.feasibility_tol,
+            self._full.wheel_factor, lay.row_team, t.robot_team, points, e, lower, upper, out, Au, u_wheel, Au_wheel, need,
+        )  # fmt: skip
+        return points, RowValues(lay, e, c, s, k, lower, upper), out, Au, need, u_wheel, left
 
     def _take(self, teams: np.ndarray, out, u, Au, Au_new) -> None:
         """Adopt ``u`` (and its row products) for the flagged teams."""
@@ -267,12 +296,14 @@ class SafetyFilter:
         count is rounded up to a multiple of 8 teams, or to all teams once more than half need
         it; padding teams solve to the answer they already have.
         """
+        if kernels.enabled():
+            return kernels.qp_teams(need, self._sizes, _QP_TEAM_BLOCK)
         t = self.layout.teams
         teams = np.flatnonzero(need)
         k = teams.size
         if k <= 1:
             return teams
-        target = t.n_teams if 2 * k > t.n_teams else min(t.n_teams, -(-k // 8) * 8)
+        target = t.n_teams if 2 * k > t.n_teams else min(t.n_teams, -(-k // _QP_TEAM_BLOCK) * _QP_TEAM_BLOCK)
         if target == t.n_teams:
             return np.arange(t.n_teams)
         if target > k:
@@ -315,12 +346,28 @@ class SafetyFilter:
         else:
             rows, cols, nnz = self._sub_indices(teams)
             qp = self._qp(tuple(self._sizes[teams].tolist()), config)
-            sub = _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
-            res = qp.solve(qp.matrix(self._data[nnz]), sub, u_nom[cols], x0=x0[cols], y0=self._duals[rows])
+            if kernels.enabled():
+                A, sub, u_sub, x0_sub, y0_sub = self._gather_compiled(qp, rows, cols, nnz, vals, u_nom, x0)
+            else:
+                A, sub = qp.matrix(self._data[nnz]), _Bounds(vals.lower[rows], vals.upper[rows], qp.layout)
+                u_sub, x0_sub, y0_sub = u_nom[cols], x0[cols], self._duals[rows]
+            res = qp.solve(A, sub, u_sub, x0=x0_sub, y0=y0_sub)
             self._duals[rows] = res.y
         self.last_solver_s += res.solver_wall_s
         self.last_solver_c_s += res.solver_c_s
         return res.x, res.Ax, res.good, rows, cols, res.status, qp.layout
+
+    def _gather_compiled(self, qp: BarrierQP, rows, cols, nnz, vals, u_nom, x0):
+        """The sub-problem's matrix, bounds, nominal and warm start, gathered in one kernel call
+        (the numpy branch in :meth:`_solve` is its reference)."""
+        m, n = rows.size, cols.size
+        lower, upper, y0, u_sub, x0_sub = np.empty(m), np.empty(m), np.empty(m), np.empty(n), np.empty(n)
+        A = qp.pattern
+        kernels.sub_problem_gather(
+            rows, cols, nnz, qp.perm, self._data, vals.lower, vals.upper, u_nom, x0, self._duals, A.data,
+            lower, upper, u_sub, x0_sub, y0,
+        )  # fmt: skip
+        return A, _Bounds(lower, upper, qp.layout), u_sub, x0_sub, y0
 
     def _project_wheels(self, u: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Closest velocities (2R,) inside each robot's reduced wheel-limit rhombus."""

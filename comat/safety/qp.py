@@ -49,16 +49,21 @@ class BarrierQP:
         self.layout = make_layout(team_sizes)
         self.config = config
         self.profile = profile
-        self._A, self._perm = matrix_of(self.layout)
+        self.pattern, self.perm = matrix_of(self.layout)
+        """The constraint matrix (its nonzeros rewritten per tick) and the permutation from
+        :meth:`RowValues.data` order to its CSC order."""
         self._solver: osqp.OSQP | None = None
+        # (1e-9: rounding of commands exactly at the limit, as in kinematics.threshold_wheels)
+        self.wheel_factor = (1.0 + 1e-9) / config.wheel_speed_fraction
+        """Wheel rows are violated beyond ``upper · wheel_factor`` (see :meth:`feasible`)."""
 
     def matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The constraint matrix for nonzeros ``data`` given in layout order.
 
         The returned matrix is this problem's own, rewritten in place by the next call.
         """
-        np.take(data, self._perm, out=self._A.data)
-        return self._A
+        np.take(data, self.perm, out=self.pattern.data)
+        return self.pattern
 
     def rows(self, points: np.ndarray, headings: np.ndarray, cos_sin=None) -> RowValues:
         return row_values(self.layout, points, headings, self.config, self.profile, cos_sin)
@@ -78,14 +83,13 @@ class BarrierQP:
         Au = vals.products(u) if Au is None else Au
         tol = self.config.feasibility_tol
         t = self.layout.teams
-        wheel_factor = (1.0 + 1e-9) / self.config.wheel_speed_fraction
+        wheel_factor = self.wheel_factor
         if kernels.enabled():
             return kernels.team_violations(
                 Au, vals.lower, vals.upper, tol, t.n_pairs + 2 * t.n_robots, wheel_factor, self.layout.row_team, t.n_teams
             )
         viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
         w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
-        # (1e-9: rounding of commands exactly at the limit, as in kinematics.threshold_wheels)
         limit = vals.upper[w] * wheel_factor
         viol[w] = np.abs(Au[w]) > limit
         return self.per_team(viol) == 0
