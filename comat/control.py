@@ -20,7 +20,7 @@ from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.sim import BatchWorld, World
-from comat.sim.kinematics import limit_to_wheels, projected_points, si_to_uni, wheel_rhombus
+from comat.sim.kinematics import limit_to_wheels, projected_points, wheel_rhombus
 from comat.sim.violations import TickEvents
 
 __all__ = ["SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
@@ -159,7 +159,7 @@ class SafeTeams:
         poses = self.world._poses  # read-only here; our own arrays skip the public checks
         cos_sin = self.world.cos_sin()
         safe, info = self.filter._filter(poses, dxi, cos_sin)
-        events = self.world._step(si_to_uni(safe, poses, self.safety_config.projection_distance_m, cos_sin))
+        events = self.world._step_points(safe, self.safety_config.projection_distance_m)
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.timing.total = time.perf_counter() - t0

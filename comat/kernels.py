@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 __all__ = [
+    "check_and_count",
     "check_tick_into",
     "csc_matvec",
     "enabled",
@@ -40,6 +41,7 @@ __all__ = [
     "row_data",
     "row_products",
     "si_to_uni",
+    "si_to_wheels",
     "sub_problem_gather",
     "sub_problem_indices",
     "sub_problem_scatter",
@@ -142,6 +144,14 @@ def threshold_wheels(dxu, wheel_radius, half_length, length, limit, tolerance, o
         else:
             out[r, 0], out[r, 1] = v, w
     return any_over
+
+
+@_jit
+def si_to_wheels(dxi, c, s, distance, wheel_radius, half_length, length, limit, tolerance, dxu, clipped, overrun):
+    """:func:`si_to_uni` then :func:`threshold_wheels` (the unicycle command dxu (R, 2) and what
+    the wheels realize of it, clipped (R, 2)); returns True if any wheel overran."""
+    si_to_uni(dxi, c, s, distance, dxu)
+    return threshold_wheels(dxu, wheel_radius, half_length, length, limit, tolerance, clipped, overrun)
 
 
 # -- physics bindings ----------------------------------------------------------------------------
@@ -301,6 +311,19 @@ def violations_add(robot_team, collision, boundary, actuator, robot_contact, wal
             any_act[robot_team[r]] = True
     for b in range(B):
         actuator_ticks[b] += any_act[b]
+
+
+@_jit
+def check_and_count(poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, robot_team, actuator,
+                    robot_contact, wall_contact, collision, collision_pairs, boundary, last_contact, pair_total,
+                    collision_ticks, boundary_ticks, actuator_ticks, contact_ticks, contact_onsets, wall_ticks):
+    """:func:`check_tick_into` then :func:`violations_add`, and the pair counts added to
+    ``pair_total`` (B,): a tick's checks and counters in one call."""
+    check_tick_into(poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, collision, collision_pairs, boundary)
+    violations_add(robot_team, collision, boundary, actuator, robot_contact, wall_contact, last_contact,
+                   collision_ticks, boundary_ticks, actuator_ticks, contact_ticks, contact_onsets, wall_ticks)
+    for b in range(pair_total.size):
+        pair_total[b] += collision_pairs[b]
 
 
 @_jit

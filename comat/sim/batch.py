@@ -121,8 +121,8 @@ class BatchWorld(_TickMixin):
 
     @property
     def groups(self) -> list[_Group]:
-        """Groups with at least one team, by size."""
-        return [g for g in self._groups.values() if g.sims.size]
+        """Groups with at least one team, by size (set by :meth:`set_team_sizes`)."""
+        return self._active
 
     def set_team_sizes(self, team_sizes: Sequence[int]) -> None:
         """Change the team sizes (same number of teams).
@@ -160,6 +160,7 @@ class BatchWorld(_TickMixin):
             group.sims32 = group.sims.astype(np.int32)
             group.rows = self.layout.offsets[group.teams][:, None] + np.arange(n)
             group.in_order = group.teams.size == B and np.array_equal(group.sims, np.arange(B))
+        self._active = [g for g in self._groups.values() if g.sims.size]
         if old_poses is not None:
             # Teams that kept their size keep their poses.
             for b in range(B):

@@ -135,6 +135,21 @@ class Violations:
         self._last_contact = ev.robot_contact.copy()
         self.wall_ticks += ev.wall_contact
 
+    def check_and_add(
+        self, poses, pair_i, pair_j, pair_team, actuator, robot_contact, wall_contact, cos_sin
+    ) -> TickEvents:
+        """:func:`check_tick` then :meth:`add`, compiled into one call (kernels on only)."""
+        c, s = cos_sin
+        R, B = poses.shape[0], self.n_teams
+        collision, boundary, pairs = np.empty(R, dtype=bool), np.empty(R, dtype=bool), np.empty(B, np.int64)
+        kernels.check_and_count(
+            poses, c, s, C.COLLISION_OFFSET_M, C.COLLISION_DIAMETER_M**2, pair_i, pair_j, pair_team, _BOUNDS,
+            self.robot_team, actuator, robot_contact, wall_contact, collision, pairs, boundary, self._last_contact,
+            self.collision_pairs, self.collision_ticks, self.boundary_ticks, self.actuator_ticks, self.contact_ticks,
+            self.contact_onsets, self.wall_ticks,
+        )  # fmt: skip
+        return TickEvents(collision, pairs, boundary, actuator, robot_contact, wall_contact)
+
     def reset(self, teams: np.ndarray | None = None) -> None:
         """Zero the counts of the given teams (all if None)."""
         if teams is None:

@@ -20,11 +20,12 @@ import mujoco
 import numpy as np
 
 from comat import constants as C
+from comat import kernels
 from comat._validate import as_float_array, check_positive_int
 from comat.config import SimConfig
 from comat.mjcf.scene import compiled_scene
 from comat.sim.binding import Binding
-from comat.sim.kinematics import threshold_wheels
+from comat.sim.kinematics import si_to_uni, threshold_wheels
 from comat.sim.layout import TeamLayout, team_layout
 from comat.sim.violations import TickEvents, Violations, check_tick
 
@@ -78,14 +79,39 @@ class _TickMixin:
 
     def _step(self, dxu: np.ndarray) -> TickEvents:
         """:meth:`step` without input checks, for commands made inside comat (the filter's)."""
-        clipped, overrun = threshold_wheels(dxu, self.profile)
+        return self._advance(*threshold_wheels(dxu, self.profile))
+
+    def _step_points(self, dxi: np.ndarray, distance: float) -> TickEvents:
+        """:meth:`_step` for velocities (R, 2) of the points ``distance`` ahead of the axles,
+        converted with :func:`~comat.sim.kinematics.si_to_uni` (fused with the wheel limit when
+        the kernels are on)."""
+        c, s = self.cos_sin()
+        if not kernels.enabled():
+            return self._step(si_to_uni(dxi, self._poses, distance, (c, s)))
+        p = self.profile
+        R = dxi.shape[0]
+        dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
+        length = p.base_length_m
+        kernels.si_to_wheels(
+            dxi, c, s, distance, p.wheel_radius_m, length / 2.0, length, p.max_wheel_velocity_radps, 1.0 + 1e-9,
+            dxu, clipped, overrun,
+        )  # fmt: skip
+        return self._advance(clipped, overrun)
+
+    def _advance(self, clipped: np.ndarray, overrun: np.ndarray) -> TickEvents:
+        """Physics, poses, checks and counters of a tick with wheel-realizable commands (R, 2)."""
         poses, robot_contact, wall_contact = self._run_physics(clipped)
         self._set_poses(poses)
         t = self.layout
-        ev = check_tick(
-            poses, t.pair_i, t.pair_j, t.pair_team, t.n_teams, overrun, robot_contact, wall_contact, self.cos_sin()
-        )
-        self.violations.add(ev)
+        if kernels.enabled():
+            ev = self.violations.check_and_add(
+                poses, t.pair_i, t.pair_j, t.pair_team, overrun, robot_contact, wall_contact, self.cos_sin()
+            )
+        else:
+            ev = check_tick(
+                poses, t.pair_i, t.pair_j, t.pair_team, t.n_teams, overrun, robot_contact, wall_contact, self.cos_sin()
+            )
+            self.violations.add(ev)
         self.ticks += 1
         return ev
 
