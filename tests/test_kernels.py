@@ -130,7 +130,7 @@ def test_filter_sub_problems(rng):
         return tuple(out), [key[0] for key in f._qps]
 
     (fast, fast_keys), (slow, slow_keys) = _both(run)
-    assert fast_keys == slow_keys and all(len(k) == 8 for k in slow_keys)  # 3 teams padded to 8 of 20
+    assert fast_keys == slow_keys and all(len(k) == 4 for k in slow_keys)  # 3 teams padded to 4 of 20
     _equal(fast, slow)
 
 
