@@ -13,6 +13,7 @@ from comat import constants as C
 from comat import kernels
 from comat.config import SafetyConfig
 from comat.safety.constraints import Layout, RowValues, make_layout, row_values
+from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE
 
 __all__ = ["BarrierQP", "QPResult", "matrix_of"]
 
@@ -53,8 +54,7 @@ class BarrierQP:
         """The constraint matrix (its nonzeros rewritten per tick) and the permutation from
         :meth:`RowValues.data` order to its CSC order."""
         self._solver: osqp.OSQP | None = None
-        # (1e-9: rounding of commands exactly at the limit, as in kinematics.threshold_wheels)
-        self.wheel_factor = (1.0 + 1e-9) / config.wheel_speed_fraction
+        self.wheel_factor = WHEEL_LIMIT_TOLERANCE / config.wheel_speed_fraction
         """Wheel rows are violated beyond ``upper · wheel_factor`` (see :meth:`feasible`)."""
 
     def matrix(self, data: np.ndarray) -> sp.csc_matrix:

@@ -17,6 +17,7 @@ from comat import constants as C
 from comat import kernels
 
 __all__ = [
+    "WHEEL_LIMIT_TOLERANCE",
     "diff_to_uni",
     "euler_unicycle_step",
     "limit_to_wheels",
@@ -28,6 +29,10 @@ __all__ = [
     "wheel_rhombus",
     "wrap_angle",
 ]
+
+WHEEL_LIMIT_TOLERANCE = 1.0 + 1e-9
+"""A wheel overruns its limit beyond ``limit · WHEEL_LIMIT_TOLERANCE``: commands exactly at the
+limit, up to rounding, are not actuator errors."""
 
 
 def wrap_angle(theta: np.ndarray) -> np.ndarray:
@@ -63,11 +68,10 @@ def threshold_wheels(
     if _flat(dxu):
         out, overrun = np.empty_like(dxu), np.empty(dxu.shape[0], dtype=bool)
         r, length = profile.wheel_radius_m, profile.base_length_m
-        any_over = kernels.threshold_wheels(dxu, r, length / 2.0, length, limit, 1.0 + 1e-9, out, overrun)
+        any_over = kernels.threshold_wheels(dxu, r, length / 2.0, length, limit, WHEEL_LIMIT_TOLERANCE, out, overrun)
         return (out if any_over else dxu), overrun
     dxdd = uni_to_diff(dxu, profile)
-    # A hair of tolerance so that commands exactly at the limit (up to rounding) are not errors.
-    over = np.abs(dxdd) > limit * (1.0 + 1e-9)
+    over = np.abs(dxdd) > limit * WHEEL_LIMIT_TOLERANCE
     overrun = over[..., 0] | over[..., 1]
     if not overrun.any():  # the usual case behind the safety filter: nothing to clip
         return dxu, overrun

@@ -25,7 +25,7 @@ from comat._validate import as_float_array, check_positive_int
 from comat.config import SimConfig
 from comat.mjcf.scene import compiled_scene
 from comat.sim.binding import Binding
-from comat.sim.kinematics import si_to_uni, threshold_wheels
+from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE, si_to_uni, threshold_wheels
 from comat.sim.layout import TeamLayout, team_layout
 from comat.sim.violations import TickEvents, Violations, check_tick
 
@@ -93,7 +93,7 @@ class _TickMixin:
         dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
         length = p.base_length_m
         kernels.si_to_wheels(
-            dxi, c, s, distance, p.wheel_radius_m, length / 2.0, length, p.max_wheel_velocity_radps, 1.0 + 1e-9,
+            dxi, c, s, distance, p.wheel_radius_m, length / 2.0, length, p.max_wheel_velocity_radps, WHEEL_LIMIT_TOLERANCE,
             dxu, clipped, overrun,
         )  # fmt: skip
         return self._advance(clipped, overrun)
