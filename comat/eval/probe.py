@@ -163,9 +163,7 @@ def _probe_qmix(trainer) -> dict:
         "action_gap": float(np.concatenate(gaps).mean()),
         "mixer_gain": mixer_gain,
         "greedy_actions": {str(ty): dict(zip(_ACTIONS, (c / c.sum()).round(4).tolist())) for ty, c in sorted(counts.items())},
-        # the standardization learner_rewards applies (0 and 1: none)
-        "reward_mean": float(trainer.reward_stats.mean) if cfg.standardize_rewards else 0.0,
-        "reward_std": float(np.sqrt(max(trainer.reward_stats.var, 1e-8))) if cfg.standardize_rewards else 1.0,
+        **dict(zip(("reward_mean", "reward_std"), trainer.reward_standardization())),
     }
 
 

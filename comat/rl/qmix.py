@@ -224,12 +224,20 @@ class QmixTrainer:
         q_target = self.target_agents(o, m).gather(-1, greedy)[..., 0]
         return self.target_mixer(q_target, m, state.reshape(E * T1, -1)).reshape(E, T1)
 
+    def reward_standardization(self) -> tuple[float, float]:
+        """(mean, std) that :meth:`learner_rewards` applies: the running statistics when
+        ``standardize_rewards``, else (0, 1)."""
+        if not self.config.standardize_rewards:
+            return 0.0, 1.0
+        return float(self.reward_stats.mean), float(np.sqrt(max(self.reward_stats.var, 1e-8)))
+
     def learner_rewards(self, rewards):
         """Rewards in the units the TD targets use (standardized by the running statistics when
         ``standardize_rewards``)."""
         if not self.config.standardize_rewards:
             return rewards
-        return (rewards - self.reward_stats.mean) / np.sqrt(max(self.reward_stats.var, 1e-8))
+        mean, std = self.reward_standardization()
+        return (rewards - mean) / std
 
     def learn_step(self) -> dict[str, float]:
         cfg = self.config
