@@ -37,7 +37,12 @@ def models():
     torch.manual_seed(0)
     return {"comat": Comat(LAYOUT), "mat": Mat(LAYOUT, MatConfig(max_robots=64)),
             # the encoder options (HEAT root term, per-robot feed-forward sublayer)
-            "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True))}
+            "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True)),
+            # the audit's options: observation embedding with residual blocks, small messages,
+            # a shared decision trunk; HEAT's reference message form with world-frame edges
+            "comat_embed": Comat(LAYOUT, ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True,
+                                                     decision="shared_trunk")),
+            "comat_reference": Comat(LAYOUT, ComatConfig(obs_embed=True, heat_form="reference", edge_frame="world"))}
 
 
 def decoding(path: str):
@@ -50,7 +55,7 @@ PATHS = ["loop", "compiled"]
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_options", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_options", "comat_embed", "comat_reference", "mat"])
 @pytest.mark.parametrize("n", list(range(1, 17)))
 def test_autoregressive_logps_equal_teacher_forced(name, n, path):
     model = models()[name]
@@ -68,7 +73,7 @@ def test_autoregressive_logps_equal_teacher_forced(name, n, path):
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_options", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_options", "comat_embed", "comat_reference", "mat"])
 @pytest.mark.parametrize("n", [1, 3, 8, 16])
 def test_cached_decoding_equals_uncached(name, n, path):
     model = models()[name]
@@ -90,7 +95,7 @@ def _with_padding(obs, mask, extra: int, seed: int = 9):
     return torch.cat([obs, junk], 1), torch.cat([mask, torch.zeros(B, extra, dtype=torch.bool)], 1)
 
 
-@pytest.mark.parametrize("name", ["comat", "mat", "mappo"])
+@pytest.mark.parametrize("name", ["comat", "comat_embed", "comat_reference", "mat", "mappo"])
 def test_padding_slots_change_nothing(name):
     torch.manual_seed(0)
     model = models()[name] if name != "mappo" else Mappo(LAYOUT, state_dim=7)
@@ -135,7 +140,7 @@ def test_compiled_encoder_equals_torch(task, config):
     torch.testing.assert_close(values_c[mask], values[mask], atol=2e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("name", ["comat", "comat_heads", "mat", "mat_deep"])
+@pytest.mark.parametrize("name", ["comat", "comat_heads", "comat_shared", "mat", "mat_deep"])
 @pytest.mark.parametrize("batch", [1, 7, 64])
 def test_compiled_decoding_equals_the_torch_loop(name, batch):
     """Same actions and logits (to float32 rounding) as the step-by-step torch reference, for
@@ -143,6 +148,7 @@ def test_compiled_decoding_equals_the_torch_loop(name, batch):
     torch.manual_seed(1)
     layout = ObsLayout.for_task(MaterialTransport())  # three robot types
     model = {"comat": Comat(layout), "comat_heads": Comat(layout, ComatConfig(embed=48, heads=3)),
+             "comat_shared": Comat(layout, ComatConfig(decision="shared_trunk")),
              "mat": Mat(layout, MatConfig(max_robots=64)),
              "mat_deep": Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64))}[name]
     for p in model.parameters():  # away from the near-zero initial heads: logits of order 1

@@ -110,6 +110,32 @@ def test_ppo_update_ignores_padded_slots(algo):
         torch.testing.assert_close(p1, p2, atol=1e-6, rtol=1e-5, msg=k)
 
 
+def test_gae_value_target_is_the_td_target_at_lambda_zero():
+    """value_target 'gae' regresses to each robot's GAE(λ) return: at λ = 0 that is r + γ·V(o')
+    from the collecting critic, which is the 'td' target of a refresh every epoch (one epoch:
+    identical updates); at λ = 0.95 the targets, and so the updates, differ."""
+    from comat.models.comat import Comat, ComatConfig
+
+    env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
+    env.reset()
+    layout = ObsLayout.for_task(env.task)
+
+    def updated(**changes):
+        torch.manual_seed(0)
+        cfg = PPOConfig(num_envs=2, rollout_steps=6, epochs=1, minibatches=2, target_update_epochs=1, **changes)
+        tr = PPOTrainer(Comat(layout, ComatConfig(16, 2, 1, 8)), env, cfg, seed=0)
+        tr.update(ro)
+        return torch.cat([p.detach().flatten() for p in tr.policy.parameters()])
+
+    torch.manual_seed(0)
+    ro = PPOTrainer(Comat(layout, ComatConfig(16, 2, 1, 8)), env, PPOConfig(num_envs=2, rollout_steps=6), seed=0).collect()
+    td = updated(gae_lambda=0.0)
+    torch.testing.assert_close(updated(gae_lambda=0.0, value_target="gae"), td, atol=1e-6, rtol=1e-5)
+    assert not torch.allclose(updated(gae_lambda=0.95, value_target="gae"), updated(gae_lambda=0.95), atol=1e-5)
+    with pytest.raises(ValueError, match=r"ppo.value_target must be one of \['td', 'gae'\], got 'mc'"):
+        PPOConfig(value_target="mc")
+
+
 # -- QMIX's TD target ------------------------------------------------------------------------------
 def test_qmix_learn_step_matches_a_per_step_reference():
     from comat.models.qmix import QmixAgents, QmixMixer, QmixNetConfig

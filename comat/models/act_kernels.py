@@ -127,7 +127,8 @@ def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_type
     """COMAT (``Comat.decode_step`` for m = 0..N−1) from its parameters, as stored by torch.
 
     ``mats`` (out, in): token embedding (E, A+1); θ¹ q, kv (2E, E), out; fc (2); θ² q, kv, out;
-    fc2 (2); the actor's first layer (T·H, E + C); its second layers (T, H, A) as (T·H, A).
+    fc2 (2); the actor's first layer (T·H, E + C), or (H, E + C) when shared by the types; its
+    second layers (T, H, A) as (T·H, A).
     ``vecs``: the biases in that order (the actor's second as (T·A)), then ln1–ln4 weight and
     bias. ``rep`` (B, N, E) encoder output; ``obs`` (B, N, D) for type one-hots and capabilities
     (the task layout: [x, y, cos, sin | types (T) | capabilities (C) | …])."""
@@ -136,7 +137,8 @@ def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_type
      ln1w, ln1b, ln2w, ln2b, ln3w, ln3b, ln4w, ln4b) = vecs
     B, N, E = rep.shape
     T = n_types
-    H = act1.shape[0] // T
+    H = act2.shape[0] // T
+    shared = act1.shape[0] != T * H  # one hidden layer for every type (ComatConfig.decision)
     A = act2.shape[1]
     C = act1.shape[1] - E
     scale = np.float32((E // heads) ** -0.5)
@@ -147,7 +149,7 @@ def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_type
     # θ²'s queries and the actor's capability share, for every robot at once.
     cross_q = (_linear(np.ascontiguousarray(rep).reshape(B * N, E), ca_q, ca_qb) * scale).reshape(B, N, E)
     caps = np.ascontiguousarray(obs[:, :, 4 + T : 4 + T + C]).reshape(B * N, C)
-    caps = (np.dot(caps, np.ascontiguousarray(act1[:, E:]).T) + act1b).reshape(B, N, T * H)
+    caps = (np.dot(caps, np.ascontiguousarray(act1[:, E:]).T) + act1b).reshape(B, N, act1.shape[0])
     act1_h = np.ascontiguousarray(act1[:, :E])
     self_k = np.empty((B, N, E), dtype=np.float32)
     self_v = np.empty((B, N, E), dtype=np.float32)
@@ -173,16 +175,17 @@ def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_type
         attended = _linear(_attend(np.ascontiguousarray(cross_q[:, m]), cross_k, cross_v, m + 1, heads), ca_o, ca_ob)
         h = _layer_norm(np.ascontiguousarray(rep[:, m]) + attended, ln3w, ln3b)
         h = _layer_norm(h + _linear(_relu(_linear(h, fc2_a, fc2_ab)), fc2_b, fc2_bb), ln4w, ln4b)
-        hidden = _relu(np.dot(h, act1_h.T) + caps[:, m])  # (B, T·H)
+        hidden = _relu(np.dot(h, act1_h.T) + caps[:, m])  # (B, T·H) or (B, H)
         for i in range(B):
             for k in range(T):
                 w = obs[i, m, 4 + k]  # the type one-hot: the robot's own head
                 if w == 0.0:
                     continue
+                off = 0 if shared else k * H
                 for a in range(A):  # loops: a BLAS call per robot costs more than its H·A products
                     s = np.float32(0.0)
-                    for j in range(k * H, (k + 1) * H):
-                        s += hidden[i, j] * act2[j, a]
+                    for j in range(H):
+                        s += hidden[i, off + j] * act2[k * H + j, a]
                     logits[i, m, a] += w * (s + act2b[k * A + a])
         actions[:, m] = _choose(logits[:, m], mask[:, m], noise[m], deterministic)
         token = actions[:, m] + 1

@@ -37,9 +37,14 @@ from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_line
 __all__ = ["Comat", "ComatConfig"]
 
 
+HEAT_FORMS = ("paper", "reference")
+EDGE_FRAMES = ("heading", "world")
+DECISIONS = ("type_heads", "shared_trunk")
+
+
 @dataclass(frozen=True)
 class ComatConfig:
-    """COMAT sizes."""
+    """COMAT sizes and architecture options (the encoder-audit ablations, results/ablations/)."""
 
     embed: int = 64
     """Embedding width E of node features, attention and decoder."""
@@ -51,26 +56,58 @@ class ComatConfig:
     """Width of the edge-feature and edge-type embeddings."""
     node_ffn: bool = False
     """After each HEAT block, a per-robot feed-forward sublayer h = LN(h + MLP(h)), as in a
-    transformer encoder (MAT has one; the paper's HEAT does not). Not supported by the numpy
-    runtime (export refuses it)."""
+    transformer encoder (MAT has one; the paper's HEAT does not)."""
     root_weight: bool = False
     """Add each robot's own transformed features x̃_i to its HEAT output (PyG ``HEATConv``'s root
     term). False: a robot's own features reach it only through its self-loop, as in the
-    reference HEAT and the paper's eq. 3."""
+    paper's eq. 3."""
+    obs_embed: bool = False
+    """A per-robot observation embedding LN(o) → Linear → GELU in front of the HEAT blocks, and
+    a residual on every block, h = LN(h + HEAT(h)) (as MAT's encoder). False: raw observations
+    into block 1, which has no residual (the paper's eq. 2–3 read literally)."""
+    message_gain: float = 1.0
+    """Orthogonal-initialization gain of the maps that carry neighbours' messages into a robot's
+    output (paper form: W_h; reference form: the output map after the heads). 0.01 with
+    ``obs_embed`` starts COMAT as a per-robot policy, as MAT's small attention output does."""
+    heat_form: str = "paper"
+    """``paper``: heads averaged, one linear message W_h [ẽ_ij ‖ x̃_j] shared by all heads (eq. 3).
+    ``reference``: HEAT's reference code — a nonlinear message LeakyReLU(W_h [ẽ_ij ‖ x̃_j]) per
+    edge, split into K heads each weighted by its own attention, heads concatenated and mapped
+    by a linear output layer."""
+    edge_frame: str = "heading"
+    """Frame of the relative positions in the edge features: ``heading`` (robot j's position in
+    robot i's body frame) or ``world`` (p_j − p_i unrotated; actions are world-frame steps)."""
+    decision: str = "type_heads"
+    """Decision layer on [h_m ‖ c_m]: ``type_heads`` (one two-layer head per robot type, the
+    paper's type-stratified layer) or ``shared_trunk`` (a hidden layer shared by all robots and
+    a per-type output layer: still type-stratified, but both types train the trunk)."""
+
+    def __post_init__(self) -> None:
+        for name, choices in (("heat_form", HEAT_FORMS), ("edge_frame", EDGE_FRAMES), ("decision", DECISIONS)):
+            if getattr(self, name) not in choices:
+                raise ValueError(f"models.comat.{name} must be one of {list(choices)}, got {getattr(self, name)!r}")
+        gain = self.message_gain
+        if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not 0 < gain < float("inf"):
+            raise ValueError(f"models.comat.message_gain must be a positive finite number, got {gain!r}")
+        if self.heat_form == "reference" and self.embed % self.heads:
+            raise ValueError(f"models.comat.heat_form 'reference' needs embed divisible by heads, "
+                             f"got embed {self.embed}, heads {self.heads}")
 
 
 class HEATBlock(nn.Module):
     """One heterogeneous edge-enhanced graph-attention layer (dense, (B, N, N) edges).
 
-    The message W_h [ẽ_ij ‖ x̃_j] is linear, so it is applied after the attention-weighted sum
-    over neighbours (Σ_j α_ij W x_ij = W Σ_j α_ij x_ij): no (B, N, N, E) tensor is built. The
-    edge-type embedding ẽ^type has one row per ordered type pair, so its attention score and
-    its share of the message are looked up per pair rather than computed per edge.
+    Paper form: the message W_h [ẽ_ij ‖ x̃_j] is linear, so it is applied after the
+    attention-weighted sum over neighbours (Σ_j α_ij W x_ij = W Σ_j α_ij x_ij): no (B, N, N, E)
+    tensor is built. Reference form: the message is nonlinear per edge, so it is built per edge
+    and each head sums its own slice of it. The edge-type embedding ẽ^type has one row per
+    ordered type pair, so its score and its share of the message are looked up per pair.
     """
 
-    def __init__(self, d_in: int, d: int, n_types: int, d_edge: int, heads: int, root: bool = False) -> None:
+    def __init__(self, d_in: int, d: int, n_types: int, d_edge: int, heads: int, root: bool = False,
+                 form: str = "paper", message_gain: float = 1.0) -> None:
         super().__init__()
-        self.n_types, self.heads, self.root = n_types, heads, root
+        self.n_types, self.heads, self.root, self.form = n_types, heads, root, form
         self.node = nn.ModuleList(init_linear(nn.Linear(d_in, d, bias=False)) for _ in range(n_types))
         self.edge_attr = init_linear(nn.Linear(5, d_edge, bias=False))
         self.edge_type = nn.Embedding(n_types * n_types, d_edge)
@@ -79,10 +116,14 @@ class HEATBlock(nn.Module):
         self.att_attr = init_linear(nn.Linear(d_edge, heads, bias=False))
         self.att_type = init_linear(nn.Linear(d_edge, heads, bias=False))
         self.att_j = init_linear(nn.Linear(d, heads, bias=False))
-        # W_h [ẽ^attr_ij ‖ ẽ^type_ij ‖ x̃_j], split by part.
-        self.msg_attr = init_linear(nn.Linear(d_edge, d, bias=False))
-        self.msg_type = init_linear(nn.Linear(d_edge, d, bias=False))
-        self.msg_j = init_linear(nn.Linear(d, d, bias=False))
+        # W_h [ẽ^attr_ij ‖ ẽ^type_ij ‖ x̃_j], split by part; in the reference form the small
+        # gain sits on the output map instead (the message itself passes a nonlinearity).
+        gain = message_gain if form == "paper" else 1.0
+        self.msg_attr = init_linear(nn.Linear(d_edge, d, bias=False), gain)
+        self.msg_type = init_linear(nn.Linear(d_edge, d, bias=False), gain)
+        self.msg_j = init_linear(nn.Linear(d, d, bias=False), gain)
+        if form == "reference":
+            self.msg_out = init_linear(nn.Linear(d, d, bias=False), message_gain)
 
     def forward(self, x, types, edge_attr, edge_type, edge_mask) -> torch.Tensor:
         """x (B, N, d_in) -> (B, N, d)."""
@@ -95,10 +136,18 @@ class HEATBlock(nn.Module):
         # and a backward pass several times cheaper than the lookup's scatter.
         score = self.att_i(xt)[:, :, None] + self.att_attr(ea) + pair @ self.att_type(et) + self.att_j(xt)[:, None]
         score = F.leaky_relu(score, 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
-        alpha = torch.softmax(score, dim=2).nan_to_num(0.0).mean(-1)  # (B, N, N): heads averaged
-        w = alpha[..., None]
-        # Elementwise weighted sums: tiny batched matmuls are slower on CPU.
-        out = self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et) + self.msg_j(alpha @ xt)
+        alpha = torch.softmax(score, dim=2).nan_to_num(0.0)  # (B, N, N, K)
+        if self.form == "paper":
+            alpha = alpha.mean(-1)  # (B, N, N): heads averaged
+            w = alpha[..., None]
+            # Elementwise weighted sums: tiny batched matmuls are slower on CPU.
+            out = self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et) + self.msg_j(alpha @ xt)
+        else:
+            msg = F.leaky_relu(self.msg_attr(ea) + pair @ self.msg_type(et) + self.msg_j(xt)[:, None], 0.2)
+            B, N, _, E = msg.shape
+            K = self.heads
+            out = (alpha[..., None] * msg.view(B, N, N, K, E // K)).sum(2).reshape(B, N, E)  # heads concatenated
+            out = self.msg_out(out)
         return out + xt if self.root else out
 
 
@@ -110,8 +159,12 @@ class Comat(AutoregressivePolicy):
         cfg = config or ComatConfig()
         self.layout, self.config = layout, cfg
         E, K, T = cfg.embed, cfg.heads, layout.n_types
+        if cfg.obs_embed:
+            D = layout.obs_dim
+            self.obs_encoder = nn.Sequential(nn.LayerNorm(D), init_linear(nn.Linear(D, E)), nn.GELU())
         self.heat = nn.ModuleList(
-            HEATBlock(layout.obs_dim if k == 0 else E, E, T, cfg.edge_embed, K, cfg.root_weight)
+            HEATBlock(layout.obs_dim if k == 0 and not cfg.obs_embed else E, E, T, cfg.edge_embed, K,
+                      cfg.root_weight, cfg.heat_form, cfg.message_gain)
             for k in range(cfg.heat_blocks)
         )
         self.heat_norm = nn.ModuleList(nn.LayerNorm(E) for _ in range(cfg.heat_blocks))
@@ -128,17 +181,18 @@ class Comat(AutoregressivePolicy):
         self.cross_attn = Attention(E, K)
         self.ln3, self.ln4 = nn.LayerNorm(E), nn.LayerNorm(E)
         self.fc2 = mlp([E, E, E])
-        # Decision layer: one actor head per robot type, on [h_m ‖ c_m].
-        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T)
+        # Decision layer: per robot type, on [h_m ‖ c_m].
+        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, shared_first=cfg.decision == "shared_trunk")
 
     # -- encoder ------------------------------------------------------------------------------------
     def encode(self, obs, mask):
-        edge_attr, edge_type, edge_mask = edge_features(obs, mask, self.layout)
+        cfg = self.config
+        edge_attr, edge_type, edge_mask = edge_features(obs, mask, self.layout, world=cfg.edge_frame == "world")
         types = self.layout.types(obs)
-        h = obs
+        h = self.obs_encoder(obs) if cfg.obs_embed else obs
         for k, (block, norm) in enumerate(zip(self.heat, self.heat_norm)):
             out = block(h, types, edge_attr, edge_type, edge_mask)
-            h = norm(out if k == 0 else h + out)
+            h = norm(h + out if k or cfg.obs_embed else out)
             if self.config.node_ffn:
                 h = self.node_ffn_norm[k](h + self.node_ffn[k](h))
         return h, self.critic(h)[..., 0]
@@ -188,8 +242,9 @@ class Comat(AutoregressivePolicy):
 
     @torch.no_grad()
     def encode_compiled(self, obs, mask):
-        if self.config.node_ffn:  # not in the kernel: the torch encoder
-            return self.encode(obs, mask)
+        cfg = self.config
+        if cfg.node_ffn or cfg.obs_embed or cfg.heat_form != "paper" or cfg.edge_frame != "heading":
+            return self.encode(obs, mask)  # not in the kernel yet: the torch encoder
         node_ws = tuple(numpy_view(layer.weight) for block in self.heat for layer in block.node)
         mats = [numpy_view(p) for block in self.heat for p in (
             block.edge_attr.weight, block.edge_type.weight, block.att_i.weight, block.att_attr.weight,

@@ -4,7 +4,7 @@ Every model takes ``obs`` (B, N, D) and ``mask`` (B, N) (True for real robots, p
 the end). The task's observation layout (``comat/task_logic.py``) starts with
 [x, y, cos θ, sin θ | type one-hot (T) | capabilities (C) | task features], so the team graph
 (relative positions, distances, relative headings, ordered type pairs) is rebuilt from the
-observations themselves — identical to ``env.graph()`` — and no input depends on N.
+observations themselves — ``env.graph()`` plus self-loops — and no input depends on N.
 """
 
 from __future__ import annotations
@@ -43,20 +43,25 @@ class ObsLayout:
         return cls(task.obs_size(), len(task.types), len(task.capabilities))
 
 
-def edge_features(obs: torch.Tensor, mask: torch.Tensor, layout: ObsLayout) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def edge_features(obs: torch.Tensor, mask: torch.Tensor, layout: ObsLayout,
+                  world: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Dense team graph with self-loops, from observations.
 
     Returns:
         edge_attr (B, N, N, 5): for [b, i, j], robot j seen from robot i — position in i's
-            frame (2), distance (1), relative heading cos, sin (2); (0, 0, 0, 1, 0) on the diagonal.
+            frame (2; ``world``: p_j − p_i in the world frame), distance (1), relative heading
+            cos, sin (2); (0, 0, 0, 1, 0) on the diagonal.
         edge_type (B, N, N): type_i · T + type_j.
         edge_mask (B, N, N): both robots real (self-loops included).
     """
     xy, c, s = obs[..., 0:2], obs[..., 2], obs[..., 3]
     d = xy[:, None, :, :] - xy[:, :, None, :]  # [b, i, j] = p_j - p_i
     ci, si = c[:, :, None], s[:, :, None]
-    local_x = ci * d[..., 0] + si * d[..., 1]
-    local_y = -si * d[..., 0] + ci * d[..., 1]
+    if world:
+        local_x, local_y = d[..., 0], d[..., 1]
+    else:
+        local_x = ci * d[..., 0] + si * d[..., 1]
+        local_y = -si * d[..., 0] + ci * d[..., 1]
     dist = torch.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + 1e-12) * (1 - torch.eye(obs.shape[1], device=obs.device))
     cj, sj = c[:, None, :], s[:, None, :]
     rel_cos = ci * cj + si * sj  # cos(θ_j − θ_i)

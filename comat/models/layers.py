@@ -139,12 +139,15 @@ class TypeHeads(nn.Module):
 
     ``forward(x (B, L, in), type_onehot (B, L, T)) -> (B, L, out)``: each robot's output comes
     from the head of its own type (parameters shared by robots of a type, never by position).
+    ``shared_first``: the hidden layer is shared by all types (``first`` is (H, in) instead of
+    (T·H, in)) and only the output layer is per type.
     """
 
-    def __init__(self, d_in: int, hidden: int, d_out: int, n_types: int, out_gain: float = 0.01) -> None:
+    def __init__(self, d_in: int, hidden: int, d_out: int, n_types: int, out_gain: float = 0.01,
+                 shared_first: bool = False) -> None:
         super().__init__()
-        self.n_types, self.hidden = n_types, hidden
-        self.first = init_linear(nn.Linear(d_in, n_types * hidden), math.sqrt(2))
+        self.n_types, self.hidden, self.shared_first = n_types, hidden, shared_first
+        self.first = init_linear(nn.Linear(d_in, hidden if shared_first else n_types * hidden), math.sqrt(2))
         w2 = torch.empty(n_types, hidden, d_out)
         for t in range(n_types):
             nn.init.orthogonal_(w2[t], out_gain)
@@ -155,8 +158,11 @@ class TypeHeads(nn.Module):
         return self._second(F.relu(self.first(x)), type_onehot)
 
     def _second(self, h: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
-        h = h.unflatten(-1, (self.n_types, self.hidden))  # (..., T, H)
-        out = torch.einsum("...th,tho->...to", h, self.w2) + self.b2  # (..., T, out)
+        if self.shared_first:
+            out = torch.einsum("...h,tho->...to", h, self.w2) + self.b2  # (..., T, out)
+        else:
+            h = h.unflatten(-1, (self.n_types, self.hidden))  # (..., T, H)
+            out = torch.einsum("...th,tho->...to", h, self.w2) + self.b2  # (..., T, out)
         return (out * type_onehot[..., None]).sum(-2)
 
     def partial(self, c: torch.Tensor) -> torch.Tensor:

@@ -21,7 +21,8 @@ def gae(
     gamma: float,
     lam: float,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Advantages and returns, both (T, B).
+    """Advantages and returns, both (T, B) (or (T, B, N): every argument may carry trailing
+    dimensions, e.g. one value per robot).
 
     Args:
         rewards: (T, B) team rewards.

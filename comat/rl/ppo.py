@@ -11,7 +11,8 @@ One update:
    robots and normalized over the batch.
 3. **Critic** (eq. 6): each robot's value regresses (Huber) to r_t + γ·V̄(o'_t) from a *target*
    critic V̄, refreshed (copied, targets recomputed) every ``target_update_epochs`` epochs;
-   targets are normalized by a running ValueNorm.
+   targets are normalized by a running ValueNorm. ``value_target: gae`` instead regresses each
+   robot's value to its GAE(λ) return computed once per rollout, as MAT's code does.
 4. **Actor** (eq. 7–8): clipped importance ratio per robot times the joint advantage, plus an
    entropy bonus; one joint loss, one Adam step per minibatch, gradient-norm clipping.
 
@@ -58,6 +59,17 @@ class PPOConfig:
     target_update_epochs: int = 2
     """The target critic V̄ is refreshed every this many epochs (paper: "every few epochs")."""
     huber_delta: float = 10.0
+    value_target: str = "td"
+    """``td``: eq. 6's one-step target r + γ·V̄(o') from the target critic. ``gae``: each
+    robot's GAE(λ) return R_t = Â_t + V(o_t) from its own values at collection (MAT's code):
+    rewards reach the episode start in one update instead of one step per target refresh."""
+
+    def __post_init__(self) -> None:
+        if self.value_target not in VALUE_TARGETS:
+            raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
+
+
+VALUE_TARGETS = ("td", "gae")
 
 
 @dataclass
@@ -233,8 +245,16 @@ class PPOTrainer:
         }
         stats: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "approx_kl": [], "clip_frac": []}
         targets = None
+        if cfg.value_target == "gae":
+            with torch.no_grad():
+                # Per robot: the team reward, the robot's own values; padded slots are masked out.
+                v = self._denorm_values(ro.values)
+                _, raw = gae(ro.rewards[..., None].expand_as(v), v, next_values, ro.dones[..., None].expand_as(v),
+                             cfg.gamma, cfg.gae_lambda)
+                self.value_norm.update(raw[ro.mask])
+                targets = self.value_norm.normalize(raw).reshape(T * B, N)
         for epoch in range(cfg.epochs):
-            if epoch % cfg.target_update_epochs == 0:
+            if cfg.value_target == "td" and epoch % cfg.target_update_epochs == 0:
                 # Refresh V̄ and its TD targets r + γ·V̄(o'); update the normalizer on them.
                 self.target.load_state_dict(self.policy.state_dict())
                 with torch.no_grad():
