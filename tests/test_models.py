@@ -121,8 +121,12 @@ def test_padding_slots_change_nothing(name):
 
 
 @pytest.mark.parametrize("task", [PredatorCapturePrey(), MaterialTransport()], ids=["pcp", "hmt"])
-@pytest.mark.parametrize("config", [ComatConfig(), ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16,
-                                                              root_weight=True)], ids=["paper", "other"])
+@pytest.mark.parametrize("config", [
+    ComatConfig(), ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, root_weight=True),
+    ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True, decision="shared_trunk"),
+    ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, obs_embed=True, heat_form="reference",
+                edge_frame="world", node_ffn=True, root_weight=True),
+    ComatConfig(heat_form="reference", edge_frame="world")], ids=["paper", "other", "embed", "reference", "raw_reference"])
 def test_compiled_encoder_equals_torch(task, config):
     """COMAT's compiled HEAT encoder and critic (used by ``act``) against ``encode``: teams of
     every size 1–7 padded to 7, weights moved off their initialisation."""

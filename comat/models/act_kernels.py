@@ -248,15 +248,24 @@ def _leaky(x):
 
 
 @_jit
-def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root):
-    """COMAT's HEAT encoder and critic (``Comat.encode``, without ``node_ffn``): rep (B, N, E)
-    and values (B, N) from obs (B, N, D) and mask (B, N).
+def _layer_norm_rows(x, w, b):
+    """LayerNorm of each row of x (R, E): ``_layer_norm`` for any contiguous 2-D input."""
+    return _layer_norm(np.ascontiguousarray(x), w, b)
 
-    ``node_ws``: per block its T type-specific node transforms (E, d_in). ``mats`` per
-    block (out, in): edge-feature embedding (d_e, 5), edge-type embedding table (T², d_e),
-    attention on x̃_i (K, E), on ẽ^attr (K, d_e), on ẽ^type (K, d_e), on x̃_j (K, E), messages
-    from ẽ^attr (E, d_e), ẽ^type (E, d_e), x̃_j (E, E); then the critic's two layers. ``vecs``:
-    per block its LayerNorm weight and bias, then the critic's two biases."""
+
+@_jit
+def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root, obs_embed, reference, world, node_ffn):
+    """COMAT's HEAT encoder and critic (``Comat.encode``, every ``ComatConfig`` option): rep
+    (B, N, E) and values (B, N) from obs (B, N, D) and mask (B, N).
+
+    ``node_ws``: per block its T type-specific node transforms (E, d_in). ``mats`` (out, in):
+    with ``obs_embed`` first the embedding (E, D); then per block the edge-feature embedding
+    (d_e, 5), edge-type embedding table (T², d_e), attention on x̃_i (K, E), on ẽ^attr (K, d_e),
+    on ẽ^type (K, d_e), on x̃_j (K, E), messages from ẽ^attr (E, d_e), ẽ^type (E, d_e), x̃_j
+    (E, E), with ``reference`` the output map (E, E), with ``node_ffn`` its two layers (E, E);
+    then the critic's two layers. ``vecs``: with ``obs_embed`` the embedding's LayerNorm weight
+    and bias and its bias; per block its LayerNorm weight and bias, with ``node_ffn`` its two
+    biases and LayerNorm weight and bias; then the critic's two biases."""
     B, N, D = obs.shape
     T = n_types
     n_blocks = len(node_ws) // T
@@ -275,19 +284,26 @@ def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root):
             for j in range(N):
                 dx, dy = obs[b, j, 0] - obs[b, i, 0], obs[b, j, 1] - obs[b, i, 1]
                 cj, sj = obs[b, j, 2], obs[b, j, 3]
-                attr[b, i, j, 0] = ci * dx + si * dy
-                attr[b, i, j, 1] = -si * dx + ci * dy
+                if world:
+                    attr[b, i, j, 0], attr[b, i, j, 1] = dx, dy
+                else:
+                    attr[b, i, j, 0] = ci * dx + si * dy
+                    attr[b, i, j, 1] = -si * dx + ci * dy
                 if i != j:
                     attr[b, i, j, 2] = np.sqrt(dx * dx + dy * dy + np.float32(1e-12))
                 attr[b, i, j, 3] = ci * cj + si * sj
                 attr[b, i, j, 4] = ci * sj - si * cj
     attr2 = attr.reshape(B * N * N, 5)
-    x = np.ascontiguousarray(obs).reshape(B * N, D)
-    h = x
-    alpha = np.zeros((B, N, N), dtype=np.float32)
+    h = np.ascontiguousarray(obs).reshape(B * N, D)
+    mo, vo = 0, 0
+    if obs_embed:
+        h = _gelu(_linear(_layer_norm_rows(h, vecs[0], vecs[1]), mats[0], vecs[2]))
+        mo, vo = 1, 3
+    m_stride = 9 + (1 if reference else 0) + (2 if node_ffn else 0)
+    v_stride = 2 + (4 if node_ffn else 0)
     for k in range(n_blocks):
         E = node_ws[k * T].shape[0]
-        m = 9 * k
+        m, v = mo + m_stride * k, vo + v_stride * k
         edge_w, type_tab, att_i, att_a, att_t, att_j, msg_a, msg_t, msg_j = (
             mats[m], mats[m + 1], mats[m + 2], mats[m + 3], mats[m + 4], mats[m + 5], mats[m + 6], mats[m + 7],
             mats[m + 8])
@@ -305,55 +321,105 @@ def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root):
         s_j = np.dot(xt, att_j.T)
         s_a = np.dot(ea, att_a.T)
         s_t = np.dot(et, att_t.T)
-        scores = np.empty(N, dtype=np.float32)
-        for b in range(B):
-            for i in range(N):
-                for j in range(N):
-                    alpha[b, i, j] = 0.0
-                if not mask[b, i]:
-                    continue  # no real neighbour (not even itself): all weights 0, as nan_to_num gives
-                for kk in range(K):
-                    top = np.float32(-np.inf)
-                    for j in range(N):
-                        if mask[b, j]:
-                            pair = types[b, i] * T + types[b, j]
-                            s = s_i[b * N + i, kk] + s_a[(b * N + i) * N + j, kk] + s_t[pair, kk] + s_j[b * N + j, kk]
-                            s = s if s >= 0 else s * _SLOPE
-                            scores[j] = s
-                            top = max(top, s)
-                    total = np.float32(0.0)
-                    for j in range(N):
-                        if mask[b, j]:
-                            scores[j] = np.exp(scores[j] - top)
-                            total += scores[j]
-                    for j in range(N):
-                        if mask[b, j]:
-                            alpha[b, i, j] += scores[j] / total
-                for j in range(N):
-                    alpha[b, i, j] /= K
-        d_e = ea.shape[1]
-        agg_a = np.zeros((B * N, d_e), dtype=np.float32)
-        agg_t = np.zeros((B * N, d_e), dtype=np.float32)
-        agg_x = np.zeros((B * N, E), dtype=np.float32)
-        for b in range(B):
-            for i in range(N):
-                r = b * N + i
-                for j in range(N):
-                    a = alpha[b, i, j]
-                    if a == 0.0:
-                        continue
-                    pair = types[b, i] * T + types[b, j]
-                    for d in range(d_e):
-                        agg_a[r, d] += a * ea[r * N + j, d]
-                        agg_t[r, d] += a * et[pair, d]
-                    for d in range(E):
-                        agg_x[r, d] += a * xt[b * N + j, d]
-        out = np.dot(agg_a, msg_a.T) + np.dot(agg_t, msg_t.T) + np.dot(agg_x, msg_j.T)
+        alpha = _heat_attention(s_i, s_j, s_a, s_t, types, mask, T, K)  # (B, N, N, K)
+        if reference:
+            out = _reference_messages(alpha, ea, et, xt, msg_a, msg_t, msg_j, types, T)
+            out = np.dot(out, mats[m + 9].T)
+        else:
+            out = _paper_messages(alpha, ea, et, xt, msg_a, msg_t, msg_j, types, T)
         if root:
             out = out + xt
-        h = _layer_norm(out if k == 0 else h + out, vecs[2 * k], vecs[2 * k + 1])
-    c = 9 * n_blocks
-    v = 2 * n_blocks
+        h = _layer_norm(h + out if (k > 0 or obs_embed) else out, vecs[v], vecs[v + 1])
+        if node_ffn:
+            f = m + 9 + (1 if reference else 0)
+            ffn = _linear(_relu(_linear(h, mats[f], vecs[v + 2])), mats[f + 1], vecs[v + 3])
+            h = _layer_norm(h + ffn, vecs[v + 4], vecs[v + 5])
+    c = mo + m_stride * n_blocks
+    v = vo + v_stride * n_blocks
     values = _linear(_relu(_linear(h, mats[c], vecs[v])), mats[c + 1], vecs[v + 1])
     E = h.shape[1]
     return h.reshape(B, N, E), values[:, 0].copy().reshape(B, N)
+
+
+@_jit
+def _heat_attention(s_i, s_j, s_a, s_t, types, mask, T, K):
+    """Per-head attention weights α^k_ij (B, N, N, K) from the score parts; rows of padded
+    robots (no real neighbour, not even themselves) all 0, as ``nan_to_num`` gives in torch."""
+    B, N = mask.shape
+    alpha = np.zeros((B, N, N, K), dtype=np.float32)
+    scores = np.empty(N, dtype=np.float32)
+    for b in range(B):
+        for i in range(N):
+            if not mask[b, i]:
+                continue
+            for kk in range(K):
+                top = np.float32(-np.inf)
+                for j in range(N):
+                    if mask[b, j]:
+                        pair = types[b, i] * T + types[b, j]
+                        s = s_i[b * N + i, kk] + s_a[(b * N + i) * N + j, kk] + s_t[pair, kk] + s_j[b * N + j, kk]
+                        s = s if s >= 0 else s * _SLOPE
+                        scores[j] = s
+                        top = max(top, s)
+                total = np.float32(0.0)
+                for j in range(N):
+                    if mask[b, j]:
+                        scores[j] = np.exp(scores[j] - top)
+                        total += scores[j]
+                for j in range(N):
+                    if mask[b, j]:
+                        alpha[b, i, j, kk] = scores[j] / total
+    return alpha
+
+
+@_jit
+def _paper_messages(alpha, ea, et, xt, msg_a, msg_t, msg_j, types, T):
+    """Eq. 3: heads averaged, then one linear message of the weighted sums, (B·N, E)."""
+    B, N, _, K = alpha.shape
+    d_e, E = ea.shape[1], xt.shape[1]
+    agg_a = np.zeros((B * N, d_e), dtype=np.float32)
+    agg_t = np.zeros((B * N, d_e), dtype=np.float32)
+    agg_x = np.zeros((B * N, E), dtype=np.float32)
+    for b in range(B):
+        for i in range(N):
+            r = b * N + i
+            for j in range(N):
+                a = np.float32(0.0)
+                for kk in range(K):
+                    a += alpha[b, i, j, kk]
+                if a == 0.0:
+                    continue
+                a /= K
+                pair = types[b, i] * T + types[b, j]
+                for d in range(d_e):
+                    agg_a[r, d] += a * ea[r * N + j, d]
+                    agg_t[r, d] += a * et[pair, d]
+                for d in range(E):
+                    agg_x[r, d] += a * xt[b * N + j, d]
+    return np.dot(agg_a, msg_a.T) + np.dot(agg_t, msg_t.T) + np.dot(agg_x, msg_j.T)
+
+
+@_jit
+def _reference_messages(alpha, ea, et, xt, msg_a, msg_t, msg_j, types, T):
+    """HEAT's reference form: LeakyReLU(W_h [ẽ_ij ‖ x̃_j]) per edge, each head summing its own
+    E/K slice with its own weights, heads concatenated: (B·N, E), before the output map."""
+    B, N, _, K = alpha.shape
+    E = xt.shape[1]
+    dh = E // K
+    m_a = np.dot(ea, msg_a.T)  # (B·N·N, E)
+    m_t = np.dot(et, msg_t.T)  # (T², E)
+    m_j = np.dot(xt, msg_j.T)  # (B·N, E)
+    out = np.zeros((B * N, E), dtype=np.float32)
+    for b in range(B):
+        for i in range(N):
+            r = b * N + i
+            for j in range(N):
+                pair = types[b, i] * T + types[b, j]
+                for kk in range(K):
+                    a = alpha[b, i, j, kk]
+                    if a == 0.0:
+                        continue
+                    for d in range(kk * dh, (kk + 1) * dh):
+                        x = m_a[r * N + j, d] + m_t[pair, d] + m_j[b * N + j, d]
+                        out[r, d] += a * (x if x >= 0 else x * _SLOPE)
+    return out

@@ -243,17 +243,29 @@ class Comat(AutoregressivePolicy):
     @torch.no_grad()
     def encode_compiled(self, obs, mask):
         cfg = self.config
-        if cfg.node_ffn or cfg.obs_embed or cfg.heat_form != "paper" or cfg.edge_frame != "heading":
-            return self.encode(obs, mask)  # not in the kernel yet: the torch encoder
+        mats, vecs = [], []
+        if cfg.obs_embed:
+            ln, lin = self.obs_encoder[0], self.obs_encoder[1]
+            mats.append(lin.weight)
+            vecs += [ln.weight, ln.bias, lin.bias]
+        for k, block in enumerate(self.heat):
+            mats += [block.edge_attr.weight, block.edge_type.weight, block.att_i.weight, block.att_attr.weight,
+                     block.att_type.weight, block.att_j.weight, block.msg_attr.weight, block.msg_type.weight,
+                     block.msg_j.weight]
+            if cfg.heat_form == "reference":
+                mats.append(block.msg_out.weight)
+            vecs += [self.heat_norm[k].weight, self.heat_norm[k].bias]
+            if cfg.node_ffn:
+                ffn, ffn_norm = self.node_ffn[k], self.node_ffn_norm[k]
+                mats += [ffn[0].weight, ffn[2].weight]
+                vecs += [ffn[0].bias, ffn[2].bias, ffn_norm.weight, ffn_norm.bias]
+        mats += [self.critic[0].weight, self.critic[2].weight]
+        vecs += [self.critic[0].bias, self.critic[2].bias]
         node_ws = tuple(numpy_view(layer.weight) for block in self.heat for layer in block.node)
-        mats = [numpy_view(p) for block in self.heat for p in (
-            block.edge_attr.weight, block.edge_type.weight, block.att_i.weight, block.att_attr.weight,
-            block.att_type.weight, block.att_j.weight, block.msg_attr.weight, block.msg_type.weight, block.msg_j.weight)]
-        mats += [numpy_view(self.critic[0].weight), numpy_view(self.critic[2].weight)]
-        vecs = [numpy_view(p) for norm in self.heat_norm for p in (norm.weight, norm.bias)]
-        vecs += [numpy_view(self.critic[0].bias), numpy_view(self.critic[2].bias)]
-        rep, values = comat_encode(node_ws, tuple(mats), tuple(vecs), numpy_view(obs), mask.contiguous().numpy(),
-                                   self.config.heads, self.layout.n_types, self.config.root_weight)
+        rep, values = comat_encode(node_ws, tuple(numpy_view(p) for p in mats), tuple(numpy_view(p) for p in vecs),
+                                   numpy_view(obs), mask.contiguous().numpy(), cfg.heads, self.layout.n_types,
+                                   cfg.root_weight, cfg.obs_embed, cfg.heat_form == "reference",
+                                   cfg.edge_frame == "world", cfg.node_ffn)
         return torch.from_numpy(rep), torch.from_numpy(values)
 
     @torch.no_grad()
