@@ -9,12 +9,17 @@ compute, for one team of real robots (no batch, no padding):
 Input              obs (N, D) float, one row per robot, the task's layout
                    [x, y, cos θ, sin θ | type one-hot (T) | capabilities (C) | task features]
 Encoder            edge features from obs (mirror of ``comat.models.features.edge_features``),
+                   optionally a per-robot embedding LN → Linear → GELU (``obs_embed``), then
                    ``heat_blocks`` HEAT blocks (type-specific node transforms, edge-feature and
-                   edge-type embeddings, K-head LeakyReLU scores, softmax over neighbours, heads
-                   averaged), LayerNorm with a residual after the first block -> rep (N, E)
+                   edge-type embeddings, K-head LeakyReLU scores, softmax over neighbours; heads
+                   averaged with one linear message, or per-head nonlinear messages concatenated
+                   (``reference_messages``)), each followed by LayerNorm with a residual (not
+                   after the first block without ``obs_embed``) and optionally a per-robot
+                   feed-forward sublayer (``node_ffn``) -> rep (N, E)
 Decoder            robot by robot, m = 0..N−1: token (start or a_{m−1}) embedding, causal
                    self-attention over tokens 0..m, action-embedding block, cross-attention of
                    rep_m over embedded actions 0..m, per-type actor head on [h_m ‖ c_m]
+                   (``shared_trunk``: its hidden layer shared by the types)
 Output             ``action_probs(obs)`` -> actions (N,) int64 (argmax, deterministic) and the
                    probability vectors (N, A) they were chosen from, A = 5
 Not included       the critic (deployment needs no values); sampling (argmax only)
@@ -25,7 +30,8 @@ Weights file: ONE ``.npy`` readable with ``np.load(path, allow_pickle=False)``. 
 structured array with two fields:
 
 * ``manifest``: uint8 (L,), UTF-8 JSON ``{"format": "comat-numpy-weights", "version": 1,
-  "config": {obs_dim, n_types, n_caps, embed, heads, heat_blocks, edge_embed, root_weight},
+  "config": {obs_dim, n_types, n_caps, embed, heads, heat_blocks, edge_embed, root_weight,
+  obs_embed, node_ffn, reference_messages, world_edges, shared_trunk},
   "arrays": [[name, shape, offset], ...]}``;
 * ``params``: float32 (P,), every array flattened (C order) and concatenated; array ``name``
   is ``params[offset : offset + prod(shape)].reshape(shape)``.
@@ -37,7 +43,8 @@ numpy's ``max_header_size`` on every version, and no pickle is ever needed. ``pa
 ``save_weights`` write the format, ``load_weights`` reads and checks it;
 ``sim2real.weights`` turns a torch model into the arrays.
 
-Version history: v1 — first format.
+Version history: v1 — first format; the architecture flags after ``edge_embed`` were added
+later and read as 0 (the paper form) when absent.
 """
 
 from __future__ import annotations
@@ -63,8 +70,10 @@ __all__ = [
 
 FORMAT, VERSION = "comat-numpy-weights", 1
 N_ACTIONS = 5
-CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", "edge_embed", "root_weight")
-OPTIONAL_KEYS = {"root_weight": 0}
+FLAG_KEYS = ("root_weight", "obs_embed", "node_ffn", "reference_messages", "world_edges", "shared_trunk")
+"""``ComatConfig``'s architecture options as 0/1 (``comat.models.comat``; ``sim2real.weights``)."""
+CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", "edge_embed", *FLAG_KEYS)
+OPTIONAL_KEYS = dict.fromkeys(FLAG_KEYS, 0)
 """Config keys added later, with the value files written before them mean."""
 
 
@@ -83,11 +92,15 @@ def expected_shapes(config: Mapping[str, int]) -> dict[str, tuple[int, ...]]:
     D, T, C = config["obs_dim"], config["n_types"], config["n_caps"]
     E, K, L, de = config["embed"], config["heads"], config["heat_blocks"], config["edge_embed"]
     A = N_ACTIONS
+    cfg = _config(config)
     shapes: dict[str, tuple[int, ...]] = {}
+    if cfg["obs_embed"]:
+        shapes.update({"obs_encoder.0.weight": (D,), "obs_encoder.0.bias": (D,),
+                       "obs_encoder.1.weight": (E, D), "obs_encoder.1.bias": (E,)})
     for k in range(L):
         p = f"heat.{k}."
         for t in range(T):
-            shapes[f"{p}node.{t}.weight"] = (E, D if k == 0 else E)
+            shapes[f"{p}node.{t}.weight"] = (E, D if k == 0 and not cfg["obs_embed"] else E)
         shapes.update({
             f"{p}edge_attr.weight": (de, 5), f"{p}edge_type.weight": (T * T, de),
             f"{p}att_i.weight": (K, E), f"{p}att_attr.weight": (K, de),
@@ -95,6 +108,12 @@ def expected_shapes(config: Mapping[str, int]) -> dict[str, tuple[int, ...]]:
             f"{p}msg_attr.weight": (E, de), f"{p}msg_type.weight": (E, de), f"{p}msg_j.weight": (E, E),
             f"heat_norm.{k}.weight": (E,), f"heat_norm.{k}.bias": (E,),
         })
+        if cfg["reference_messages"]:
+            shapes[f"{p}msg_out.weight"] = (E, E)
+        if cfg["node_ffn"]:
+            shapes.update({f"node_ffn.{k}.0.weight": (E, E), f"node_ffn.{k}.0.bias": (E,),
+                           f"node_ffn.{k}.2.weight": (E, E), f"node_ffn.{k}.2.bias": (E,),
+                           f"node_ffn_norm.{k}.weight": (E,), f"node_ffn_norm.{k}.bias": (E,)})
     shapes["token.0.weight"] = (E, A + 1)
     for att in ("self_attn", "cross_attn"):
         shapes.update({
@@ -106,7 +125,8 @@ def expected_shapes(config: Mapping[str, int]) -> dict[str, tuple[int, ...]]:
     for name in ("fc", "fc2"):
         shapes.update({f"{name}.0.weight": (E, E), f"{name}.0.bias": (E,),
                        f"{name}.2.weight": (E, E), f"{name}.2.bias": (E,)})
-    shapes.update({"heads.first.weight": (T * E, E + C), "heads.first.bias": (T * E,),
+    H = E if cfg["shared_trunk"] else T * E
+    shapes.update({"heads.first.weight": (H, E + C), "heads.first.bias": (H,),
                    "heads.w2": (T, E, A), "heads.b2": (T, A)})
     return shapes
 
@@ -195,23 +215,35 @@ def _softmax(x: np.ndarray, axis: int = -1) -> np.ndarray:
     return e / e.sum(axis=axis, keepdims=True)
 
 
+def _gelu(x: np.ndarray) -> np.ndarray:
+    """Exact (erf) GELU, as torch's default; math.erf per element (numpy has no erf)."""
+    return 0.5 * x * (1.0 + _erf(x / math.sqrt(2.0)))
+
+
+_erf = np.vectorize(math.erf, otypes=[np.float64])
+
+
 def _layer_norm(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
     mu = x.mean(-1, keepdims=True)
     var = ((x - mu) ** 2).mean(-1, keepdims=True)  # biased, as torch's LayerNorm
     return (x - mu) / np.sqrt(var + LN_EPS) * w + b
 
 
-def edge_features(obs: np.ndarray, n_types: int) -> tuple[np.ndarray, np.ndarray]:
+def edge_features(obs: np.ndarray, n_types: int, world: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Dense team graph with self-loops (mirror of ``comat.models.features.edge_features``).
 
     Returns edge_attr (N, N, 5): for [i, j], robot j seen from robot i — position in i's frame
-    (2), distance (1), relative heading cos, sin (2); and edge_type (N, N): type_i · T + type_j.
+    (2; ``world``: p_j − p_i), distance (1), relative heading cos, sin (2); and edge_type (N, N):
+    type_i · T + type_j.
     """
     xy, c, s = obs[:, 0:2], obs[:, 2], obs[:, 3]
     d = xy[None, :, :] - xy[:, None, :]  # [i, j] = p_j − p_i
     ci, si = c[:, None], s[:, None]
-    local_x = ci * d[..., 0] + si * d[..., 1]
-    local_y = -si * d[..., 0] + ci * d[..., 1]
+    if world:
+        local_x, local_y = d[..., 0], d[..., 1]
+    else:
+        local_x = ci * d[..., 0] + si * d[..., 1]
+        local_y = -si * d[..., 0] + ci * d[..., 1]
     # The 1e-12 keeps torch's sqrt differentiable at 0; kept so the numbers match it.
     dist = np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + 1e-12) * (1 - np.eye(len(obs)))
     cj, sj = c[None, :], s[None, :]
@@ -274,20 +306,33 @@ class ComatRuntime:
         score = ((xt @ w[f"{p}att_i.weight"].T)[:, None] + ea @ w[f"{p}att_attr.weight"].T
                  + (et @ w[f"{p}att_type.weight"].T)[etype] + (xt @ w[f"{p}att_j.weight"].T)[None])
         # All robots are real and every robot has its self-loop, so no edge is masked.
-        alpha = _softmax(_leaky(score), axis=1).mean(-1)  # (N, N): softmax over j, heads averaged
+        alpha = _softmax(_leaky(score), axis=1)  # (N, N, K): softmax over j per head
+        root = xt if self.config["root_weight"] else 0.0
+        if self.config["reference_messages"]:
+            msg = _leaky(ea @ w[f"{p}msg_attr.weight"].T + (et @ w[f"{p}msg_type.weight"].T)[etype]
+                         + (xt @ w[f"{p}msg_j.weight"].T)[None])  # (N, N, E): one message per edge
+            N, K = len(x), alpha.shape[-1]
+            out = np.einsum("ijk,ijkd->ikd", alpha, msg.reshape(N, N, K, -1)).reshape(N, -1)  # heads concatenated
+            return out @ w[f"{p}msg_out.weight"].T + root
+        alpha = alpha.mean(-1)  # (N, N): heads averaged
         return ((alpha[..., None] * ea).sum(1) @ w[f"{p}msg_attr.weight"].T
                 + (alpha[..., None] * et[etype]).sum(1) @ w[f"{p}msg_type.weight"].T
-                + (alpha @ xt) @ w[f"{p}msg_j.weight"].T + (xt if self.config["root_weight"] else 0.0))
+                + (alpha @ xt) @ w[f"{p}msg_j.weight"].T + root)
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
         """Robot representations rep (N, E) from obs (N, D)."""
-        T = self.config["n_types"]
-        attr, etype = edge_features(obs, T)
+        cfg, w = self.config, self.w
+        T = cfg["n_types"]
+        attr, etype = edge_features(obs, T, world=bool(cfg["world_edges"]))
         types = obs[:, 4 : 4 + T].argmax(-1)
         h = obs
-        for k in range(self.config["heat_blocks"]):
+        if cfg["obs_embed"]:
+            h = _gelu(self._ln("obs_encoder.0", obs) @ w["obs_encoder.1.weight"].T + w["obs_encoder.1.bias"])
+        for k in range(cfg["heat_blocks"]):
             out = self._heat(k, h, types, attr, etype)
-            h = _layer_norm(out if k == 0 else h + out, self.w[f"heat_norm.{k}.weight"], self.w[f"heat_norm.{k}.bias"])
+            h = self._ln(f"heat_norm.{k}", h + out if k or cfg["obs_embed"] else out)
+            if cfg["node_ffn"]:
+                h = self._ln(f"node_ffn_norm.{k}", h + self._mlp(f"node_ffn.{k}", h))
         return h
 
     # -- decoder --------------------------------------------------------------------------------
@@ -302,8 +347,11 @@ class ComatRuntime:
         """Logits (A,) of the actor head of robot m's type, on [h_m ‖ c_m]."""
         T, C, E = self.config["n_types"], self.config["n_caps"], self.config["embed"]
         x = np.concatenate([h, obs_m[4 + T : 4 + T + C]])
-        hidden = _relu(self.w["heads.first.weight"] @ x + self.w["heads.first.bias"]).reshape(T, E)
-        out = np.einsum("th,tha->ta", hidden, self.w["heads.w2"]) + self.w["heads.b2"]  # every type's head
+        hidden = _relu(self.w["heads.first.weight"] @ x + self.w["heads.first.bias"])
+        if self.config["shared_trunk"]:  # one hidden layer, every type's output layer
+            out = np.einsum("h,tha->ta", hidden, self.w["heads.w2"]) + self.w["heads.b2"]
+        else:
+            out = np.einsum("th,tha->ta", hidden.reshape(T, E), self.w["heads.w2"]) + self.w["heads.b2"]
         return (out * obs_m[4 : 4 + T, None]).sum(0)  # its own type's, by the one-hot as in torch
 
     def action_probs(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

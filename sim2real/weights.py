@@ -23,7 +23,9 @@ def comat_arrays(model) -> tuple[dict[str, int], dict[str, np.ndarray]]:
         raise TypeError(f"model must be a comat Comat (with .layout, .config, .state_dict), got {type(model).__name__}")
     config = {"obs_dim": layout.obs_dim, "n_types": layout.n_types, "n_caps": layout.n_caps,
               "embed": cfg.embed, "heads": cfg.heads, "heat_blocks": cfg.heat_blocks, "edge_embed": cfg.edge_embed,
-              "root_weight": int(cfg.root_weight)}
+              "root_weight": int(cfg.root_weight), "obs_embed": int(cfg.obs_embed), "node_ffn": int(cfg.node_ffn),
+              "reference_messages": int(cfg.heat_form == "reference"), "world_edges": int(cfg.edge_frame == "world"),
+              "shared_trunk": int(cfg.decision == "shared_trunk")}
     assert set(config) == set(CONFIG_KEYS)
     # Only the critic is dropped: any other entry the runtime does not know (a changed model)
     # must fail the shape check below rather than vanish from the export.

@@ -277,6 +277,31 @@ def test_comat_trained_on_357_acts_on_other_sizes(tmp_path):
     assert [e["team_size"] for e in episodes] == [2, 9, 4]
 
 
+def test_checkpoints_from_before_the_architecture_options_load_as_they_were(tmp_path):
+    """A checkpoint written before ComatConfig's encoder/decision options and PPO's value_target
+    existed has none of those keys: it loads as the paper-form COMAT with the TD(0) target it
+    was, whatever today's defaults are, and acts exactly as it did."""
+    from comat.rl.checkpoint import EARLIER_DEFAULTS
+
+    paper = {**TINY_MODELS["comat"], **EARLIER_DEFAULTS["model"]["comat"]}
+    train(tiny("comat", models={**TINY_MODELS, "comat": paper}), tmp_path / "run", quiet=True)
+    path = tmp_path / "run" / "checkpoint.pt"
+    data = torch.load(path, weights_only=True)
+    for key in EARLIER_DEFAULTS["model"]["comat"]:
+        del data["config"]["model"][key]
+    del data["config"]["trainer"]["value_target"]
+    torch.save(data, tmp_path / "old.pt")
+    loaded = load_checkpoint(tmp_path / "old.pt")
+    assert {k: loaded["config"]["model"][k] for k in paper} == paper
+    assert loaded["config"]["trainer"]["value_target"] == "td"
+    act_new, _ = load_policy(path)
+    act_old, config = load_policy(tmp_path / "old.pt")
+    assert config.model.obs_embed is False and config.model.heat_form == "paper"
+    env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
+    obs, info = env.reset()
+    np.testing.assert_array_equal(act_old(obs, info["agent_mask"], None), act_new(obs, info["agent_mask"], None))
+
+
 # -- bad input ----------------------------------------------------------------------------------------
 def test_unknown_algo_task_and_preset_keys(tmp_path):
     preset = load_preset("quick")

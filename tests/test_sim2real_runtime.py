@@ -85,12 +85,21 @@ def test_runtime_matches_torch(task, kind, tmp_path):
     assert types_seen == {2}  # every team mixes both robot types
 
 
-@pytest.mark.parametrize("root", [False, True])
-def test_runtime_matches_torch_other_sizes(tmp_path, root):
-    """Non-default widths, heads, depth and the HEAT root term: nothing in the runtime assumes
-    the defaults."""
-    model = make_model("hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=3, edge_embed=8, root_weight=root))
-    policy = ComatRuntime(*comat_arrays(model))
+OPTIONS = {
+    "sizes": {}, "root": {"root_weight": True},
+    "embed": {"obs_embed": True, "message_gain": 0.01, "node_ffn": True, "decision": "shared_trunk"},
+    "reference": {"obs_embed": True, "heat_form": "reference", "edge_frame": "world", "root_weight": True},
+    "raw_reference_ffn": {"heat_form": "reference", "node_ffn": True},
+}
+
+
+@pytest.mark.parametrize("options", list(OPTIONS.values()), ids=list(OPTIONS))
+def test_runtime_matches_torch_other_sizes(tmp_path, options):
+    """Non-default widths, heads, depth and every architecture option of ComatConfig: nothing in
+    the runtime assumes the defaults."""
+    model = make_model("hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=3, edge_embed=8, **options))
+    save_weights(tmp_path / "w.npy", *reversed(comat_arrays(model)))
+    policy = ComatRuntime.from_file(tmp_path / "w.npy")
     obs = team_obs("hmt", 5)
     actions, probs = policy.action_probs(obs)
     actions_t, probs_t = torch_probs(model, obs)
@@ -98,12 +107,13 @@ def test_runtime_matches_torch_other_sizes(tmp_path, root):
     np.testing.assert_array_equal(actions, actions_t)
 
 
-def test_weights_files_without_root_weight_still_load(tmp_path):
-    """Files written before the root_weight key read as root_weight = 0 (no root term)."""
-    config, arrays = comat_arrays(make_model("pcp", "trained"))
-    del config["root_weight"]
+def test_weights_files_without_the_architecture_flags_still_load(tmp_path):
+    """Files written before the flags (root_weight, obs_embed, ...) read them as 0: the paper form."""
+    config, arrays = comat_arrays(make_model("pcp", "trained", ComatConfig()))
+    for key in runtime.FLAG_KEYS:
+        del config[key]
     save_weights(tmp_path / "old.npy", arrays, config)
-    assert ComatRuntime.from_file(tmp_path / "old.npy").config["root_weight"] == 0
+    assert all(ComatRuntime.from_file(tmp_path / "old.npy").config[k] == 0 for k in runtime.FLAG_KEYS)
 
 
 def test_weights_file_round_trips(tmp_path):
@@ -121,8 +131,10 @@ def test_weights_file_round_trips(tmp_path):
 
 
 def test_weights_of_another_model_are_refused(tmp_path):
-    with pytest.raises(ValueError, match=r"does not match the numpy runtime.*unexpected \['node_ffn"):
-        comat_arrays(make_model("pcp", "init", ComatConfig(node_ffn=True)))  # not in the runtime: refused
+    changed = make_model("pcp", "init")
+    changed.extra = torch.nn.Linear(2, 2)  # a module the runtime does not know: refused, not dropped
+    with pytest.raises(ValueError, match=r"does not match the numpy runtime.*unexpected \['extra.bias', 'extra.weight'\]"):
+        comat_arrays(changed)
     config, arrays = comat_arrays(make_model("pcp", "init"))
     # HMT observations are wider than PCP's: an HMT config cannot take PCP weights.
     hmt_config = {**config, "obs_dim": ObsLayout.for_task(MaterialTransport()).obs_dim}

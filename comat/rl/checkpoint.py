@@ -10,6 +10,11 @@ only, so loading one never runs code):
 
 Writes go to a temporary file in the same folder, are flushed to disk, then renamed over the
 target, so a crash leaves either the old checkpoint or the new one, never half of one.
+
+A checkpoint keeps the config that trained it. Options added to the configs later are absent
+from older checkpoints; :data:`EARLIER_DEFAULTS` gives each the value that reproduces what
+the older code built (COMAT's paper-form encoder, PPO's TD(0) critic target), so an older
+checkpoint loads as the model it was, whatever today's defaults are.
 """
 
 from __future__ import annotations
@@ -29,6 +34,23 @@ __all__ = ["CheckpointError", "load_checkpoint", "save_checkpoint", "to_plain", 
 
 FORMAT = "comat-checkpoint"
 FORMAT_VERSION = 1
+
+
+EARLIER_DEFAULTS = {
+    "model": {"comat": {"obs_embed": False, "message_gain": 1.0, "heat_form": "paper", "edge_frame": "heading",
+                        "decision": "type_heads"}},
+    "trainer": {"comat": {"value_target": "td"}, "mat": {"value_target": "td"}, "mappo": {"value_target": "td"}},
+}
+"""Section -> algo -> option -> the value a checkpoint without that option was trained with."""
+
+
+def with_earlier_defaults(config: dict) -> dict:
+    """A stored run config with every option it predates set to what the older code built."""
+    out = dict(config)
+    for section, by_algo in EARLIER_DEFAULTS.items():
+        if isinstance(out.get(section), dict):
+            out[section] = {**by_algo.get(out.get("algo"), {}), **out[section]}
+    return out
 
 
 class CheckpointError(ValueError):
@@ -121,4 +143,6 @@ def load_checkpoint(path: str | Path, algo: str | None = None, task: str | None 
     for key, want in (("algo", algo), ("task", task)):
         if want is not None and data[key] != want:
             raise CheckpointError(f"checkpoint {str(path)!r} is for {key} {data[key]!r}, expected {want!r}")
+    if isinstance(data.get("config"), dict):
+        data["config"] = with_earlier_defaults(data["config"])
     return data
