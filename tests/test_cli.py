@@ -83,3 +83,26 @@ def test_bench_decode_times_each_path_with_its_own_encoder():
         assert row["act_cached_ms"] > 0 and row["act_uncached_ms"] > 0 and row["decode_speedup"] > 0
         # COMAT acts with its compiled encoder, MAT with the torch one
         assert (row["encode_act_ms"] == row["encode_ms"]) == (model == "mat")
+
+
+def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
+    """``comat_paper`` in ``bench learn``: the same preset with COMAT's paper-form options."""
+    from unittest import mock
+
+    import yaml
+
+    from comat.bench.learn_bench import bench_train
+    from comat.models.comat import PAPER_FORM
+    from comat.rl import algos
+
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(yaml.safe_dump({"ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1},
+                                      "models": {"comat": {"embed": 16, "heads": 2, "heat_blocks": 1, "edge_embed": 8,
+                                                           "obs_embed": True, "node_ffn": True}}}))
+    seen = []
+    real = algos.make_learner
+    with mock.patch.object(algos, "make_learner", side_effect=lambda c, *a: seen.append(c.model) or real(c, *a)):
+        rows = [bench_train(name, iterations=1, preset=str(preset)) for name in ("comat", "comat_paper")]
+    assert [r["algo"] for r in rows] == ["comat", "comat_paper"] and all(r["env_steps"] == 4 for r in rows)
+    assert seen[0].obs_embed and seen[0].node_ffn and seen[0].embed == 16
+    assert {k: getattr(seen[1], k) for k in PAPER_FORM} == PAPER_FORM and seen[1].embed == 16

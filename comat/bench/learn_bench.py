@@ -75,12 +75,21 @@ def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: i
 
 
 def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0) -> dict:
-    """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on PCP (unicycle)."""
+    """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on PCP (unicycle);
+    ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
+    measure what today's default costs against it in the same run."""
+    from comat.models.comat import PAPER_FORM
     from comat.rl.algos import Dims, make_learner
     from comat.rl.config import load_preset, resolve
     from comat.rl.runner import _make_env
 
-    config = resolve(load_preset(preset), algo, "pcp", seed=seed, tier="unicycle", env_workers=env_workers)
+    settings = load_preset(preset)
+    label, algo = algo, "comat" if algo == "comat_paper" else algo
+    if label == "comat_paper":
+        models = dict(settings.get("models") or {})
+        models["comat"] = {**(models.get("comat") or {}), **PAPER_FORM}
+        settings = {**settings, "models": models}
+    config = resolve(settings, algo, "pcp", seed=seed, tier="unicycle", env_workers=env_workers)
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(seed)
     env = _make_env(config, config.trainer.num_envs, seed)
@@ -126,7 +135,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
     finally:
         env.close()
     total = collect_s + update_s
-    return {"algo": algo, "task": "pcp", "tier": "unicycle", "num_envs": config.trainer.num_envs,
+    return {"algo": label, "task": "pcp", "tier": "unicycle", "num_envs": config.trainer.num_envs,
             "env_workers": env_workers, "torch_threads": config.torch_threads, "env_steps": int(steps),
             "env_steps_per_s": steps / total, "env_s": env_s, "act_s": collect_s - env_s, "learn_s": update_s,
             "env_only_steps_per_s": steps / env_s if env_workers == 1 else None}
@@ -149,7 +158,7 @@ def _checks(decode: list[dict], train: list[dict]) -> dict:
     return checks
 
 
-def run_learn_bench(algos=("comat", "mat", "mappo", "qmix"), workers=(1, 2), iterations: int = 2,
+def run_learn_bench(algos=("comat", "comat_paper", "mat", "mappo", "qmix"), workers=(1, 2), iterations: int = 2,
                     batches=(1, 32, 256), out: str | None = None, progress=print) -> dict:
     """Both parts, a table on ``progress`` and JSON at ``out``."""
     decode = []

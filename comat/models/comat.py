@@ -34,9 +34,13 @@ from comat.models.autoregressive import AutoregressivePolicy, numpy_view
 from comat.models.features import ObsLayout, edge_features
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
 
-__all__ = ["Comat", "ComatConfig"]
+__all__ = ["PAPER_FORM", "Comat", "ComatConfig"]
 
 
+PAPER_FORM = {"root_weight": False, "obs_embed": False, "message_gain": 1.0, "node_ffn": False, "heat_form": "paper",
+              "edge_frame": "heading", "decision": "type_heads"}
+"""The architecture options that read the paper's eq. 2–3 literally (COMAT before the encoder
+ablation, results/ablations/): ``ComatConfig(**PAPER_FORM)``."""
 HEAT_FORMS = ("paper", "reference")
 EDGE_FRAMES = ("heading", "world")
 DECISIONS = ("type_heads", "shared_trunk")

@@ -30,6 +30,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from comat.models.comat import PAPER_FORM
+
 __all__ = ["CheckpointError", "load_checkpoint", "save_checkpoint", "to_plain", "versions"]
 
 FORMAT = "comat-checkpoint"
@@ -37,8 +39,8 @@ FORMAT_VERSION = 1
 
 
 EARLIER_DEFAULTS = {
-    "model": {"comat": {"obs_embed": False, "message_gain": 1.0, "heat_form": "paper", "edge_frame": "heading",
-                        "decision": "type_heads"}},
+    # root_weight and node_ffn are older than the rest: every checkpoint records them
+    "model": {"comat": {k: v for k, v in PAPER_FORM.items() if k not in ("root_weight", "node_ffn")}},
     "trainer": {"comat": {"value_target": "td"}, "mat": {"value_target": "td"}, "mappo": {"value_target": "td"}},
 }
 """Section -> algo -> option -> the value a checkpoint without that option was trained with."""
