@@ -42,6 +42,7 @@ LABELS = {
     "d2_tblock": "(d2) (d) + per-robot FFN", "e_reference": "(e) (d2) + reference HEAT messages",
     "f_world": "(f) (d2) + world-frame edges", "g_shared": "(g) (d2) + shared decision trunk",
     "h_gae": "(h) (d2) + GAE(λ) value target",
+    "i_reference_shared": "(i) (d2) + (e) + (g)",
 }
 
 
