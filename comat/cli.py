@@ -63,8 +63,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.resume:
         if args.out is None:
             raise ValueError("--resume needs --out, the folder of the run to continue")
-        data = load_checkpoint(Path(args.out) / "checkpoint.pt", algo=args.algo, task=args.task)
-        config = RunConfig.from_dict(data["config"])
+        ckpt, saved = Path(args.out) / "checkpoint.pt", Path(args.out) / "config.yaml"
+        if not ckpt.exists() and saved.is_file():  # stopped before its first checkpoint: start it over
+            import yaml
+
+            config = RunConfig.from_dict(yaml.safe_load(saved.read_text())["config"])
+        else:
+            data = load_checkpoint(ckpt, algo=args.algo, task=args.task)
+            config = RunConfig.from_dict(data["config"])
         for name in ("seed", "tier", "env_workers"):
             given = getattr(args, name)
             if given is not None and given != getattr(config, name):
@@ -88,6 +94,16 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_checkpoint_arg(path: str) -> None:
+    """--checkpoint must name a file: a clear line for a folder or a missing path."""
+    from pathlib import Path
+
+    if Path(path).is_dir():
+        raise FileNotFoundError(f"--checkpoint {path!r} is a folder; expected a checkpoint.pt file")
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"--checkpoint {path!r} does not exist")
+
+
 def _cmd_eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -95,8 +111,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
     if args.checkpoint is None and args.task is None:
         raise ValueError("give --checkpoint (a run's checkpoint.pt), or --task for the reference policies alone")
-    if args.checkpoint is not None and not Path(args.checkpoint).is_file():
-        raise FileNotFoundError(f"--checkpoint {args.checkpoint!r} does not exist")
+    if args.checkpoint is not None:
+        _check_checkpoint_arg(args.checkpoint)
     out = Path(args.out) if args.out else (Path(args.checkpoint).parent if args.checkpoint else None)
     if out is None:
         raise ValueError("--out is required without --checkpoint")
@@ -119,8 +135,7 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 
     from comat.eval.probe import print_probe, probe_checkpoint, write_probe
 
-    if not Path(args.checkpoint).is_file():
-        raise FileNotFoundError(f"--checkpoint {args.checkpoint!r} does not exist")
+    _check_checkpoint_arg(args.checkpoint)
     out = Path(args.out) if args.out else Path(args.checkpoint).parent
     if not out.is_dir():
         raise FileNotFoundError(f"--out folder {str(out)!r} does not exist (create it first)")
@@ -153,8 +168,13 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _print_sweep_status(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from comat.eval.sweep import sweep_status
 
+    if not Path(args.out).is_dir():
+        raise FileNotFoundError(f"--out {args.out!r} does not exist: no sweep has run there "
+                                f"(start it with the same command without --status)")
     rows = sweep_status(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
                         args.eval_tiers, [] if args.no_eval else ["train", "test"])
     print(f"{'job':<18}{'state':<8}{'env steps':>22}{'env-steps/s':>13}{'time left':>11}")

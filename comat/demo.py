@@ -72,6 +72,7 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
             "actuator errors (ticks)": int(r.actuator_errors.sum()),
             "filter interventions (team-ticks)": int(r.interventions.sum()) if filtered else 0,
             "filter fallbacks (brakes)": int(r.fallbacks.sum()) if filtered else 0,
+            "filter recoveries (outside the safe set)": int(r.recoveries.sum()) if filtered else 0,
             "robots within 5 cm of goal": f"{int((r.goal_error_robot < 0.05).sum())}/{robots * episodes}",
             "wall time (s)": round(time.perf_counter() - t0, 1),
         }

@@ -49,11 +49,15 @@ class TaskTypes:
     """Inclusive (low, high) physical limits of each capability (across all types)."""
     required: tuple[tuple[int, ...], ...]
     """Per type, indices of the capabilities that must be > 0 for it (its role)."""
+    ignored: tuple[tuple[int, ...], ...] = ()
+    """Per type, indices of the capabilities the task's rules ignore for it: they must be 0, so
+    a team file cannot suggest an ability the robot does not have."""
 
 
 TASK_TYPES: dict[str, TaskTypes] = {
     # Radii beyond 1 m would see or reach most of the 3.2 x 2 m arena from anywhere.
-    "pcp": TaskTypes(("sensing", "capture"), ("sensing_radius_m", "capture_radius_m"), ((0.0, 1.0), (0.0, 1.0)), ((0,), (1,))),
+    "pcp": TaskTypes(("sensing", "capture"), ("sensing_radius_m", "capture_radius_m"), ((0.0, 1.0), (0.0, 1.0)), ((0,), (1,)),
+                     ((1,), (0,))),
     # Step lengths are limited by 0.2 m/s over one 74-tick step (2.44 s): 0.488 m.
     "hmt": TaskTypes(("fast", "slow"), ("speed_m", "payload"), ((0.0, 0.488), (0.0, 100.0)), ((0, 1), (0, 1))),
 }
@@ -115,6 +119,12 @@ class TeamSpec:
                 if r.capabilities[k] <= 0:
                     raise ValueError(
                         f"robot {i}: a {r.type} robot needs {tt.capabilities[k]} > 0, got {r.capabilities[k]}"
+                    )
+            for k in (tt.ignored[tt.types.index(r.type)] if tt.ignored else ()):
+                if r.capabilities[k] != 0:
+                    raise ValueError(
+                        f"robot {i}: a {r.type} robot has no {tt.capabilities[k]} (the {self.task} rules ignore it); "
+                        f"expected 0, got {r.capabilities[k]}"
                     )
         missing = [t for t in tt.types if all(r.type != t for r in self.robots)]
         if missing:

@@ -106,3 +106,10 @@ def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
     assert [r["algo"] for r in rows] == ["comat", "comat_paper"] and all(r["env_steps"] == 4 for r in rows)
     assert seen[0].obs_embed and seen[0].node_ffn and seen[0].embed == 16
     assert {k: getattr(seen[1], k) for k in PAPER_FORM} == PAPER_FORM and seen[1].embed == 16
+
+
+def test_sweep_status_of_a_missing_folder_is_an_error(tmp_path, capsys):
+    assert main(["sweep", "--preset", "quick", "--out", str(tmp_path / "nowhere"), "--status"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "does not exist: no sweep has run there" in err[0]
+    assert not (tmp_path / "nowhere").exists()

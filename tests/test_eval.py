@@ -19,7 +19,7 @@ T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
     return {"return": ret, "steps": steps, "completion": completion, "success": success, "collisions": collisions,
             "robotarium_collisions": rc, "boundary_exits": be, "actuator_errors": ae, "interventions": 3.0,
-            "fallbacks": 0.0}
+            "fallbacks": 0.0, "recoveries": 1.0}
 
 
 # -- metrics ---------------------------------------------------------------------------------------
@@ -49,6 +49,7 @@ def test_summarize_ci_by_hand():
     assert table["violations"]["mean"] == 1.0
     assert table["collisions"]["mean"] == 0.75
     assert table["interventions"] == {"mean": 3.0, "ci95": 0.0, "n": 4}
+    assert table["recoveries"] == {"mean": 1.0, "ci95": 0.0, "n": 4}
 
 
 # -- comat eval -------------------------------------------------------------------------------------
@@ -98,7 +99,7 @@ def _fake_run(folder, algo, task, seed, train_return, test_return, success):
     (folder / "evaluation_unicycle.json").write_text(json.dumps(result))
 
 
-def test_report_on_fake_runs(tmp_path):
+def test_report_on_fake_runs(tmp_path, capsys):
     _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0)
     _fake_run(tmp_path / "b", "comat", "pcp", 1, 60.0, 50.0, 0.5)
     out = tmp_path / "results"
@@ -119,6 +120,18 @@ def test_report_on_fake_runs(tmp_path):
     assert PAPER_TABLE1[("pcp", "return")][3] == 82.47
     with pytest.raises(FileNotFoundError, match="not a run folder"):
         make_report([tmp_path / "results"], out)
+    # Runs without `comat eval`: a warning for some, an error (nothing written) for all.
+    (tmp_path / "b" / "evaluation_unicycle.json").unlink()
+    out2 = tmp_path / "results2"
+    out2.mkdir()
+    assert make_report([tmp_path / "a", tmp_path / "b"], out2)["runs"] == 2
+    assert "b has no evaluation" in capsys.readouterr().err
+    (tmp_path / "a" / "evaluation_unicycle.json").unlink()
+    out3 = tmp_path / "results3"
+    out3.mkdir()
+    with pytest.raises(ValueError, match=r"none of the 2 run folder\(s\) has an evaluation"):
+        make_report([tmp_path / "a", tmp_path / "b"], out3)
+    assert list(out3.iterdir()) == []
 
 
 def test_report_cli_lists_only_pairs_with_runs(tmp_path, capsys):

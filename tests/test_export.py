@@ -180,7 +180,9 @@ def test_scripted_policy_completes_the_task_under_rps(scripted, task):
     assert rps["success"] == 1.0 and rps["completion"] == 1.0, rps
     assert mj["success"] == 1.0
     assert abs(report["gap"]["completion_points"]) <= 10.0
-    assert abs(rps["steps"] - mj["steps"]) <= 5, (rps["steps"], mj["steps"])
+    # MuJoCo's filter breaks barrier deadlocks (comat.control.HOLD_TICKS); the Robotarium's barrier
+    # has no tie-break, so the MuJoCo episode may be shorter, never much longer.
+    assert mj["steps"] <= rps["steps"] + 5, (rps["steps"], mj["steps"])
 
 
 _DRAW = """

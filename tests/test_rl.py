@@ -361,6 +361,74 @@ def test_bad_checkpoints_are_refused_and_nothing_is_overwritten(tmp_path, capsys
         load_checkpoint(tmp_path / "missing.pt")
 
 
+def test_a_run_stopped_before_its_first_checkpoint_can_be_resumed_or_restarted(tmp_path):
+    """Killed before the first checkpoint (config.yaml written, no checkpoint.pt; a kill during a
+    checkpoint write also leaves a temporary file): --resume and a plain restart both start the
+    run over and end where an uninterrupted run does; the temporary file is removed; another
+    configuration in that folder is refused."""
+    straight = tmp_path / "straight"
+    train(tiny("comat"), straight, quiet=True)
+    for how in ("resume", "restart"):
+        run = tmp_path / how
+        train(tiny("comat"), run, quiet=True)
+        (run / "checkpoint.pt").unlink()
+        (run / ".checkpoint.pt.abc123.tmp").write_bytes(b"")
+        if how == "resume":
+            assert main(["train", "--resume", "--out", str(run), "--quiet"]) == 0
+        else:
+            train(tiny("comat"), run, quiet=True)
+        assert not list(run.glob(".*.tmp"))
+        assert_same(load_checkpoint(straight / "checkpoint.pt")["trainer"], load_checkpoint(run / "checkpoint.pt")["trainer"])
+    (tmp_path / "restart" / "checkpoint.pt").unlink()
+    with pytest.raises(FileExistsError, match="stopped before its first checkpoint"):
+        train(tiny("comat", steps=24), tmp_path / "restart", quiet=True)
+
+
+@pytest.mark.parametrize("kind", ["empty", "random_bytes", "folder", "truncated"])
+def test_every_command_reading_a_checkpoint_explains_a_bad_one_in_one_line(tmp_path, capsys, kind):
+    """eval, probe, rollout, export and train --resume on a 0-byte file, random bytes, a folder
+    or a truncated checkpoint: exit status 2, one line naming the file and what is wrong, no
+    traceback (and no torch paragraph)."""
+    bad = tmp_path / "run" / "checkpoint.pt"
+    bad.parent.mkdir()
+    if kind == "folder":
+        bad.mkdir()
+    elif kind == "truncated":
+        train(tiny("comat"), tmp_path / "good", quiet=True)
+        bad.write_bytes((tmp_path / "good" / "checkpoint.pt").read_bytes()[:2000])
+    else:
+        bad.write_bytes(b"" if kind == "empty" else np.random.default_rng(0).bytes(4096))
+    expected = {"empty": "is empty (0 bytes)", "random_bytes": "is corrupt or not a comat checkpoint",
+                "folder": "a folder; expected a checkpoint.pt file",
+                "truncated": "is corrupt or not a comat checkpoint"}[kind]
+    commands = [["eval", "--checkpoint", str(bad)], ["probe", "--checkpoint", str(bad)],
+                ["rollout", "--task", "pcp", "--policy", str(bad), "--out", str(tmp_path / "x.rrd")],
+                ["export", "--checkpoint", str(bad), "--task", "pcp", "--team", "test:0", "--out", str(tmp_path / "sub")]]
+    if kind != "folder":  # train --resume reads RUN/checkpoint.pt
+        commands.append(["train", "--resume", "--out", str(bad.parent)])
+    for argv in commands:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        errors = [line for line in err if "error" in line]  # a progress heading may come before
+        assert len(errors) == 1 and err[-1] == errors[0] and expected in errors[0], (argv, err)
+        assert not any("Traceback" in line or "PyTorch" in line or "weights_only" in line for line in err), (argv, err)
+    assert not (tmp_path / "sub").exists() and not (tmp_path / "x.rrd").exists()
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("", "is empty; expected a mapping of settings"),
+    ("total_env_steps: [1, 2\n", "is not valid YAML at line 2"),
+    ("- 1\n- 2\n", "must be a mapping of settings, got list"),
+])
+def test_bad_preset_files_get_one_clear_line(tmp_path, capsys, text, expected):
+    preset = tmp_path / "p.yaml"
+    preset.write_text(text)
+    assert main(["train", "--algo", "comat", "--task", "pcp", "--preset", str(preset), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and expected in err[0], err
+    assert not (tmp_path / "r").exists()
+
+
 @pytest.mark.parametrize("name", ["paper", "quick", "learning", "sweep"])
 def test_every_preset_resolves_for_every_algo_and_task(name):
     preset = load_preset(name)

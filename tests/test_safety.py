@@ -61,17 +61,97 @@ def test_filter_output_respects_every_row_and_wheel_limits(rng):
                 assert 2 * e @ (u[i] - u[j]) >= -f.config.barrier_gain * h - 1e-6
 
 
-def test_infeasible_start_falls_back_to_braking_and_is_counted():
-    teams = SafeTeams((2, 2), SimConfig(tier="unicycle"))
-    # Team 0: face to face with the projected points 0.07 m apart (inside d_s = 0.2), driving
-    # in; no velocity within the wheel limits can satisfy the barrier. Team 1 is fine.
+def test_infeasible_start_recovers_and_only_a_failed_solver_brakes():
+    """Team 0 starts face to face with the projected points 0.07 m apart (inside d_s = 0.2),
+    driving in: no command meets its hard rows. It takes the softened problem's answer (a
+    recovery tick, counted) and moves apart; team 1 is untouched. Only when that solver fails
+    too does the team brake (a fallback tick)."""
+    from unittest import mock
+
+    from comat.safety import filter as filter_module
+
     poses = np.array([[-0.06, 0, 0], [0.06, 0, np.pi], [-0.5, 0.6, 0], [0.5, 0.6, np.pi]])
+    dxi = np.array([[0.1, 0], [-0.1, 0], [0.1, 0], [-0.1, 0]])
+    teams = SafeTeams((2, 2), SimConfig(tier="unicycle"))
     teams.reset(poses)
-    _ev, info = teams.tick(np.array([[0.1, 0], [-0.1, 0], [0.1, 0], [-0.1, 0]]))
-    assert info.fallback.tolist() == [True, False]
+    _ev, info = teams.tick(dxi)
+    assert info.recovery.tolist() == [True, False] and not info.fallback.any()
+    assert teams.recoveries.tolist() == [1, 0] and teams.fallbacks.tolist() == [0, 0]
+    gap = lambda p: np.linalg.norm(projected_points(p[:2], 0.05)[0] - projected_points(p[:2], 0.05)[1])  # noqa: E731
+    assert gap(teams.poses) > gap(poses)  # moved apart, against the nominal command
+    assert teams.poses[2, 0] > -0.5
+    teams.reset(poses)
+    with mock.patch.object(filter_module, "recovery_command", return_value=(None, "solver failed")):
+        _ev, info = teams.tick(dxi)
+    assert info.fallback.tolist() == [True, False] and not info.recovery.any()
     assert teams.fallbacks.tolist() == [1, 0]
     np.testing.assert_allclose(teams.poses[:2], poses[:2], atol=1e-9)  # braked: did not move
-    assert teams.poses[2, 0] > -0.5
+
+
+def _run(teams, dxi_of, seconds):
+    """Ticks of nominal velocities ``dxi_of(teams)`` for ``seconds``; minimum projected-point
+    distance of the team's pairs at the end and MuJoCo robot-robot contact ticks."""
+    for _ in range(int(round(seconds / C.CONTROL_DT_S))):
+        teams.tick(dxi_of(teams))
+    lay = teams.world.layout
+    p = teams.points
+    d = np.linalg.norm(p[lay.pair_i] - p[lay.pair_j], axis=1)
+    return d.min(), int(teams.world.violations.per_team("contact_ticks").sum())
+
+
+@pytest.mark.parametrize("tier", ["unicycle", "wheels"])
+@pytest.mark.parametrize("direction", ["apart", "toward"])
+def test_pair_started_inside_the_safety_distance_separates(tier, direction):
+    """Centres 0.2 m apart, facing each other: projected points 0.1 m apart, inside d_s. Commanded
+    apart or toward each other, they reach d_s within 2 s, never touching."""
+    teams = SafeTeams([2], SimConfig(tier=tier))
+    teams.reset(np.array([[-0.1, 0, 0.0], [0.1, 0, np.pi]]))
+    sign = 1.0 if direction == "apart" else -1.0
+    d, contacts = _run(teams, lambda t: np.array([[-0.2 * sign, 0.0], [0.2 * sign, 0.0]]), 2.0)
+    assert d >= teams.safety_config.safety_distance_m - 1e-3 and contacts == 0
+    assert teams.recoveries[0] > 0 and teams.fallbacks[0] == 0
+
+
+def test_ring_of_20_started_inside_the_safety_distance_separates():
+    """20 robots on a ring 0.15 m apart (inside d_s), all driven through the centre."""
+    n = 20
+    radius = 0.15 / (2 * np.sin(np.pi / n))
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    teams = SafeTeams([n], SimConfig(tier="unicycle"))
+    teams.reset(np.stack([radius * np.cos(a), radius * np.sin(a), a + np.pi], axis=1))
+    d, contacts = _run(teams, lambda t: 0.2 * (-t.points / np.linalg.norm(t.points, axis=1, keepdims=True)), 3.0)
+    assert contacts == 0 and teams.fallbacks[0] == 0 and teams.recoveries[0] > 0
+    assert d >= teams.safety_config.safety_distance_m - 1e-3
+
+
+def test_robot_inside_the_boundary_margin_moves_inward():
+    """A projected point 0.05 m from the wall (inside the 0.1 m margin), commanded inward."""
+    x1 = C.ARENA_BOUNDS_M[1]
+    teams = SafeTeams([1], SimConfig(tier="unicycle"))
+    teams.reset(np.array([[x1 - 0.05 - teams.safety_config.projection_distance_m, 0.0, 0.0]]))
+    x0 = teams.points[0, 0]
+    for _ in range(15):
+        teams.tick(np.array([[-0.2, 0.0]]))
+    assert teams.points[0, 0] < x0 - 0.02 and teams.fallbacks[0] == 0
+
+
+@pytest.mark.parametrize("size", [1e3, 1e15, 1e150, 1e300])
+def test_huge_commands_never_brake(size):
+    """A ring of 20 robots 0.25 m apart with random commands of this size, redrawn every 10 ticks
+    (commands far beyond the wheels are saturated to them before the filter)."""
+    n = 20
+    radius = 0.25 / (2 * np.sin(np.pi / n))
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    for seed in range(2):
+        rng = np.random.default_rng(seed)
+        teams = SafeTeams([n], SimConfig(tier="unicycle"))
+        teams.reset(np.stack([radius * np.cos(a), radius * np.sin(a), a + np.pi], axis=1))
+        for k in range(40):
+            if k % 10 == 0:
+                direction = rng.standard_normal((n, 2))
+            teams.tick(size * direction)
+        assert teams.fallbacks[0] == 0 and teams.recoveries[0] == 0
+        assert int(teams.world.violations.per_team("contact_ticks").sum()) == 0
 
 
 def test_strict_mode_raises_a_clear_error():
@@ -103,6 +183,11 @@ def _check(result, name):
     assert result.actuator_errors.sum() == 0, f"{name}: actuator errors"
     assert (result.interventions > 0).all(), f"{name}: the filter never intervened in some episode"
     assert result.min_centre_distance.min() > C.GRITSBOT.diameter_m
+    # Started inside the safe set, teams stay in it: never a recovery tick, never a brake.
+    ticks = result.interventions.size * make_scenario(name, 1, seed=0).ticks
+    print(f"{name}: brake share {result.fallbacks.sum() / ticks:.2e}, recovery share {result.recoveries.sum() / ticks:.2e} "
+          f"of {ticks} team-ticks")
+    assert result.fallbacks.sum() == 0 and result.recoveries.sum() == 0, f"{name}: brakes or recoveries"
 
 
 @pytest.mark.parametrize("tier", ["unicycle", "wheels"])
@@ -140,3 +225,22 @@ def test_wheel_projection_is_the_qp_optimum_when_only_wheel_rows_bind(rng):
         out, info = f.filter(poses, dxi)
         np.testing.assert_allclose(out.ravel(), fast, atol=1e-12)
         assert info.status == "skipped"
+
+
+@pytest.mark.parametrize("tie_break", [True, False])
+def test_head_on_deadlock_is_broken_by_keeping_right(tmp_path, tie_break):
+    """U_test coalition 1 (a sensing and a capture robot), scripted policy, the export's start for
+    seed 1, MuJoCo wheels tier: the two meet head-on on one line and the barrier holds both still
+    for the rest of the episode (4 of 6 prey) unless the tie-break turns them to their right."""
+    from unittest import mock
+
+    import comat.control as control
+    from comat.envs.base import resolve_coalitions
+    from sim2real.export import export_submission, run_mujoco
+
+    team = resolve_coalitions("test", "pcp")[1]
+    export_submission("heuristic", "pcp", team, tmp_path / "sub", seed=1)
+    with mock.patch.object(control, "HOLD_TICKS", control.HOLD_TICKS if tie_break else 10**9):
+        metrics = run_mujoco(tmp_path / "sub", "wheels")
+    assert metrics["collisions"] == 0 and metrics["fallbacks"] == 0
+    assert metrics["success"] == (1.0 if tie_break else 0.0)

@@ -62,6 +62,10 @@ def test_unseen_test_ranges_differ_from_training():
         ((RobotSpec("sensing", (1.5, 0.0)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: sensing_radius_m must be in \[0.0, 1.0\] \(physical limit\), got 1.5"),
         ((RobotSpec("sensing", (0.0, 0.0)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: a sensing robot needs sensing_radius_m > 0, got 0.0"),
         ((RobotSpec("sensing", (0.4,)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: capabilities must be 2 numbers"),
+        ((RobotSpec("sensing", (0.4, 0.3)), RobotSpec("capture", (0.0, 0.3))),
+         r"robot 0: a sensing robot has no capture_radius_m \(the pcp rules ignore it\); expected 0, got 0.3"),
+        ((RobotSpec("sensing", (0.4, 0.0)), RobotSpec("capture", (0.2, 0.3))),
+         r"robot 1: a capture robot has no sensing_radius_m"),
     ],
 )
 def test_bad_teams(robots, match):

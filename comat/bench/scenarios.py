@@ -138,6 +138,7 @@ class ScenarioResult:
     actuator_errors: np.ndarray
     interventions: np.ndarray
     fallbacks: np.ndarray
+    recoveries: np.ndarray
     goal_error: np.ndarray
     goal_error_robot: np.ndarray
 
@@ -175,6 +176,7 @@ def run_scenario(
         actuator_errors=v.per_team("actuator_ticks"),
         interventions=teams.interventions.copy(),
         fallbacks=teams.fallbacks.copy(),
+        recoveries=teams.recoveries.copy(),
         goal_error=np.bincount(lay.robot_team, weights=err) / np.array(lay.team_sizes),
         goal_error_robot=err,
     )

@@ -39,6 +39,7 @@ EPISODE_METRICS = (
     "actuator_errors",
     "interventions",
     "fallbacks",
+    "recoveries",
 )
 """Per-episode metrics (see :meth:`TaskCore.episode_metrics`)."""
 
@@ -205,6 +206,7 @@ class TaskCore:
                 info.intervention, info.fallback, s["collisions"], s["boundary_exits"], s["actuator_errors"],
                 s["robotarium_collisions"], s["interventions"], s["fallbacks"], violations,
             )  # fmt: skip
+            s["recoveries"] += info.recovery
             return
         per_robot = np.stack([events.robot_contact & ~last, events.boundary, events.actuator], axis=1).astype(np.int64)
         counts = np.add.reduceat(per_robot, starts, axis=0)  # (B, 3)
@@ -214,6 +216,7 @@ class TaskCore:
         s["robotarium_collisions"] += events.collision_pairs
         s["interventions"] += info.intervention > 0
         s["fallbacks"] += info.fallback
+        s["recoveries"] += info.recovery
         violations += counts[:, 0] + counts[:, 1] + events.collision_pairs
 
     def episode_metrics(self, b: int) -> dict[str, float]:
@@ -224,7 +227,9 @@ class TaskCore:
         summed over robots); robotarium_collisions (pair-ticks with offset centres <= 0.135 m);
         boundary_exits (robot-ticks outside the arena); actuator_errors (ticks with a wheel
         over 12.5 rad/s requested); interventions (ticks the filter changed a command);
-        fallbacks (ticks the filter braked).
+        fallbacks (ticks the filter braked: no trusted command, not even a recovery one);
+        recoveries (ticks the team was outside the safe set and the filter's softened problem
+        moved it back toward it).
         """
         return {name: float(v[b]) for name, v in self.stats.values.items()}
 

@@ -101,7 +101,8 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
 def print_table(result: dict, out=print) -> None:
     """The rows as a fixed-width table, ``mean ± 95 % CI``."""
     names = {"return": "return", "steps": "steps", "completion": "progress", "success": "completion*",
-             "collisions": "collisions", "violations": "violations", "interventions": "interv.", "fallbacks": "brakes"}
+             "collisions": "collisions", "violations": "violations", "interventions": "interv.", "fallbacks": "brakes",
+             "recoveries": "recoveries"}
     head = f"{'policy':<10}{'set':<6}{'n':>4}" + "".join(f"{names[m]:>17}" for m in REPORTED)
     out(head + "\n" + "-" * len(head))
     for r in result["rows"]:

@@ -19,7 +19,7 @@ import numpy as np
 
 __all__ = ["REPORTED", "mean_ci", "summarize_ci", "violations"]
 
-REPORTED = ("return", "steps", "completion", "success", "collisions", "violations", "interventions", "fallbacks")
+REPORTED = ("return", "steps", "completion", "success", "collisions", "violations", "interventions", "fallbacks", "recoveries")
 """Metrics in evaluation tables, in order."""
 
 

@@ -23,6 +23,7 @@ import csv
 import io
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -221,6 +222,13 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     if not out.is_dir():
         raise FileNotFoundError(f"output folder {str(out)!r} does not exist (create it first)")
     runs = [load_run(f, tier) for f in run_folders]
+    missing = [r["folder"] for r in runs if r["evaluation"] is None]
+    if len(missing) == len(runs):
+        raise ValueError(f"none of the {len(runs)} run folder(s) has an evaluation (evaluation_<tier>.json, tier "
+                         f"{runs[0]['tier']!r}): run `comat eval --checkpoint RUN/checkpoint.pt` on each first")
+    for folder in missing:
+        print(f"warning: {folder} has no evaluation in the {tier or 'training'} tier: left out of the tables",
+              file=sys.stderr)
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         groups.setdefault((r["algo"], r["task"]), []).append(r)

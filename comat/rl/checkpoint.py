@@ -130,13 +130,18 @@ def load_checkpoint(path: str | Path, algo: str | None = None, task: str | None 
         CheckpointError: naming the file and what is wrong with it.
     """
     path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"checkpoint {str(path)!r} is a folder; expected a checkpoint.pt file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint {str(path)!r} does not exist")
+    size = path.stat().st_size
+    if size == 0:
+        raise CheckpointError(f"checkpoint {str(path)!r} is empty (0 bytes): not a comat checkpoint")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as err:  # torch raises several types for truncated or foreign files
-        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt or not a comat checkpoint "
-                              f"({type(err).__name__}: {str(err).splitlines()[0][:200]})") from err
+    except Exception as err:  # torch raises several types (and paragraphs) for foreign files
+        raise CheckpointError(f"checkpoint {str(path)!r} ({size} bytes) is corrupt or not a comat checkpoint: "
+                              f"torch.load could not read it ({type(err).__name__})") from err
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise CheckpointError(f"{str(path)!r} is not a comat checkpoint (expected format {FORMAT!r})")
     if data.get("format_version") != FORMAT_VERSION:

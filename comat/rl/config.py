@@ -104,8 +104,19 @@ def load_preset(preset: str | Path) -> dict[str, Any]:
             raise ValueError(f"unknown preset {str(preset)!r}; presets: {preset_names()} (or a path to a YAML file)")
     elif not path.is_file():
         raise ValueError(f"preset file {str(path)!r} does not exist")
-    with open(path) as fh:
-        data = yaml.safe_load(fh) or {}
+    try:
+        with open(path) as fh:
+            data = yaml.safe_load(fh)
+    except yaml.YAMLError as err:
+        where = getattr(err, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where is not None else ""
+        raise ValueError(f"preset {str(path)!r} is not valid YAML{at}: {getattr(err, 'problem', None) or err}") from err
+    except UnicodeDecodeError as err:
+        raise ValueError(f"preset {str(path)!r} is not a text (YAML) file: {err.reason}") from err
+    if data is None:
+        # An empty file would silently mean every default, e.g. a 4,000,000-step run.
+        raise ValueError(f"preset {str(path)!r} is empty; expected a mapping of settings "
+                         f"(see train/configs/*.yaml)")
     if not isinstance(data, dict):
         raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
     unknown = sorted(set(data) - set(_PRESET_KEYS))

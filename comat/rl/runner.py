@@ -81,6 +81,17 @@ def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = N
     return summarize(episodes)
 
 
+def _restarting(out: Path, config: RunConfig) -> bool:
+    """Whether ``out``'s config.yaml (a run without a checkpoint yet) is this config's run."""
+    import yaml
+
+    try:
+        saved = yaml.safe_load((out / "config.yaml").read_text())["config"]
+        return RunConfig.from_dict(saved).to_dict() == config.to_dict()
+    except Exception:  # an unreadable config.yaml is not this run's
+        return False
+
+
 def _next_multiple(steps: int, every: int) -> int:
     return (steps // every + 1) * every
 
@@ -119,7 +130,13 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
     out = Path(out)
     ckpt_path = out / "checkpoint.pt"
     data = None
-    if resume:
+    if resume and not ckpt_path.exists() and (out / "config.yaml").is_file():
+        # Killed before its first checkpoint: nothing to continue, so the run starts over.
+        resume = False
+        if not quiet:
+            print(f"{str(out)!r} has no checkpoint yet (stopped before the first one): starting it from step 0",
+                  file=sys.stderr)
+    elif resume:
         data = load_checkpoint(ckpt_path, algo=config.algo, task=config.task)
         saved = RunConfig.from_dict(data["config"])
         # Neither the step budget nor MuJoCo's thread count changes what the run computes.
@@ -131,9 +148,14 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         raise ValueError(f"rrd_every must be an integer >= 0 (every K-th evaluation; 0 = never), got {rrd_every!r}")
     if rrd_every and not config.eval_episodes_per_team:
         raise ValueError("rrd_every records evaluation episodes, but this run's eval_episodes_per_team is 0")
-    if not resume and (ckpt_path.exists() or (out / "config.yaml").exists()):
+    if not resume and data is None and ckpt_path.exists():
         raise FileExistsError(f"{str(out)!r} already holds a run; pass --resume to continue it, or choose another --out")
+    if not resume and (out / "config.yaml").exists() and not ckpt_path.exists() and not _restarting(out, config):
+        raise FileExistsError(f"{str(out)!r} already holds a run (stopped before its first checkpoint) with another "
+                              "configuration; pass --resume to start that run over, or choose another --out")
     out.mkdir(parents=True, exist_ok=True)
+    for stale in out.glob(f".{ckpt_path.name}.*.tmp"):  # left by a kill during a checkpoint write
+        stale.unlink()
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
     env = _make_env(config, config.trainer.num_envs, config.seed)

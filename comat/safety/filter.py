@@ -12,9 +12,13 @@ Three exact stages, cheapest first, decided per team:
 
 The answer is never trusted blindly: a team passes only if OSQP reports *solved* and its
 answer meets its rows within ``feasibility_tol`` (after a repair of eps-sized misses). Failing
-teams are re-solved alone with a 1000× tighter tolerance; a team that still fails brakes (zero
-velocity) — counted in :class:`SafetyInfo` — or, with ``strict=True``, raises
-:class:`InfeasibleError`.
+teams are re-solved alone with a 1000× tighter tolerance. A team that still fails is outside the
+safe set (no command meets its hard rows): it takes the answer of the softened problem of
+:mod:`comat.safety.recovery` (barrier and boundary rows relaxed by heavily penalized slacks,
+wheel rows hard), which moves it back toward the safe set as fast as the wheels allow — a
+*recovery* tick. Only if that solver fails too does the team brake (zero velocity), a
+*fallback* tick; both are counted in :class:`SafetyInfo`. With ``strict=True`` anything but a
+feasible hard problem raises :class:`InfeasibleError`.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from comat._validate import as_float_array
 from comat.config import SafetyConfig
 from comat.safety.constraints import RowValues, row_constants
 from comat.safety.qp import BarrierQP
+from comat.safety.recovery import recovery_command
 from comat.sim.kinematics import limit_to_wheels, si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
@@ -52,7 +57,9 @@ class SafetyInfo:
     Attributes:
         intervention: (B,) ‖u - û‖ per team (m/s), 0 where the nominal command was kept.
         robot_intervened: (R,) bool, the robot's command was changed.
-        fallback: (B,) bool, team braked because its QP had no trusted solution.
+        fallback: (B,) bool, team braked: no trusted solution, not even of the softened problem.
+        recovery: (B,) bool, team outside the safe set (its hard QP infeasible) took the answer
+            of the softened problem (:mod:`comat.safety.recovery`): moving back toward it.
         status: OSQP status text of the tick's QP (``"skipped"`` if none was needed).
         solve_time_s: OSQP's own time (update + solve + polish), 0 if skipped.
         active_pairs, active_boundary, active_wheels: (B,) rows of each kind that the final
@@ -62,10 +69,12 @@ class SafetyInfo:
             computed on first access.
     """
 
-    def __init__(self, filt: SafetyFilter, vals, Au, intervention, robot_intervened, fallback, status, solve_time_s):
+    def __init__(self, filt: SafetyFilter, vals, Au, intervention, robot_intervened, fallback, status, solve_time_s,
+                 recovery):
         self.intervention = intervention
         self.robot_intervened = robot_intervened
         self.fallback = fallback
+        self.recovery = recovery
         self.status = status
         self.solve_time_s = solve_time_s
         self._filt, self._vals, self._Au = filt, vals, Au
@@ -208,6 +217,7 @@ class SafetyFilter:
         u_nom = dxi.ravel()
         status = "skipped"
         fallback = np.zeros(t.n_teams, dtype=bool)
+        recovery = np.zeros(t.n_teams, dtype=bool)
         if kernels.enabled():
             points, vals, out, Au, need, u_wheel, left = self._stages_compiled(poses, u_nom, c, s)
         else:
@@ -236,17 +246,33 @@ class SafetyFilter:
                 out[cols[take_c]] = x[take_c]
                 take_r = take[sub.row_team]
                 Au[rows[take_r]] = Ax[take_r]
-            for b in teams[need[teams] & ~good]:  # rare: re-solve alone, precisely, or brake
+            for b in teams[need[teams] & ~good]:  # rare: re-solve alone, precisely, or recover, or brake
                 x_b, Ax_b, (good_b,), rows_b, cols_b, _, _ = self._solve(np.array([b]), vals, u_nom, self._precise, u_wheel)
                 if good_b:
                     out[cols_b], Au[rows_b] = x_b, Ax_b
+                    continue
+                # No command meets the hard rows (outside the safe set): the softened problem.
+                u_b = None if cfg.strict else self._recover(b, points, poses, u_nom[cols_b])
+                if u_b is not None:
+                    recovery[b] = True
+                    out[cols_b] = u_b
                 else:
                     fallback[b] = True
                     out[cols_b] = 0.0
                     Au[rows_b] = 0.0
             if fallback.any() and cfg.strict:
                 raise InfeasibleError(self._explain(np.flatnonzero(fallback), points, status))
-        return out.reshape(-1, 2), self._info(vals, out, u_nom, Au, fallback, status)
+            if recovery.any():
+                rows_r = recovery[lay.row_team]
+                Au[rows_r] = vals.products(out)[rows_r]
+        return out.reshape(-1, 2), self._info(vals, out, u_nom, Au, fallback, status, recovery)
+
+    def _recover(self, b: int, points: np.ndarray, poses: np.ndarray, u_nom_b: np.ndarray) -> np.ndarray | None:
+        """Team b's command from the softened problem (:mod:`comat.safety.recovery`), or None."""
+        t = self.layout.teams
+        lo, hi = t.offsets[b], t.offsets[b + 1]
+        u, _status = recovery_command(points[lo:hi], poses[lo:hi, 2], u_nom_b, self.config, self.profile)
+        return u
 
     def _stages_compiled(self, poses: np.ndarray, u_nom: np.ndarray, c: np.ndarray, s: np.ndarray):
         """Rows and stages 1–2 of :meth:`_filter` in one kernel call (the numpy branch there is
@@ -378,7 +404,7 @@ class SafetyFilter:
             u.reshape(-1, 2), None, cfg.projection_distance_m, self.profile, cfg.wheel_speed_fraction, (c, s)
         ).ravel()
 
-    def _info(self, vals, out, u_nom, Au, fallback, status) -> SafetyInfo:
+    def _info(self, vals, out, u_nom, Au, fallback, status, recovery) -> SafetyInfo:
         t = self.layout.teams
         if kernels.enabled():
             robot_norm2, intervention = np.empty(t.n_robots), np.empty(t.n_teams)
@@ -387,7 +413,8 @@ class SafetyFilter:
             diff = out - u_nom
             robot_norm2 = diff[0::2] ** 2 + diff[1::2] ** 2
             intervention = np.sqrt(np.bincount(t.robot_team, weights=robot_norm2, minlength=t.n_teams))
-        return SafetyInfo(self, vals, Au, intervention, robot_norm2 > 0.0, fallback, status, self.last_solver_c_s)
+        return SafetyInfo(self, vals, Au, intervention, robot_norm2 > 0.0, fallback, status, self.last_solver_c_s,
+                          recovery)
 
     def _explain(self, teams: np.ndarray, points: np.ndarray, status: str) -> str:
         t, cfg = self.layout.teams, self.config

@@ -53,6 +53,7 @@ SAFETY_ARROW_S = 0.6
 SAFETY_COUNTS = (
     "interventions",
     "fallbacks",
+    "recoveries",
     "collisions",
     "robotarium_collisions",
     "boundary_exits",
@@ -269,7 +270,8 @@ class EpisodeRecorder:
             rr.Points2D.columns(positions=xy, labels=labels).partition(anyev.sum(axis=1)),
         )
         fallback = counts["fallbacks"] > 0
-        log_steps = np.flatnonzero(anyev.any(axis=1) | fallback)
+        recovery = counts["recoveries"] > 0
+        log_steps = np.flatnonzero(anyev.any(axis=1) | fallback | recovery)
         if log_steps.size:
             by_step = {int(t): [] for t in log_steps}
             for (t, _), text in zip(where, labels):
@@ -277,6 +279,10 @@ class EpisodeRecorder:
             for t in np.flatnonzero(fallback):
                 by_step[int(t)].append(
                     f"barrier fallback (team braked) in {int(counts['fallbacks'][t])} ticks"
+                )
+            for t in np.flatnonzero(recovery):
+                by_step[int(t)].append(
+                    f"outside the safe set: recovering in {int(counts['recoveries'][t])} ticks"
                 )
             text = [f"step {t + 1}: " + "; ".join(v) for t, v in by_step.items()]
             level = ["ERROR" if fallback[t] else "WARN" for t in by_step]

@@ -124,9 +124,8 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     if str(policy) == "random":
         return PolicySpec("random", _random)
     if not Path(policy).is_file():
-        raise ValueError(
-            f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} (no such file)"
-        )
+        why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
+        raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
     from comat.rl.algos import BASELINE_ROBOTS, uses_state
     from comat.rl.runner import load_policy
 

@@ -21,7 +21,7 @@ time. Entity tree of one episode (``E`` = ``episode_<k>``; arena metres, x right
 | ``E/reward/total`` | Scalars ×2 | per step: reward, return so far |
 | ``E/reward/terms`` | Scalars ×terms | per step: each named reward term (task order) |
 | ``E/task/prey`` (PCP), ``E/task/material`` (HMT) | Scalars | prey sensed, captured; material left per zone, carried, delivered |
-| ``E/safety/counts`` | Scalars ×6 | per step: interventions, fallbacks, collisions, robotarium_collisions, boundary_exits, actuator_errors |
+| ``E/safety/counts`` | Scalars ×7 | per step: interventions, fallbacks, recoveries, collisions, robotarium_collisions, boundary_exits, actuator_errors |
 | ``E/meta`` | TextDocument + AnyValues | static: task, team, policy, seed, tier, outcome |
 """
 

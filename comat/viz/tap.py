@@ -49,7 +49,8 @@ class StepSummary:
         counts: per-step totals, named as :data:`comat.envs.core.EPISODE_METRICS`:
             ``collisions`` (contact onsets), ``robotarium_collisions`` (pair-ticks),
             ``boundary_exits`` (robot-ticks), ``actuator_errors`` (ticks), ``interventions``
-            (ticks the filter changed a command), ``fallbacks`` (ticks the team braked).
+            (ticks the filter changed a command), ``fallbacks`` (ticks the team braked),
+            ``recoveries`` (ticks the team recovered from outside the safe set).
     """
 
     path: np.ndarray
@@ -82,6 +83,7 @@ class TickTap:
         "_events",
         "_intervention",
         "_fallback",
+        "_recovery",
         "_pairs",
     )
 
@@ -108,6 +110,7 @@ class TickTap:
         self._events = np.zeros((k, n, len(EVENT_KINDS)), dtype=bool)  # column 0: contact, not yet onsets
         self._intervention = np.zeros(k)
         self._fallback = np.zeros(k, dtype=bool)
+        self._recovery = np.zeros(k, dtype=bool)
         self._pairs = np.zeros(k, dtype=np.int64)
 
     def _grow(self) -> None:
@@ -146,6 +149,7 @@ class TickTap:
         ev[:, 4] = events.actuator[rows]
         self._intervention[k] = info.intervention[b]
         self._fallback[k] = info.fallback[b]
+        self._recovery[k] = info.recovery[b]
         self._pairs[k] = events.collision_pairs[b]
         self._k = k + 1
         self.cpu_s += time.thread_time() - t0
@@ -187,6 +191,7 @@ class TickTap:
                 "actuator_errors": int(events[..., 4].any(axis=1).sum()),
                 "interventions": int((self._intervention[:K] > 0).sum()),
                 "fallbacks": int(self._fallback[:K].sum()),
+                "recoveries": int(self._recovery[:K].sum()),
             },
         )
         self.start_step(poses[-1].copy())
