@@ -113,14 +113,15 @@ class _Task:
     def obs_size(self) -> int:
         return 4 + len(self.types) + len(self.capabilities) + self.n_task_features
 
-    def spawn(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """Start poses (n, 3): spread in the spawn area, random headings.
+    def spawn(self, rng: np.random.Generator, n: int, spacing: float | None = None) -> np.ndarray:
+        """Start poses (n, 3): spread in the spawn area, random headings, centres at least
+        ``spacing`` apart (default ``spawn_spacing``).
 
         A team too large for the spawn area (beyond the Robotarium's 20 robots) gets the area
         widened to the right, one spacing at a time, up to the far side of the arena.
         """
         x0, x1, y0, y1 = self.spawn_box
-        s = self.spawn_spacing
+        s = self.spawn_spacing if spacing is None else spacing
         rows = int(np.floor((y1 - y0) / s) + 1)
         while int(np.floor((x1 - x0) / s) + 1) * rows < n and x1 + s <= SPAWN_X_LIMIT:
             x1 += s

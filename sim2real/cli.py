@@ -20,7 +20,7 @@ import argparse
 import json
 from pathlib import Path
 
-__all__ = ["add_export_parser", "parse_team"]
+__all__ = ["add_export_parser", "load_start_poses", "parse_team"]
 
 
 def parse_team(value: str, task: str):
@@ -75,11 +75,39 @@ def _print_checks(folders: list[str], reports: list[dict], tier: str) -> None:
           f"{mean['mujoco', 'steps']:.1f}")
 
 
+def load_start_poses(path: str):
+    """(3, N) start poses from a ``.npy`` file or a text file of 3 rows (x, y, θ; numpy.loadtxt)."""
+    import numpy as np
+
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"--start-poses must be a .npy or text file of 3 rows (x, y, θ), got {path!r} (no such file)")
+    try:
+        return np.load(p, allow_pickle=False) if p.suffix == ".npy" else np.loadtxt(p, ndmin=2)
+    except (OSError, ValueError) as err:
+        raise ValueError(f"--start-poses {path!r}: expected a .npy array or numeric text of 3 rows, "
+                         f"could not read it ({type(err).__name__}: {str(err).splitlines()[0][:120] if str(err) else ''})") from err
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
-    from sim2real.export import check_submission, export_submission
+    import sys
+    import time
+
+    from sim2real.export import CheckError, check_submission, export_submission
 
     if args.check:
-        reports = [check_submission(folder, tier=args.tier, rps_path=args.rps) for folder in args.check]
+        if args.timeout <= 0:
+            raise ValueError(f"--timeout must be > 0 seconds, got {args.timeout}")
+        reports = []
+        for k, folder in enumerate(args.check, 1):
+            t0 = time.perf_counter()
+            print(f"[{k}/{len(args.check)}] {folder}: running main.py under rps, then the MuJoCo episode ...",
+                  file=sys.stderr, flush=True)
+            try:
+                reports.append(check_submission(folder, tier=args.tier, timeout_s=args.timeout, rps_path=args.rps))
+            except CheckError as err:
+                raise ValueError(str(err)) from err
+            print(f"[{k}/{len(args.check)}] {folder}: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
         if len(reports) == 1:
             _print_check(reports[0], args.tier)
         else:
@@ -96,7 +124,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
         raise ValueError(f"comat export needs {missing} (or --check DIR)")
     team = parse_team(args.team, args.task)
     policy = "heuristic" if args.policy == "heuristic" else args.checkpoint
-    out = export_submission(policy, args.task, team, args.out, seed=args.seed)
+    poses = None if args.start_poses is None else load_start_poses(args.start_poses)
+    out = export_submission(policy, args.task, team, args.out, start_poses=poses, seed=args.seed)
     print(f"wrote {out}: " + ", ".join(sorted(p.name for p in out.iterdir())))
     return 0
 
@@ -115,6 +144,11 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--team", help="'train:K' / 'test:K' (coalition K of the paper's set) or a JSON team file")
     p.add_argument("--out", help="folder to create (must not exist)")
     p.add_argument("--seed", type=int, default=0, help="seed of the start poses and prey (default: %(default)s)")
+    p.add_argument("--start-poses", metavar="FILE", help="start poses instead of the seed's: a .npy (3, N) array or "
+                   "a text file of 3 rows x, y, θ (m, m, rad); checked: inside the arena by 0.1 m, centres >= 0.4 m "
+                   "apart (what the Robotarium's start-up drive can reach)")
+    p.add_argument("--timeout", type=float, default=1800.0,
+                   help="--check: seconds main.py may run under rps per folder (default: %(default)s)")
     p.add_argument("--check", metavar="DIR", nargs="+",
                    help="check exported folders instead of exporting (several: one line each, then the means)")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels",

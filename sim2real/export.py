@@ -53,7 +53,9 @@ from comat.team import TeamSpec
 __all__ = [
     "ACCEPTED_EXTENSIONS",
     "ALLOWED_IMPORTS",
+    "CheckError",
     "HEURISTIC_FILES",
+    "EXPORT_SPACING_M",
     "MIN_SPACING_M",
     "SHIPPED_FILES",
     "WALL_MARGIN_M",
@@ -76,8 +78,16 @@ HEURISTIC_FILES = ("main.py", "task_logic.py", "submission_config.py")
 def _files(policy: str) -> tuple[str, ...]:
     """The files of a folder whose CONFIG["policy"] is ``policy`` ("comat" or "heuristic")."""
     return HEURISTIC_FILES if policy == "heuristic" else SHIPPED_FILES
-MIN_SPACING_M = 0.3
-"""Start poses closer than this risk barrier deadlocks in V2's initialization phase (§7.2)."""
+MIN_SPACING_M = 0.40
+"""Start-pose centres at least this far apart. The V2 simulator (and the Robotarium) first drives
+the robots from their chargers to the start poses under ``create_uni_barrier_certificate``: points
+0.05 m ahead of the axles kept >= 0.25 m apart (safety radius 0.15 + 2 × 0.05), i.e. centres
+>= 0.35 m for any headings; closer poses are never reached. 0.05 m more as margin."""
+EXPORT_SPACING_M = 0.45
+"""Spacing of the export's own start poses, used where the env's spawn (0.3 m) is closer than
+MIN_SPACING_M: dense teams (12+ robots) and the occasional close pair of a smaller team."""
+SPACING_TOL_M = 1e-6
+"""Spacing checks accept this much rounding (a 0.3 m grid gives 0.29999999999999993)."""
 WALL_MARGIN_M = 0.1
 """Start poses must be this far inside the arena."""
 MAX_ROBOTS = C.MAX_ROBOTS_HARDWARE
@@ -150,7 +160,7 @@ def check_start_poses(poses: Any, n: int) -> np.ndarray:
     if n > 1:
         d = np.hypot(p[0][:, None] - p[0][None], p[1][:, None] - p[1][None]) + np.eye(n) * 1e9
         i, j = np.unravel_index(np.argmin(d), d.shape)
-        if d[i, j] < MIN_SPACING_M:
+        if d[i, j] < MIN_SPACING_M - SPACING_TOL_M:
             raise ValueError(f"start_poses: robots {min(i, j)} and {max(i, j)} are {d[i, j]:.3f} m apart, "
                              f"expected >= {MIN_SPACING_M} m")
     p[2] = np.arctan2(np.sin(p[2]), np.cos(p[2]))
@@ -158,14 +168,30 @@ def check_start_poses(poses: Any, n: int) -> np.ndarray:
 
 
 def mujoco_start(task: str, team: TeamSpec, seed: int, tier: str = "unicycle") -> tuple[np.ndarray, np.ndarray]:
-    """The MuJoCo env's spawn for ``seed``: start poses (3, N) and PCP prey (K, 2) (HMT: (0, 2))."""
+    """The MuJoCo env's spawn for ``seed``: start poses (3, N) and PCP prey (K, 2) (HMT: (0, 2)).
+
+    Where two of the env's robots start closer than MIN_SPACING_M (the Robotarium's start-up
+    drive could not reach them), the robots are placed again in the task's spawn area
+    EXPORT_SPACING_M apart (seeded by ``seed``; the prey stay)."""
     from comat.envs import make_env
 
     env = make_env(f"{task}_v0", team=team, tier=tier)
     env.reset(seed=seed)
     poses = env.core.poses()[0, : team.size].T.copy()
     prey = env.core.state["prey"][0].copy() if task == "pcp" else np.zeros((0, 2))
+    if _min_spacing(poses) < MIN_SPACING_M - SPACING_TOL_M:
+        rng = np.random.default_rng([seed, team.size, 2026])
+        poses = env.core.task.spawn(rng, team.size, spacing=EXPORT_SPACING_M).T.copy()
     return poses, prey
+
+
+def _min_spacing(poses: np.ndarray) -> float:
+    """Smallest centre distance of start poses (3, N) (inf for one robot)."""
+    n = poses.shape[1]
+    if n < 2:
+        return float("inf")
+    d = np.hypot(poses[0][:, None] - poses[0][None], poses[1][:, None] - poses[1][None]) + np.eye(n) * 1e9
+    return float(d.min())
 
 
 # -- export ----------------------------------------------------------------------------------------
@@ -188,7 +214,7 @@ def _config(policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.
         "max_wheel_radps": 0.999 * float(C.DEFAULT_PROFILE.max_wheel_velocity_radps),
         "collision_offset_m": float(C.COLLISION_OFFSET_M),
         "collision_distance_m": 0.135,
-        "min_spacing_m": MIN_SPACING_M - 1e-9,
+        "min_spacing_m": MIN_SPACING_M - SPACING_TOL_M,
         "wall_margin_m": WALL_MARGIN_M - 1e-9,
     }
 
@@ -266,6 +292,18 @@ def _load_config(folder: Path) -> dict:
     raise ValueError(f"{folder / 'submission_config.py'} has no CONFIG literal")
 
 
+class CheckError(RuntimeError):
+    """An exported folder's main.py failed or hung under rps (the message ends with its stderr's last line)."""
+
+
+def _tail(stderr) -> str:
+    """': <last line of stderr>' of a subprocess, '' if it wrote nothing."""
+    if isinstance(stderr, bytes):
+        stderr = stderr.decode(errors="replace")
+    lines = [ln for ln in (stderr or "").strip().splitlines() if ln.strip()]
+    return f"; its stderr ends: {lines[-1].strip()[:300]}" if lines else ""
+
+
 def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool = False,
             max_steps: int | None = None) -> dict:
     """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
@@ -287,13 +325,17 @@ def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool 
     if max_steps is not None:
         env["COMAT_MAX_STEPS"] = str(int(max_steps))
     argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
-    proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True,
-                          text=True, timeout=timeout_s, check=False)
+    try:
+        proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True,
+                              text=True, timeout=timeout_s, check=False)
+    except subprocess.TimeoutExpired as err:
+        raise CheckError(f"{folder / 'main.py'} did not finish under rps within --timeout {timeout_s:g} s"
+                         + _tail(err.stderr)) from None
     if proc.returncode != 0:
-        raise RuntimeError(f"{folder / 'main.py'} failed under rps (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
+        raise CheckError(f"{folder / 'main.py'} failed under rps (exit {proc.returncode})" + _tail(proc.stderr))
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_RESULT ")]
     if not lines:
-        raise RuntimeError(f"{folder / 'main.py'} printed no COMAT_RESULT line:\n{proc.stdout[-3000:]}")
+        raise CheckError(f"{folder / 'main.py'} printed no COMAT_RESULT line" + _tail(proc.stdout))
     result = json.loads(lines[-1][len("COMAT_RESULT "):])
     result["stdout"] = proc.stdout
     return result

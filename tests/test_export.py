@@ -177,7 +177,7 @@ def test_scripted_policy_completes_the_task_under_rps(scripted, task):
     assert rps["policy"] == "heuristic" and rps["rps"] == "legacy"
     assert rps["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, rps["rps_errors"]
     assert rps["offset_collision_pair_iterations"] == 0 and rps["boundary_iterations"] == 0
-    assert rps["success"] == 1.0 and rps["completion"] == 1.0, rps
+    assert rps["success"] == 1.0 and rps["completion"] == pytest.approx(1.0), rps
     assert mj["success"] == 1.0
     assert abs(report["gap"]["completion_points"]) <= 10.0
     # MuJoCo's filter breaks barrier deadlocks (comat.control.HOLD_TICKS); the Robotarium's barrier
@@ -278,3 +278,70 @@ def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tm
     assert main(["export", "--policy", "heuristic", "--checkpoint", "x.pt", "--task", "pcp", "--team", "test:3",
                  "--out", str(tmp_path / "y")]) == 2
     assert "not both" in capsys.readouterr().err and not (tmp_path / "y").exists()
+
+
+# -- large teams: start poses the Robotarium's start-up drive can reach ------------------------------
+@pytest.mark.parametrize("task, n", [("pcp", 12), ("hmt", 16), ("pcp", 20), ("hmt", 20)])
+def test_large_teams_export_with_reachable_start_poses(tmp_path, task, n):
+    """The env spawns dense teams 0.3 m apart (closer than V2's start-up barrier lets robots get):
+    the export places them EXPORT_SPACING_M apart instead, and legacy rps runs them with zero
+    errors (the first steps; V2's start-up drive itself is tested below with COMAT_RPS_V2)."""
+    from sim2real.export import EXPORT_SPACING_M, MIN_SPACING_M, _load_config
+
+    team = random_team(np.random.default_rng(n), task, "test", n)
+    folder = export_submission("heuristic", task, team, tmp_path / "sub", seed=n)
+    poses = np.array(_load_config(folder)["start_poses"])
+    d = np.hypot(*(poses[:2, :, None] - poses[:2, None, :])) + np.eye(n) * 9
+    assert d.min() >= EXPORT_SPACING_M - 1e-9 > MIN_SPACING_M
+    result = run_rps(folder, max_steps=3)
+    assert result["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, result["rps_errors"]
+
+
+def test_start_pose_spacing_check_has_a_tolerance():
+    from sim2real.export import MIN_SPACING_M, check_start_poses
+
+    poses = np.array([[0.0, MIN_SPACING_M - 1e-12], [0.0, 0.0], [0.0, 0.0]])  # rounding below the spacing
+    check_start_poses(poses, 2)
+    with pytest.raises(ValueError, match=r"robots 0 and 1 are 0.390 m apart, expected >= 0.4 m"):
+        check_start_poses(np.array([[0.0, 0.39], [0.0, 0.0], [0.0, 0.0]]), 2)
+
+
+@needs_v2
+@pytest.mark.parametrize("n", [12, 16, 20])
+def test_v2_initializes_large_exported_teams(tmp_path, n):
+    """V2 drives the robots from their chargers to the exported start poses within the
+    Robotarium's limit (experiments up to 15 min with the drive: 27,000 iterations) and runs."""
+    team = random_team(np.random.default_rng(n), "pcp", "test", n)
+    folder = export_submission("heuristic", "pcp", team, tmp_path / "sub", seed=n)
+    result = run_rps(folder, rps_path=V2, max_steps=2, timeout_s=1500)
+    assert result["rps"] == "v2" and result["steps"] == 2
+    assert result["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, result["rps_errors"]
+
+
+def test_export_cli_start_poses_timeout_and_a_failing_main(tmp_path, capsys):
+    """--start-poses FILE is used (and validated); --check reports progress per folder; a hung
+    main.py hits --timeout and a crashing one gives one line ending with its stderr."""
+    from comat.cli import main
+    from sim2real.export import _load_config
+
+    poses = np.array([[-1.0, -0.5, 0.0], [0.0, 0.4, -0.4], [0.0, 1.0, 2.0]])
+    np.savetxt(tmp_path / "poses.txt", poses)
+    argv = ["export", "--policy", "heuristic", "--task", "pcp", "--team", "test:1", "--start-poses"]
+    assert main([*argv, str(tmp_path / "poses.txt"), "--out", str(tmp_path / "sub")]) == 2  # test:1 has 2 robots
+    assert "start_poses must be a finite (3, 2) array" in capsys.readouterr().err
+    np.save(tmp_path / "poses.npy", poses[:, :2])
+    assert main([*argv, str(tmp_path / "poses.npy"), "--out", str(tmp_path / "sub")]) == 0
+    np.testing.assert_allclose(np.array(_load_config(tmp_path / "sub")["start_poses"]), poses[:, :2])
+    (tmp_path / "bad.txt").write_text("not numbers\n")
+    assert main([*argv, str(tmp_path / "bad.txt"), "--out", str(tmp_path / "sub2")]) == 2
+    assert "could not read it" in capsys.readouterr().err and not (tmp_path / "sub2").exists()
+    main_py = tmp_path / "sub" / "main.py"
+    main_py.write_text("import time\ntime.sleep(30)\n")
+    assert main(["export", "--check", str(tmp_path / "sub"), "--timeout", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith("[1/1]") and "did not finish under rps within --timeout 1 s" in err[-1]
+    main_py.write_text("raise SystemExit('the robots are not where they should be')\n")
+    assert main(["export", "--check", str(tmp_path / "sub")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "failed under rps (exit 1); its stderr ends: the robots are not where they should be" in err[-1]
+    assert not any("Traceback" in line for line in err)

@@ -233,6 +233,8 @@ def main(argv):
             violation = False
             done = bool(task.done(state)[0])
             if done or env_steps >= horizon:
+                if figure is not None:  # the last frame shows the final state, not the step before
+                    figure.update(state, x)
                 break
         points = x[:2].T + d * np.column_stack([np.cos(x[2]), np.sin(x[2])])
         if it % ticks == 0:  # a new env step: observe, act, set waypoints
