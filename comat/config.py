@@ -122,6 +122,28 @@ class SafetyConfig:
             )
 
 
+def check_numbers(config: Any, section: str, **rules: tuple[str, ...]) -> None:
+    """Raise ValueError naming ``section.field``, the expected range and the value, for fields
+    outside their range. Rules (each a tuple of field names): ``positive`` (finite > 0),
+    ``non_negative`` (finite >= 0), ``at_least_one`` (>= 1), ``unit`` (in [0, 1]), ``discount``
+    (in (0, 1])."""
+    tests = {
+        "positive": (lambda v: math.isfinite(v) and v > 0, "a finite number > 0"),
+        "non_negative": (lambda v: math.isfinite(v) and v >= 0, "a finite number >= 0"),
+        "at_least_one": (lambda v: v >= 1, "an integer >= 1"),
+        "unit": (lambda v: 0 <= v <= 1, "a number in [0, 1]"),
+        "discount": (lambda v: 0 < v <= 1, "a number in (0, 1]"),
+    }
+    for rule, names in rules.items():
+        ok, expected = tests[rule]
+        for name in names:
+            value = getattr(config, name)
+            if value is None:
+                continue
+            if not ok(float(value)):
+                raise ValueError(f"{section}.{name} must be {expected}, got {value!r}")
+
+
 def _check_type(owner: str, name: str, hint: Any, value: Any) -> Any:
     origin = typing.get_origin(hint)
     options = typing.get_args(hint) if origin in (typing.Union, types.UnionType) else (hint,)
@@ -134,7 +156,8 @@ def _check_type(owner: str, name: str, hint: Any, value: Any) -> Any:
             return value
         if dataclasses.is_dataclass(opt) and isinstance(value, dict):
             return load(opt, value, prefix=f"{owner}.{name}")
-    raise TypeError(f"{owner}.{name} must be {hint}, got {value!r} ({type(value).__name__})")
+    expected = " or ".join(getattr(o, "__name__", str(o)) for o in options)
+    raise TypeError(f"{owner}.{name} must be {expected}, got {value!r} ({type(value).__name__})")
 
 
 def load(cls: type[T], mapping: dict[str, Any] | None, prefix: str | None = None) -> T:

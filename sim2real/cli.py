@@ -35,9 +35,17 @@ def parse_team(value: str, task: str):
             raise ValueError(f"--team {value!r}: index must be 0..{len(teams) - 1}")
         return teams[int(index)]
     path = Path(value)
+    expected = "'train:K', 'test:K' or a JSON file with {'robots': [...]}"
     if not path.is_file():
-        raise ValueError(f"--team must be 'train:K', 'test:K' or a JSON file with {{'robots': [...]}}, got {value!r}")
-    data = json.loads(path.read_text())
+        why = "a folder" if path.is_dir() else "no such file"
+        raise ValueError(f"--team must be {expected}, got {value!r} ({why})")
+    try:
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        what = "empty" if path.stat().st_size == 0 else f"not JSON ({type(err).__name__}: {str(err)[:80]})"
+        raise ValueError(f"--team {value!r} must be a JSON file with {{'robots': [...]}}, got a file that is {what}") from err
+    if not isinstance(data, dict):
+        raise ValueError(f"--team {value!r} must hold a JSON object {{'robots': [...]}}, got {type(data).__name__}")
     return TeamSpec.from_dict({"task": task, **data})
 
 

@@ -472,3 +472,43 @@ def test_versions_record_the_source_commit():
         pytest.skip("not a git checkout")
     commit = versions()["commit"]
     assert commit.removesuffix("-dirty") == head.stdout.strip()
+
+
+@pytest.mark.parametrize("case", ["team_missing", "team_folder", "team_empty", "team_bytes", "team_nan",
+                                  "team_list", "preset_nan_lr", "preset_negative", "preset_wrong_type",
+                                  "report_not_a_run", "check_not_a_submission", "eval_out_is_a_file"])
+def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, capsys, case):
+    """Team files, preset values, folders given to report/--check and output paths: exit 2, one
+    error line naming the argument and what was wrong, nothing written."""
+    files = {"team_empty": b"", "team_bytes": np.random.default_rng(0).bytes(300),
+             "team_nan": b'{"robots": [{"type": "sensing", "capabilities": [NaN, 0]}, '
+                         b'{"type": "capture", "capabilities": [0, 0.3]}]}', "team_list": b"[1, 2]",
+             "preset_nan_lr": b"ppo: {lr: .nan}\n", "preset_negative": b"total_env_steps: -5\n",
+             "preset_wrong_type": b"ppo: {lr: fast}\n"}
+    path = tmp_path / ("in.yaml" if case.startswith("preset") else "in.json")
+    if case in files:
+        path.write_bytes(files[case])
+    elif case in ("team_folder", "report_not_a_run", "check_not_a_submission"):
+        path.mkdir()
+    export = ["export", "--policy", "heuristic", "--task", "pcp", "--out", str(tmp_path / "out"), "--team", str(path)]
+    argv, expected = {
+        "team_missing": (export, "(no such file)"), "team_folder": (export, "(a folder)"),
+        "team_empty": (export, "got a file that is empty"), "team_bytes": (export, "got a file that is not JSON"),
+        "team_nan": (export, "sensing_radius_m must be in [0.0, 1.0] (physical limit), got nan"),
+        "team_list": (export, "must hold a JSON object"),
+        "preset_nan_lr": (["train", "--algo", "comat", "--task", "pcp", "--preset", str(path), "--out",
+                           str(tmp_path / "out")], "ppo.lr must be a finite number > 0, got nan"),
+        "preset_negative": (["train", "--algo", "mat", "--task", "hmt", "--preset", str(path), "--out",
+                             str(tmp_path / "out")], "total_env_steps must be an integer >= 1, got -5"),
+        "preset_wrong_type": (["train", "--algo", "mappo", "--task", "pcp", "--preset", str(path), "--out",
+                               str(tmp_path / "out")], "trainer.lr must be float, got 'fast' (str)"),
+        "report_not_a_run": (["report", str(path), "--out", str(tmp_path)], "is not a run folder (no config.yaml)"),
+        "check_not_a_submission": (["export", "--check", str(path)], "is not an exported submission"),
+        "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "does not exist (create it first)"),
+    }[case]
+    if case == "eval_out_is_a_file":
+        path.write_text("a file, not a folder")
+    assert main(argv) == 2
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if "error" in line]
+    assert len(err) == 1 and expected in err[0], err
+    assert not (tmp_path / "out").exists()

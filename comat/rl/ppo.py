@@ -28,6 +28,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from comat.config import check_numbers
 from comat.envs.sharded import ShardedVectorEnv
 from comat.rl.gae import gae
 from comat.rl.valuenorm import ValueNorm
@@ -65,6 +66,9 @@ class PPOConfig:
     rewards reach the episode start in one update instead of one step per target refresh."""
 
     def __post_init__(self) -> None:
+        check_numbers(self, "ppo", positive=("lr", "clip", "max_grad_norm", "huber_delta"),
+                      non_negative=("entropy_coef", "value_coef"), unit=("gae_lambda",), discount=("gamma",),
+                      at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"))
         if self.value_target not in VALUE_TARGETS:
             raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
 

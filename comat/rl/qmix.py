@@ -32,6 +32,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from comat.config import check_numbers
+
 __all__ = ["EpisodeBuffer", "QmixConfig", "QmixTrainer"]
 
 
@@ -59,6 +61,12 @@ class QmixConfig:
     """Treat the task's time limit as terminal (no bootstrap from the last state), as MARBLER's
     QMIX runs did (its wrapper reports done at the horizon; EPyMARL's own limit was longer).
     False: bootstrap there, the textbook choice for a policy that does not see the time."""
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "qmix", positive=("lr", "max_grad_norm", "updates_per_episode"),
+                      unit=("epsilon_start", "epsilon_finish"), discount=("gamma",),
+                      at_least_one=("num_envs", "buffer_episodes", "batch_episodes", "target_update_interval",
+                                    "epsilon_anneal_steps"))
 
 
 class EpisodeBuffer:
