@@ -45,7 +45,7 @@ def parse_team(value: str, task: str):
         what = "empty" if path.stat().st_size == 0 else f"not JSON ({type(err).__name__}: {str(err)[:80]})"
         raise ValueError(f"--team {value!r} must be a JSON file with {{'robots': [...]}}, got a file that is {what}") from err
     if not isinstance(data, dict):
-        raise ValueError(f"--team {value!r} must hold a JSON object {{'robots': [...]}}, got {type(data).__name__}")
+        raise ValueError(f"--team {value!r} must hold a JSON object {{'robots': [...]}}, got {type(data).__name__}")  # noqa: TRY004 - bad file content
     return TeamSpec.from_dict({"task": task, **data})
 
 

@@ -53,12 +53,12 @@ from comat.team import TeamSpec
 __all__ = [
     "ACCEPTED_EXTENSIONS",
     "ALLOWED_IMPORTS",
-    "CheckError",
-    "HEURISTIC_FILES",
     "EXPORT_SPACING_M",
+    "HEURISTIC_FILES",
     "MIN_SPACING_M",
     "SHIPPED_FILES",
     "WALL_MARGIN_M",
+    "CheckError",
     "check_submission",
     "export_submission",
 ]

@@ -77,7 +77,9 @@ def test_infeasible_start_recovers_and_only_a_failed_solver_brakes():
     _ev, info = teams.tick(dxi)
     assert info.recovery.tolist() == [True, False] and not info.fallback.any()
     assert teams.recoveries.tolist() == [1, 0] and teams.fallbacks.tolist() == [0, 0]
-    gap = lambda p: np.linalg.norm(projected_points(p[:2], 0.05)[0] - projected_points(p[:2], 0.05)[1])  # noqa: E731
+    def gap(p):
+        return np.linalg.norm(projected_points(p[:2], 0.05)[0] - projected_points(p[:2], 0.05)[1])
+
     assert gap(teams.poses) > gap(poses)  # moved apart, against the nominal command
     assert teams.poses[2, 0] > -0.5
     teams.reset(poses)
@@ -91,7 +93,7 @@ def test_infeasible_start_recovers_and_only_a_failed_solver_brakes():
 def _run(teams, dxi_of, seconds):
     """Ticks of nominal velocities ``dxi_of(teams)`` for ``seconds``; minimum projected-point
     distance of the team's pairs at the end and MuJoCo robot-robot contact ticks."""
-    for _ in range(int(round(seconds / C.CONTROL_DT_S))):
+    for _ in range(round(seconds / C.CONTROL_DT_S)):
         teams.tick(dxi_of(teams))
     lay = teams.world.layout
     p = teams.points
@@ -234,7 +236,7 @@ def test_head_on_deadlock_is_broken_by_keeping_right(tmp_path, tie_break):
     for the rest of the episode (4 of 6 prey) unless the tie-break turns them to their right."""
     from unittest import mock
 
-    import comat.control as control
+    from comat import control
     from comat.envs.base import resolve_coalitions
     from sim2real.export import export_submission, run_mujoco
 

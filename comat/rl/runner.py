@@ -88,7 +88,7 @@ def _restarting(out: Path, config: RunConfig) -> bool:
     try:
         saved = yaml.safe_load((out / "config.yaml").read_text())["config"]
         return RunConfig.from_dict(saved).to_dict() == config.to_dict()
-    except Exception:  # an unreadable config.yaml is not this run's
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):  # unreadable: not this run's
         return False
 
 

@@ -31,7 +31,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from comat.eval.metrics import mean_ci  # noqa: E402
+from comat.eval.metrics import mean_ci
 
 HERE = ROOT / "results" / "ablations"
 SWEEP = ROOT / "results" / "sweep"
@@ -112,11 +112,11 @@ def _order(variants) -> list[str]:
 
 def screen_table(runs: list[dict]) -> str:
     lines = ["# Screen: one seed per variant at ~100 k env steps (sweep preset otherwise)", "",
-             "Training rollouts (stochastic policy, U_train): progress = share of prey captured / material "
+             ("Training rollouts (stochastic policy, U_train): progress = share of prey captured / material "
              "delivered, finished = share of episodes with every prey captured / all material delivered; "
              "mean of the 3 updates ending at the step. Deterministic evaluation: `eval.csv` (one episode "
              "per U_train coalition) at ~100 k. Several seeds: values per seed, s0/s1/s2. References (a) "
-             "and MAT: the first 100 k steps of the sweep's 300 k-step runs (3 seeds, same preset).", ""]
+             "and MAT: the first 100 k steps of the sweep's 300 k-step runs (3 seeds, same preset)."), ""]
     for task in ("hmt", "pcp"):
         sel = [r for r in runs if r["task"] == task]
         lines += [f"## {task.upper()}", "",
@@ -137,9 +137,9 @@ def confirm_table(runs: list[dict]) -> tuple[str, str]:
     writer = csv.writer(buf)
     writer.writerow(["task", "variant", "set", "metric", "seeds", "mean", "ci95_over_seeds", "per_seed"])
     lines = ["# Confirmation: 3 seeds at 300 k env steps, deterministic evaluation", "",
-             "One episode per coalition (20 per set), mean over seeds ± 95 % Student-t interval over seeds "
+             ("One episode per coalition (20 per set), mean over seeds ± 95 % Student-t interval over seeds "
              "(per-seed values in confirm.csv). Finished = share of episodes with every prey captured / all "
-             "material delivered (the paper's completion); progress = share captured / delivered.", "",
+             "material delivered (the paper's completion); progress = share captured / delivered."), "",
              "| task | variant | seeds | U_train finished | U_train progress | U_test finished | U_test progress |",
              "|---|---|---|---|---|---|---|"]
     for task in ("pcp", "hmt"):
