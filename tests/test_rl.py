@@ -512,3 +512,40 @@ def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, caps
     err = [line for line in capsys.readouterr().err.strip().splitlines() if "error" in line]
     assert len(err) == 1 and expected in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_path):
+    """``comat train`` killed with SIGKILL at random moments (before its first checkpoint, between
+    and during checkpoint writes), then resumed as a user would: the checkpoint on disk always
+    loads, the finished run equals an uninterrupted one, and no temporary file remains."""
+    import signal
+    import time
+
+    import yaml
+
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(yaml.safe_dump({
+        "total_env_steps": 96, "eval_every_steps": 10**9, "eval_episodes_per_team": 0, "checkpoint_every_steps": 6,
+        "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2}, "models": TINY_MODELS}))
+    cmd = [sys.executable, "-m", "comat.cli", "train", "--algo", "comat", "--task", "pcp", "--preset", str(preset),
+           "--seed", "3", "--quiet"]
+    subprocess.run([*cmd, "--out", str(tmp_path / "straight")], check=True, capture_output=True, timeout=300)
+    run = tmp_path / "killed"
+    rng = np.random.default_rng(0)
+    kills = 0
+    for delay in rng.uniform(1.0, 6.0, size=5):
+        resume = ["--resume"] if (run / "config.yaml").exists() else []
+        proc = subprocess.Popen([*cmd, "--out", str(run), *resume], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(delay)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGKILL)
+            kills += 1
+        proc.wait(timeout=60)
+        if (run / "checkpoint.pt").exists():
+            load_checkpoint(run / "checkpoint.pt")  # the one on disk is always a complete one
+    assert kills >= 3
+    subprocess.run([*cmd, "--out", str(run), "--resume"], check=True, capture_output=True, timeout=300)
+    assert not list(run.glob(".*tmp*"))
+    a, b = load_checkpoint(tmp_path / "straight" / "checkpoint.pt"), load_checkpoint(run / "checkpoint.pt")
+    assert a["progress"]["env_steps"] == b["progress"]["env_steps"] == 96
+    assert_same(a["trainer"], b["trainer"], "trainer")
