@@ -10,7 +10,7 @@ import torch
 
 from comat import kernels
 from comat.envs import make_vec_env
-from comat.models.comat import Comat, ComatConfig
+from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout, edge_features
 from comat.models.mappo import Mappo
 from comat.models.mat import Mat, MatConfig
@@ -35,7 +35,8 @@ def fake_obs(B: int, N: int, layout: ObsLayout = LAYOUT, seed: int = 0, n_real=N
 
 def models():
     torch.manual_seed(0)
-    return {"comat": Comat(LAYOUT), "mat": Mat(LAYOUT, MatConfig(max_robots=64)),
+    return {"comat": Comat(LAYOUT), "comat_paper": Comat(LAYOUT, ComatConfig(**PAPER_FORM)),
+            "mat": Mat(LAYOUT, MatConfig(max_robots=64)),
             # the encoder options (HEAT root term, per-robot feed-forward sublayer)
             "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True)),
             # the audit's options: observation embedding with residual blocks, small messages,
@@ -55,7 +56,7 @@ PATHS = ["loop", "compiled"]
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_options", "comat_embed", "comat_reference", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference", "mat"])
 @pytest.mark.parametrize("n", list(range(1, 17)))
 def test_autoregressive_logps_equal_teacher_forced(name, n, path):
     model = models()[name]
@@ -73,7 +74,7 @@ def test_autoregressive_logps_equal_teacher_forced(name, n, path):
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_options", "comat_embed", "comat_reference", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference", "mat"])
 @pytest.mark.parametrize("n", [1, 3, 8, 16])
 def test_cached_decoding_equals_uncached(name, n, path):
     model = models()[name]
@@ -122,11 +123,12 @@ def test_padding_slots_change_nothing(name):
 
 @pytest.mark.parametrize("task", [PredatorCapturePrey(), MaterialTransport()], ids=["pcp", "hmt"])
 @pytest.mark.parametrize("config", [
-    ComatConfig(), ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, root_weight=True),
+    ComatConfig(), ComatConfig(**PAPER_FORM),
+    ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, **{**PAPER_FORM, "root_weight": True}),
     ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True, decision="shared_trunk"),
     ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, obs_embed=True, heat_form="reference",
                 edge_frame="world", node_ffn=True, root_weight=True),
-    ComatConfig(heat_form="reference", edge_frame="world")], ids=["paper", "other", "embed", "reference", "raw_reference"])
+    ComatConfig(heat_form="reference", edge_frame="world")], ids=["default", "paper", "paper_other", "embed", "reference", "raw_reference"])
 def test_compiled_encoder_equals_torch(task, config):
     """COMAT's compiled HEAT encoder and critic (used by ``act``) against ``encode``: teams of
     every size 1–7 padded to 7, weights moved off their initialisation."""
@@ -144,17 +146,18 @@ def test_compiled_encoder_equals_torch(task, config):
     torch.testing.assert_close(values_c[mask], values[mask], atol=2e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("name", ["comat", "comat_heads", "comat_shared", "mat", "mat_deep"])
+@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_heads", "comat_shared", "mat", "mat_deep"])
 @pytest.mark.parametrize("batch", [1, 7, 64])
 def test_compiled_decoding_equals_the_torch_loop(name, batch):
     """Same actions and logits (to float32 rounding) as the step-by-step torch reference, for
     greedy and sampled decoding, teams of mixed sizes with padding, other head/block counts."""
     torch.manual_seed(1)
     layout = ObsLayout.for_task(MaterialTransport())  # three robot types
-    model = {"comat": Comat(layout), "comat_heads": Comat(layout, ComatConfig(embed=48, heads=3)),
-             "comat_shared": Comat(layout, ComatConfig(decision="shared_trunk")),
-             "mat": Mat(layout, MatConfig(max_robots=64)),
-             "mat_deep": Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64))}[name]
+    model = {"comat": lambda: Comat(layout), "comat_heads": lambda: Comat(layout, ComatConfig(embed=48, heads=3)),
+             "comat_shared": lambda: Comat(layout, ComatConfig(decision="shared_trunk")),
+             "comat_paper": lambda: Comat(layout, ComatConfig(**PAPER_FORM)),
+             "mat": lambda: Mat(layout, MatConfig(max_robots=64)),
+             "mat_deep": lambda: Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64))}[name]()
     for p in model.parameters():  # away from the near-zero initial heads: logits of order 1
         p.data.add_(0.3 * torch.randn_like(p))
     n_real = torch.randint(1, 10, (batch,), generator=torch.Generator().manual_seed(batch))
@@ -270,3 +273,30 @@ def test_model_graph_matches_the_environment(env_id, task):
     assert torch.equal(etype[off], torch.as_tensor(g["edge_type"])[off])
     assert torch.equal(emask & ~torch.eye(o.shape[1], dtype=torch.bool), off)
     assert torch.equal(layout.types(o)[m], torch.as_tensor(g["node_type"])[m])
+
+
+@pytest.mark.parametrize("task", [PredatorCapturePrey(), MaterialTransport()], ids=["pcp", "hmt"])
+def test_default_comat_keeps_each_robots_own_observation(task):
+    """The encoder audit's measure at initialization: how much more a robot's action logits
+    and value move with its own observation than with a teammate's (‖∂/∂o_i‖ : mean_j ‖∂/∂o_j‖).
+    The paper form mixes the team before a robot sees itself (2–12×); the default keeps each
+    robot's own state, as MAT does (hundreds×)."""
+    layout = ObsLayout.for_task(task)
+
+    def ratio(config):
+        torch.manual_seed(0)
+        model = Comat(layout, config)
+        obs, mask = fake_obs(16, 5, layout, seed=7)
+        obs.requires_grad_(True)
+        rep, values = model.encode(obs, mask)
+        tokens = torch.cat([model._start(16, None), model._token(torch.zeros(16, 4, dtype=torch.long))], 1)
+        logits = model.decode_all(rep, tokens, obs, mask)
+        out = []
+        for y in (logits[:, 2].sum(-1), values[:, 2]):  # robot 2's outputs
+            (g,) = torch.autograd.grad(y.sum(), obs, retain_graph=True)
+            g = g.norm(dim=-1).mean(0)  # (N,) per input robot
+            out.append(float(g[2] / torch.cat([g[:2], g[3:]]).mean()))
+        return out
+
+    assert min(ratio(ComatConfig())) > 50
+    assert max(ratio(ComatConfig(**PAPER_FORM))) < 20

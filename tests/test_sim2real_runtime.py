@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from comat import make_vec_env
-from comat.models.comat import Comat, ComatConfig
+from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout
 from comat.task_logic import MaterialTransport, PredatorCapturePrey
 from comat.team import random_team
@@ -109,7 +109,7 @@ def test_runtime_matches_torch_other_sizes(tmp_path, options):
 
 def test_weights_files_without_the_architecture_flags_still_load(tmp_path):
     """Files written before the flags (root_weight, obs_embed, ...) read them as 0: the paper form."""
-    config, arrays = comat_arrays(make_model("pcp", "trained", ComatConfig()))
+    config, arrays = comat_arrays(make_model("pcp", "trained", ComatConfig(**PAPER_FORM)))
     for key in runtime.FLAG_KEYS:
         del config[key]
     save_weights(tmp_path / "old.npy", arrays, config)
@@ -138,7 +138,7 @@ def test_weights_of_another_model_are_refused(tmp_path):
     config, arrays = comat_arrays(make_model("pcp", "init"))
     # HMT observations are wider than PCP's: an HMT config cannot take PCP weights.
     hmt_config = {**config, "obs_dim": ObsLayout.for_task(MaterialTransport()).obs_dim}
-    with pytest.raises(ValueError, match=r"does not match a COMAT model.*heat\.0\.node\.0\.weight: expected \(64, 15\)"):
+    with pytest.raises(ValueError, match=r"does not match a COMAT model.*obs_encoder\.1\.weight: expected \(64, 15\)"):
         ComatRuntime(hmt_config, arrays)
     with pytest.raises(ValueError, match=r"missing \['heads\.b2'\]"):
         pack_weights({k: v for k, v in arrays.items() if k != "heads.b2"}, config)
