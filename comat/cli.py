@@ -240,6 +240,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         run_learn_bench(tuple(args.algos), tuple(args.workers), args.iterations, tuple(args.batches), args.out)
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
+    if args.what == "soak":
+        from comat.bench.soak import run_soak
+
+        result = run_soak(args.episodes, args.wheels_share, args.seed, args.out)
+        return 0 if all(c["pass"] for c in result["checks"].values()) else 1
     if args.what == "fidelity":
         from comat.bench.fidelity_bench import run_fidelity_bench
 
@@ -409,6 +414,17 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--batches", type=int, nargs="+", default=[1, 32, 256],
                    help="decoding batch sizes (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/learn.json", help="JSON output (default: %(default)s)")
+    b.set_defaults(func=_cmd_bench)
+    b = bsub.add_parser("soak", help="many reference-policy episodes: contacts, collisions, NaN, memory drift",
+                        description="Episodes of the scripted and the random policy on U_train and U_test of both "
+                        "tasks (unicycle tier, a share in the wheels tier): every contact, collision, boundary exit, "
+                        "actuator error, NaN, filter recovery and fallback counted, and resident memory after each "
+                        "thousand episodes. Not part of the tests: 10,000 episodes take about an hour on 2 cores.")
+    b.add_argument("--episodes", type=int, default=10_000, help="at least this many episodes (default: %(default)s)")
+    b.add_argument("--wheels-share", type=float, default=0.1,
+                   help="share of rounds run in the wheels tier (default: %(default)s)")
+    b.add_argument("--seed", type=int, default=0, help="seed of the episodes (default: %(default)s)")
+    b.add_argument("--out", default="benchmarks/results/soak.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("fidelity", help="how closely the MuJoCo robot follows the Robotarium's unicycle model",
                         description="Steady-state tracking over the admissible command range, and trajectory "

@@ -95,7 +95,9 @@ def test_filtered_batch_equals_filtered_single_teams(tier, rng):
     sizes = [4, 4, 3]
     starts = _starts(rng, sizes)
     batch, singles = _drive_filtered(sizes, starts, [-s[:, :2] for s in starts], tier)
-    assert batch.interventions.min() > 0
+    # The 4-robot teams cross paths (the barrier acts); commands beyond the wheels are saturated
+    # before the filter (SafeTeams.tick), so a team that never meets a barrier row counts none.
+    assert (batch.interventions[:2] > 0).all()
     np.testing.assert_allclose(batch.poses, np.concatenate([s.poses for s in singles]), atol=1e-6)
 
 

@@ -10,7 +10,7 @@ from comat.cli import build_parser, main
 def test_every_command_has_help(capsys):
     parser = build_parser()
     for argv in (["--help"], ["mjcf", "--help"], ["demo", "--help"], ["bench", "sim", "--help"], ["bench", "fidelity", "--help"],
-                 ["bench", "env", "--help"], ["bench", "learn", "--help"], ["bench", "viz", "--help"], ["train", "--help"],
+                 ["bench", "soak", "--help"], ["bench", "env", "--help"], ["bench", "learn", "--help"], ["bench", "viz", "--help"], ["train", "--help"],
                  ["eval", "--help"], ["report", "--help"], ["sweep", "--help"], ["rollout", "--help"], ["export", "--help"],
                  ["coalitions", "--help"]):
         with pytest.raises(SystemExit) as exc:

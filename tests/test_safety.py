@@ -230,19 +230,36 @@ def test_wheel_projection_is_the_qp_optimum_when_only_wheel_rows_bind(rng):
 
 
 @pytest.mark.parametrize("tie_break", [True, False])
-def test_head_on_deadlock_is_broken_by_keeping_right(tmp_path, tie_break):
-    """U_test coalition 1 (a sensing and a capture robot), scripted policy, the export's start for
+def test_head_on_deadlock_is_broken_by_keeping_right(tie_break):
+    """U_test coalition 1 (a sensing and a capture robot), scripted policy, the env's start for
     seed 1, MuJoCo wheels tier: the two meet head-on on one line and the barrier holds both still
     for the rest of the episode (4 of 6 prey) unless the tie-break turns them to their right."""
     from unittest import mock
 
     from comat import control
+    from comat.envs import make_env
     from comat.envs.base import resolve_coalitions
-    from sim2real.export import export_submission, run_mujoco
+    from comat.envs.heuristics import heuristic_actions
 
-    team = resolve_coalitions("test", "pcp")[1]
-    export_submission("heuristic", "pcp", team, tmp_path / "sub", seed=1)
+    env = make_env("pcp_v0", team=resolve_coalitions("test", "pcp")[1], tier="wheels")
     with mock.patch.object(control, "HOLD_TICKS", control.HOLD_TICKS if tie_break else 10**9):
-        metrics = run_mujoco(tmp_path / "sub", "wheels")
+        env.reset(seed=1)
+        while True:
+            res = env.core.step(heuristic_actions(env.core))
+            if res.terminated[0] or res.truncated[0]:
+                break
+    metrics = env.core.episode_metrics(0)
     assert metrics["collisions"] == 0 and metrics["fallbacks"] == 0
     assert metrics["success"] == (1.0 if tie_break else 0.0)
+    assert metrics["completion"] == (1.0 if tie_break else pytest.approx(4 / 6))
+
+
+@pytest.mark.slow
+def test_soak_bench_one_round_is_clean(tmp_path):
+    """``comat bench soak`` for one round (160 episodes, some in the wheels tier): every safety
+    count zero, no NaN, the JSON written."""
+    from comat.bench.soak import run_soak
+
+    result = run_soak(160, wheels_share=0.5, seed=1, out=str(tmp_path / "soak.json"), progress=lambda m: None)
+    assert result["episodes"] == 160 and all(c["pass"] for c in result["checks"].values()), result["checks"]
+    assert (tmp_path / "soak.json").is_file() and result["scripted_success_share"] > 0.8

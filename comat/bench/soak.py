@@ -1,0 +1,123 @@
+"""``comat bench soak``: many episodes of the reference policies, checking that nothing drifts.
+
+Episodes of the scripted and the random policy on U_train and U_test of both tasks, in the
+unicycle tier with a share in the wheels tier, run in vector environments of 32 (one process).
+Counted over all of them: MuJoCo robot–robot contacts, Robotarium-style collisions, boundary
+exits, actuator errors, NaN in observations or rewards, filter recovery and fallback ticks; and
+the process's resident memory after each thousand episodes (growth from the first to the last
+thousand, target < 5 %). Episodes start inside the safe set (the envs' spawn), so the safety
+targets are zero contacts, zero collisions and zero fallbacks.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+
+import numpy as np
+
+__all__ = ["MEMORY_GROWTH_TARGET", "run_soak"]
+
+MEMORY_GROWTH_TARGET = 0.05
+"""Largest accepted growth of resident memory from the first to the last thousand episodes."""
+_ENVS = 32
+
+
+def _rss_bytes() -> int:
+    """Resident set size of this process (Linux /proc; 0 where unavailable)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def _episodes(env, policy: str, teams, seed: int, rng: np.random.Generator) -> list[dict]:
+    """One episode per team; metrics plus a NaN flag per episode."""
+    from comat.envs.core import EPISODE_METRICS
+    from comat.envs.heuristics import heuristic_actions, random_actions
+
+    results: list[dict] = []
+    for k, start in enumerate(range(0, len(teams), env.num_envs)):
+        chunk = list(teams[start : start + env.num_envs])
+        n_real = len(chunk)
+        chunk += [chunk[i % n_real] for i in range(env.num_envs - n_real)]
+        obs, info = env.reset(seed=seed + k, teams=chunk)
+        nan = ~np.isfinite(obs).all(axis=(1, 2))
+        found: list[dict | None] = [None] * env.num_envs
+        while any(f is None for f in found[:n_real]):
+            mask = info["agent_mask"]
+            act = heuristic_actions(env.core) if policy == "heuristic" else random_actions(rng, mask)
+            obs, rewards, terminated, truncated, info = env.step(np.where(mask, act, 0))
+            nan |= ~np.isfinite(obs).all(axis=(1, 2)) | ~np.isfinite(rewards)
+            for b in np.flatnonzero(terminated | truncated):
+                if found[b] is None:
+                    found[b] = {name: float(info["episode"][name][b]) for name in EPISODE_METRICS}
+                    found[b]["nan"] = bool(nan[b])
+            nan[terminated | truncated] = False
+        results += found[:n_real]
+    return results
+
+
+def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, out: str | None = None,
+             progress=print) -> dict:
+    """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × 2 sets × 2 tasks)."""
+    from comat.bench.sim_bench import finish
+    from comat.envs import make_vec_env
+    from comat.envs.base import resolve_coalitions
+
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 160:
+        raise ValueError(f"episodes must be an integer >= 160 (one round of every task, set and policy), got {episodes!r}")
+    if not 0 <= wheels_share <= 1:
+        raise ValueError(f"wheels_share must be in [0, 1], got {wheels_share!r}")
+    rng = np.random.default_rng(seed)
+    combos = [(task, split, policy) for task in ("pcp", "hmt") for split in ("train", "test")
+              for policy in ("heuristic", "random")]
+    envs = {(task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
+            for task in ("pcp", "hmt") for split in ("train", "test") for tier in ("unicycle", "wheels")}
+    totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
+                               "nan_episodes", "recoveries", "fallbacks", "interventions", "success")}
+    by_tier = {"unicycle": 0, "wheels": 0}
+    memory: list[tuple[int, int]] = []
+    done, rounds, t0 = 0, 0, time.perf_counter()
+    next_mark = 1000
+    while done < episodes:
+        for task, split, policy in combos:
+            tier = "wheels" if rng.random() < wheels_share else "unicycle"
+            teams = resolve_coalitions(split, task)
+            eps = _episodes(envs[task, split, tier], policy, teams, seed + 1000 * rounds, rng)
+            done += len(eps)
+            by_tier[tier] += len(eps)
+            for e in eps:
+                totals["episodes"] += 1
+                totals["nan_episodes"] += e["nan"]
+                for key in ("collisions", "robotarium_collisions", "boundary_exits", "actuator_errors", "recoveries",
+                            "fallbacks", "interventions"):
+                    totals[key] += e[key]
+                totals["success"] += e["success"] if policy == "heuristic" else 0.0
+            if done >= next_mark:
+                memory.append((done, _rss_bytes()))
+                next_mark += 1000
+                rate = done / (time.perf_counter() - t0)
+                progress(f"  {done:,} / {episodes:,} episodes, {rate:.1f} episodes/s, RSS {memory[-1][1] / 2**20:.0f} MiB")
+        rounds += 1
+    for env in envs.values():
+        env.close()
+    first, last = (memory[0][1], memory[-1][1]) if memory else (0, 0)
+    growth = (last - first) / first if first else 0.0
+    checks = {name: {"value": totals[key], "target": "== 0", "pass": totals[key] == 0}
+              for name, key in (("mujoco_contacts", "collisions"), ("robotarium_collisions", "robotarium_collisions"),
+                                ("boundary_exits", "boundary_exits"), ("actuator_errors", "actuator_errors"),
+                                ("nan_episodes", "nan_episodes"), ("fallback_ticks", "fallbacks"))}
+    checks["rss_growth_first_to_last_thousand"] = {"value": growth, "target": f"< {MEMORY_GROWTH_TARGET}",
+                                                   "pass": growth < MEMORY_GROWTH_TARGET}
+    result = {"benchmark": "soak", "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
+              "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
+              "scripted_success_share": totals["success"] / max(1.0, totals["episodes"] / 2),
+              "rss_bytes": memory, "wall_s": time.perf_counter() - t0, "checks": checks}
+    progress(f"{'metric':<28}{'total':>14}")
+    for key, value in totals.items():
+        progress(f"{key:<28}{value:>14,.0f}")
+    progress(f"{'RSS growth (first→last 1k)':<28}{100 * growth:>13.2f}%")
+    return finish(result, checks, out, progress)
