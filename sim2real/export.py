@@ -260,6 +260,8 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     poses = check_start_poses(default_poses if start_poses is None else start_poses, team.size)
 
     out.parent.mkdir(parents=True, exist_ok=True)
+    for stale in out.parent.glob(f".{out.name}.tmp-*"):  # left by an export killed mid-write
+        shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
         shutil.copyfile(HERE / "templates" / "main.py", tmp / "main.py")

@@ -345,3 +345,31 @@ def test_export_cli_start_poses_timeout_and_a_failing_main(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert "failed under rps (exit 1); its stderr ends: the robots are not where they should be" in err[-1]
     assert not any("Traceback" in line for line in err)
+
+
+def test_export_killed_at_random_moments_leaves_no_folder(tmp_path):
+    """``comat export`` killed with SIGKILL at random moments leaves either no --out folder or a
+    complete one; the next export to the same --out removes what the killed one left behind."""
+    import signal
+    import time
+
+    ckpt = tiny_checkpoint(tmp_path, "pcp")
+    out = tmp_path / "subs" / "pcp"
+    cmd = [sys.executable, "-m", "comat.cli", "export", "--checkpoint", str(ckpt), "--task", "pcp", "--team", "test:3",
+           "--out", str(out)]
+    for delay in np.random.default_rng(0).uniform(0.5, 3.0, size=4):
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(delay)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=60)
+        if out.exists():
+            assert sorted(p.name for p in out.iterdir()) == sorted(SHIPPED_FILES)
+            break
+    if not out.exists():
+        subprocess.run(cmd, check=True, capture_output=True, timeout=300)
+    assert sorted(p.name for p in out.iterdir()) == sorted(SHIPPED_FILES)
+    shutil_out = tmp_path / "subs" / "again"
+    (tmp_path / "subs" / ".again.tmp-left").mkdir()
+    export_submission(ckpt, "pcp", parse_team("test:3", "pcp"), shutil_out)
+    assert [p.name for p in (tmp_path / "subs").iterdir() if p.name.startswith(".")] == []
