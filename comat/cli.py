@@ -57,9 +57,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.rl.checkpoint import load_checkpoint
-    from comat.rl.config import RunConfig, load_preset, resolve
+    from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
     from comat.rl.runner import train
 
+    if args.resume and args.overrides:
+        raise ValueError(f"--resume continues a run with its own settings; overrides {args.overrides} are for a new run")
     if args.resume:
         if args.out is None:
             raise ValueError("--resume needs --out, the folder of the run to continue")
@@ -80,12 +82,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
     else:
         if args.algo is None or args.task is None:
             raise ValueError("--algo and --task are required for a new run")
-        config = resolve(load_preset(args.preset), args.algo, args.task, args.seed, args.tier, args.steps,
+        config = resolve(apply_overrides(load_preset(args.preset), args.overrides), args.algo, args.task, args.seed,
+                         args.tier, args.steps,
                          args.env_workers)
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
     print(f"comat train: {config.algo} on {config.task} ({config.tier} tier), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
-    summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every)
+    summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every,
+                    overrides=tuple(args.overrides))
     ev = summary["eval_train"]
     result = "" if ev is None else (
         f"; on the training coalitions (deterministic): return {ev['return']:.2f}, completion "
@@ -176,7 +180,7 @@ def _print_sweep_status(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"--out {args.out!r} does not exist: no sweep has run there "
                                 f"(start it with the same command without --status)")
     rows = sweep_status(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
-                        args.eval_tiers, [] if args.no_eval else ["train", "test"])
+                        args.eval_tiers, [] if args.no_eval else ["train", "test"], tuple(args.overrides))
     print(f"{'job':<18}{'state':<8}{'env steps':>22}{'env-steps/s':>13}{'time left':>11}")
     for r in rows:
         rate = "-" if r["env_steps_per_s"] is None else f"{r['env_steps_per_s']:.0f}"
@@ -200,7 +204,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         return _print_sweep_status(args)
     records = run_sweep(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
                         args.eval_tiers, [] if args.no_eval else ["train", "test"], args.episodes, args.address,
-                        args.jobs)
+                        args.jobs, overrides=tuple(args.overrides))
     failed = [r for r in records if "error" in r]
     print(f"comat sweep: {len(records) - len(failed)} of {len(records)} jobs finished; report with: comat report "
           f"{args.out}/*_s* --out results")
@@ -309,6 +313,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rrd-every", type=int, default=0, metavar="K",
                    help="record 2 evaluation episodes to RUN/rrd/eval_<steps>.rrd every K-th evaluation "
                    "(and the last); 0: never (default)")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
+                   help="settings changed from the preset, dotted as in the YAML (e.g. ppo.lr=3e-4 "
+                   "models.comat.heads=8 total_env_steps=200000); typed and checked like the preset")
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("eval", help="evaluate a checkpoint (and reference policies) on training and unseen coalitions",
@@ -368,6 +375,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="runs/sweep", help="root folder of the run folders (default: %(default)s)")
     p.add_argument("--status", action="store_true",
                    help="print where each job stands (env steps, rate, hours left) and start nothing")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
+                   help="settings changed from the preset for every job (as for comat train)")
     p.set_defaults(func=_cmd_sweep)
 
     p = sub.add_parser("bench", help="benchmarks (JSON + table)", description="Performance and fidelity benchmarks.")

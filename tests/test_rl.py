@@ -549,3 +549,41 @@ def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_pa
     a, b = load_checkpoint(tmp_path / "straight" / "checkpoint.pt"), load_checkpoint(run / "checkpoint.pt")
     assert a["progress"]["env_steps"] == b["progress"]["env_steps"] == 96
     assert_same(a["trainer"], b["trainer"], "trainer")
+
+
+def test_overrides_and_base_presets(tmp_path, capsys):
+    """``comat train ... ppo.lr=3e-4 models.comat.heads=2``: typed, checked like a preset, recorded
+    in config.yaml as given and as resolved; a preset may name a base preset and change keys."""
+    import yaml
+
+    from comat.rl.config import apply_overrides, load_preset
+
+    base = load_preset("quick")
+    changed = apply_overrides(base, ["ppo.lr=3e-4", "models.comat.heads=2", "ppo.rollout_steps=null", "tier=wheels"])
+    assert changed["ppo"]["lr"] == 3e-4 and changed["models"]["comat"]["heads"] == 2 and changed["tier"] == "wheels"
+    assert changed["ppo"]["rollout_steps"] is None
+    assert {k: v for k, v in changed["ppo"].items() if k not in ("lr", "rollout_steps")} == \
+        {k: v for k, v in base["ppo"].items() if k not in ("lr", "rollout_steps")}
+    child = tmp_path / "child.yaml"
+    child.write_text("base: quick\nppo: {lr: 0.001}\nmodels: {mat: {embed: 32}}\n")
+    merged = load_preset(child)
+    assert merged["ppo"] == {"num_envs": 32, "lr": 0.001} and merged["qmix"] == base["qmix"]
+    assert merged["models"]["mat"]["embed"] == 32 and merged["total_env_steps"] == base["total_env_steps"]
+    loop = tmp_path / "loop.yaml"
+    loop.write_text("base: loop.yaml\n")
+    with pytest.raises(ValueError, match="form a cycle"):
+        load_preset(loop)
+    run = tmp_path / "run"
+    argv = ["train", "--algo", "comat", "--task", "pcp", "--preset", str(child), "--steps", "12", "--quiet", "--out", str(run)]
+    assert main([*argv, "ppo.num_envs=2", "ppo.rollout_steps=3", "ppo.epochs=1", "eval_episodes_per_team=0",
+                 "models.comat.embed=16", "models.comat.heads=2", "models.comat.edge_embed=8"]) == 0
+    doc = yaml.safe_load((run / "config.yaml").read_text())
+    assert doc["overrides"][0] == "ppo.num_envs=2" and doc["config"]["model"]["embed"] == 16
+    assert doc["config"]["trainer"]["lr"] == 0.001 and doc["config"]["trainer"]["num_envs"] == 2
+    for bad, message in ((["ppo.lrr=3"], "unknown key(s) ['lrr']"), (["ppo.lr=fast"], "trainer.lr must be float"),
+                         (["lr"], "overrides must be key=value"), (["zzz=1"], "unknown key(s) ['zzz'] in overrides")):
+        assert main([*argv[:-1], str(tmp_path / "other"), *bad]) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "other").exists()
+    assert main(["train", "--resume", "--out", str(run), "ppo.lr=1"]) == 2
+    assert "overrides ['ppo.lr=1'] are for a new run" in capsys.readouterr().err

@@ -59,7 +59,8 @@ def _trained(folder: Path) -> tuple[int, float]:
 
 
 def sweep_status(root: str | Path, algos, tasks, seeds, preset: str = "paper", steps: int | None = None,
-                 tier: str | None = None, eval_tiers=("unicycle",), eval_sets=("train", "test")) -> list[dict]:
+                 tier: str | None = None, eval_tiers=("unicycle",), eval_sets=("train", "test"),
+                 overrides: tuple[str, ...] = ()) -> list[dict]:
     """Where each job of the grid stands, without running anything.
 
     Per job: its :func:`plan` state, env steps trained of the budget, its rate (env steps per
@@ -67,9 +68,9 @@ def sweep_status(root: str | Path, algos, tasks, seeds, preset: str = "paper", s
     started, at the mean rate of the grid's other runs of the same task (None if there is none).
     Evaluation time is not included.
     """
-    from comat.rl.config import load_preset, resolve
+    from comat.rl.config import apply_overrides, load_preset, resolve
 
-    settings = load_preset(preset)
+    settings = apply_overrides(load_preset(preset), overrides)
     rows = []
     for job in plan(root, algos, tasks, seeds, eval_tiers, eval_sets):
         total = resolve(settings, job["algo"], job["task"], seed=job["seed"], tier=tier,
@@ -99,22 +100,22 @@ def _set_aside_partial(folder: Path) -> None:
 
 
 def run_job(job: Job, preset: str, steps: int | None, tier: str | None, eval_tiers, eval_sets, episodes: int,
-            env_workers: int | None = None) -> dict:
+            env_workers: int | None = None, overrides: tuple[str, ...] = ()) -> dict:
     """Train (or resume) one run and evaluate it; returns a short summary. Runs in a Ray worker."""
     import torch
 
     from comat.eval.evaluate import evaluate_policies, write_results
-    from comat.rl.config import load_preset, resolve
+    from comat.rl.config import apply_overrides, load_preset, resolve
     from comat.rl.runner import train
 
     torch.set_num_threads(1)
     folder = Path(job["folder"])
     t0 = time.perf_counter()
     _set_aside_partial(folder)
-    config = resolve(load_preset(preset), job["algo"], job["task"], seed=job["seed"], tier=tier,
-                     total_env_steps=steps, env_workers=env_workers)
+    config = resolve(apply_overrides(load_preset(preset), overrides), job["algo"], job["task"], seed=job["seed"],
+                     tier=tier, total_env_steps=steps, env_workers=env_workers)
     resume = (folder / "checkpoint.pt").is_file()
-    summary = train(config, folder, resume=resume, quiet=True)
+    summary = train(config, folder, resume=resume, quiet=True, overrides=tuple(overrides))
     for eval_tier in eval_tiers if eval_sets else ():
         if not (folder / f"evaluation_{eval_tier}.json").is_file():
             result = evaluate_policies(folder / "checkpoint.pt", job["task"], tuple(eval_sets), episodes, eval_tier,
@@ -126,11 +127,12 @@ def run_job(job: Job, preset: str, steps: int | None, tier: str | None, eval_tie
 
 def run_sweep(root: str | Path, algos, tasks, seeds, preset: str = "paper", steps: int | None = None,
               tier: str | None = None, eval_tiers=("unicycle",), eval_sets=("train", "test"), episodes: int = 1,
-              address: str | None = None, num_cpus: int | None = None, progress=print) -> list[dict]:
+              address: str | None = None, num_cpus: int | None = None, progress=print,
+              overrides: tuple[str, ...] = ()) -> list[dict]:
     """Run the grid's unfinished jobs on Ray; returns one record per job (skipped ones too)."""
     import ray
 
-    from comat.rl.config import ALGOS, TASKS, load_preset, resolve
+    from comat.rl.config import ALGOS, TASKS, apply_overrides, load_preset, resolve
 
     for name, values, valid in (("algos", algos, ALGOS), ("tasks", tasks, TASKS)):
         bad = [v for v in values if v not in valid]
@@ -139,7 +141,8 @@ def run_sweep(root: str | Path, algos, tasks, seeds, preset: str = "paper", step
     if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
         raise ValueError(f"seeds must be non-negative integers, got {list(seeds)!r}")
     for algo, task in itertools.product(algos, tasks):  # bad presets fail here, before Ray starts
-        resolve(load_preset(preset), algo, task, seed=seeds[0], tier=tier, total_env_steps=steps)
+        resolve(apply_overrides(load_preset(preset), overrides), algo, task, seed=seeds[0], tier=tier,
+                total_env_steps=steps)
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     jobs = plan(root, algos, tasks, seeds, eval_tiers, eval_sets)
@@ -155,7 +158,8 @@ def run_sweep(root: str | Path, algos, tasks, seeds, preset: str = "paper", step
         ray.init(address=address, log_to_driver=False, ignore_reinit_error=True)
     try:
         remote = ray.remote(num_cpus=1, max_retries=0)(run_job)
-        pending = {remote.remote(j, preset, steps, tier, tuple(eval_tiers), tuple(eval_sets), episodes): j for j in todo}
+        pending = {remote.remote(j, preset, steps, tier, tuple(eval_tiers), tuple(eval_sets), episodes, None,
+                                 tuple(overrides)): j for j in todo}
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1)
             job = pending.pop(ready[0])

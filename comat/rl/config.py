@@ -25,7 +25,7 @@ from comat.models.qmix import QmixNetConfig
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 
-__all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "load_preset", "preset_names", "resolve"]
+__all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "apply_overrides", "load_preset", "preset_names", "resolve"]
 
 ALGOS = ("comat", "mat", "mappo", "qmix")
 TASKS = ("hmt", "pcp")
@@ -34,7 +34,7 @@ PRESETS_DIR = Path(__file__).resolve().parents[2] / "train" / "configs"
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
              "env_workers", "torch_threads", "physics_threads")
-_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models")
+_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models", "base")
 
 
 @dataclass(frozen=True)
@@ -93,8 +93,11 @@ def preset_names() -> list[str]:
     return sorted(p.stem for p in PRESETS_DIR.glob("*.yaml"))
 
 
-def load_preset(preset: str | Path) -> dict[str, Any]:
-    """A preset by name (``train/configs/<name>.yaml``) or path, checked for unknown keys."""
+def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A preset by name (``train/configs/<name>.yaml``) or path, checked for unknown keys.
+
+    A preset may name another as ``base: NAME`` (a name or a path): it is the base's settings with
+    this file's keys changed (sections merged key by key)."""
     import yaml
 
     path = Path(preset)
@@ -119,14 +122,53 @@ def load_preset(preset: str | Path) -> dict[str, Any]:
                          f"(see train/configs/*.yaml)")
     if not isinstance(data, dict):
         raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
+    _check_preset_keys(data, f"preset {str(path)!r}")
+    if "base" in data:
+        base = data.pop("base")
+        if str(path.resolve()) in _seen:
+            raise ValueError(f"preset {str(path)!r}: its base presets form a cycle")
+        if not isinstance(base, str):
+            raise TypeError(f"preset {str(path)!r}: base must be a preset name or path, got {base!r}")
+        if base.endswith((".yaml", ".yml")) and not Path(base).is_absolute():
+            base = str(path.parent / base)  # relative to this file
+        data = _merge(load_preset(base, (*_seen, str(path.resolve()))), data)
+    return data
+
+
+def _check_preset_keys(data: dict[str, Any], source: str) -> None:
     unknown = sorted(set(data) - set(_PRESET_KEYS))
     if unknown:
-        raise ValueError(f"unknown key(s) {unknown} in preset {str(path)!r}; valid keys: {sorted(_PRESET_KEYS)}")
+        raise ValueError(f"unknown key(s) {unknown} in {source}; valid keys: {sorted(_PRESET_KEYS)}")
     models = data.get("models") or {}
     unknown = sorted(set(models) - set(ALGOS))
     if unknown:
-        raise ValueError(f"unknown algo(s) {unknown} under models in preset {str(path)!r}; valid: {list(ALGOS)}")
-    return data
+        raise ValueError(f"unknown algo(s) {unknown} under models in {source}; valid: {list(ALGOS)}")
+
+
+def _merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``changes`` applied, mappings merged key by key (OmegaConf's merge)."""
+    from omegaconf import OmegaConf
+
+    return OmegaConf.to_container(OmegaConf.merge(OmegaConf.create(base), OmegaConf.create(changes)))
+
+
+def apply_overrides(preset: dict[str, Any], overrides: list[str] | tuple[str, ...]) -> dict[str, Any]:
+    """The preset with dotted ``key=value`` overrides (``ppo.lr=3e-4 models.comat.heads=8``), parsed
+    by OmegaConf's dotlist grammar; the result is checked like a preset (and typed when resolved)."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import OmegaConfBaseException
+
+    if not overrides:
+        return preset
+    bad = [o for o in overrides if not isinstance(o, str) or "=" not in o or o.startswith("=")]
+    if bad:
+        raise ValueError(f"overrides must be key=value (e.g. ppo.lr=3e-4 models.comat.heads=8), got {bad}")
+    try:
+        changes = OmegaConf.to_container(OmegaConf.from_dotlist(list(overrides)))
+    except OmegaConfBaseException as err:
+        raise ValueError(f"overrides {list(overrides)} could not be parsed: {str(err).splitlines()[0]}") from err
+    _check_preset_keys(changes, f"overrides {list(overrides)}")
+    return _merge(preset, changes)
 
 
 def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,

@@ -50,17 +50,17 @@ def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
                               sim=sim, coalitions=coalitions, max_robots=slots)
 
 
-def _write_config(out: Path, config: RunConfig, resumed_at: int | None) -> None:
+def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = ()) -> None:
     """``config.yaml``: the resolved config, versions and command line of this sitting; a resumed
     run keeps those of its earlier sittings under ``earlier_sittings`` (which code trained what)."""
     import yaml
 
     doc = {"config": config.to_dict(), "versions": versions(), "command": sys.argv,
-           "resumed_at_env_steps": resumed_at}
+           "overrides": list(overrides), "resumed_at_env_steps": resumed_at}
     path = out / "config.yaml"
     if resumed_at is not None and path.is_file():
         old = yaml.safe_load(path.read_text()) or {}
-        sitting = {k: old.get(k) for k in ("versions", "command", "resumed_at_env_steps")}
+        sitting = {k: old.get(k) for k in ("versions", "command", "overrides", "resumed_at_env_steps")}
         doc["earlier_sittings"] = [*old.get("earlier_sittings", []), sitting]
     write_atomic(path, yaml.safe_dump(doc, sort_keys=False))
 
@@ -116,10 +116,13 @@ def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: i
     return path
 
 
-def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0) -> dict:
+def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0,
+          overrides: tuple[str, ...] = ()) -> dict:
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
     the final evaluation on the training coalitions (None if evaluation is off).
 
+    ``overrides``: the ``key=value`` changes to the preset that ``config`` was resolved with,
+    recorded in config.yaml next to the resolved config (they are already part of it).
     ``rrd_every`` = K > 0 records two evaluation episodes to ``out/rrd/`` at every K-th
     evaluation and the last (a viewing aid; not part of the run's identity).
 
@@ -168,7 +171,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         env.set_rng_state(data["env_rngs"])
         torch.set_rng_state(data["torch_rng"])
         progress = dict(data["progress"])
-    _write_config(out, config, progress["env_steps"] if data is not None else None)
+    _write_config(out, config, progress["env_steps"] if data is not None else None, tuple(overrides))
     logger = RunLogger(out, resume_step=progress["env_steps"] if data is not None else None)
     bar = None if quiet else ProgressLine(config.total_env_steps, start=progress["env_steps"])
     next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
