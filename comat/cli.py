@@ -257,11 +257,32 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     raise AssertionError(args.what)
 
 
+def comat_version() -> str:
+    """The package version and the source commit it runs from (when known)."""
+    from comat import __version__
+    from comat.rl.checkpoint import source_commit
+
+    commit = source_commit()
+    return __version__ + (f" ({commit})" if commit and commit != "unknown" else "")
+
+
+class _Version(argparse.Action):
+    """``--version``, computed only when asked (it asks git for the commit)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"comat {comat_version()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="comat",
         description="MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium.",
     )
+    parser.add_argument("--version", action=_Version, help="print the version (and source commit) and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_rollout_parser(sub)
     add_export_parser(sub)
@@ -319,7 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("eval", help="evaluate a checkpoint (and reference policies) on training and unseen coalitions",
-                       description="The paper's metrics with 95%% confidence intervals for a trained policy, the "
+                       description="The paper's metrics with 95% confidence intervals for a trained policy, the "
                        "scripted heuristic and a random policy, on U_train and/or U_test: a table on screen, "
                        "evaluation_<tier>.json and .csv in --out (default: the checkpoint's run folder).")
     p.add_argument("--checkpoint", default=None, help="a run's checkpoint.pt")

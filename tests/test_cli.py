@@ -113,3 +113,15 @@ def test_sweep_status_of_a_missing_folder_is_an_error(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "does not exist: no sweep has run there" in err[0]
     assert not (tmp_path / "nowhere").exists()
+
+
+def test_version_and_help_percent(capsys):
+    from comat import __version__
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith(f"comat {__version__}")
+    with pytest.raises(SystemExit):
+        main(["eval", "--help"])
+    out = capsys.readouterr().out
+    assert "95% confidence" in out and "%%" not in out

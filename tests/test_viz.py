@@ -438,6 +438,25 @@ def test_checkpoint_policy_is_recorded(tmp_path):
     assert static["/episode_0/meta"]["policy"].to_pylist()[0] == ["mappo checkpoint checkpoint.pt"]
     assert static["/episode_0/meta"]["tier"].to_pylist()[0] == ["unicycle"]  # the checkpoint's tier
     assert temporal["/episode_0/world/robots"].num_rows == result.episodes[0]["steps"] + 1
+    # Another run's checkpoint under the same file name gets its own recording id.
+    import shutil
+    from unittest import mock
+
+    import comat.viz.rollout as rollout_module
+
+    (tmp_path / "run2").mkdir()
+    shutil.copy(tmp_path / "run" / "checkpoint.pt", tmp_path / "run2" / "checkpoint.pt")
+    ids = []
+
+    class Spy(rollout_module.rr.RecordingStream):
+        def __init__(self, *args, **kwargs):
+            ids.append(kwargs["recording_id"])
+            super().__init__(*args, **kwargs)
+
+    with mock.patch.object(rollout_module.rr, "RecordingStream", Spy):
+        for run in ("run", "run2"):
+            record_episodes(out, "hmt", tmp_path / run / "checkpoint.pt", teams=[team], ticks_per_step=2)
+    assert len(ids) == 2 and ids[0] != ids[1]
 
 
 def test_bench_reports_overhead_and_bytes_per_robot_step(tmp_path, capsys):
@@ -464,3 +483,19 @@ def test_command_line_registration_does_not_import_rerun():
     # comat.cli imports comat.viz.cli for every command; Rerun (seconds to import) loads on use.
     code = "import sys, comat.viz.cli; assert 'rerun' not in sys.modules, sorted(sys.modules)"
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_each_episode_records_its_own_team(tmp_path):
+    """A two-episode recording of the coalition set, read back: every episode's meta holds the
+    types and capabilities of the team that episode ran (the env has moved on by then)."""
+    from comat.envs.base import resolve_coalitions
+
+    out = tmp_path / "two.rrd"
+    teams = resolve_coalitions("test", "pcp")[:2]
+    assert teams[0].size != teams[1].size
+    result = record_episodes(out, "pcp", "heuristic", teams=teams, ticks_per_step=2, max_robots=8)
+    for k, team in enumerate(teams):
+        meta = read(out, prefix=f"episode_{k}")[0][f"/episode_{k}/meta"]
+        assert meta["robot_types"].to_pylist()[0] == [r.type for r in team.robots]
+        np.testing.assert_allclose(meta["capabilities"].to_pylist()[0], team.capability_array().ravel())
+        assert float(meta["outcome_steps"].to_pylist()[0][0]) == result.episodes[k]["steps"]

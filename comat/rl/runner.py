@@ -173,6 +173,12 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         progress = dict(data["progress"])
     _write_config(out, config, progress["env_steps"] if data is not None else None, tuple(overrides))
     logger = RunLogger(out, resume_step=progress["env_steps"] if data is not None else None)
+    if config.algo != "qmix" and not quiet:
+        per = config.trainer.num_envs * (config.trainer.rollout_steps or env.task.horizon)
+        if config.total_env_steps % per:
+            print(f"note: PPO trains in whole rollouts of {per:,} env steps ({config.trainer.num_envs} environments × "
+                  f"{per // config.trainer.num_envs} steps): {config.total_env_steps:,} env steps run as "
+                  f"{-(-config.total_env_steps // per) * per:,}", file=sys.stderr)
     bar = None if quiet else ProgressLine(config.total_env_steps, start=progress["env_steps"])
     next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
     next_ckpt = _next_multiple(progress["env_steps"], config.checkpoint_every_steps)

@@ -117,6 +117,8 @@ class EpisodeRecorder:
         if core.task.name not in _TASKS:
             raise ValueError(f"task must be one of {sorted(_TASKS)} to be recorded, got {core.task.name!r}")
         self._core, self._b, self._n = core, b, team.size
+        # This episode's team, kept: by end() an autoresetting env may hold the next one's.
+        self._team, self._caps = team, core.caps[b, : team.size].copy()
         self._prefix = episode_path(episode)
         # What the env itself knows is recorded whatever the caller passes.
         self._meta = {
@@ -161,24 +163,27 @@ class EpisodeRecorder:
             self._terms[name].append(float(terms[name]))
 
     @_when_enabled
-    def end(self) -> dict[str, float] | None:
-        """Send the episode's per-step data; returns its metrics (None when disabled)."""
+    def end(self, outcome: Mapping[str, float] | None = None) -> dict[str, float] | None:
+        """Send the episode's per-step data; returns its metrics (None when disabled).
+
+        ``outcome``: the episode's metrics where the env has already moved on (an autoreset
+        PettingZoo env reports them in ``infos``); default: the env's counters now."""
         if self._core is None:
             raise RuntimeError("end() called outside an episode; call begin() first")
         core, b = self._core, self._b
         try:
             core.safe.tick_observers.remove(self._tap)
             self.cpu_s += self._tap.cpu_s
-            outcome = core.episode_metrics(b)
+            outcome = dict(outcome) if outcome is not None else core.episode_metrics(b)
             self._send()
             meta = {"title": f"{self._prefix}: {core.task.name.upper()}", **self._meta}
-            text = meta_markdown(meta, core.teams[b], outcome)
+            team = self._team
+            text = meta_markdown(meta, team, outcome)
             rec = self.recording
-            team = core.teams[b]
             values = {k.replace(" ", "_"): str(v) for k, v in self._meta.items()}
             values.update(
                 robot_types=[r.type for r in team.robots],
-                capabilities=core.caps[b, : team.size].ravel(),
+                capabilities=self._caps.ravel(),
                 capability_names=list(core.task.capabilities),
                 **{f"outcome_{k}": v for k, v in outcome.items()},
             )

@@ -17,6 +17,7 @@ otherwise its team is drawn from the coalition set by that seed.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 import time
@@ -209,7 +210,7 @@ def play_episodes(
             )
             if not env.agents:
                 metrics = {k_[len("episode/") :]: v for k_, v in info.items() if k_.startswith("episode/")}
-        recorder.end()
+        recorder.end(metrics)
         results.append({**metrics, "team_size": n})
     return results
 
@@ -278,7 +279,12 @@ def record_episodes(
     t0, thread0, others0 = time.perf_counter(), time.thread_time(), time.process_time() - time.thread_time()
     if out is not None:
         tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
-        rec = rr.RecordingStream("comat", recording_id=f"{out.stem}-{task}-{spec.name}-seed{seed}")
+        # Two runs' checkpoints share a file name (checkpoint.pt): the id names the file by its
+        # full path, so recordings of different runs never merge in the viewer.
+        source = spec.name
+        if isinstance(policy, (str, Path)) and Path(policy).is_file():
+            source += "-" + hashlib.sha1(str(Path(policy).resolve()).encode()).hexdigest()[:10]
+        rec = rr.RecordingStream("comat", recording_id=f"{out.stem}-{task}-{source}-seed{seed}")
         # Content, not wall-clock ticks: the same rollout gives the same data.
         rec.set_log_time_enabled(False)
         rec.set_log_tick_enabled(False)
