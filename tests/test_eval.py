@@ -62,17 +62,26 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     ckpt = tmp_path / "run" / "checkpoint.pt"
     assert main(["eval", "--checkpoint", str(ckpt), "--set", "test"]) == 0
     out = capsys.readouterr().out
-    assert "comat" in out and "heuristic" in out and "random" in out and "±" in out
+    assert "comat" in out and "heuristic" in out and "constant" in out and "random" in out and "±" in out
     result = json.loads((tmp_path / "run" / "evaluation_unicycle.json").read_text())
     rows = {r["policy"]: r for r in result["rows"]}
-    assert set(rows) == {"comat", "heuristic", "random"} and all(r["set"] == "test" for r in rows.values())
+    assert set(rows) == {"comat", "heuristic", "constant", "random"} and all(r["set"] == "test" for r in rows.values())
     assert all(r["episodes"] == 20 for r in rows.values())  # the 20 unseen coalitions, one episode each
     # the table's numbers are the per-episode metrics' means
     for r in rows.values():
         assert r["metrics"]["return"]["mean"] == pytest.approx(np.mean([e["return"] for e in r["per_episode"]]))
     assert rows["heuristic"]["metrics"]["success"]["mean"] > rows["random"]["metrics"]["success"]["mean"]
     csv_text = (tmp_path / "run" / "evaluation_unicycle.csv").read_text().splitlines()
-    assert csv_text[0] == "policy,task,set,tier,episodes,metric,mean,ci95" and len(csv_text) == 1 + 3 * len(REPORTED)
+    assert csv_text[0] == "policy,task,set,tier,episodes,metric,mean,ci95" and len(csv_text) == 1 + 4 * len(REPORTED)
+    # the constant row is every robot always taking the task's best constant action (+x on PCP)
+    from comat.envs import make_vec_env
+    from comat.envs.base import resolve_coalitions
+    from comat.eval.episodes import run_episodes
+
+    env = make_vec_env("pcp_v0", 20, seed=2_000_003, tier="unicycle", coalitions="test")
+    direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), resolve_coalitions("test", "pcp"), seed=2_000_003)
+    assert [e["return"] for e in rows["constant"]["per_episode"]] == pytest.approx([e["return"] for e in direct])
+    assert rows["constant"]["metrics"]["completion"]["mean"] > rows["random"]["metrics"]["completion"]["mean"]
     # bad input: clear errors before anything runs
     assert main(["eval", "--checkpoint", str(ckpt), "--task", "hmt"]) == 2
     assert "pcp" in capsys.readouterr().err
@@ -252,3 +261,20 @@ def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):
     flat = probe_checkpoint(tmp_path / "flat.pt", num_envs=3)
     assert flat["action_gap"] == 0.0
     assert all(shares["stay"] == 1.0 for shares in flat["greedy_actions"].values())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("task", ["pcp", "hmt"])
+def test_best_constant_action_is_the_best_of_the_five(task):
+    """BEST_CONSTANT_ACTION: of the five actions, taken by every robot at every step, the one with
+    the highest mean return on U_train (one episode per coalition, the evaluation seed)."""
+    from comat.envs import make_vec_env
+    from comat.envs.base import resolve_coalitions
+    from comat.eval.episodes import run_episodes
+    from comat.eval.evaluate import BEST_CONSTANT_ACTION, EVAL_SEED
+
+    teams = resolve_coalitions("train", task)
+    env = make_vec_env(f"{task}_v0", 20, seed=0, tier="unicycle", coalitions="train")
+    returns = [np.mean([e["return"] for e in run_episodes(env, lambda o, m, s, a=a: np.where(m, a, 0), teams, EVAL_SEED)])
+               for a in range(5)]
+    assert int(np.argmax(returns)) == BEST_CONSTANT_ACTION[task], returns

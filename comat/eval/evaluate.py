@@ -3,7 +3,8 @@
 Protocol: for each set (U_train, U_test; 20 coalitions each), ``episodes`` episodes per
 coalition with deterministic actions, environments seeded from ``seed``; the same teams and
 starts for every policy. Rows: the checkpoint's policy, the scripted heuristic (privileged: it
-reads the task state) and uniformly random actions. Each metric of :data:`REPORTED` comes with
+reads the task state), the best constant action (every robot always the same waypoint step:
+what a policy that ignores its observations can reach) and uniformly random actions. Each metric of :data:`REPORTED` comes with
 a 95 % confidence interval over episodes.
 
 Outputs (``--out``): ``eval.json`` (every row with means, intervals and the per-episode
@@ -25,9 +26,14 @@ from comat.eval.episodes import run_episodes
 from comat.eval.metrics import REPORTED, summarize_ci
 from comat.files import write_atomic
 
-__all__ = ["EVAL_SEED", "evaluate_policies", "print_table", "write_results"]
+__all__ = ["BEST_CONSTANT_ACTION", "EVAL_SEED", "evaluate_policies", "print_table", "write_results"]
 
 EVAL_SEED = 2_000_003
+BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1}
+"""Per task, the action (0 stay, 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train
+when every robot always takes it (all five tried, one episode per coalition, EVAL_SEED;
+tests/test_eval.py): +x on both. On PCP it captures half the prey (return 16.4, 20 % of the
+episodes finished): early learning curves must beat it to mean anything."""
 """Default seed of evaluation episodes (never a training seed of the presets)."""
 SETS = ("train", "test")
 
@@ -40,6 +46,8 @@ def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
     if checkpoint_act is not None:
         out[config.algo] = checkpoint_act
     out["heuristic"] = lambda obs, mask, state: heuristic_actions(env.core)
+    constant = BEST_CONSTANT_ACTION[env.task.name]
+    out["constant"] = lambda obs, mask, state: np.where(mask, constant, 0)
     out["random"] = lambda obs, mask, state: random_actions(rng, mask)
     return out
 
@@ -55,7 +63,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         sets: any of "train", "test".
         episodes: episodes per coalition (>= 1).
         tier: dynamics tier (default: the checkpoint's training tier, else unicycle).
-        references: add the heuristic and random rows.
+        references: add the heuristic, constant and random rows.
     """
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
@@ -86,7 +94,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
                            max_robots=slots)
         policies = _policies(config, act, env, seed)
         if not references:
-            policies = {k: v for k, v in policies.items() if k not in ("heuristic", "random")}
+            policies = {k: v for k, v in policies.items() if k not in ("heuristic", "constant", "random")}
         for name, policy in policies.items():
             t0 = time.perf_counter()
             eps = run_episodes(env, policy, teams, seed, use_state=use_state and name == config.algo)
