@@ -37,7 +37,7 @@ HERE = ROOT / "results" / "ablations"
 SWEEP = ROOT / "results" / "sweep"
 NAME = re.compile(r"(?P<variant>.+)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
 LABELS = {
-    "mat": "MAT (sweep)", "a_control": "(a) COMAT today (sweep)", "b_root": "(b) root term",
+    "mat": "MAT (sweep)", "a_control": "(a) COMAT, paper form (sweep)", "b_root": "(b) root term",
     "c_embed": "(c) obs embedding + residual", "d_embed_small": "(d) (c) + messages at gain 0.01",
     "d2_tblock": "(d2) (d) + per-robot FFN", "e_reference": "(e) (d2) + reference HEAT messages",
     "f_world": "(f) (d2) + world-frame edges", "g_shared": "(g) (d2) + shared decision trunk",
@@ -160,7 +160,7 @@ def confirm_table(runs: list[dict]) -> tuple[str, str]:
     return "\n".join(lines) + "\n", buf.getvalue()
 
 
-def curves(runs: list[dict], path: Path, budget: float, variants: list[str] | None = None) -> None:
+def curves(runs: list[dict], path: Path, budget: float, variants: list[str] | None = None, min_budget: int = 0) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -168,7 +168,7 @@ def curves(runs: list[dict], path: Path, budget: float, variants: list[str] | No
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
     for ax, task in zip(axes, ("hmt", "pcp")):
-        sel = [r for r in runs if r["task"] == task]
+        sel = [r for r in runs if r["task"] == task and r["budget"] >= min_budget]
         for v in _order({r["variant"] for r in sel}):
             if variants is not None and v not in variants:
                 continue
@@ -208,7 +208,7 @@ def main() -> None:
     (HERE / "confirm.md").write_text(md)
     (HERE / "confirm.csv").write_text(table)
     finalists = {r["variant"] for r in runs if r["budget"] >= 300_000}
-    curves(runs, HERE / "confirm_curves.png", 310_000, sorted(finalists))
+    curves(runs, HERE / "confirm_curves.png", 310_000, sorted(finalists), min_budget=300_000)
     print(f"{len(runs)} runs -> {HERE}/screen.md, confirm.md, confirm.csv, screen_curves.png, confirm_curves.png")
 
 
