@@ -74,7 +74,7 @@ def recovery_command(
     solver = osqp.OSQP()
     solver.setup(cost, np.concatenate([-u_nom, np.zeros(m)]), rows, lower, upper, verbose=False,
                  eps_abs=config.eps * 1e-2, eps_rel=config.eps * 1e-2, max_iter=10 * config.max_iter, polishing=True)
-    result = solver.solve()
+    result = solver.solve(raise_error=False)  # failures are handled below (the caller brakes)
     status = result.info.status
     if result.info.status_val != osqp.SolverStatus.OSQP_SOLVED or not np.all(np.isfinite(result.x)):
         return None, status
