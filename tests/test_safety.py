@@ -83,7 +83,7 @@ def test_infeasible_start_recovers_and_only_a_failed_solver_brakes():
     assert gap(teams.poses) > gap(poses)  # moved apart, against the nominal command
     assert teams.poses[2, 0] > -0.5
     teams.reset(poses)
-    with mock.patch.object(filter_module, "recovery_command", return_value=(None, "solver failed")):
+    with mock.patch.object(filter_module, "recovery_command", return_value=None):
         _ev, info = teams.tick(dxi)
     assert info.fallback.tolist() == [True, False] and not info.recovery.any()
     assert teams.fallbacks.tolist() == [1, 0]

@@ -3,7 +3,8 @@
 Episodes of the scripted and the random policy on U_train and U_test of both tasks, in the
 unicycle tier with a share in the wheels tier, run in vector environments of 32 (one process).
 Counted over all of them: MuJoCo robot–robot contacts, Robotarium-style collisions, boundary
-exits, actuator errors, NaN in observations or rewards, filter recovery and fallback ticks; and
+exits, actuator errors, NaN in observations (env steps) or returns (episodes), filter recovery
+and fallback ticks; and
 the process's resident memory after each thousand episodes (growth from the first to the last
 thousand, target < 5 %). Episodes start inside the safe set (the envs' spawn), so the safety
 targets are zero contacts, zero collisions and zero fallbacks.
@@ -33,31 +34,20 @@ def _rss_bytes() -> int:
         return 0
 
 
-def _episodes(env, policy: str, teams, seed: int, rng: np.random.Generator) -> list[dict]:
-    """One episode per team; metrics plus a NaN flag per episode."""
-    from comat.envs.core import EPISODE_METRICS
+def _episodes(env, policy: str, teams, seed: int, rng: np.random.Generator) -> tuple[list[dict], int]:
+    """One episode per team (``comat.eval.episodes.run_episodes``) and the number of env steps
+    whose observations held NaN or inf (seen by the policy wrapper)."""
     from comat.envs.heuristics import heuristic_actions, random_actions
+    from comat.eval.episodes import run_episodes
 
-    results: list[dict] = []
-    for k, start in enumerate(range(0, len(teams), env.num_envs)):
-        chunk = list(teams[start : start + env.num_envs])
-        n_real = len(chunk)
-        chunk += [chunk[i % n_real] for i in range(env.num_envs - n_real)]
-        obs, info = env.reset(seed=seed + k, teams=chunk)
-        nan = ~np.isfinite(obs).all(axis=(1, 2))
-        found: list[dict | None] = [None] * env.num_envs
-        while any(f is None for f in found[:n_real]):
-            mask = info["agent_mask"]
-            act = heuristic_actions(env.core) if policy == "heuristic" else random_actions(rng, mask)
-            obs, rewards, terminated, truncated, info = env.step(np.where(mask, act, 0))
-            nan |= ~np.isfinite(obs).all(axis=(1, 2)) | ~np.isfinite(rewards)
-            for b in np.flatnonzero(terminated | truncated):
-                if found[b] is None:
-                    found[b] = {name: float(info["episode"][name][b]) for name in EPISODE_METRICS}
-                    found[b]["nan"] = bool(nan[b])
-            nan[terminated | truncated] = False
-        results += found[:n_real]
-    return results
+    bad_steps = 0
+
+    def act(obs, mask, state):
+        nonlocal bad_steps
+        bad_steps += int(not np.isfinite(obs).all())
+        return heuristic_actions(env.core) if policy == "heuristic" else random_actions(rng, mask)
+
+    return run_episodes(env, act, teams, seed), bad_steps
 
 
 def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, out: str | None = None,
@@ -77,7 +67,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     envs = {(task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
             for task in ("pcp", "hmt") for split in ("train", "test") for tier in ("unicycle", "wheels")}
     totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
-                               "nan_episodes", "recoveries", "fallbacks", "interventions", "success")}
+                               "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "success")}
     by_tier = {"unicycle": 0, "wheels": 0}
     memory: list[tuple[int, int]] = []
     done, rounds, t0 = 0, 0, time.perf_counter()
@@ -86,12 +76,13 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
         for task, split, policy in combos:
             tier = "wheels" if rng.random() < wheels_share else "unicycle"
             teams = resolve_coalitions(split, task)
-            eps = _episodes(envs[task, split, tier], policy, teams, seed + 1000 * rounds, rng)
+            eps, bad_obs_steps = _episodes(envs[task, split, tier], policy, teams, seed + 1000 * rounds, rng)
             done += len(eps)
             by_tier[tier] += len(eps)
+            totals["nan_obs_steps"] += bad_obs_steps
             for e in eps:
                 totals["episodes"] += 1
-                totals["nan_episodes"] += e["nan"]
+                totals["nan_returns"] += not np.isfinite(e["return"])
                 for key in ("collisions", "robotarium_collisions", "boundary_exits", "actuator_errors", "recoveries",
                             "fallbacks", "interventions"):
                     totals[key] += e[key]
@@ -109,7 +100,8 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     checks = {name: {"value": totals[key], "target": "== 0", "pass": totals[key] == 0}
               for name, key in (("mujoco_contacts", "collisions"), ("robotarium_collisions", "robotarium_collisions"),
                                 ("boundary_exits", "boundary_exits"), ("actuator_errors", "actuator_errors"),
-                                ("nan_episodes", "nan_episodes"), ("fallback_ticks", "fallbacks"))}
+                                ("nan_observation_steps", "nan_obs_steps"), ("nan_returns", "nan_returns"),
+                                ("fallback_ticks", "fallbacks"))}
     checks["rss_growth_first_to_last_thousand"] = {"value": growth, "target": f"< {MEMORY_GROWTH_TARGET}",
                                                    "pass": growth < MEMORY_GROWTH_TARGET}
     result = {"benchmark": "soak", "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},

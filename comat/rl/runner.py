@@ -81,15 +81,21 @@ def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = N
     return summarize(episodes)
 
 
-def _restarting(out: Path, config: RunConfig) -> bool:
-    """Whether ``out``'s config.yaml (a run without a checkpoint yet) is this config's run."""
+def saved_config(out: str | Path) -> RunConfig | None:
+    """The run config in ``out/config.yaml`` (what a run stopped before its first checkpoint left),
+    or None where there is none or it cannot be read."""
     import yaml
 
     try:
-        saved = yaml.safe_load((out / "config.yaml").read_text())["config"]
-        return RunConfig.from_dict(saved).to_dict() == config.to_dict()
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):  # unreadable: not this run's
-        return False
+        return RunConfig.from_dict(yaml.safe_load((Path(out) / "config.yaml").read_text())["config"])
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
+        return None
+
+
+def _restarting(out: Path, config: RunConfig) -> bool:
+    """Whether ``out``'s config.yaml (a run without a checkpoint yet) is this config's run."""
+    saved = saved_config(out)
+    return saved is not None and saved.to_dict() == config.to_dict()
 
 
 def _next_multiple(steps: int, every: int) -> int:

@@ -271,8 +271,7 @@ class SafetyFilter:
         """Team b's command from the softened problem (:mod:`comat.safety.recovery`), or None."""
         t = self.layout.teams
         lo, hi = t.offsets[b], t.offsets[b + 1]
-        u, _status = recovery_command(points[lo:hi], poses[lo:hi, 2], u_nom_b, self.config, self.profile)
-        return u
+        return recovery_command(points[lo:hi], poses[lo:hi, 2], u_nom_b, self.config, self.profile)
 
     def _stages_compiled(self, poses: np.ndarray, u_nom: np.ndarray, c: np.ndarray, s: np.ndarray):
         """Rows and stages 1–2 of :meth:`_filter` in one kernel call (the numpy branch there is

@@ -40,15 +40,15 @@ cost as much as a 0.1 m/s deviation."""
 def recovery_command(
     points: np.ndarray, headings: np.ndarray, u_nom: np.ndarray, config: SafetyConfig,
     profile: C.RobotProfile = C.DEFAULT_PROFILE,
-) -> tuple[np.ndarray | None, str]:
+) -> np.ndarray | None:
     """The softened problem above for one team of n robots.
 
     Args:
         points: (n, 2) projected points; headings: (n,) rad; u_nom: (2n,) nominal velocities.
 
     Returns:
-        (u (2n,), status): u meets every wheel row at the true wheel limit; None (and OSQP's
-        status) when the solver failed, where the caller brakes.
+        u (2n,), meeting every wheel row at the true wheel limit; None when the solver failed
+        (the caller brakes).
     """
     n = points.shape[0]
     layout = make_layout((n,))
@@ -75,13 +75,12 @@ def recovery_command(
     solver.setup(cost, np.concatenate([-u_nom, np.zeros(m)]), rows, lower, upper, verbose=False,
                  eps_abs=config.eps * 1e-2, eps_rel=config.eps * 1e-2, max_iter=10 * config.max_iter, polishing=True)
     result = solver.solve(raise_error=False)  # failures are handled below (the caller brakes)
-    status = result.info.status
     if result.info.status_val != osqp.SolverStatus.OSQP_SOLVED or not np.all(np.isfinite(result.x)):
-        return None, status
+        return None
     u = np.array(result.x[:R2])
     # Unpolished answers may exceed a wheel row by ~eps: scale each robot's command into its
     # rhombus (u = 0 is always inside), so the motors never see more than the limit.
     speed = vals.upper[P + R2 :] * WHEEL_LIMIT_TOLERANCE
     over = np.abs(wheel @ u) / speed  # (2n,) rows 2r, 2r+1 belong to robot r
     scale = 1.0 / np.maximum(1.0, over.reshape(n, 2).max(1))
-    return u * np.repeat(scale, 2), status
+    return u * np.repeat(scale, 2)

@@ -59,12 +59,11 @@ def _evals(folder: Path) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
 
 
-def _final_eval(folder: Path) -> dict[str, dict[str, float]] | None:
+def _final_eval(folder: Path, algo: str) -> dict[str, dict[str, float]] | None:
     path = folder / "evaluation_unicycle.json"
     if not path.is_file():
         return None
     rows = json.loads(path.read_text())["rows"]
-    algo = "comat" if "comat" in folder.name or folder.parent.name == "runs" else folder.name.split("_")[0]
     return {r["set"]: {m: r["metrics"][m]["mean"] for m in ("success", "completion", "return")}
             for r in rows if r["policy"] == algo}
 
@@ -75,12 +74,12 @@ def load_runs() -> list[dict]:
         m = NAME.match(folder.name)
         if m and (folder / "progress.csv").is_file():
             runs.append({"variant": m["variant"], "task": m["task"], "seed": int(m["seed"]), "budget": int(m["steps"]),
-                         "curve": _curve(folder), "evals": _evals(folder), "final": _final_eval(folder)})
+                         "curve": _curve(folder), "evals": _evals(folder), "final": _final_eval(folder, "comat")})
     for algo, variant in (("mat", "mat"), ("comat", "a_control")):
         for folder in sorted(SWEEP.glob(f"{algo}_*_s*")):
             task, seed = folder.name.split("_")[1], int(folder.name.split("_s")[-1])
             runs.append({"variant": variant, "task": task, "seed": seed, "budget": 300_000, "curve": _curve(folder),
-                         "evals": _evals(folder), "final": _final_eval(folder)})
+                         "evals": _evals(folder), "final": _final_eval(folder, algo)})
     return runs
 
 
