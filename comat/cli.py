@@ -16,6 +16,7 @@ __all__ = ["main"]
 
 
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
+from comat.team import COALITION_SETS
 from sim2real.cli import add_export_parser
 
 
@@ -41,7 +42,8 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
     for task, split in sorted(CAPABILITY_RANGES):
         teams = generate_coalitions(task, split, args.count, args.seed)
         path = Path(args.out) / f"{task}_{split}.yaml"
-        save_coalitions(teams, path, header=f"comat coalitions --seed {args.seed} --count {args.count}: U_{split} for {task} (paper §III-D)")
+        save_coalitions(teams, path, header=f"comat coalitions --seed {args.seed} --count {args.count}: U_{split} for {task} "
+                        + ("(sizes 10-20, U_test's capability ranges)" if split == "scale" else "(paper §III-D)"))
         sizes = sorted({t.size for t in teams})
         print(f"wrote {path}: {len(teams)} teams, sizes {sizes}")
     return 0
@@ -119,7 +121,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         raise ValueError("--out is required without --checkpoint")
     if not out.is_dir():
         raise FileNotFoundError(f"--out folder {str(out)!r} does not exist (create it first)")
-    sets = ["train", "test"] if args.set == "both" else [args.set]
+    sets = {"both": ["train", "test"], "all": list(COALITION_SETS)}.get(args.set, [args.set])
     print(f"comat eval: {args.checkpoint or 'reference policies'} on {', '.join(sets)} coalitions, "
           f"{args.episodes} episode(s) per coalition", file=sys.stderr)
     result = evaluate_policies(args.checkpoint, args.task, sets, args.episodes, args.tier, args.seed,
@@ -177,7 +179,7 @@ def _print_sweep_status(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"--out {args.out!r} does not exist: no sweep has run there "
                                 f"(start it with the same command without --status)")
     rows = sweep_status(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
-                        args.eval_tiers, [] if args.no_eval else ["train", "test"], tuple(args.overrides))
+                        args.eval_tiers, [] if args.no_eval else args.eval_sets, tuple(args.overrides))
     print(f"{'job':<18}{'state':<8}{'env steps':>22}{'env-steps/s':>13}{'time left':>11}")
     for r in rows:
         rate = "-" if r["env_steps_per_s"] is None else f"{r['env_steps_per_s']:.0f}"
@@ -200,7 +202,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.status:
         return _print_sweep_status(args)
     records = run_sweep(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
-                        args.eval_tiers, [] if args.no_eval else ["train", "test"], args.episodes, args.address,
+                        args.eval_tiers, [] if args.no_eval else args.eval_sets, args.episodes, args.address,
                         args.jobs, overrides=tuple(args.overrides))
     failed = [r for r in records if "error" in r]
     print(f"comat sweep: {len(records) - len(failed)} of {len(records)} jobs finished; report with: comat report "
@@ -343,7 +345,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint", default=None, help="a run's checkpoint.pt")
     p.add_argument("--task", choices=["hmt", "pcp"], default=None,
                    help="task (default: the checkpoint's; required without --checkpoint)")
-    p.add_argument("--set", choices=["train", "test", "both"], default="both", help="coalition set(s) (default: both)")
+    p.add_argument("--set", choices=[*COALITION_SETS, "both", "all"], default="both",
+                   help="coalition set(s): both = train and test, all = train, test and scale (default: both)")
     p.add_argument("--episodes", type=int, default=1, help="episodes per coalition (default: %(default)s)")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default=None,
                    help="dynamics tier (default: the one the checkpoint trained in)")
@@ -386,6 +389,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="training tier (default: the preset's)")
     p.add_argument("--eval-tiers", nargs="+", choices=["wheels", "unicycle"], default=["unicycle"],
                    help="tiers to evaluate each final policy in (default: %(default)s)")
+    p.add_argument("--eval-sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
+                   help="coalition sets to evaluate each final policy on (default: %(default)s; scale needs "
+                        "baselines with 20 slots, models.<algo>.max_robots=20)")
     p.add_argument("--episodes", type=int, default=1, help="evaluation episodes per coalition (default: %(default)s)")
     p.add_argument("--no-eval", action="store_true", help="train only")
     p.add_argument("--jobs", type=int, default=None, help="jobs at once on a local Ray instance (default: CPUs)")

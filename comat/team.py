@@ -27,6 +27,7 @@ import numpy as np
 
 __all__ = [
     "CAPABILITY_RANGES",
+    "COALITION_SETS",
     "SIZES",
     "TASK_TYPES",
     "RobotSpec",
@@ -62,7 +63,12 @@ TASK_TYPES: dict[str, TaskTypes] = {
     "hmt": TaskTypes(("fast", "slow"), ("speed_m", "payload"), ((0.0, 0.488), (0.0, 100.0)), ((0, 1), (0, 1))),
 }
 
-SIZES = {"train": (3, 5, 7), "test": (2, 4, 6, 8)}
+SIZES = {"train": (3, 5, 7), "test": (2, 4, 6, 8), "scale": (10, 12, 16, 20)}
+"""Team sizes of each composition set. U_scale goes past the 8 slots of the paper's baselines up to the
+Robotarium's 20 robots, with U_test's capability ranges: the sizes where fixed-slot methods stop."""
+
+COALITION_SETS = ("train", "test", "scale")
+"""The named composition sets, in the order commands list them: U_train, U_test, U_scale."""
 
 CAPABILITY_RANGES: dict[tuple[str, str], dict[str, tuple[tuple[float, float], ...]]] = {
     ("pcp", "train"): {"sensing": ((0.30, 0.55), (0.0, 0.0)), "capture": ((0.0, 0.0), (0.35, 0.45))},
@@ -71,6 +77,14 @@ CAPABILITY_RANGES: dict[tuple[str, str], dict[str, tuple[tuple[float, float], ..
     ("hmt", "test"): {"fast": ((0.15, 0.35), (7.0, 15.0)), "slow": ((0.08, 0.18), (13.0, 28.0))},
 }
 """(task, split) -> type -> per-capability uniform (low, high) ranges, from the paper §III-D."""
+# U_scale changes only the team sizes: the unseen capability ranges are U_test's.
+CAPABILITY_RANGES[("pcp", "scale")] = CAPABILITY_RANGES[("pcp", "test")]
+CAPABILITY_RANGES[("hmt", "scale")] = CAPABILITY_RANGES[("hmt", "test")]
+
+# Random stream of each set. Fixed numbers, not positions in a sorted list, so that adding a set
+# never changes the teams of another (the first four are the sets' original sorted positions).
+_STREAMS = {("hmt", "test"): 0, ("hmt", "train"): 1, ("pcp", "test"): 2, ("pcp", "train"): 3,
+            ("hmt", "scale"): 4, ("pcp", "scale"): 5}
 
 
 @dataclass(frozen=True)
@@ -182,8 +196,7 @@ def generate_coalitions(task: str, split: str, count: int = 20, seed: int = 0) -
     if (task, split) not in CAPABILITY_RANGES:
         raise ValueError(f"(task, split) must be one of {sorted(CAPABILITY_RANGES)}, got {(task, split)!r}")
     # One stream per (task, split), derived from the seed, so the sets do not depend on each other.
-    key = sorted(CAPABILITY_RANGES).index((task, split))
-    rng = np.random.default_rng([seed, key])
+    rng = np.random.default_rng([seed, _STREAMS[(task, split)]])
     sizes = rng.choice(SIZES[split], size=count)
     return [random_team(rng, task, split, int(n)) for n in sizes]
 

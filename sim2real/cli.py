@@ -24,18 +24,18 @@ __all__ = ["add_export_parser", "load_start_poses", "parse_team"]
 
 
 def parse_team(value: str, task: str):
-    """A TeamSpec from ``train:K`` / ``test:K`` (coalition K of the paper's set) or a JSON file."""
+    """A TeamSpec from ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set) or a JSON file."""
     from comat.envs.base import resolve_coalitions
-    from comat.team import TeamSpec
+    from comat.team import COALITION_SETS, TeamSpec
 
     split, sep, index = value.partition(":")
-    if sep and split in ("train", "test"):
+    if sep and split in COALITION_SETS:
         teams = resolve_coalitions(split, task)
         if not index.isdigit() or int(index) >= len(teams):
             raise ValueError(f"--team {value!r}: index must be 0..{len(teams) - 1}")
         return teams[int(index)]
     path = Path(value)
-    expected = "'train:K', 'test:K' or a JSON file with {'robots': [...]}"
+    expected = "'train:K', 'test:K', 'scale:K' or a JSON file with {'robots': [...]}"
     if not path.is_file():
         why = "a folder" if path.is_dir() else "no such file"
         raise ValueError(f"--team must be {expected}, got {value!r} ({why})")

@@ -146,7 +146,7 @@ def test_graph_inputs_any_size():
     [
         ({"colour": "red"}, r"unknown option\(s\) \['colour'\] for pcp_v0; valid options:"),
         ({"tier": "legs"}, r"SimConfig.tier must be one of"),
-        ({"coalitions": "validation"}, r"coalitions must be 'train', 'test', a YAML path or a non-empty list"),
+        ({"coalitions": "validation"}, r"coalitions must be 'train', 'test', 'scale', a YAML path or a non-empty list"),
         ({"team": {"robots": []}}, r"needs at least one robot of each type"),
         ({"team": {"robots": [{"type": "sensing", "capabilities": [0.4, 0.0]}]}}, r"missing \['capture'\]"),
         ({"team": {"robots": [{"type": "sensing", "capabilities": [2.0, 0.0]}, {"type": "capture", "capabilities": [0.0, 0.3]}]}}, r"sensing_radius_m must be in \[0.0, 1.0\]"),

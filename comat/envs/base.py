@@ -19,7 +19,7 @@ from pettingzoo import ParallelEnv
 
 from comat.config import SafetyConfig, SimConfig
 from comat.envs.core import TaskCore
-from comat.team import TeamSpec, generate_coalitions, load_coalitions
+from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coalitions
 
 __all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team", "team_source"]
 
@@ -41,20 +41,21 @@ def resolve_team(value: Any, task: str, name: str = "team") -> TeamSpec:
 
 
 def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
-    """The coalition set: "train" or "test" (the paper's sets), a YAML path, or a list of teams."""
-    if isinstance(value, str) and value in ("train", "test"):
+    """The coalition set: "train", "test" or "scale" (:data:`comat.team.COALITION_SETS`), a YAML path,
+    or a list of teams."""
+    if isinstance(value, str) and value in COALITION_SETS:
         return generate_coalitions(task, value, seed=COALITION_SEED)
     if isinstance(value, (str, Path)):
         if not Path(value).is_file():
             raise ValueError(
-                f"coalitions must be 'train', 'test', a YAML path or a non-empty list of teams, got {str(value)!r} "
+                f"coalitions must be 'train', 'test', 'scale', a YAML path or a non-empty list of teams, got {str(value)!r} "
                 "(no such file)"
             )
         teams = load_coalitions(value)
     elif isinstance(value, Sequence) and len(value) > 0:
         teams = [resolve_team(t, task, f"coalitions[{i}]") for i, t in enumerate(value)]
     else:
-        raise ValueError(f"coalitions must be 'train', 'test', a YAML path or a non-empty list of teams, got {value!r}")
+        raise ValueError(f"coalitions must be 'train', 'test', 'scale', a YAML path or a non-empty list of teams, got {value!r}")
     for i, t in enumerate(teams):
         if t.task != task:
             raise ValueError(f"coalitions[{i}] is a {t.task!r} team, but this environment runs {task!r}")

@@ -25,6 +25,7 @@ import numpy as np
 from comat.eval.episodes import run_episodes
 from comat.eval.metrics import REPORTED, summarize_ci
 from comat.files import write_atomic
+from comat.team import COALITION_SETS
 
 __all__ = ["BEST_CONSTANT_ACTION", "EVAL_SEED", "evaluate_policies", "print_table", "write_results"]
 
@@ -35,7 +36,7 @@ when every robot always takes it (all five tried, one episode per coalition, EVA
 tests/test_eval.py): +x on both. On PCP it captures half the prey (return 16.4, 20 % of the
 episodes finished): early learning curves must beat it to mean anything."""
 """Default seed of evaluation episodes (never a training seed of the presets)."""
-SETS = ("train", "test")
+SETS = COALITION_SETS
 
 
 def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
@@ -60,14 +61,14 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     Args:
         checkpoint: a run's ``checkpoint.pt`` (or None: reference policies on ``task`` only).
         task: the task (taken from the checkpoint when given; must match it).
-        sets: any of "train", "test".
+        sets: any of "train", "test", "scale".
         episodes: episodes per coalition (>= 1).
         tier: dynamics tier (default: the checkpoint's training tier, else unicycle).
         references: add the heuristic, constant and random rows.
     """
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
-    from comat.rl.algos import BASELINE_ROBOTS, uses_state
+    from comat.rl.algos import robot_slots, uses_state
     from comat.rl.runner import load_policy
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
@@ -84,8 +85,14 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     tier = tier or (config.tier if config else "unicycle")
     if tier not in ("wheels", "unicycle"):
         raise ValueError(f"tier must be 'wheels' or 'unicycle', got {tier!r}")
-    slots = BASELINE_ROBOTS if config is not None and config.algo != "comat" else None
+    slots = None if config is None else robot_slots(config)
     use_state = config is not None and uses_state(config.algo)
+    largest = {split: max(t.size for t in resolve_coalitions(split, task)) for split in sets}
+    too_large = [s for s in sets if slots is not None and largest[s] > slots]
+    if too_large:
+        raise ValueError(f"sets {too_large} hold teams of up to {max(largest[s] for s in too_large)} robots, but this "
+                         f"{config.algo} checkpoint has {slots} robot slots (fixed-size: train it with "
+                         f"models.{config.algo}.max_robots=20 to play U_scale)")
     rows = []
     for split in sets:
         teams = resolve_coalitions(split, task) * episodes

@@ -2,7 +2,8 @@
 
 ``Dims`` are the sizes a model is built from (stored in checkpoints, so a policy can be
 rebuilt without an environment). Fixed-size baselines (MAT, MAPPO, QMIX) get environments with
-``BASELINE_ROBOTS`` (8) robot slots, as in the paper; COMAT gets as many as its teams need.
+``max_robots`` robot slots from their model config (``BASELINE_ROBOTS``, 8, by default, as in the
+paper; 20 to play U_scale); COMAT gets as many as its teams need.
 """
 
 from __future__ import annotations
@@ -20,9 +21,16 @@ from comat.models.qmix import QmixAgents, QmixMixer
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
 
-__all__ = ["BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "make_learner", "policy_act"]
+__all__ = ["BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "make_learner", "policy_act", "robot_slots"]
 
 BASELINE_ROBOTS = 8
+"""Default robot slots of the fixed-size baselines (``max_robots`` of their model configs)."""
+
+
+def robot_slots(config) -> int | None:
+    """Robot slots of the environments a run's policy plays in: None (as many as the team has) for
+    COMAT, the model config's ``max_robots`` for the fixed-size baselines."""
+    return None if config.algo == "comat" else config.model.max_robots
 
 
 @dataclass(frozen=True)

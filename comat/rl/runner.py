@@ -31,7 +31,7 @@ from comat.config import SimConfig
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
-from comat.rl.algos import BASELINE_ROBOTS, Dims, build_modules, make_learner, policy_act, uses_state
+from comat.rl.algos import Dims, build_modules, make_learner, policy_act, robot_slots, uses_state
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
 from comat.rl.config import RunConfig
 from comat.rl.logger import ProgressLine, RunLogger
@@ -44,7 +44,7 @@ _SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "inte
 
 
 def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
-    slots = None if config.algo == "comat" else BASELINE_ROBOTS
+    slots = robot_slots(config)
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
     return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
                               sim=sim, coalitions=coalitions, max_robots=slots)
@@ -114,7 +114,7 @@ def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: i
         record_episodes(path, config.task, policy_act(config.algo, modules),
                         teams=resolve_coalitions("train", config.task)[:episodes],
                         seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier, use_state=uses_state(config.algo),
-                        max_robots=None if config.algo == "comat" else BASELINE_ROBOTS,
+                        max_robots=robot_slots(config),
                         policy_name=f"{config.algo} after {steps:,} env steps")
     finally:
         for m in modules.values():

@@ -17,6 +17,8 @@ import shlex
 import sys
 import time
 
+from comat.team import COALITION_SETS
+
 __all__ = ["add_rollout_parser", "add_viz_bench_parser", "cmd_rollout", "cmd_viz_bench"]
 
 
@@ -91,7 +93,7 @@ def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--set",
-        choices=["train", "test"],
+        choices=list(COALITION_SETS),
         default="test",
         help="coalition set the teams are drawn from (default: %(default)s, teams unseen in training)",
     )

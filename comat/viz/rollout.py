@@ -30,7 +30,7 @@ import numpy as np
 import rerun as rr
 
 from comat.envs.heuristics import heuristic_actions, random_actions
-from comat.team import TeamSpec
+from comat.team import COALITION_SETS, TeamSpec
 from comat.viz.blueprint import rollout_blueprint
 from comat.viz.recorder import EpisodeRecorder
 
@@ -127,7 +127,7 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     if not Path(policy).is_file():
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
-    from comat.rl.algos import BASELINE_ROBOTS, uses_state
+    from comat.rl.algos import robot_slots, uses_state
     from comat.rl.runner import load_policy
 
     act, config = load_policy(policy, task=task)  # CheckpointError (a ValueError) names a task mismatch
@@ -135,7 +135,7 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         f"{config.algo} checkpoint {Path(policy).name}",
         lambda env, seed: act,
         use_state=uses_state(config.algo),
-        max_robots=None if config.algo == "comat" else BASELINE_ROBOTS,
+        max_robots=robot_slots(config),
         tier=config.tier,
     )
 
@@ -260,8 +260,8 @@ def record_episodes(
     episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
     if teams is not None and len(teams) < episodes:
         raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
-    if coalitions not in ("train", "test"):
-        raise ValueError(f"coalitions must be 'train' or 'test', got {coalitions!r}")
+    if coalitions not in COALITION_SETS:
+        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)}, got {coalitions!r}")
     import comat
 
     tier = tier or spec.tier or "wheels"
