@@ -15,8 +15,8 @@ import time
 __all__ = ["main"]
 
 
-from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from comat.team import COALITION_SETS
+from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from sim2real.cli import add_export_parser
 
 
@@ -420,7 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "next to the Robotarium simulator's loop per env step.")
     b.add_argument("--tasks", nargs="+", choices=["pcp", "hmt"], default=["pcp", "hmt"])
     b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["wheels", "unicycle"])
-    b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 16], help="team sizes (default: %(default)s)")
+    b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 12, 16, 20], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
     b.add_argument("--out", default=None,
