@@ -246,7 +246,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "soak":
         from comat.bench.soak import run_soak
 
-        result = run_soak(args.episodes, args.wheels_share, args.seed, args.out)
+        result = run_soak(args.episodes, args.wheels_share, args.seed, args.out, sets=args.sets)
         return 0 if all(c["pass"] for c in result["checks"].values()) else 1
     if args.what == "fidelity":
         from comat.bench.fidelity_bench import run_fidelity_bench
@@ -449,12 +449,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="benchmarks/results/learn.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("soak", help="many reference-policy episodes: contacts, collisions, NaN, memory drift",
-                        description="Episodes of the scripted and the random policy on U_train and U_test of both "
+                        description="Episodes of the scripted and the random policy on composition sets of both "
                         "tasks (unicycle tier, a share in the wheels tier): every contact, collision, boundary exit, "
                         "actuator error, NaN, filter recovery and fallback counted, and resident memory after each "
-                        "thousand episodes. Not part of the tests: one round of 160 episodes took 2 min on this 2-core "
-                        "machine (under load), so 10,000 take an hour or more.")
+                        "thousand episodes. Not part of the tests: one round of 160 episodes (U_train and U_test) "
+                        "took 2 min on this 2-core machine (under load), so 10,000 take an hour or more.")
     b.add_argument("--episodes", type=int, default=10_000, help="at least this many episodes (default: %(default)s)")
+    b.add_argument("--sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
+                   help="composition sets (default: %(default)s; scale: 10-20 robots, slower per episode)")
     b.add_argument("--wheels-share", type=float, default=0.1,
                    help="share of rounds run in the wheels tier (default: %(default)s)")
     b.add_argument("--seed", type=int, default=0, help="seed of the episodes (default: %(default)s)")
