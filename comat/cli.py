@@ -436,10 +436,12 @@ def build_parser() -> argparse.ArgumentParser:
                         description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "
                         "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
                         "algorithm on PCP in the unicycle tier with the paper's settings.")
-    b.add_argument("--algos", nargs="+", choices=["comat", "comat_paper", "mat", "mappo", "qmix"],
+    b.add_argument("--algos", nargs="+",
+                   choices=["comat", "comat_paper", "mat", "mappo", "qmix", "mat_20", "mappo_20", "qmix_20"],
                    default=["comat", "comat_paper", "mat", "mappo", "qmix"],
                    help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
-                   "to compare today's default with it in one run (default: all)")
+                   "to compare today's default with it in one run; mat_20, mappo_20, qmix_20: the baseline with 20 "
+                   "robot slots instead of 8 (default: %(default)s)")
     b.add_argument("--workers", type=int, nargs="+", default=[1, 2],
                    help="environment worker processes to compare (default: %(default)s)")
     b.add_argument("--iterations", type=int, default=2,
