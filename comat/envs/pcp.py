@@ -7,10 +7,11 @@
 | Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a 0.2 m waypoint for the robot's projected point |
 | Step | 29 control ticks of 0.033 s (0.96 s): waypoint controller → safety filter → MuJoCo |
 | Observation | Box(13,) float64, below |
-| State | Box(4K + 8·13,): prey (x, y) ×K, sensed ×K, captured ×K, then 8 robots' observations |
+| State | Box(4K + M·13,): prey (x, y) ×K, sensed ×K, captured ×K, then the observations of M = ``max_robots`` slots (the largest team; 8 or 20 for the fixed-size baselines) |
 | Horizon | 80 steps; ends early when every prey is captured |
 | Prey | K = 6 static prey, ≥ 0.2 m apart in x ∈ [0.5, 1.4], y ∈ [−0.85, 0.85] |
 | Spawn | robots ≥ 0.3 m apart in x ∈ [−1.4, −0.5], y ∈ [−0.85, 0.85], random headings |
+| Large teams | U_scale has 10–20 robots. The 6 prey stay, so a 20-robot team has over three robots per prey; 16–20 robots take 16–20 of the spawn area's 24 places on its 0.3 m grid (random cells once random placement fails): a tight block at the start |
 
 Observation layout (per robot, fixed length whatever the team size):
 

@@ -68,7 +68,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     """
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
-    from comat.rl.algos import robot_slots, uses_state
+    from comat.rl.algos import BASELINE_ROBOTS, robot_slots, uses_state
     from comat.rl.runner import load_policy
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
@@ -98,7 +98,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         teams = resolve_coalitions(split, task) * episodes
         # One process: the heuristic reads the env's task state directly.
         env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=split,
-                           max_robots=slots)
+                           max_robots=slots, state_robots=slots or BASELINE_ROBOTS)
         policies = _policies(config, act, env, seed)
         if not references:
             policies = {k: v for k, v in policies.items() if k not in ("heuristic", "constant", "random")}

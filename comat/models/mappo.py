@@ -26,7 +26,7 @@ class MappoConfig:
     hidden: int = 128
     """Hidden width of the actors and the critic."""
     max_robots: int = 8
-    """Robot slots of the environments (the critic's global state is sized by them): the paper
+    """Robot slots of the environments, which the critic's global state covers too: the paper
     trains fixed-size baselines with at most eight robots; 20 lets them play U_scale."""
 
 

@@ -21,7 +21,8 @@ from comat.models.qmix import QmixAgents, QmixMixer
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
 
-__all__ = ["BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "make_learner", "policy_act", "robot_slots"]
+__all__ = ["BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "env_slots", "make_learner", "policy_act",
+           "robot_slots"]
 
 BASELINE_ROBOTS = 8
 """Default robot slots of the fixed-size baselines (``max_robots`` of their model configs)."""
@@ -31,6 +32,13 @@ def robot_slots(config) -> int | None:
     """Robot slots of the environments a run's policy plays in: None (as many as the team has) for
     COMAT, the model config's ``max_robots`` for the fixed-size baselines."""
     return None if config.algo == "comat" else config.model.max_robots
+
+
+def env_slots(config) -> dict[str, int | None]:
+    """``max_robots`` and ``state_robots`` of a run's environments: the baselines' centralized state
+    (MAPPO's critic, QMIX's mixer) covers all their slots; COMAT's, unused, the default 8."""
+    slots = robot_slots(config)
+    return {"max_robots": slots, "state_robots": slots or BASELINE_ROBOTS}
 
 
 @dataclass(frozen=True)

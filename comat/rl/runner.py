@@ -31,7 +31,7 @@ from comat.config import SimConfig
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
-from comat.rl.algos import Dims, build_modules, make_learner, policy_act, robot_slots, uses_state
+from comat.rl.algos import Dims, build_modules, env_slots, make_learner, policy_act, robot_slots, uses_state
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
 from comat.rl.config import RunConfig
 from comat.rl.logger import ProgressLine, RunLogger
@@ -44,10 +44,9 @@ _SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "inte
 
 
 def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
-    slots = robot_slots(config)
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
     return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
-                              sim=sim, coalitions=coalitions, max_robots=slots)
+                              sim=sim, coalitions=coalitions, **env_slots(config))
 
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = ()) -> None:

@@ -267,7 +267,8 @@ def record_episodes(
     tier = tier or spec.tier or "wheels"
     slots = max_robots if max_robots is not None else spec.max_robots
     env = comat.make_env(
-        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots
+        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
+        state_robots=slots or 8,  # a baseline's centralized state covers all its slots
     )
     act = spec.bind(env, seed)
     meta = {

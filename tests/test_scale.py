@@ -1,0 +1,41 @@
+"""U_scale (teams of 10-20 robots) and the fixed-size baselines with 20 slots."""
+
+import pytest
+from test_rl import TINY_MODELS, tiny
+
+from comat.cli import main
+from comat.envs.base import resolve_coalitions
+from comat.eval.evaluate import evaluate_policies
+from comat.rl.runner import train
+from comat.team import CAPABILITY_RANGES, COALITION_SETS, SIZES, generate_coalitions
+
+
+@pytest.mark.parametrize("task", ["pcp", "hmt"])
+def test_scale_set_has_teams_past_eight_slots_with_the_unseen_ranges(task):
+    teams = resolve_coalitions("scale", task)
+    assert COALITION_SETS == ("train", "test", "scale") and len(teams) == 20
+    assert {t.size for t in teams} == set(SIZES["scale"]) == {10, 12, 16, 20}
+    assert CAPABILITY_RANGES[(task, "scale")] == CAPABILITY_RANGES[(task, "test")]
+    # Adding the set changed neither of the others (each set has its own random stream).
+    assert generate_coalitions(task, "scale") != generate_coalitions(task, "test")
+
+
+@pytest.mark.parametrize("algo", ["mappo", pytest.param("mat", marks=pytest.mark.slow),
+                                  pytest.param("qmix", marks=pytest.mark.slow)])
+def test_baselines_with_20_slots_train_on_u_train_and_play_u_scale(tmp_path, algo):
+    """A tiny run with 20 slots, then all 20 U_scale teams (MAPPO's critic state covers the 20)."""
+    wide = {**TINY_MODELS, algo: {**TINY_MODELS[algo], "max_robots": 20}}
+    config = tiny(algo, models=wide)
+    assert config.model.max_robots == 20
+    train(config, tmp_path / "run", quiet=True)
+    result = evaluate_policies(tmp_path / "run" / "checkpoint.pt", sets=("scale",), references=False, progress=lambda m: None)
+    (row,) = result["rows"]
+    assert row["set"] == "scale" and row["episodes"] == 20
+    assert max(e["team_size"] for e in row["per_episode"]) == 20
+
+
+def test_an_eight_slot_baseline_is_refused_on_u_scale(tmp_path, capsys):
+    train(tiny("mat"), tmp_path / "run", quiet=True)
+    assert main(["eval", "--checkpoint", str(tmp_path / "run" / "checkpoint.pt"), "--set", "scale"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "teams of up to 20 robots" in err and "8 robot slots" in err and "models.mat.max_robots=20" in err
