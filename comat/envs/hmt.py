@@ -7,11 +7,12 @@
 | Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a waypoint one speed-step away |
 | Step | 74 control ticks of 0.033 s (2.44 s): waypoint controller → safety filter → MuJoCo |
 | Observation | Box(15,) float64, below |
-| State | Box(4 + 8·15,): material left per zone, initial amount per zone, then 8 robots' observations |
+| State | Box(4 + M·15,): material left per zone, initial amount per zone, then the observations of M = ``max_robots`` slots (the largest team; 8 or 20 for the fixed-size baselines) |
 | Horizon | 70 steps; ends early when all material is delivered |
 | Zones | zone 1: circle r = 0.35 m at the centre; zone 2: x > 1.0 m; drop-off: x < −1.0 m |
 | Material | zone 1 = 1.5 × and zone 2 = 0.5 × the team's total payload (two full team loads) |
 | Spawn | robots ≥ 0.3 m apart in x ∈ [−1.45, −0.75], y ∈ [−0.85, 0.85], random headings |
+| Large teams | U_scale has 10–20 robots. Material follows the team's payload (two full team loads), so a 20-robot team moves about three times a 7-robot team's material through the same zones and drop-off; teams of 19–20 get the spawn area widened by 0.3 m (x ≤ −0.45: 24 places on its 0.3 m grid) |
 
 Observation layout (per robot, fixed length whatever the team size):
 
