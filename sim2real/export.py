@@ -287,11 +287,20 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
 def _load_config(folder: Path) -> dict:
     import ast
 
-    tree = ast.parse((folder / "submission_config.py").read_text())
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "CONFIG" for t in node.targets):
-            return ast.literal_eval(node.value)
-    raise ValueError(f"{folder / 'submission_config.py'} has no CONFIG literal")
+    path = folder / "submission_config.py"
+    try:
+        tree = ast.parse(path.read_bytes().decode("utf-8"))
+        for node in tree.body:
+            if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "CONFIG" for t in node.targets):
+                config = ast.literal_eval(node.value)
+                if not isinstance(config, dict):
+                    raise ValueError(f"CONFIG must be a dict, got {type(config).__name__}")
+                return config
+    except (SyntaxError, UnicodeDecodeError, ValueError) as err:
+        where = f" (line {err.lineno})" if getattr(err, "lineno", None) else ""
+        raise ValueError(f"{path} is not an exported submission config{where}: "
+                         f"{getattr(err, 'msg', None) or err}; export the folder again") from err
+    raise ValueError(f"{path} has no CONFIG literal; export the folder again")
 
 
 class CheckError(RuntimeError):
