@@ -122,10 +122,12 @@ class TaskEnv(ParallelEnv):
         self._action_space = spaces.Discrete(5)
         self.state_space = spaces.Box(-np.inf, np.inf, (self.core.state_size(),), np.float64)
         self._frames = None
+        self.render_caption = self.metadata["name"]
+        """First line drawn above every rendered frame (e.g. the policy and the episode)."""
         if render_mode == "rgb_array":
             from comat.viz.frames import EpisodeFrames  # matplotlib loads only when rendering
 
-            self._frames = EpisodeFrames(title=self.metadata["name"])
+            self._frames = EpisodeFrames()
 
     # -- spaces ---------------------------------------------------------------------------------
     def observation_space(self, agent: str) -> spaces.Box:
@@ -218,6 +220,7 @@ class TaskEnv(ParallelEnv):
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array'")
             return None
+        self._frames.title = self.render_caption
         return self._frames.frame()  # RuntimeError before the first reset
 
     def close(self) -> None:

@@ -37,13 +37,12 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     from comat.viz.rollout import POLICY_NAMES, check_rrd_path, record_episodes, resolve_policy
 
     # Every check first (output path, then policy and its task), so nothing is announced in vain.
-    out = check_rrd_path(
-        args.out or f"{args.task}_{args.policy if args.policy in POLICY_NAMES else 'checkpoint'}.rrd"
-    )
+    default = f"{args.task}_{args.policy if args.policy in POLICY_NAMES else 'checkpoint'}.rrd"
+    out = check_rrd_path(args.out or default) if args.out or not args.video else None
     policy = resolve_policy(args.policy, args.task)
     print(
         f"comat rollout: {args.task}, policy {policy.name}, {args.episodes} episode(s) from the {args.set} "
-        f"coalitions, seed {args.seed} -> {out}",
+        f"coalitions, seed {args.seed} -> {', '.join(str(p) for p in (out, args.video) if p)}",
         file=sys.stderr,
     )
     t0 = time.perf_counter()
@@ -56,6 +55,8 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         seed=args.seed,
         tier=args.tier,
         ticks_per_step=args.ticks_per_step,
+        video=args.video,
+        fps=args.fps,
     )
     for k, e in enumerate(result.episodes):
         print(
@@ -63,11 +64,15 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             f"completion {e['completion']:.0%}, collisions {int(e['collisions'])}, "
             f"filter interventions {int(e['interventions'])}"
         )
-    print(
-        f"wrote {result.path} ({result.bytes / 1024:.0f} KiB, {result.bytes_per_robot_step:.0f} B per robot-step, "
-        f"{time.perf_counter() - t0:.1f} s)"
-    )
-    print(f"open it with: rerun {shlex.quote(str(result.path))}")
+    if result.video is not None:
+        frames = sum(int(e["steps"]) + 1 for e in result.episodes)
+        print(f"wrote {result.video} ({result.video.stat().st_size / 1024:.0f} KiB, {frames} frames at {args.fps} fps)")
+    if result.path is not None:
+        print(
+            f"wrote {result.path} ({result.bytes / 1024:.0f} KiB, {result.bytes_per_robot_step:.0f} B per "
+            f"robot-step, {time.perf_counter() - t0:.1f} s)"
+        )
+        print(f"open it with: rerun {shlex.quote(str(result.path))}")
     return 0
 
 
@@ -113,8 +118,18 @@ def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
         help="control ticks per env step (default: the task's, PCP 29, HMT 74)",
     )
     p.add_argument(
-        "--out", default=None, help="output .rrd file; its folder must exist (default: <task>_<policy>.rrd)"
+        "--out",
+        default=None,
+        help="output .rrd file; its folder must exist (default: <task>_<policy>.rrd; none with --video alone)",
     )
+    p.add_argument(
+        "--video",
+        default=None,
+        metavar="FILE.mp4|FILE.gif",
+        help="also write the episodes as a video drawn top-down with matplotlib (headless; one frame per env "
+        "step): .mp4 (H.264) or .gif",
+    )
+    p.add_argument("--fps", type=_positive_int, default=10, help="video frames per second (default: %(default)s)")
     p.set_defaults(func=cmd_rollout)
     return p
 

@@ -89,6 +89,7 @@ class RolloutResult:
     wall_s: float = 0.0
     recorder_cpu_s: float = 0.0
     background_cpu_s: float = 0.0
+    video: Path | None = None
 
     @property
     def bytes_per_robot_step(self) -> float:
@@ -186,9 +187,13 @@ def play_episodes(
     use_state: bool = False,
     teams: Sequence[TeamSpec] | None = None,
     metadata: dict[str, Any] | None = None,
+    on_frame: Callable[[np.ndarray], None] | None = None,
 ) -> list[dict]:
     """Run ``episodes`` episodes of a :class:`comat.envs.TaskEnv`, each one recorded by ``recorder``
-    (a disabled recorder records nothing); returns each episode's metrics plus ``team_size``."""
+    (a disabled recorder records nothing); returns each episode's metrics plus ``team_size``.
+
+    ``on_frame``: called with ``env.render()`` (an env made with ``render_mode="rgb_array"``)
+    after every reset and every step: T + 1 frames for an episode of T steps."""
     core = env.core
     results = []
     for k in range(episodes):
@@ -198,6 +203,9 @@ def play_episodes(
             core, 0, episode=k, metadata={**(metadata or {}), "seed": seed + k, "team_size": env.team.size}
         )
         n = env.team.size
+        if on_frame is not None:
+            env.render_caption = f"{(metadata or {}).get('policy', '')} · episode {k}: {n} robots, seed {seed + k}"
+            on_frame(env.render())
         metrics: dict[str, float] = {}
         while env.agents:
             actions = np.asarray(act(core.observe(), core.mask, core.global_state() if use_state else None))[
@@ -208,6 +216,8 @@ def play_episodes(
             recorder.step(
                 actions, rewards["robot_0"], {t: info[f"reward/{t}"] for t in core.task.reward_terms}
             )
+            if on_frame is not None:
+                on_frame(env.render())
             if not env.agents:
                 metrics = {k_[len("episode/") :]: v for k_, v in info.items() if k_.startswith("episode/")}
         recorder.end(metrics)
@@ -229,6 +239,8 @@ def record_episodes(
     use_state: bool | None = None,
     max_robots: int | None = None,
     policy_name: str | None = None,
+    video: str | Path | None = None,
+    fps: int = 10,
 ) -> RolloutResult:
     """Run and record episodes of ``task`` ("pcp" or "hmt") to the ``.rrd`` file ``path``.
 
@@ -242,11 +254,18 @@ def record_episodes(
         ticks_per_step: control ticks per env step (default: the task's).
         use_state, max_robots: override what the policy declares (a trainer's own policy).
         policy_name: how the recording names the policy.
+        video: also (or, with ``path`` None, only) write the episodes as a ``.mp4`` or ``.gif``
+            of ``env.render()`` frames (:mod:`comat.viz.video`), ``fps`` frames per second, one
+            frame per env step and one at each start.
 
     Returns:
         A :class:`RolloutResult`; the file holds one recording, each episode under ``episode_<k>/``.
     """
     out = None if path is None else check_rrd_path(path)
+    if video is not None:
+        from comat.viz.video import VideoWriter, check_video_path
+
+        video = check_video_path(video)
     spec = policy if isinstance(policy, PolicySpec) else resolve_policy(policy, task)
     if teams is not None:
         teams = list(teams)
@@ -267,7 +286,8 @@ def record_episodes(
     tier = tier or spec.tier or "wheels"
     slots = max_robots if max_robots is not None else spec.max_robots
     env = comat.make_env(
-        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots
+        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
+        render_mode=None if video is None else "rgb_array",
     )
     act = spec.bind(env, seed)
     meta = {
@@ -275,7 +295,7 @@ def record_episodes(
         "coalition set": "given teams" if teams is not None else coalitions,
     }
     state = spec.use_state if use_state is None else use_state
-    rec = tmp = None
+    rec = tmp = writer = None
     t0, thread0, others0 = time.perf_counter(), time.thread_time(), time.process_time() - time.thread_time()
     if out is not None:
         tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
@@ -293,20 +313,27 @@ def record_episodes(
             rec.save(tmp, default_blueprint=rollout_blueprint(range(episodes)))
         file_cpu = time.thread_time() - thread0
         recorder = EpisodeRecorder(rec)
+        writer = None if video is None else VideoWriter(video, fps)
         results = play_episodes(
-            env, act, recorder, episodes=episodes, seed=seed, use_state=state, teams=teams, metadata=meta
+            env, act, recorder, episodes=episodes, seed=seed, use_state=state, teams=teams, metadata=meta,
+            on_frame=None if writer is None else writer.append,
         )
+        if writer is not None:
+            writer.close()
         if rec is not None:
             thread1 = time.thread_time()
             rec.disconnect()  # writes the footer: the file is complete only now
             os.replace(tmp, out)
             file_cpu += time.thread_time() - thread1
     except BaseException:
+        if writer is not None:
+            writer.abort()
         if rec is not None:
             rec.disconnect()
             tmp.unlink(missing_ok=True)
         raise
     result = _result(out, results, time.perf_counter() - t0)
+    result.video = video
     if rec is not None:
         result.recorder_cpu_s = file_cpu + recorder.cpu_s
         result.background_cpu_s = time.process_time() - time.thread_time() - others0
