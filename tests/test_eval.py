@@ -60,7 +60,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
 
     train(tiny("comat"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
-    assert main(["eval", "--checkpoint", str(ckpt), "--set", "test"]) == 0
+    assert main(["eval", "--policy", str(tmp_path / "run"), "--teams", "test"]) == 0  # a run folder: its checkpoint
     out = capsys.readouterr().out
     assert "comat" in out and "heuristic" in out and "constant" in out and "random" in out and "±" in out
     result = json.loads((tmp_path / "run" / "evaluation_unicycle.json").read_text())
@@ -82,13 +82,36 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), resolve_coalitions("test", "pcp"), seed=2_000_003)
     assert [e["return"] for e in rows["constant"]["per_episode"]] == pytest.approx([e["return"] for e in direct])
     assert rows["constant"]["metrics"]["completion"]["mean"] > rows["random"]["metrics"]["completion"]["mean"]
-    # bad input: clear errors before anything runs
-    assert main(["eval", "--checkpoint", str(ckpt), "--task", "hmt"]) == 2
-    assert "pcp" in capsys.readouterr().err
-    assert main(["eval", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
-    assert main(["eval", "--task", "pcp", "--out", str(tmp_path / "nowhere")]) == 2
-    assert "does not exist" in capsys.readouterr().err
-    assert main(["eval", "--checkpoint", str(ckpt), "--episodes", "0"]) == 2
+    # --out: never overwritten without --force (the old spellings still work, with a note)
+    assert main(["eval", "--checkpoint", str(ckpt), "--set", "test", "--no-references"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("comat: --checkpoint is deprecated") and err[1].startswith("comat: --set is deprecated")
+    assert "evaluation_unicycle.json', '" in err[2] and "' already exist; pass --force to replace" in err[2]
+    # a team file of one's own, an --out created on the way, and the rows named by the file
+    teams = tmp_path / "teams.yaml"
+    own = resolve_coalitions("train", "pcp")[:2]
+    teams.write_text(yaml.safe_dump({"coalitions": [{"robots": [r.to_dict() for r in t.robots]} for t in own]}))
+    fresh = tmp_path / "new" / "deeper"
+    assert main(["eval", "--policy", "constant", "--task", "pcp", "--teams", str(teams), "--no-references",
+                 "--out", str(fresh)]) == 0
+    capsys.readouterr()
+    mine = json.loads((fresh / "evaluation_unicycle.json").read_text())["rows"]
+    assert [(r["policy"], r["set"], r["episodes"]) for r in mine] == [("constant", str(teams), 2)]
+    env = make_vec_env("pcp_v0", 2, seed=2_000_003, tier="unicycle", coalitions=own)
+    direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), own, seed=2_000_003)
+    assert [e["return"] for e in mine[0]["per_episode"]] == pytest.approx([e["return"] for e in direct])
+    # bad input: clear errors, and a failed command leaves no folder behind
+    assert main(["eval", "--policy", str(ckpt), "--task", "hmt"]) == 2
+    assert "--task 'hmt' disagrees with the checkpoint, which is for task 'pcp'" in capsys.readouterr().err
+    assert main(["eval", "--policy", str(tmp_path / "missing.pt")]) == 2
+    assert "(no such file)" in capsys.readouterr().err
+    assert main(["eval", "--policy", "heuristic"]) == 2
+    assert "--task is needed with --policy heuristic" in capsys.readouterr().err
+    assert main(["eval", "--policy", "heuristic", "--task", "pcp"]) == 2
+    assert "--out is needed with --policy heuristic" in capsys.readouterr().err
+    assert main(["eval", "--policy", str(ckpt), "--episodes", "0", "--out", str(tmp_path / "failed" / "x")]) == 2
+    assert "episodes must be an integer >= 1" in capsys.readouterr().err
+    assert not (tmp_path / "failed").exists()
 
 
 # -- comat report --------------------------------------------------------------------------------------
@@ -219,7 +242,7 @@ def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
 
     train(tiny("mappo", "hmt"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
-    assert main(["probe", "--checkpoint", str(ckpt), "--envs", "4"]) == 0
+    assert main(["probe", "--policy", str(ckpt), "--envs", "4"]) == 0
     assert "robot-weighted mean advantage" in capsys.readouterr().out
     result = json.loads((tmp_path / "run" / "probe.json").read_text())
     assert result["kind"] == "ppo" and result["algo"] == "mappo" and result["num_envs"] == 4
@@ -234,8 +257,12 @@ def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
     assert 0.0 < result["entropy"] <= math.log(5) + 1e-6
     again = json.loads(json.dumps(probe_checkpoint(ckpt, num_envs=4)))  # through JSON, as the file was
     assert again["by_team_size"] == rows  # same seed, same rollout
-    assert main(["probe", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
-    assert "does not exist" in capsys.readouterr().err
+    assert main(["probe", "--policy", str(tmp_path / "missing.pt")]) == 2
+    assert "got '" + str(tmp_path / "missing.pt") + "' (no such file)" in capsys.readouterr().err
+    assert main(["probe", "--policy", "heuristic"]) == 2
+    assert "--policy must be a checkpoint or run folder here, got 'heuristic'" in capsys.readouterr().err
+    assert main(["probe", "--policy", str(tmp_path / "run")]) == 2  # probe.json exists: not replaced
+    assert "probe.json' already exists; pass --force" in capsys.readouterr().err
 
 
 def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):

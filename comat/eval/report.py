@@ -31,7 +31,10 @@ import numpy as np
 from comat.eval.metrics import mean_ci
 from comat.files import write_atomic
 
-__all__ = ["PAPER_RETENTION", "PAPER_TABLE1", "load_run", "make_report"]
+__all__ = ["PAPER_RETENTION", "PAPER_TABLE1", "REPORT_FILES", "load_run", "make_report"]
+
+REPORT_FILES = ("table1.md", "table1.csv", "generalization.csv", "fig4_training_return.png", "fig5_generalization.png")
+"""Every file ``make_report`` writes (``comat report`` refuses to overwrite them without --force)."""
 
 ALGO_ORDER = ("mappo", "qmix", "mat", "comat")
 ALGO_LABELS = {"mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "comat": "COMAT"}
@@ -225,7 +228,7 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     missing = [r["folder"] for r in runs if r["evaluation"] is None]
     if len(missing) == len(runs):
         raise ValueError(f"none of the {len(runs)} run folder(s) has an evaluation (evaluation_<tier>.json, tier "
-                         f"{runs[0]['tier']!r}): run `comat eval --checkpoint RUN/checkpoint.pt` on each first")
+                         f"{runs[0]['tier']!r}): run `comat eval --policy RUN` on each first")
     for folder in missing:
         print(f"warning: {folder} has no evaluation in the {tier or 'training'} tier: left out of the tables",
               file=sys.stderr)

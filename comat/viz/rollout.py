@@ -44,7 +44,7 @@ __all__ = [
     "resolve_policy",
 ]
 
-POLICY_NAMES = ("heuristic", "random")
+POLICY_NAMES = ("heuristic", "random", "constant")
 """Built-in policies; any other ``--policy`` value is a checkpoint path."""
 TASKS = ("pcp", "hmt")
 
@@ -106,8 +106,15 @@ def _random(env, seed: int) -> Act:
     return lambda obs, mask, state: random_actions(rng, mask)
 
 
+def _constant(env, seed: int) -> Act:
+    from comat.eval.evaluate import BEST_CONSTANT_ACTION
+
+    action = BEST_CONSTANT_ACTION[env.task.name]
+    return lambda obs, mask, state: np.where(mask, action, 0)
+
+
 def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
-    """A :class:`PolicySpec` from ``"heuristic"``, ``"random"``, a checkpoint path or a callable.
+    """A :class:`PolicySpec` from ``"heuristic"``, ``"random"``, ``"constant"``, a checkpoint path or a callable.
 
     Raises:
         ValueError: an unknown name that is no file either, or a checkpoint for another task
@@ -119,12 +126,14 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         return PolicySpec(getattr(policy, "__name__", "policy"), lambda env, seed: policy)
     if not isinstance(policy, (str, Path)):
         raise TypeError(
-            f"policy must be 'heuristic', 'random', a checkpoint path or a callable, got {type(policy).__name__}"
+            f"policy must be 'heuristic', 'random', 'constant', a checkpoint path or a callable, got {type(policy).__name__}"
         )
     if str(policy) == "heuristic":
         return PolicySpec("heuristic", _heuristic)
     if str(policy) == "random":
         return PolicySpec("random", _random)
+    if str(policy) == "constant":
+        return PolicySpec("constant", _constant)
     if not Path(policy).is_file():
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
@@ -232,7 +241,7 @@ def record_episodes(
     *,
     episodes: int | None = None,
     teams: Sequence[TeamSpec] | None = None,
-    coalitions: str = "train",
+    coalitions: str | Sequence[TeamSpec] = "train",
     seed: int = 0,
     tier: str | None = None,
     ticks_per_step: int | None = None,
@@ -248,9 +257,10 @@ def record_episodes(
         path: output file; None runs the same episodes without recording (benchmarks).
         policy: "heuristic", "random", a checkpoint path, an ``act`` callable, or a PolicySpec.
         episodes: how many (default: one per entry of ``teams``, else 1).
-        teams: the team of each episode (else drawn from ``coalitions``, "train" or "test").
+        teams: the team of each episode (else drawn from ``coalitions``: "train", "test", "scale" or
+            a list of teams).
         seed: episode k resets with ``seed + k``.
-        tier: dynamics tier (default: the checkpoint's, else "wheels").
+        tier: dynamics tier (default: the checkpoint's, else :data:`comat.cli_args.REFERENCE_TIER`).
         ticks_per_step: control ticks per env step (default: the task's).
         use_state, max_robots: override what the policy declares (a trainer's own policy).
         policy_name: how the recording names the policy.
@@ -279,20 +289,30 @@ def record_episodes(
     episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
     if teams is not None and len(teams) < episodes:
         raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
-    if coalitions not in COALITION_SETS:
-        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)}, got {coalitions!r}")
+    if isinstance(coalitions, str) and coalitions not in COALITION_SETS:
+        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)} or a list of teams, got {coalitions!r}")
     import comat
+    from comat.cli_args import REFERENCE_TIER
 
-    tier = tier or spec.tier or "wheels"
+    tier = tier or spec.tier or REFERENCE_TIER
     slots = max_robots if max_robots is not None else spec.max_robots
+    # Given teams are the env's whole set: its robot slots fit the largest of them.
+    pool = teams if teams is not None else coalitions
+    from comat.envs.base import resolve_coalitions
+
+    largest = max(t.size for t in resolve_coalitions(pool, task))
+    if slots is not None and largest > slots:
+        raise ValueError(f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
+                         f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)")
     env = comat.make_env(
-        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
+        f"{task}_v0", coalitions=pool, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
         render_mode=None if video is None else "rgb_array",
     )
     act = spec.bind(env, seed)
     meta = {
         "policy": policy_name or spec.name,
-        "coalition set": "given teams" if teams is not None else coalitions,
+        "coalition set": "given teams" if teams is not None else coalitions if isinstance(coalitions, str)
+        else f"{len(coalitions)} teams given",
     }
     state = spec.use_state if use_state is None else use_state
     rec = tmp = writer = None
