@@ -99,7 +99,11 @@ def fig4(curves: Mapping[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]], 
         ax.set_xlabel("env steps")
         ax.set_ylabel("episode return\n(team reward, sum over steps)")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+        else:
+            ax.text(0.5, 0.5, "no training curve (fewer than two logged points per run)", transform=ax.transAxes,
+                    ha="center", va="center", fontsize=8, color="grey")
     fig.text(0.01, -0.01, "Line: mean over seeds of each run's training episode return, smoothed by a trailing mean "
              "over 5 % of the run. Band: 95 % Student-t interval over seeds (none with one seed).", fontsize=7,
              ha="left", va="top", wrap=True)
@@ -194,7 +198,8 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
             if row_i == 0:
                 ax.set_title(f"{task.upper()}: deterministic policy against team size\n"
                              f"{_budget_text(budgets.get(task, {}))}", fontsize=9)
-                ax.legend(fontsize=7)
+                if ax.get_legend_handles_labels()[0]:
+                    ax.legend(fontsize=7)
     fig.text(0.01, -0.01, "Points: mean over seeds of each seed's mean over its evaluation episodes with that many "
              "robots (U_train, U_test and U_scale where evaluated). Band: 95 % Student-t interval over seeds (none "
              "with one seed).", fontsize=7, ha="left", va="top", wrap=True)
