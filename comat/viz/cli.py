@@ -52,7 +52,9 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         source = f"the {args.teams} coalitions"
     video = None if args.video is None else check_video_path(args.video)
     stem = args.policy if pol.checkpoint is None else "checkpoint"
-    out = check_rrd_path_later(args.out or f"{task}_{stem}.rrd") if args.out or video is None else None
+    out = None
+    if args.out or video is None:
+        out = check_rrd_path(args.out or f"{task}_{stem}.rrd", "--out", folder=False)
     tier = args.tier or pol.tier
     print(
         f"comat rollout: {task}, policy {pol.name}, {args.episodes} episode(s) from {source}, {tier} tier, "
@@ -66,7 +68,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
                 stack.enter_context(new_outputs(Path(path).parent, [Path(path).name], force=args.force,
                                                 flag="--out" if path is out else "--video"))
         if out is not None:
-            check_rrd_path(out)  # its folder exists now: writable?
+            check_rrd_path(out, "--out")  # its folder exists now: writable?
         result = record_episodes(
             out,
             task,
@@ -96,18 +98,6 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         )
         print(f"open it with: rerun {shlex.quote(str(result.path))}")
     return 0
-
-
-def check_rrd_path_later(path: str):
-    """The name checks of an ``.rrd`` path that need no folder yet (it is created with ``--out``)."""
-    from pathlib import Path
-
-    p = Path(path)
-    if p.suffix != ".rrd":
-        raise ValueError(f"--out must be a file name ending in .rrd, got {str(p)!r}")
-    if p.is_dir():
-        raise ValueError(f"--out must be a file, got {str(p)!r}, which is a folder")
-    return p
 
 
 def add_rollout_parser(subparsers) -> argparse.ArgumentParser:

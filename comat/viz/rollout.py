@@ -150,8 +150,10 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     )
 
 
-def check_rrd_path(path: str | Path) -> Path:
+def check_rrd_path(path: str | Path, flag: str = "out", folder: bool = True) -> Path:
     """``path`` as a Path once it is known that an ``.rrd`` file can be written there.
+
+    ``folder=False``: only the name checks (its folder is to be created, e.g. by ``--out``).
 
     Raises:
         ValueError: naming the path and what is wrong: not ``.rrd``, a folder, a missing
@@ -159,24 +161,26 @@ def check_rrd_path(path: str | Path) -> Path:
     """
     p = Path(path)
     if p.suffix != ".rrd":
-        raise ValueError(f"out must be a file name ending in .rrd, got {str(p)!r}")
+        raise ValueError(f"{flag} must be a file name ending in .rrd, got {str(p)!r}")
     if p.is_dir():
-        raise ValueError(f"out must be a file, got {str(p)!r}, which is a folder")
+        raise ValueError(f"{flag} must be a file, got {str(p)!r}, which is a folder")
+    if not folder:
+        return p
     parent = p.parent
     if not parent.exists():
-        raise ValueError(f"out: folder {str(parent)!r} does not exist (create it first), got {str(p)!r}")
+        raise ValueError(f"{flag}: folder {str(parent)!r} does not exist (create it first), got {str(p)!r}")
     if not parent.is_dir():
-        raise ValueError(f"out: {str(parent)!r} is not a folder, got {str(p)!r}")
+        raise ValueError(f"{flag}: {str(parent)!r} is not a folder, got {str(p)!r}")
     try:  # permissions, read-only mounts, quotas: only trying tells
         fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
         os.close(fd)
         os.unlink(probe)
     except OSError as err:
         raise ValueError(
-            f"out: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}"
+            f"{flag}: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}"
         ) from err
     if p.exists() and not os.access(p, os.W_OK):
-        raise ValueError(f"out: {str(p)!r} exists and is not writable")
+        raise ValueError(f"{flag}: {str(p)!r} exists and is not writable")
     return p
 
 
