@@ -193,10 +193,13 @@ def _read_team_file(value: str, task: str, flag: str):
         data = yaml.safe_load(path.read_bytes().decode("utf-8"))
     except (UnicodeDecodeError, yaml.YAMLError) as err:
         return None, f"{flag} {value!r} must be {expected}, got a file that is not JSON/YAML ({type(err).__name__})"
-    if not isinstance(data, dict) or not ({"robots", "coalitions"} & set(data)):
-        what = "empty" if data is None else f"a {type(data).__name__}" + (
-            f" with keys {sorted(data)}" if isinstance(data, dict) else "")
-        return None, f"{flag} {value!r} must be {expected}, got {what}"
+    if data is None:
+        return None, f"{flag} {value!r} must be {expected}, got a file that is empty"
+    if not isinstance(data, dict):
+        return None, f"{flag} {value!r} must hold a JSON object (YAML mapping) {{'robots': [...]}}, got a " \
+            f"{type(data).__name__}"
+    if not {"robots", "coalitions"} & set(data):
+        return None, f"{flag} {value!r} must be {expected}, got a mapping with keys {sorted(data)}"
     return data, None
 
 

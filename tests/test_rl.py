@@ -504,7 +504,7 @@ def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, caps
                                str(tmp_path / "out")], "trainer.lr must be float, got 'fast' (str)"),
         "report_not_a_run": (["report", str(path), "--out", str(tmp_path)], "is not a run folder (no config.yaml)"),
         "check_not_a_submission": (["export", "--check", str(path)], "is not an exported submission"),
-        "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "does not exist (create it first)"),
+        "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "is a file; expected a folder"),
     }[case]
     if case == "eval_out_is_a_file":
         path.write_text("a file, not a folder")
