@@ -15,6 +15,17 @@ import time
 __all__ = ["main"]
 
 
+from comat.cli_args import (
+    ALGOS,
+    TASKS,
+    TIERS,
+    add_force,
+    add_policy,
+    add_seed,
+    add_task,
+    add_teams,
+    add_tier,
+)
 from comat.team import COALITION_SETS
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from sim2real.cli import add_export_parser
@@ -97,38 +108,32 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_checkpoint_arg(path: str) -> None:
-    """--checkpoint must name a file: a clear line for a folder or a missing path."""
-    from pathlib import Path
-
-    if Path(path).is_dir():
-        raise FileNotFoundError(f"--checkpoint {path!r} is a folder; expected a checkpoint.pt file")
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"--checkpoint {path!r} does not exist")
-
-
 def _cmd_eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from comat.eval.evaluate import evaluate_policies, print_table, write_results
+    from comat.cli_args import parse_teams, resolve_policy_arg
+    from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, write_results
+    from comat.files import new_outputs
 
-    if args.checkpoint is None and args.task is None:
-        raise ValueError("give --checkpoint (a run's checkpoint.pt), or --task for the reference policies alone")
-    if args.checkpoint is not None:
-        _check_checkpoint_arg(args.checkpoint)
-    out = Path(args.out) if args.out else (Path(args.checkpoint).parent if args.checkpoint else None)
-    if out is None:
-        raise ValueError("--out is required without --checkpoint")
-    if not out.is_dir():
-        raise FileNotFoundError(f"--out folder {str(out)!r} does not exist (create it first)")
-    sets = {"both": ["train", "test"], "all": list(COALITION_SETS)}.get(args.set, [args.set])
-    print(f"comat eval: {args.checkpoint or 'reference policies'} on {', '.join(sets)} coalitions, "
-          f"{args.episodes} episode(s) per coalition", file=sys.stderr)
-    result = evaluate_policies(args.checkpoint, args.task, sets, args.episodes, args.tier, args.seed,
-                               references=not args.no_references, progress=lambda m: print(m, file=sys.stderr))
-    print_table(result)
-    stem = f"evaluation_{result['tier']}"
-    for path in write_results(result, out, stem):
+    pol = resolve_policy_arg(args.policy, args.task)
+    if args.out is None and pol.checkpoint is None:
+        raise ValueError(f"--out is needed with --policy {pol.name} (the default is a checkpoint's run folder)")
+    out = Path(args.out) if args.out else pol.checkpoint.parent
+    named = parse_teams(args.teams, pol.task)
+    tier = args.tier or pol.tier
+    stem = f"evaluation_{tier}"
+    if pol.checkpoint is None:  # a reference policy: it, or with the other references next to it
+        refs = (pol.name,) if args.no_references else REFERENCES
+    else:
+        refs = () if args.no_references else REFERENCES
+    with new_outputs(out, [f"{stem}.json", f"{stem}.csv"], force=args.force):
+        print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} "
+              f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier", file=sys.stderr)
+        result = evaluate_policies(pol.checkpoint, pol.task, named, args.episodes, tier, args.seed,
+                                   references=refs, progress=lambda m: print(m, file=sys.stderr))
+        print_table(result)
+        paths = write_results(result, out, stem)
+    for path in paths:
         print(f"wrote {path}")
     return 0
 
@@ -136,35 +141,41 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _cmd_probe(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from comat.cli_args import resolve_policy_arg
     from comat.eval.probe import print_probe, probe_checkpoint, write_probe
+    from comat.files import new_outputs
 
-    _check_checkpoint_arg(args.checkpoint)
-    out = Path(args.out) if args.out else Path(args.checkpoint).parent
-    if not out.is_dir():
-        raise FileNotFoundError(f"--out folder {str(out)!r} does not exist (create it first)")
-    print(f"comat probe: {args.checkpoint}", file=sys.stderr)
-    result = probe_checkpoint(args.checkpoint, seed=args.seed, num_envs=args.envs)
-    print_probe(result)
-    print(f"wrote {write_probe(result, out)}")
+    pol = resolve_policy_arg(args.policy, None, references=())
+    out = Path(args.out) if args.out else pol.checkpoint.parent
+    with new_outputs(out, ["probe.json"], force=args.force):
+        print(f"comat probe: {pol.checkpoint}", file=sys.stderr)
+        result = probe_checkpoint(pol.checkpoint, seed=args.seed, num_envs=args.envs)
+        print_probe(result)
+        path = write_probe(result, out)
+    print(f"wrote {path}")
     return 0
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from comat.eval.report import REPORT_FILES, make_report
+    from comat.files import new_outputs
 
-    from comat.eval.report import make_report
-
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    result = make_report(args.runs, out, args.tier)
+    with new_outputs(args.out, REPORT_FILES, force=args.force) as out:
+        result = make_report(args.runs, out, args.tier)
     print(f"comat report: {result['runs']} runs ({', '.join(f'{k}: {v}' for k, v in result['groups'].items())})")
     print((out / "table1.md").read_text())
     for row in result["generalization"]:
         if not row["seeds"]:
             continue  # no runs of this algorithm on this task (yet)
-        retention = "undefined (train return <= 0)" if math.isnan(row["retention"]) else f"{100 * row['retention']:.0f}%"
-        print(f"  {row['algo']:<6}{row['task']:<4} train return {row['train_return']:.2f}, unseen "
-              f"{row['test_return']:.2f}, retention {retention}")
+        line = f"  {row['algo']:<6}{row['task']:<4}"
+        for split in ("train", "test", "scale"):
+            if not math.isnan(row.get(f"{split}_progress", math.nan)):
+                line += f" {split} progress {100 * row[f'{split}_progress']:.0f}%"
+        for split in ("test", "scale"):
+            value = row.get(f"{split}_retention", math.nan)
+            if not math.isnan(value):
+                line += f", {split}/train retention {100 * value:.0f}%"
+        print(line)
     for name in result["files"]:
         print(f"wrote {out / name}")
     return 0
@@ -304,7 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
                        "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) A quick COMAT trains on "
                        "PCP (about 5 minutes) and plays the training and unseen coalitions next to a random policy.")
-    p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels", help="dynamics tier (default: %(default)s)")
+    p.add_argument("--tier", choices=TIERS, default="wheels", help="dynamics tier (default: %(default)s)")
     p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
     p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
@@ -317,12 +328,12 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Train a policy on the task's training coalitions (U_train), with periodic "
                        "evaluation, CSV + TensorBoard logs, atomic checkpoints and --resume. Settings come from a "
                        "preset in train/configs/ (values only); the resolved config is written to the run folder.")
-    p.add_argument("--algo", choices=["comat", "mat", "mappo", "qmix"], help="algorithm (required for a new run)")
-    p.add_argument("--task", choices=["hmt", "pcp"], help="task (required for a new run)")
+    p.add_argument("--algo", choices=ALGOS, help="algorithm (required for a new run)")
+    p.add_argument("--task", choices=TASKS, help="task (required for a new run)")
     p.add_argument("--preset", default="paper",
                    help="preset name in train/configs/ (paper, quick, learning, sweep) or a YAML path (default: %(default)s)")
     p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
-    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="dynamics tier (default: the preset's)")
+    p.add_argument("--tier", choices=TIERS, default=None, help="dynamics tier (default: the preset's)")
     p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")
     p.add_argument("--env-workers", type=int, default=None,
                    help="processes stepping the environments (default: the preset's; results are reproducible "
@@ -338,21 +349,21 @@ def build_parser() -> argparse.ArgumentParser:
                    "models.comat.heads=8 total_env_steps=200000); typed and checked like the preset")
     p.set_defaults(func=_cmd_train)
 
-    p = sub.add_parser("eval", help="evaluate a checkpoint (and reference policies) on training and unseen coalitions",
+    p = sub.add_parser("eval", help="evaluate a policy (and reference policies) on training and unseen coalitions",
                        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
-                       "scripted heuristic and a random policy, on U_train and/or U_test: a table on screen, "
-                       "evaluation_<tier>.json and .csv in --out (default: the checkpoint's run folder).")
-    p.add_argument("--checkpoint", default=None, help="a run's checkpoint.pt")
-    p.add_argument("--task", choices=["hmt", "pcp"], default=None,
-                   help="task (default: the checkpoint's; required without --checkpoint)")
-    p.add_argument("--set", choices=[*COALITION_SETS, "both", "all"], default="both",
-                   help="coalition set(s): both = train and test, all = train, test and scale (default: both)")
+                       "scripted heuristic, the best constant action and a random policy, on the coalition sets "
+                       "(U_train, U_test, U_scale) or teams of your own: a table on screen, evaluation_<tier>.json "
+                       "and .csv in --out (default: the checkpoint's run folder).")
+    add_policy(p)
+    add_task(p)
+    add_teams(p)
     p.add_argument("--episodes", type=int, default=1, help="episodes per coalition (default: %(default)s)")
-    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None,
-                   help="dynamics tier (default: the one the checkpoint trained in)")
-    p.add_argument("--seed", type=int, default=2_000_003, help="evaluation seed (default: %(default)s)")
-    p.add_argument("--no-references", action="store_true", help="skip the heuristic and random rows")
-    p.add_argument("--out", default=None, help="output folder (default: the checkpoint's folder)")
+    add_tier(p)
+    add_seed(p, "evaluation seed")
+    p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
+    p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
+                   "folder)")
+    add_force(p)
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("probe", help="a checkpoint's value estimates next to the rewards its policy earns",
@@ -361,33 +372,40 @@ def build_parser() -> argparse.ArgumentParser:
                        "advantage the policy loss sees); for QMIX greedy episodes (Q_tot at the start against "
                        "the discounted return, the agents' action gap, the mixer's gain, greedy action shares). "
                        "Both next to the bound max step reward / (1 - gamma). A table and probe.json in --out.")
-    p.add_argument("--checkpoint", required=True, help="a run's checkpoint.pt")
-    p.add_argument("--seed", type=int, default=None, help="environment and sampling seed (default: the run's)")
+    add_policy(p, required=True, references=())
+    p.add_argument("--seed", type=int, default=None,
+                   help="environment and sampling seed (default: the run's own, to replay its training rollout)")
     p.add_argument("--envs", type=int, default=None, help="environments (default: the run's num_envs)")
-    p.add_argument("--out", default=None, help="output folder (default: the checkpoint's folder)")
+    p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
+                   "folder)")
+    add_force(p)
     p.set_defaults(func=_cmd_probe)
 
-    p = sub.add_parser("report", help="Table I, Fig. 4 and Fig. 5 from run folders",
+    p = sub.add_parser("report", help="Table I, Fig. 4, Fig. 5 and team-size figure from run folders",
                        description="Aggregate run folders (algorithms x tasks x seeds) into the paper's Table I "
-                       "(markdown + CSV, next to the paper's values), the train-vs-unseen generalization table, Fig. 4 "
-                       "(training return vs env steps) and Fig. 5 (train vs unseen return, retention %) as PNG.")
+                       "(markdown + CSV, next to the paper's values and the env-step budget), the generalization "
+                       "table (progress retention per composition set), aggregates over seeds x coalitions "
+                       "(interquartile mean and stratified-bootstrap intervals, rliable), Fig. 4 (training return "
+                       "vs env steps), Fig. 5 (train vs unseen) and return/progress vs team size, as PNG and PDF. "
+                       "Runs need `comat eval` first.")
     p.add_argument("runs", nargs="+", help="run folders (each with config.yaml, progress.csv, evaluation_<tier>.json)")
-    p.add_argument("--out", default="results", help="output folder (default: %(default)s)")
-    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None,
+    p.add_argument("--out", default="results", help="output folder, created if missing (default: %(default)s)")
+    p.add_argument("--tier", choices=TIERS, default=None,
                    help="which evaluation to read (default: each run's training tier)")
+    add_force(p)
     p.set_defaults(func=_cmd_report)
 
     p = sub.add_parser("sweep", help="train and evaluate a grid of runs as resumable Ray jobs",
                        description="Algorithms x tasks x seeds as independent Ray jobs (a local Ray instance, or a "
                        "cluster with --address), one run folder each under --out. Re-running the same command skips "
                        "finished jobs and resumes interrupted ones.")
-    p.add_argument("--algos", nargs="+", choices=["comat", "mat", "mappo", "qmix"], default=["comat", "mat", "mappo", "qmix"])
-    p.add_argument("--tasks", nargs="+", choices=["hmt", "pcp"], default=["pcp", "hmt"])
-    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS), help="algorithms (default: all)")
+    p.add_argument("--tasks", nargs="+", choices=TASKS, default=list(TASKS), help="tasks (default: %(default)s)")
+    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="run seeds (default: %(default)s)")
     p.add_argument("--preset", default="paper", help="preset name or YAML path (default: %(default)s)")
     p.add_argument("--steps", type=int, default=None, help="env steps per run (default: the preset's)")
-    p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="training tier (default: the preset's)")
-    p.add_argument("--eval-tiers", nargs="+", choices=["wheels", "unicycle"], default=["unicycle"],
+    p.add_argument("--tier", choices=TIERS, default=None, help="training tier (default: the preset's)")
+    p.add_argument("--eval-tiers", nargs="+", choices=TIERS, default=["unicycle"],
                    help="tiers to evaluate each final policy in (default: %(default)s)")
     p.add_argument("--eval-sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
                    help="coalition sets to evaluate each final policy on (default: %(default)s; scale needs "
@@ -410,7 +428,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "with the Robotarium simulator's own loop (PyPI rps, unicycle barrier every step).")
     b.add_argument("--sizes", type=int, nargs="+", default=[2, 4, 8, 16, 32], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="teams per batch (default: %(default)s)")
-    b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["wheels", "unicycle"])
+    b.add_argument("--tiers", nargs="+", choices=TIERS, default=["wheels", "unicycle"])
     b.add_argument("--ticks", type=int, default=100, help="measured ticks per configuration (default: %(default)s)")
     b.add_argument("--rps-ticks", type=int, default=100, help="measured Robotarium iterations (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/sim.json", help="JSON output (default: %(default)s)")
@@ -418,8 +436,8 @@ def build_parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("env", help="env-steps/s with random actions per task, tier, batch and team size",
                         description="Time vector environments (safety filter at every tick) with random actions, "
                         "next to the Robotarium simulator's loop per env step.")
-    b.add_argument("--tasks", nargs="+", choices=["pcp", "hmt"], default=["pcp", "hmt"])
-    b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["wheels", "unicycle"])
+    b.add_argument("--tasks", nargs="+", choices=TASKS, default=list(TASKS), help="tasks (default: %(default)s)")
+    b.add_argument("--tiers", nargs="+", choices=TIERS, default=["wheels", "unicycle"])
     b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 12, 16, 20], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")

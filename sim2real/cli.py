@@ -1,10 +1,10 @@
 """``comat export``: write a Robotarium submission folder, or check one under rps vs MuJoCo.
 
 =========================================  ==================================================
-``comat export --checkpoint CKPT --task T  export_submission: COMAT checkpoint (or ``--policy
-  --team TEAM --out DIR [--seed S]``       heuristic``, the scripted policy), team (a JSON
-                                           file ``{"robots": [...]}`` or ``train:K``/``test:K``,
-                                           the K-th coalition of the paper's set)
+``comat export --policy CKPT|RUN|heuristic  export_submission: a COMAT checkpoint or run folder
+  --team TEAM --out DIR [--seed S]``       (or the scripted policy; the task is the checkpoint's),
+                                           team (``train:K``/``test:K``/``scale:K``, the K-th
+                                           coalition of that set, or a JSON/YAML team file)
 ``comat export --check DIR… [--tier W]     check_submission: runs DIR/main.py under the installed
   [--rps PATH]``                           rps (or the one in PATH, e.g. a V2 checkout; figures
                                            off) and the MuJoCo env; prints both (several folders:
@@ -17,36 +17,17 @@ Wired into ``comat/cli.py`` by ``add_export_parser(sub)`` in ``build_parser``.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 __all__ = ["add_export_parser", "load_start_poses", "parse_team"]
 
 
 def parse_team(value: str, task: str):
-    """A TeamSpec from ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set) or a JSON file."""
-    from comat.envs.base import resolve_coalitions
-    from comat.team import COALITION_SETS, TeamSpec
+    """A TeamSpec from ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set) or a JSON/YAML file
+    (:func:`comat.cli_args.parse_team`, the grammar every command shares)."""
+    from comat.cli_args import parse_team as parse
 
-    split, sep, index = value.partition(":")
-    if sep and split in COALITION_SETS:
-        teams = resolve_coalitions(split, task)
-        if not index.isdigit() or int(index) >= len(teams):
-            raise ValueError(f"--team {value!r}: index must be 0..{len(teams) - 1}")
-        return teams[int(index)]
-    path = Path(value)
-    expected = "'train:K', 'test:K', 'scale:K' or a JSON file with {'robots': [...]}"
-    if not path.is_file():
-        why = "a folder" if path.is_dir() else "no such file"
-        raise ValueError(f"--team must be {expected}, got {value!r} ({why})")
-    try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
-        what = "empty" if path.stat().st_size == 0 else f"not JSON ({type(err).__name__}: {str(err)[:80]})"
-        raise ValueError(f"--team {value!r} must be a JSON file with {{'robots': [...]}}, got a file that is {what}") from err
-    if not isinstance(data, dict):
-        raise ValueError(f"--team {value!r} must hold a JSON object {{'robots': [...]}}, got {type(data).__name__}")  # noqa: TRY004 - bad file content
-    return TeamSpec.from_dict({"task": task, **data})
+    return parse(value, task)
 
 
 def _print_check(report: dict, tier: str) -> None:
@@ -123,17 +104,20 @@ def _cmd_export(args: argparse.Namespace) -> int:
         bad = sum(r["rps"]["rps_errors"].get("boundary", 0) + r["rps"]["rps_errors"].get("collision", 0)
                   for r in reports)
         return 1 if bad else 0
-    if args.checkpoint is not None and args.policy == "heuristic":
-        raise ValueError("comat export takes --checkpoint (a COMAT policy) or --policy heuristic, not both")
-    missing = [f"--{k}" for k in ("task", "team", "out") if getattr(args, k) is None]
-    if args.checkpoint is None and args.policy != "heuristic":
-        missing.insert(0, "--checkpoint (or --policy heuristic)")
+    from comat.cli_args import resolve_policy_arg
+
+    missing = [f"--{k}" for k in ("policy", "team", "out") if getattr(args, k) is None]
     if missing:
-        raise ValueError(f"comat export needs {missing} (or --check DIR)")
-    team = parse_team(args.team, args.task)
-    policy = "heuristic" if args.policy == "heuristic" else args.checkpoint
+        raise ValueError(f"comat export needs {', '.join(missing)} (or --check DIR)")
+    pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=("comat",))
+    team = parse_team(args.team, pol.task)
     poses = None if args.start_poses is None else load_start_poses(args.start_poses)
-    out = export_submission(policy, args.task, team, args.out, start_poses=poses, seed=args.seed)
+    from comat.files import new_outputs
+
+    # export_submission refuses an existing folder itself; this removes parents it made if it fails
+    with new_outputs(Path(args.out).parent, []):
+        out = export_submission(str(pol.checkpoint or pol.name), pol.task, team, args.out, start_poses=poses,
+                                seed=args.seed)
     print(f"wrote {out}: " + ", ".join(sorted(p.name for p in out.iterdir())))
     return 0
 
@@ -144,14 +128,14 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                               description="Export a COMAT checkpoint (or the scripted policy) as a flat Robotarium "
                               "submission (main.py, runtime.py, task_logic.py, submission_config.py, weights.npy), "
                               "or --check an exported folder: run it under rps and in MuJoCo and compare.")
-    p.add_argument("--checkpoint", help="COMAT checkpoint.pt")
-    p.add_argument("--policy", choices=["checkpoint", "heuristic"], default="checkpoint",
-                   help="'heuristic': the scripted policy (reads the task state; for checking a deployment "
-                   "end to end) instead of --checkpoint (default: %(default)s)")
-    p.add_argument("--task", choices=["pcp", "hmt"])
-    p.add_argument("--team", help="'train:K' / 'test:K' (coalition K of the paper's set) or a JSON team file")
-    p.add_argument("--out", help="folder to create (must not exist)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the start poses and prey (default: %(default)s)")
+    from comat.cli_args import TIERS, add_policy, add_seed, add_task, add_team
+
+    add_policy(p, required=True, references=("heuristic",))  # no default: an export names what it ships
+    add_task(p)
+    add_team(p)
+    p.add_argument("--out", help="folder to create, with its parents (refused if it exists; removed again if the "
+                   "export fails)")
+    add_seed(p, "seed of the start poses and prey")
     p.add_argument("--start-poses", metavar="FILE", help="start poses instead of the seed's: a .npy (3, N) array or "
                    "a text file of 3 rows x, y, θ (m, m, rad); checked: inside the arena by 0.1 m, centres >= 0.4 m "
                    "apart (what the Robotarium's start-up drive can reach)")
@@ -159,8 +143,9 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                    help="--check: seconds main.py may run under rps per folder (default: %(default)s)")
     p.add_argument("--check", metavar="DIR", nargs="+",
                    help="check exported folders instead of exporting (several: one line each, then the means)")
-    p.add_argument("--tier", choices=["wheels", "unicycle"], default="wheels",
-                   help="MuJoCo tier of --check's comparison (default: %(default)s)")
+    p.add_argument("--tier", choices=TIERS, default="wheels",
+                   help="MuJoCo tier of --check's comparison (default: %(default)s: the reference next to the "
+                   "Robotarium's own simulator)")
     p.add_argument("--rps", metavar="PATH", help="--check against the rps package in PATH (e.g. a checkout of "
                    "robotarium/robotarium_python_simulator, the 2026 V2) instead of the installed one")
     p.set_defaults(func=_cmd_export)

@@ -189,3 +189,57 @@ def test_bad_actions():
         pair = TeamSpec("pcp", (RobotSpec("sensing", (0.4, 0)), RobotSpec("capture", (0, 0.4))))
         small = PcpEnv(coalitions=[pair], tier="unicycle")
         small.reset(seed=0, options={"team": random_team(np.random.default_rng(0), "pcp", "train", 5)})
+
+
+def _pixel(xy):
+    """(row, col) of arena point xy in a frame (comat.viz.frames: arena axes under a 48 px header)."""
+    from comat import constants as C
+    from comat.viz.frames import FRAME_SIZE
+
+    h, w = FRAME_SIZE
+    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
+    pad = (X1 - X0) * 0.0625 / 2
+    col = (xy[0] - X0 + pad) / (X1 - X0 + 2 * pad) * w
+    row = 48 + (Y1 + pad / 1.6 - xy[1]) / (Y1 - Y0 + 2 * pad / 1.6) * (h - 48)
+    return int(row), int(col)
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_render_rgb_array_draws_the_team_and_leaves_the_episode_unchanged(task):
+    from comat.viz.frames import FRAME_SIZE, TYPE_COLORS
+
+    env = make_env(f"{task}_v0", tier="unicycle", render_mode="rgb_array")
+    assert env.metadata["render_modes"] == ["rgb_array"] and env.render_mode == "rgb_array"
+    traced = _episode(env, seed=7, action_seed=1, steps=5)
+    frame = env.render()
+    assert frame.shape == (*FRAME_SIZE, 3) and frame.dtype == np.uint8
+    # each robot is a disc of its type's colour (sampled behind its centre, off the heading line)
+    for pose, robot in zip(env.core.poses()[0], env.team.robots):
+        back = pose[:2] - 0.04 * np.array([np.cos(pose[2]), np.sin(pose[2])])
+        assert np.abs(frame[_pixel(back)].astype(int) - TYPE_COLORS[robot.type]).max() < 40, robot.type
+    # rendering observes only: the same episode without a render mode, bit for bit
+    plain = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1, steps=5)
+    for a, b in zip(traced, plain):
+        np.testing.assert_array_equal(np.stack(list(a[0].values())), np.stack(list(b[0].values())))
+    # the same episode draws the same frames; another step draws another
+    again = make_env(f"{task}_v0", tier="unicycle", render_mode="rgb_array")
+    _episode(again, seed=7, action_seed=1, steps=5)
+    np.testing.assert_array_equal(again.render(), frame)
+    again.step({a: 1 for a in again.agents})
+    assert (again.render() != frame).any()
+    # a new episode starts a fresh drawing (trails of the new team only)
+    again.reset(seed=8)
+    assert again.render().shape == frame.shape
+
+
+def test_render_without_a_mode_warns_and_bad_modes_are_refused():
+    env = make_env("pcp_v0", tier="unicycle")
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert env.render() is None
+    with pytest.raises(ValueError, match=r"render_mode must be None or one of \['rgb_array'\], got 'human'"):
+        make_env("pcp_v0", render_mode="human")
+    with pytest.raises(RuntimeError, match="before begin"):
+        make_env("pcp_v0", render_mode="rgb_array").render()
+    with pytest.raises(ValueError, match=r"unknown option\(s\) \['render_mode'\]"):
+        comat.make_vec_env("pcp_v0", 2, render_mode="rgb_array")

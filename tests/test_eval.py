@@ -1,16 +1,19 @@
 """Evaluation: confidence intervals on hand-made episodes, `comat eval`, `comat report` on
 hand-made run folders, and a two-job `comat sweep` on a local Ray instance."""
 
+import csv
+import io
 import json
 import math
 
+import matplotlib.colors as mcolors
 import numpy as np
 import pytest
 import yaml
 
 from comat.cli import main
 from comat.eval.metrics import REPORTED, mean_ci, summarize_ci, violations
-from comat.eval.report import PAPER_TABLE1, make_report
+from comat.eval.report import PAPER_TABLE1, REPORT_FILES, make_report
 from comat.eval.sweep import plan, run_sweep, sweep_status
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
@@ -60,7 +63,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
 
     train(tiny("comat"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
-    assert main(["eval", "--checkpoint", str(ckpt), "--set", "test"]) == 0
+    assert main(["eval", "--policy", str(tmp_path / "run"), "--teams", "test"]) == 0  # a run folder: its checkpoint
     out = capsys.readouterr().out
     assert "comat" in out and "heuristic" in out and "constant" in out and "random" in out and "±" in out
     result = json.loads((tmp_path / "run" / "evaluation_unicycle.json").read_text())
@@ -82,50 +85,85 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), resolve_coalitions("test", "pcp"), seed=2_000_003)
     assert [e["return"] for e in rows["constant"]["per_episode"]] == pytest.approx([e["return"] for e in direct])
     assert rows["constant"]["metrics"]["completion"]["mean"] > rows["random"]["metrics"]["completion"]["mean"]
-    # bad input: clear errors before anything runs
-    assert main(["eval", "--checkpoint", str(ckpt), "--task", "hmt"]) == 2
-    assert "pcp" in capsys.readouterr().err
-    assert main(["eval", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
-    assert main(["eval", "--task", "pcp", "--out", str(tmp_path / "nowhere")]) == 2
-    assert "does not exist" in capsys.readouterr().err
-    assert main(["eval", "--checkpoint", str(ckpt), "--episodes", "0"]) == 2
+    # --out: never overwritten without --force (the old spellings still work, with a note)
+    assert main(["eval", "--checkpoint", str(ckpt), "--set", "test", "--no-references"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("comat: --checkpoint is deprecated") and err[1].startswith("comat: --set is deprecated")
+    assert "evaluation_unicycle.json', '" in err[2] and "' already exist; pass --force to replace" in err[2]
+    # a team file of one's own, an --out created on the way, and the rows named by the file
+    teams = tmp_path / "teams.yaml"
+    own = resolve_coalitions("train", "pcp")[:2]
+    teams.write_text(yaml.safe_dump({"coalitions": [{"robots": [r.to_dict() for r in t.robots]} for t in own]}))
+    fresh = tmp_path / "new" / "deeper"
+    assert main(["eval", "--policy", "constant", "--task", "pcp", "--teams", str(teams), "--no-references",
+                 "--out", str(fresh)]) == 0
+    capsys.readouterr()
+    mine = json.loads((fresh / "evaluation_unicycle.json").read_text())["rows"]
+    assert [(r["policy"], r["set"], r["episodes"]) for r in mine] == [("constant", str(teams), 2)]
+    env = make_vec_env("pcp_v0", 2, seed=2_000_003, tier="unicycle", coalitions=own)
+    direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), own, seed=2_000_003)
+    assert [e["return"] for e in mine[0]["per_episode"]] == pytest.approx([e["return"] for e in direct])
+    # bad input: clear errors, and a failed command leaves no folder behind
+    assert main(["eval", "--policy", str(ckpt), "--task", "hmt"]) == 2
+    assert "--task 'hmt' disagrees with the checkpoint, which is for task 'pcp'" in capsys.readouterr().err
+    assert main(["eval", "--policy", str(tmp_path / "missing.pt")]) == 2
+    assert "(no such file)" in capsys.readouterr().err
+    assert main(["eval", "--policy", "heuristic"]) == 2
+    assert "--task is needed with --policy heuristic" in capsys.readouterr().err
+    assert main(["eval", "--policy", "heuristic", "--task", "pcp"]) == 2
+    assert "--out is needed with --policy heuristic" in capsys.readouterr().err
+    assert main(["eval", "--policy", str(ckpt), "--episodes", "0", "--out", str(tmp_path / "failed" / "x")]) == 2
+    assert "episodes must be an integer >= 1" in capsys.readouterr().err
+    assert not (tmp_path / "failed").exists()
 
 
 # -- comat report --------------------------------------------------------------------------------------
-def _fake_run(folder, algo, task, seed, train_return, test_return, success):
+def _fake_run(folder, algo, task, seed, train_return, test_return, success, scale_return=None, progress=0.5):
+    """A run folder as `comat train` + `comat eval` leave it: two episodes per set (team sizes 3, 5 on
+    U_train; 2, 4 on U_test; 10, 20 on U_scale when ``scale_return`` is given)."""
     folder.mkdir(parents=True)
-    config = {"algo": algo, "task": task, "seed": seed, "tier": "unicycle"}
+    config = {"algo": algo, "task": task, "seed": seed, "tier": "unicycle", "total_env_steps": 25600}
     (folder / "config.yaml").write_text(yaml.safe_dump({"config": config}))
     lines = ["env_steps,updates,episode_return"] + [f"{2560 * k},{k},{train_return * k / 10}" for k in range(1, 11)]
     (folder / "progress.csv").write_text("\n".join(lines) + "\n")
 
-    def row(split, ret):
-        eps = [_episode(ret - 1.0, success=success), _episode(ret + 1.0, success=success)]
+    def row(split, ret, sizes, prog):
+        eps = [{**_episode(ret - 1.0, success=success, completion=prog), "team_size": sizes[0]},
+               {**_episode(ret + 1.0, success=success, completion=prog), "team_size": sizes[1]}]
         return {"policy": algo, "task": task, "set": split, "tier": "unicycle", "episodes": 2,
                 "metrics": summarize_ci(eps), "per_episode": eps}
 
-    result = {"rows": [row("train", train_return), row("test", test_return)]}
+    rows = [row("train", train_return, (3, 5), progress), row("test", test_return, (2, 4), progress / 2)]
+    if scale_return is not None:
+        rows.append(row("scale", scale_return, (10, 20), progress / 4))
+    result = {"episodes_per_coalition": 1, "rows": rows}
     (folder / "evaluation_unicycle.json").write_text(json.dumps(result))
 
 
 def test_report_on_fake_runs(tmp_path, capsys):
-    _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0)
-    _fake_run(tmp_path / "b", "comat", "pcp", 1, 60.0, 50.0, 0.5)
+    _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0, progress=0.8)
+    _fake_run(tmp_path / "b", "comat", "pcp", 1, 60.0, 50.0, 0.5, progress=0.4)
     out = tmp_path / "results"
     out.mkdir()
     result = make_report([tmp_path / "a", tmp_path / "b"], out)
-    assert result["groups"] == {"comat/pcp": 2}
-    for name in ("table1.md", "table1.csv", "generalization.csv", "fig4_training_return.png", "fig5_generalization.png"):
+    assert result["groups"] == {"comat/pcp": 2} and result["sets"] == ["train", "test"]
+    assert sorted(result["files"]) == sorted(REPORT_FILES)
+    for name in REPORT_FILES:
         assert (out / name).stat().st_size > 0
-    for name in ("fig4_training_return.png", "fig5_generalization.png"):
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        magic = {"png": b"\x89PNG\r\n\x1a\n", "pdf": b"%PDF"}.get(name.rsplit(".", 1)[1])
+        if magic:
+            assert (out / name).read_bytes()[: len(magic)] == magic
     md = (out / "table1.md").read_text()
     # mean over the two seeds ± t(0.975, 1) · sd/√2 = 12.706 · 14.142 / 1.414
     assert "| PCP | Mean return | 50.00 ± 127.06 | 82.47 |" in md
     assert "| PCP | Completion | 75.0% ± 317.7 | 92.8% |" in md
+    assert "| PCP | Env-step budget per run | 25,600 | 4,000,000 |" in md
     gen = result["generalization"][0]
-    assert gen["train_return"] == 50.0 and gen["test_return"] == 40.0 and gen["retention"] == pytest.approx(0.8)
-    assert gen["paper_retention"] == 0.88
+    assert gen["train_return"] == 50.0 and gen["test_return"] == 40.0 and gen["test_return_ratio"] == pytest.approx(0.8)
+    # progress retention: per seed progress on U_test / on U_train (0.4/0.8 and 0.2/0.4), then the mean
+    assert gen["train_progress"] == pytest.approx(0.6) and gen["test_retention"] == pytest.approx(0.5)
+    assert not any(k.startswith("scale") for k in gen)  # old runs: train and test only
+    assert gen["paper_retention_return_ratio"] == 0.88
     assert PAPER_TABLE1[("pcp", "return")][3] == 82.47
     with pytest.raises(FileNotFoundError, match="not a run folder"):
         make_report([tmp_path / "results"], out)
@@ -136,21 +174,77 @@ def test_report_on_fake_runs(tmp_path, capsys):
     assert make_report([tmp_path / "a", tmp_path / "b"], out2)["runs"] == 2
     assert "b has no evaluation" in capsys.readouterr().err
     (tmp_path / "a" / "evaluation_unicycle.json").unlink()
-    out3 = tmp_path / "results3"
-    out3.mkdir()
     with pytest.raises(ValueError, match=r"none of the 2 run folder\(s\) has an evaluation"):
-        make_report([tmp_path / "a", tmp_path / "b"], out3)
-    assert list(out3.iterdir()) == []
+        make_report([tmp_path / "a", tmp_path / "b"], out2)
+    assert main(["report", str(tmp_path / "a"), "--out", str(tmp_path / "fresh")]) == 2
+    assert "has an evaluation" in capsys.readouterr().err and not (tmp_path / "fresh").exists()  # no folder left
 
 
-def test_report_cli_lists_only_pairs_with_runs(tmp_path, capsys):
-    _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0)
-    _fake_run(tmp_path / "b", "mat", "hmt", 0, -2.0, 3.0, 0.0)
-    assert main(["report", str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(tmp_path / "out")]) == 0
-    lines = [line for line in capsys.readouterr().out.splitlines() if "train return" in line]
-    assert len(lines) == 2  # no line for algorithm/task pairs without runs
-    assert lines[0].split()[:2] == ["comat", "pcp"] and lines[0].endswith("retention 75%")
-    assert lines[1].split()[:2] == ["mat", "hmt"] and lines[1].endswith("retention undefined (train return <= 0)")
+def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, capsys):
+    from comat.eval import figures
+
+    for seed in range(3):
+        _fake_run(tmp_path / f"c{seed}", "comat", "hmt", seed, 10.0 + seed, 8.0, 1.0, scale_return=5.0 + seed,
+                  progress=0.6 + 0.1 * seed)
+    _fake_run(tmp_path / "m0", "mat", "hmt", 0, 9.0, 7.0, 1.0)  # an old run: no U_scale evaluation
+    drawn = {}
+    real_save = figures.save
+
+    def keep(fig, stem):
+        drawn[stem.name] = fig
+        return real_save(fig, stem)
+
+    monkeypatch.setattr(figures, "save", keep)
+    colours = []
+    for order in ([*[tmp_path / f"c{s}" for s in range(3)], tmp_path / "m0"],
+                  [tmp_path / "m0", *[tmp_path / f"c{s}" for s in range(3)]]):
+        out = tmp_path / f"out{len(colours)}"
+        assert main(["report", *map(str, order), "--out", str(out)]) == 0
+        printed = capsys.readouterr().out
+        assert "scale/train retention" in printed
+        gen = {r["algo"]: r for r in csv.DictReader(io.StringIO((out / "generalization.csv").read_text()))}
+        assert float(gen["comat"]["scale_retention"]) == pytest.approx(0.25)  # progress/4 over progress, every seed
+        assert gen["mat"]["scale_retention"] == "nan"  # U_scale columns, empty for the run without it
+        # bars: each algorithm's colour, whatever the order the runs came in; sets by hatching only
+        ax = drawn["fig5_generalization"].axes[0]
+        bars = {(round(p.get_x() + p.get_width() / 2, 3), p.get_hatch()): p.get_facecolor()[:3] for p in ax.patches
+                if hasattr(p, "get_hatch") and p.get_width() > 0}
+        colours.append(sorted({tuple(round(c, 3) for c in v) for v in bars.values()}))
+        assert {h for _, h in bars} == {figures.SET_HATCHES[s] for s in ("train", "test", "scale")}
+        # team size figure: every size evaluated, the training sizes marked, intervals over 3 seeds
+        lines = {ln.get_label(): ln for ln in drawn["fig6_team_size"].axes[0].get_lines()}
+        comat = next(ln for k, ln in lines.items() if k.startswith("COMAT (3 seeds)"))
+        assert list(comat.get_xdata()) == [2, 3, 4, 5, 10, 20]
+        assert comat.get_color() == figures.ALGO_COLORS["comat"]
+        assert "U_train's sizes 3, 5, 7" in drawn["fig6_team_size"].axes[0].get_xlabel()
+        rows = list(csv.DictReader(io.StringIO((out / "aggregates.csv").read_text())))
+        assert {(r["algo"], r["set"]) for r in rows} >= {("comat", "scale"), ("mat", "test")}
+    assert colours[0] == colours[1]
+    expected = sorted(tuple(round(c, 3) for c in mcolors.to_rgb(figures.ALGO_COLORS[a])) for a in ("comat", "mat"))
+    assert all(any(np.allclose(c, e, atol=0.01) for e in expected) for c in colours[0])
+
+
+def test_aggregate_iqm_and_stratified_bootstrap_by_hand():
+    from scipy import stats
+
+    from comat.eval.report import aggregate
+
+    rng = np.random.default_rng(0)
+    scores = rng.normal(size=(5, 20))
+    agg = aggregate(scores)
+    assert agg["mean"] == pytest.approx(scores.mean())
+    assert agg["iqm"] == pytest.approx(stats.trim_mean(scores.ravel(), 0.25))  # rliable's IQM: pooled, 25 % cut
+    assert agg["mean_lo"] < agg["mean"] < agg["mean_hi"] and agg["iqm_lo"] < agg["iqm"] < agg["iqm_hi"]
+    np.random.seed(5)
+    before = np.random.random()
+    np.random.seed(5)
+    assert aggregate(scores) == agg  # a fixed random state: the same intervals every time ...
+    assert np.random.random() == before  # ... and numpy's global generator left as it was
+    # one seed: nothing to resample within a coalition, the interval collapses onto the point
+    one = aggregate(scores[:1])
+    assert one["mean_lo"] == pytest.approx(one["mean"]) == pytest.approx(one["mean_hi"])
+    with pytest.raises(ValueError, match=r"\(seeds, coalitions\) array, got shape \(3,\)"):
+        aggregate(np.ones(3))
 
 
 # -- comat sweep ---------------------------------------------------------------------------------------
@@ -219,7 +313,7 @@ def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
 
     train(tiny("mappo", "hmt"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
-    assert main(["probe", "--checkpoint", str(ckpt), "--envs", "4"]) == 0
+    assert main(["probe", "--policy", str(ckpt), "--envs", "4"]) == 0
     assert "robot-weighted mean advantage" in capsys.readouterr().out
     result = json.loads((tmp_path / "run" / "probe.json").read_text())
     assert result["kind"] == "ppo" and result["algo"] == "mappo" and result["num_envs"] == 4
@@ -234,8 +328,12 @@ def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
     assert 0.0 < result["entropy"] <= math.log(5) + 1e-6
     again = json.loads(json.dumps(probe_checkpoint(ckpt, num_envs=4)))  # through JSON, as the file was
     assert again["by_team_size"] == rows  # same seed, same rollout
-    assert main(["probe", "--checkpoint", str(tmp_path / "missing.pt")]) == 2
-    assert "does not exist" in capsys.readouterr().err
+    assert main(["probe", "--policy", str(tmp_path / "missing.pt")]) == 2
+    assert "got '" + str(tmp_path / "missing.pt") + "' (no such file)" in capsys.readouterr().err
+    assert main(["probe", "--policy", "heuristic"]) == 2
+    assert "--policy must be a checkpoint or run folder here, got 'heuristic'" in capsys.readouterr().err
+    assert main(["probe", "--policy", str(tmp_path / "run")]) == 2  # probe.json exists: not replaced
+    assert "probe.json' already exists; pass --force" in capsys.readouterr().err
 
 
 def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):

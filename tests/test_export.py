@@ -153,7 +153,7 @@ def test_parse_team(tmp_path):
     assert parse_team("test:0", "pcp").task == "pcp"
     with pytest.raises(ValueError, match="index"):
         parse_team("train:99", "hmt")
-    with pytest.raises(ValueError, match="JSON file"):
+    with pytest.raises(ValueError, match="JSON/YAML file"):
         parse_team(str(tmp_path / "none.json"), "pcp")
 
 
@@ -275,9 +275,15 @@ def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tm
     out = capsys.readouterr().out
     assert "cli_pcp" in out and "sub_pcp" in out
     assert "mean over 2 folders (rps legacy, MuJoCo unicycle): completion 100.0 % vs 100.0 %" in out
+    # the old spelling --checkpoint still names the policy (with a note); a missing file is refused
     assert main(["export", "--policy", "heuristic", "--checkpoint", "x.pt", "--task", "pcp", "--team", "test:3",
-                 "--out", str(tmp_path / "y")]) == 2
-    assert "not both" in capsys.readouterr().err and not (tmp_path / "y").exists()
+                 "--out", str(tmp_path / "new" / "y")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == "comat: --checkpoint is deprecated and will be removed; use --policy x.pt"
+    assert "got 'x.pt' (no such file)" in err[1] and not (tmp_path / "new").exists()
+    assert main(["export", "--policy", "random", "--team", "test:3", "--task", "pcp", "--out", str(tmp_path / "z")]) == 2
+    assert "--policy must be a checkpoint or run folder or one of ['heuristic'] here, got 'random'" in \
+        capsys.readouterr().err
 
 
 # -- large teams: start poses the Robotarium's start-up drive can reach ------------------------------
@@ -355,7 +361,7 @@ def test_export_killed_at_random_moments_leaves_no_folder(tmp_path):
 
     ckpt = tiny_checkpoint(tmp_path, "pcp")
     out = tmp_path / "subs" / "pcp"
-    cmd = [sys.executable, "-m", "comat.cli", "export", "--checkpoint", str(ckpt), "--task", "pcp", "--team", "test:3",
+    cmd = [sys.executable, "-m", "comat.cli", "export", "--policy", str(ckpt), "--task", "pcp", "--team", "test:3",
            "--out", str(out)]
     for delay in np.random.default_rng(0).uniform(0.5, 3.0, size=4):
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

@@ -399,11 +399,11 @@ def test_every_command_reading_a_checkpoint_explains_a_bad_one_in_one_line(tmp_p
     else:
         bad.write_bytes(b"" if kind == "empty" else np.random.default_rng(0).bytes(4096))
     expected = {"empty": "is empty (0 bytes)", "random_bytes": "is corrupt or not a comat checkpoint",
-                "folder": "a folder; expected a checkpoint.pt file",
+                "folder": "is a folder without a checkpoint.pt",
                 "truncated": "is corrupt or not a comat checkpoint"}[kind]
-    commands = [["eval", "--checkpoint", str(bad)], ["probe", "--checkpoint", str(bad)],
+    commands = [["eval", "--policy", str(bad)], ["probe", "--policy", str(bad)],
                 ["rollout", "--task", "pcp", "--policy", str(bad), "--out", str(tmp_path / "x.rrd")],
-                ["export", "--checkpoint", str(bad), "--task", "pcp", "--team", "test:0", "--out", str(tmp_path / "sub")]]
+                ["export", "--policy", str(bad), "--task", "pcp", "--team", "test:0", "--out", str(tmp_path / "sub")]]
     if kind != "folder":  # train --resume reads RUN/checkpoint.pt
         commands.append(["train", "--resume", "--out", str(bad.parent)])
     for argv in commands:
@@ -504,7 +504,7 @@ def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, caps
                                str(tmp_path / "out")], "trainer.lr must be float, got 'fast' (str)"),
         "report_not_a_run": (["report", str(path), "--out", str(tmp_path)], "is not a run folder (no config.yaml)"),
         "check_not_a_submission": (["export", "--check", str(path)], "is not an exported submission"),
-        "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "does not exist (create it first)"),
+        "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "is a file; expected a folder"),
     }[case]
     if case == "eval_out_is_a_file":
         path.write_text("a file, not a folder")

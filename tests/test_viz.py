@@ -361,7 +361,7 @@ def test_policy_task_mismatch_and_unknown_policy_fail_before_anything_runs(tmp_p
         record_episodes(out, "pcp", ckpt)
     with pytest.raises(
         ValueError,
-        match=r"policy must be one of \('heuristic', 'random'\) or a checkpoint file, got 'greedy'",
+        match=r"policy must be one of \('heuristic', 'random', 'constant'\) or a checkpoint file, got 'greedy'",
     ):
         record_episodes(out, "pcp", "greedy")
     with pytest.raises(ValueError, match="episodes must be a positive integer, got 0"):
@@ -371,7 +371,7 @@ def test_policy_task_mismatch_and_unknown_policy_fail_before_anything_runs(tmp_p
             out, "pcp", "heuristic", teams=[random_team(np.random.default_rng(0), "hmt", "test", 3)]
         )
     args = _parser().parse_args(["rollout", "--task", "pcp", "--policy", str(ckpt), "--out", str(out)])
-    with pytest.raises(ValueError, match="is for task 'hmt', expected 'pcp'"):
+    with pytest.raises(ValueError, match="--task 'pcp' disagrees with the checkpoint, which is for task 'hmt'"):
         args.func(args)
     assert capsys.readouterr().err == ""  # refused before the rollout was even announced
     assert not out.exists()

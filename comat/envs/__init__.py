@@ -27,9 +27,11 @@ def _env_class(env_id: str) -> type[TaskEnv]:
     return _ENVS[env_id]
 
 
-def _check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] = ()) -> None:
+def _check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] = (), vector: bool = False) -> None:
     cls = _env_class(env_id)
-    valid = {p for p in inspect.signature(TaskEnv.__init__).parameters if p not in ("self", "task_options")}
+    # A vector env draws nothing: render_mode belongs to the PettingZoo env alone.
+    skip = ("self", "task_options", "render_mode") if vector else ("self", "task_options")
+    valid = {p for p in inspect.signature(TaskEnv.__init__).parameters if p not in skip}
     valid |= {p for p in inspect.signature(cls.task_cls.__init__).parameters if p not in ("self", "args", "kwargs")}
     valid |= set(extra)
     unknown = sorted(set(options) - valid)
@@ -49,7 +51,7 @@ def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -
     plus ``seed``)."""
     if workers != 1:
         return ShardedVectorEnv(env_id, num_envs, workers=workers, **options)
-    _check_options(env_id, options, extra=("seed", "shard"))
+    _check_options(env_id, options, extra=("seed", "shard"), vector=True)
     task, rest = _make_task(env_id, options)
     return VectorEnv(task, num_envs, **rest)
 

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
+import gymnasium
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
@@ -84,10 +85,12 @@ class TaskEnv(ParallelEnv):
         ticks_per_step: control ticks per env step (PCP 29, HMT 74 by default).
         max_robots: size of ``possible_agents`` (default: the largest team it may get).
         state_robots: robots covered by ``state()`` (default 8).
+        render_mode: None (default) or "rgb_array": ``render()`` then returns the arena drawn
+            top-down, an (H, W, 3) uint8 frame (:mod:`comat.viz.frames`; matplotlib, headless).
         task options: see each task (e.g. PCP ``n_prey``).
     """
 
-    metadata: ClassVar[dict] = {"name": "", "render_modes": [], "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "", "render_modes": ["rgb_array"], "is_parallelizable": True}
     task_cls: type = object
 
     def __init__(
@@ -101,8 +104,12 @@ class TaskEnv(ParallelEnv):
         ticks_per_step: int | None = None,
         max_robots: int | None = None,
         state_robots: int = 8,
+        render_mode: str | None = None,
         **task_options: Any,
     ) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
         self.task = self.task_cls(**task_options)
         self.coalitions, self.fixed_team, slots = team_source(self.task.name, coalitions, team, max_robots)
         sim = sim or SimConfig(tier=tier)
@@ -114,6 +121,13 @@ class TaskEnv(ParallelEnv):
         self._observation_space = spaces.Box(-np.inf, np.inf, (self.task.obs_size(),), np.float64)
         self._action_space = spaces.Discrete(5)
         self.state_space = spaces.Box(-np.inf, np.inf, (self.core.state_size(),), np.float64)
+        self._frames = None
+        self.render_caption = self.metadata["name"]
+        """First line drawn above every rendered frame (e.g. the policy and the episode)."""
+        if render_mode == "rgb_array":
+            from comat.viz.frames import EpisodeFrames  # matplotlib loads only when rendering
+
+            self._frames = EpisodeFrames()
 
     # -- spaces ---------------------------------------------------------------------------------
     def observation_space(self, agent: str) -> spaces.Box:
@@ -139,7 +153,11 @@ class TaskEnv(ParallelEnv):
                 "construct it with max_robots >= the team size"
             )
         self.team = team
+        if self._frames is not None:
+            self._frames.close()  # its tick tap follows the old team's rows
         self.core.reset([0], [team], [self._np_random])
+        if self._frames is not None:
+            self._frames.begin(self.core, 0)
         self.agents = self.possible_agents[: team.size]
         obs = self._obs()
         return obs, {a: {} for a in self.agents}
@@ -160,6 +178,8 @@ class TaskEnv(ParallelEnv):
                 raise ValueError(f"action of {a} must be an integer in [0, 5) (stay, +x, -x, +y, -y), got {value!r}")
             act[0, i] = int(value)
         res = self.core.step(act)
+        if self._frames is not None:
+            self._frames.after_step(float(res.rewards[0]))
         agents = list(self.agents)
         obs = self._obs()
         reward = float(res.rewards[0])
@@ -192,11 +212,20 @@ class TaskEnv(ParallelEnv):
             "edge_mask": g["edge_mask"][0, :n, :n],
         }
 
-    def render(self):
-        raise NotImplementedError("rendering is through Rerun recordings (comat rollout), not render()")
+    def render(self) -> np.ndarray | None:
+        """With ``render_mode="rgb_array"``: the arena now, (H, W, 3) uint8 (H, W =
+        :data:`comat.viz.frames.FRAME_SIZE`); robots by type with their capability radii, trails,
+        prey or material, and where the safety filter changed a command in the last step.
+        Without a render mode: a warning and None (as Gymnasium and PettingZoo envs do)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array'")
+            return None
+        self._frames.title = self.render_caption
+        return self._frames.frame()  # RuntimeError before the first reset
 
     def close(self) -> None:
-        pass
+        if self._frames is not None:
+            self._frames.close()
 
     def _obs(self) -> dict[str, np.ndarray]:
         obs = self.core.observe()[0]

@@ -7,7 +7,8 @@
 | Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a 0.2 m waypoint for the robot's projected point |
 | Step | 29 control ticks of 0.033 s (0.96 s): waypoint controller → safety filter → MuJoCo |
 | Observation | Box(13,) float64, below |
-| State | Box(4K + M·13,): prey (x, y) ×K, sensed ×K, captured ×K, then the observations of M = ``max_robots`` slots (the largest team; 8 or 20 for the fixed-size baselines) |
+| State | Box(4K + S·13,): prey (x, y) ×K, sensed ×K, captured ×K, then the observations of S = ``state_robots`` slots (default 8; a fixed-size baseline's run uses its ``max_robots``, 8 or 20) |
+| Render | ``render_mode="rgb_array"``: ``env.render()`` → (448, 640, 3) uint8, the arena top-down (comat.viz.frames) |
 | Horizon | 80 steps; ends early when every prey is captured |
 | Prey | K = 6 static prey, ≥ 0.2 m apart in x ∈ [0.5, 1.4], y ∈ [−0.85, 0.85] |
 | Spawn | robots ≥ 0.3 m apart in x ∈ [−1.4, −0.5], y ∈ [−0.85, 0.85], random headings |
@@ -55,5 +56,5 @@ __all__ = ["PcpEnv"]
 class PcpEnv(TaskEnv):
     """Predator Capture Prey as a PettingZoo parallel environment (spec sheet: module docstring)."""
 
-    metadata: ClassVar[dict] = {"name": "pcp_v0", "render_modes": [], "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "pcp_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
     task_cls = PredatorCapturePrey

@@ -94,7 +94,7 @@ class ShardedVectorEnv:
     def __init__(self, env_id: str, num_envs: int, *, workers: int, seed: int | None = None, **options: Any) -> None:
         from comat.envs import _check_options, _make_task
 
-        _check_options(env_id, options)
+        _check_options(env_id, options, vector=True)
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= num_envs:

@@ -27,15 +27,15 @@ from comat.eval.metrics import REPORTED, summarize_ci
 from comat.files import write_atomic
 from comat.team import COALITION_SETS
 
-__all__ = ["BEST_CONSTANT_ACTION", "EVAL_SEED", "evaluate_policies", "print_table", "write_results"]
+__all__ = ["BEST_CONSTANT_ACTION", "EVAL_SEED", "REFERENCES", "evaluate_policies", "print_table", "write_results"]
 
 EVAL_SEED = 2_000_003
+"""Default seed of evaluation episodes (never a training seed of the presets)."""
 BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1}
 """Per task, the action (0 stay, 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train
 when every robot always takes it (all five tried, one episode per coalition, EVAL_SEED;
 tests/test_eval.py): +x on both. On PCP it captures half the prey (return 16.4, 20 % of the
 episodes finished): early learning curves must beat it to mean anything."""
-"""Default seed of evaluation episodes (never a training seed of the presets)."""
 SETS = COALITION_SETS
 
 
@@ -53,18 +53,23 @@ def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
     return out
 
 
+REFERENCES = ("heuristic", "constant", "random")
+"""Reference rows, in table order."""
+
+
 def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, sets=SETS, episodes: int = 1,
-                      tier: str | None = None, seed: int = EVAL_SEED, references: bool = True,
+                      tier: str | None = None, seed: int = EVAL_SEED, references: bool | tuple[str, ...] = True,
                       progress=print) -> dict:
     """Rows of (policy, set) results; see the module docstring.
 
     Args:
         checkpoint: a run's ``checkpoint.pt`` (or None: reference policies on ``task`` only).
         task: the task (taken from the checkpoint when given; must match it).
-        sets: any of "train", "test", "scale".
+        sets: any of "train", "test", "scale", or ``(name, teams)`` pairs (a set of one's own:
+            its rows carry ``"set": name``).
         episodes: episodes per coalition (>= 1).
         tier: dynamics tier (default: the checkpoint's training tier, else unicycle).
-        references: add the heuristic, constant and random rows.
+        references: add the heuristic, constant and random rows (True), none (False), or those named.
     """
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
@@ -73,9 +78,13 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1 (per coalition), got {episodes!r}")
-    bad = [s for s in sets if s not in SETS]
+    sets = list(sets)
+    bad = [s for s in sets if not (s in SETS or (isinstance(s, tuple) and len(s) == 2 and s[1]))]
     if bad or not sets:
-        raise ValueError(f"sets must be a non-empty subset of {list(SETS)}, got {list(sets)!r}")
+        raise ValueError(f"sets must be a non-empty list of {list(SETS)} or (name, teams) pairs, got {sets!r:.200}")
+    refs = REFERENCES if references is True else tuple(references or ())
+    if any(r not in REFERENCES for r in refs):
+        raise ValueError(f"references must be True, False or names from {REFERENCES}, got {references!r}")
     act, config = (None, None)
     if checkpoint is not None:
         act, config = load_policy(checkpoint, task=task)
@@ -87,21 +96,22 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         raise ValueError(f"tier must be 'wheels' or 'unicycle', got {tier!r}")
     slots = None if config is None else robot_slots(config)
     use_state = config is not None and uses_state(config.algo)
-    largest = {split: max(t.size for t in resolve_coalitions(split, task)) for split in sets}
-    too_large = [s for s in sets if slots is not None and largest[s] > slots]
+    named = [(s, resolve_coalitions(s, task)) if isinstance(s, str) else (s[0], resolve_coalitions(list(s[1]), task))
+             for s in sets]
+    largest = {split: max(t.size for t in teams) for split, teams in named}
+    too_large = [s for s, _ in named if slots is not None and largest[s] > slots]
     if too_large:
         raise ValueError(f"sets {too_large} hold teams of up to {max(largest[s] for s in too_large)} robots, but this "
                          f"{config.algo} checkpoint has {slots} robot slots (fixed-size: train it with "
                          f"models.{config.algo}.max_robots=20 to play U_scale)")
     rows = []
-    for split in sets:
-        teams = resolve_coalitions(split, task) * episodes
+    for split, coalitions in named:
+        teams = coalitions * episodes
         # One process: the heuristic reads the env's task state directly.
-        env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=split,
+        env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=coalitions,
                            max_robots=slots, state_robots=slots or BASELINE_ROBOTS)
         policies = _policies(config, act, env, seed)
-        if not references:
-            policies = {k: v for k, v in policies.items() if k not in ("heuristic", "constant", "random")}
+        policies = {k: v for k, v in policies.items() if k not in REFERENCES or k in refs}
         for name, policy in policies.items():
             t0 = time.perf_counter()
             eps = run_episodes(env, policy, teams, seed, use_state=use_state and name == config.algo)
@@ -118,14 +128,15 @@ def print_table(result: dict, out=print) -> None:
     names = {"return": "return", "steps": "steps", "completion": "progress", "success": "completion*",
              "collisions": "collisions", "violations": "violations", "interventions": "interv.", "fallbacks": "brakes",
              "recoveries": "recoveries"}
-    head = f"{'policy':<10}{'set':<6}{'n':>4}" + "".join(f"{names[m]:>17}" for m in REPORTED)
+    width = max([6] + [len(str(r["set"])) + 1 for r in result["rows"]])
+    head = f"{'policy':<10}{'set':<{width}}{'n':>4}" + "".join(f"{names[m]:>17}" for m in REPORTED)
     out(head + "\n" + "-" * len(head))
     for r in result["rows"]:
         cells = []
         for m in REPORTED:
             v = r["metrics"][m]
             cells.append(f"{v['mean']:.2f} ± {v['ci95']:.2f}".rjust(17))
-        out(f"{r['policy']:<10}{r['set']:<6}{r['episodes']:>4}" + "".join(cells))
+        out(f"{r['policy']:<10}{r['set']:<{width}}{r['episodes']:>4}" + "".join(cells))
     out("completion* = share of episodes with every prey captured / all material delivered (the paper's "
         "completion); progress = fraction captured / delivered; ± = 95 % confidence interval over episodes")
 

@@ -1,20 +1,26 @@
-"""``comat report RUNS…``: the paper's Table I, Fig. 4 and Fig. 5 from run folders.
+"""``comat report RUNS…``: the paper's Table I, Fig. 4, Fig. 5 and team-size figure from run folders.
 
-A run folder (``comat train`` / ``comat sweep``) holds ``config.yaml`` (algo, task, seed),
-``progress.csv`` (training curve) and ``evaluation_<tier>.json`` (``comat eval``: the
-deterministic policy on U_train and U_test). Runs are grouped by (algo, task); seeds are the
-independent units: each seed's episode mean is one sample, and tables give the mean over seeds
-± the 95 % Student-t interval over seeds (± nan with one seed).
+A run folder (``comat train`` / ``comat sweep``) holds ``config.yaml`` (algo, task, seed, env-step
+budget), ``progress.csv`` (training curve) and ``evaluation_<tier>.json`` (``comat eval``: the
+deterministic policy on U_train, U_test and, where evaluated, U_scale; reference policies on the
+same episodes). Runs are grouped by (algo, task); seeds are the independent units: each seed's
+mean over a set's coalitions is one sample, and tables give the mean over seeds ± the 95 %
+Student-t interval over seeds (± nan with one seed). Runs without an evaluation are left out
+with a warning; when none has one, nothing is written.
 
-Outputs in ``--out``:
+Outputs in ``--out`` (:data:`REPORT_FILES`):
 
-* ``table1.md`` / ``table1.csv``: per task and metric, each algorithm's training-set result
-  next to the paper's Table I (completion = share of episodes finished, the paper's meaning).
-* ``generalization.csv``: train vs unseen return per algorithm and task, and retention
-  (test / train return, the paper's Fig. 5 comparison; undefined when the train return ≤ 0).
-* ``fig4_training_return.png``: mean training return vs env steps, shaded ± one standard
-  deviation over seeds, one panel per task.
-* ``fig5_generalization.png``: train vs unseen return bars with retention labels.
+* ``table1.md`` / ``table1.csv``: per task and metric, each algorithm's U_train result next to
+  the paper's Table I (completion = share of episodes finished, the paper's meaning), with the
+  env-step budget next to the paper's 4 M; the reference policies' rows below.
+* ``generalization.csv``: per algorithm and task and per composition set (U_scale where a run
+  has it), return and progress, and progress retention (progress on the set / progress on
+  U_train — a ratio of non-negative fractions, unlike a ratio of returns that change sign).
+* ``aggregates.csv``: over seeds × coalitions (each coalition's mean over its episodes), the
+  plain mean and the interquartile mean with 95 % stratified-bootstrap intervals (rliable:
+  seeds resampled within each coalition, 2,000 resamples, fixed random state).
+* ``fig4_training_return``, ``fig5_generalization``, ``fig6_team_size`` (.png and .pdf):
+  :mod:`comat.eval.figures`.
 """
 
 from __future__ import annotations
@@ -28,13 +34,23 @@ from pathlib import Path
 
 import numpy as np
 
+from comat.eval import figures
+from comat.eval.figures import ALGO_LABELS
 from comat.eval.metrics import mean_ci
 from comat.files import write_atomic
 
-__all__ = ["PAPER_RETENTION", "PAPER_TABLE1", "load_run", "make_report"]
+__all__ = ["PAPER_RETENTION", "PAPER_TABLE1", "REPORT_FILES", "aggregate", "load_run", "make_report"]
 
 ALGO_ORDER = ("mappo", "qmix", "mat", "comat")
-ALGO_LABELS = {"mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "comat": "COMAT"}
+SETS = ("train", "test", "scale")
+REFERENCES = ("heuristic", "constant", "random")
+PAPER_BUDGET = 4_000_000
+"""Env steps per run in the paper's experiments."""
+BOOTSTRAP_REPS = 2000
+REPORT_FILES = ("table1.md", "table1.csv", "generalization.csv", "aggregates.csv",
+                *(f"{stem}.{fmt}" for stem in ("fig4_training_return", "fig5_generalization", "fig6_team_size")
+                  for fmt in figures.FORMATS))
+"""Every file ``make_report`` writes (``comat report`` refuses to overwrite them without --force)."""
 PAPER_TABLE1 = {
     # Paper Table I ("Detailed metrics for train team compositions"): MAPPO, QMIX, MAT, COMAT.
     ("pcp", "return"): (45.43, 24.10, 70.12, 82.47),
@@ -48,7 +64,8 @@ PAPER_TABLE1 = {
 }
 """The paper's Table I, keyed by (task, our metric name); values in ``ALGO_ORDER``."""
 PAPER_RETENTION = {("pcp", "comat"): 0.88, ("hmt", "comat"): 0.95}
-"""COMAT's retention of training return on unseen compositions reported in the paper (§IV-B)."""
+"""COMAT's retention of training return on unseen compositions reported in the paper (§IV-B; a
+ratio of returns — ours is of progress, see the module docstring)."""
 TABLE_METRICS = (("return", "Mean return"), ("steps", "Episode steps"), ("success", "Completion"),
                  ("collisions", "Collisions"), ("completion", "Progress (fraction done)"),
                  ("violations", "Robotarium violations"), ("interventions", "Filter interventions"))
@@ -76,16 +93,22 @@ def load_run(folder: str | Path, tier: str | None = None) -> dict:
     evaluation = json.loads(eval_path.read_text()) if eval_path.is_file() else None
     return {"folder": str(folder), "algo": config["algo"], "task": config["task"], "seed": config["seed"],
             "tier": tier, "env_steps": curve["env_steps"][-1] if curve["env_steps"] else 0, "curve": curve,
-            "evaluation": evaluation}
+            "budget": int(config.get("total_env_steps") or 0), "evaluation": evaluation}
 
 
-def _eval_mean(run: dict, split: str, metric: str) -> float | None:
+def _row(run: dict, split: str, policy: str | None = None) -> dict | None:
+    """The evaluation row of ``policy`` (default: the run's own algorithm) on ``split``, or None."""
     if run["evaluation"] is None:
         return None
     for row in run["evaluation"]["rows"]:
-        if row["set"] == split and row["policy"] == run["algo"]:
-            return row["metrics"][metric]["mean"]
+        if row["set"] == split and row["policy"] == (policy or run["algo"]):
+            return row
     return None
+
+
+def _eval_mean(run: dict, split: str, metric: str) -> float | None:
+    row = _row(run, split)
+    return None if row is None else row["metrics"][metric]["mean"]
 
 
 def _over_seeds(runs: list[dict], split: str, metric: str) -> tuple[float, float, int]:
@@ -96,6 +119,14 @@ def _over_seeds(runs: list[dict], split: str, metric: str) -> tuple[float, float
     return mean, half, len(values)
 
 
+def _per_coalition(run: dict, row: dict, metric: str) -> np.ndarray:
+    """(C,) each coalition's mean over its episodes (``comat eval`` plays coalition c as episodes
+    c, c + C, c + 2C, …: the set repeated ``episodes_per_coalition`` times)."""
+    per = np.array([e[metric] for e in row["per_episode"]], dtype=float)
+    reps = int(run["evaluation"].get("episodes_per_coalition") or 1)
+    return per.reshape(reps, -1).mean(axis=0)
+
+
 def _fmt(mean: float, half: float, metric: str) -> str:
     if math.isnan(mean):
         return "—"
@@ -104,14 +135,15 @@ def _fmt(mean: float, half: float, metric: str) -> str:
     return f"{mean:.2f}" + ("" if math.isnan(half) else f" ± {half:.2f}")
 
 
-def _save(fig, path: Path) -> None:
-    import matplotlib.pyplot as plt
+def _budgets(groups: dict, task: str, algos: list[str]) -> dict[str, list[int]]:
+    return {a: [r["budget"] for r in groups[(a, task)]] for a in algos if groups.get((a, task))}
 
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    write_atomic(path, buf.getvalue())
+
+def _budget_cell(budgets: list[int]) -> str:
+    if not budgets:
+        return "—"
+    lo, hi = min(budgets), max(budgets)
+    return f"{lo:,}" if lo == hi else f"{lo:,}–{hi:,}"
 
 
 def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]:
@@ -121,6 +153,13 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
     lines = ["| Task | Metric | " + " | ".join(f"{ALGO_LABELS[a]} (ours) | {ALGO_LABELS[a]} (paper)" for a in algos)
              + " |", "|---|---|" + "---|---|" * len(algos)]
     for task in tasks:
+        budgets = _budgets(groups, task, algos)
+        cells = []
+        for algo in algos:
+            cells += [_budget_cell(budgets.get(algo, [])), f"{PAPER_BUDGET:,}"]
+            writer.writerow([task, "env_step_budget", algo, len(budgets.get(algo, [])),
+                             np.mean(budgets[algo]) if budgets.get(algo) else "", "", PAPER_BUDGET])
+        lines.append(f"| {task.upper()} | Env-step budget per run | " + " | ".join(cells) + " |")
         for metric, label in TABLE_METRICS:
             cells = []
             for algo in algos:
@@ -130,24 +169,70 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
                 cells += [_fmt(mean, half, metric), "—" if paper_v is None else _fmt(paper_v, math.nan, metric)]
                 writer.writerow([task, metric, algo, n, mean, half, "" if paper_v is None else paper_v])
             lines.append(f"| {task.upper()} | {label} | " + " | ".join(cells) + " |")
-    seeds = {f"{ALGO_LABELS[a]}/{t.upper()}": len(groups.get((a, t), [])) for t in tasks for a in algos}
-    lines += ["", "Training coalitions (U_train), deterministic actions; ours: mean over seeds ± 95 % interval over "
-              "seeds (runs per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()) + "). Completion = share of "
-              "episodes in which every prey was captured / all material delivered (the paper's definition)."]
+    seeds = {f"{ALGO_LABELS[a]}/{t.upper()}": len([r for r in groups.get((a, t), []) if r["evaluation"]])
+             for t in tasks for a in algos}
+    lines += ["", "Training coalitions (U_train), deterministic actions; ours: mean over seeds ± 95 % Student-t "
+              "interval over seeds (seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()) + "), each "
+              "seed's value its mean over the 20 coalitions. Completion = share of episodes in which every prey was "
+              "captured / all material delivered (the paper's definition). The paper trains 4 M env steps per run."]
+    lines += _reference_lines(groups, tasks)
     return "\n".join(lines) + "\n", buf.getvalue()
 
 
-def _generalization(groups: dict, tasks: list[str], algos: list[str]) -> tuple[list[dict], str]:
+def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
+    """Reference policies (heuristic, constant, random) on the same episodes, from the first run
+    per task whose evaluation has them."""
+    out = []
+    for task in tasks:
+        runs = [r for (a, t), rs in groups.items() if t == task for r in rs if r["evaluation"]]
+        for split in SETS:
+            found = next(({p: _row(r, split, p) for p in REFERENCES} for r in runs
+                          if any(_row(r, split, p) for p in REFERENCES)), None)
+            if not found:
+                continue
+            if not out:
+                out += ["", "Reference policies on the same episodes (mean ± 95 % interval over episodes):", "",
+                        "| Task | Set | Policy | Return | Progress | Completion |", "|---|---|---|---|---|---|"]
+            for policy, row in found.items():
+                if row is None:
+                    continue
+                m = row["metrics"]
+                out.append(f"| {task.upper()} | {split} | {policy} | {_fmt(m['return']['mean'], m['return']['ci95'], 'return')}"
+                           f" | {_fmt(m['completion']['mean'], m['completion']['ci95'], 'return')} | "
+                           f"{_fmt(m['success']['mean'], m['success']['ci95'], 'success')} |")
+    return out
+
+
+def _sets_present(runs: list[dict]) -> list[str]:
+    return [s for s in SETS if any(_row(r, s) for r in runs)]
+
+
+def _generalization(groups: dict, tasks: list[str], algos: list[str], sets: list[str]) -> tuple[list[dict], str]:
+    """Per (task, algo): each set's return and progress over seeds and progress retention per
+    unseen set (progress on it / progress on U_train, per seed, then over seeds)."""
     rows = []
     for task in tasks:
         for algo in algos:
             runs = groups.get((algo, task), [])
-            train, train_ci, n = _over_seeds(runs, "train", "return")
-            test, test_ci, _ = _over_seeds(runs, "test", "return")
-            retention = test / train if train > 0 and not math.isnan(test) else math.nan
-            rows.append({"task": task, "algo": algo, "seeds": n, "train_return": train, "train_ci95": train_ci,
-                         "test_return": test, "test_ci95": test_ci, "retention": retention,
-                         "paper_retention": PAPER_RETENTION.get((task, algo), math.nan)})
+            row = {"task": task, "algo": algo, "seeds": _over_seeds(runs, "train", "return")[2]}
+            for split in sets:
+                for metric, key in (("return", "return"), ("completion", "progress"), ("success", "completion")):
+                    mean, half, _ = _over_seeds(runs, split, metric)
+                    row[f"{split}_{key}"], row[f"{split}_{key}_ci95"] = mean, half
+            for split in sets:
+                if split == "train":
+                    continue
+                ratios = []
+                for r in runs:
+                    tr, un = _eval_mean(r, "train", "completion"), _eval_mean(r, split, "completion")
+                    if tr is not None and un is not None and tr > 0:
+                        ratios.append(un / tr)
+                mean, half = mean_ci(ratios) if ratios else (math.nan, math.nan)
+                row[f"{split}_retention"], row[f"{split}_retention_ci95"] = mean, half
+            tr, te = row.get("train_return", math.nan), row.get("test_return", math.nan)
+            row["test_return_ratio"] = te / tr if tr > 0 and te >= 0 else math.nan  # the paper's form, where defined
+            row["paper_retention_return_ratio"] = PAPER_RETENTION.get((task, algo), math.nan)
+            rows.append(row)
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
     writer.writeheader()
@@ -155,67 +240,77 @@ def _generalization(groups: dict, tasks: list[str], algos: list[str]) -> tuple[l
     return rows, buf.getvalue()
 
 
-def _fig4(groups: dict, tasks: list[str], algos: list[str], path: Path) -> None:
-    import matplotlib
+def aggregate(scores: np.ndarray, reps: int = BOOTSTRAP_REPS, seed: int = 0) -> dict[str, float]:
+    """Mean and interquartile mean of ``scores`` (seeds, coalitions) with 95 % stratified-bootstrap
+    intervals (rliable: seeds resampled with replacement within each coalition)."""
+    from rliable import library as rly
+    from rliable import metrics
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    scores = np.asarray(scores, dtype=float)
+    if scores.ndim != 2 or scores.size == 0:
+        raise ValueError(f"scores must be a non-empty (seeds, coalitions) array, got shape {scores.shape}")
 
-    fig, axes = plt.subplots(len(tasks), 1, figsize=(7, 3.2 * len(tasks)), squeeze=False)
-    for ax, task in zip(axes[:, 0], tasks):
+    def both(x: np.ndarray) -> np.ndarray:
+        return np.array([metrics.aggregate_mean(x), metrics.aggregate_iqm(x)])
+
+    # rliable 1.2 draws its resamples from numpy's global generator (StratifiedBootstrap.update_indices
+    # calls np.random.choice; random_state= only reaches arch, which does not draw them): seed it
+    # for these calls alone and give the caller's state back.
+    saved = np.random.get_state()
+    try:
+        np.random.seed(seed)
+        point, interval = rly.get_interval_estimates({"x": scores}, both, reps=reps)
+    finally:
+        np.random.set_state(saved)
+    (mean, iqm), ci = point["x"], interval["x"]
+    return {"mean": float(mean), "mean_lo": float(ci[0, 0]), "mean_hi": float(ci[1, 0]),
+            "iqm": float(iqm), "iqm_lo": float(ci[0, 1]), "iqm_hi": float(ci[1, 1])}
+
+
+def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str]) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(["task", "algo", "set", "metric", "seeds", "coalitions", "mean", "mean_ci95_lo", "mean_ci95_hi",
+                     "iqm", "iqm_ci95_lo", "iqm_ci95_hi", "mean_over_seeds", "t_ci95_over_seeds"])
+    for task in tasks:
         for algo in algos:
-            runs = [r for r in groups.get((algo, task), []) if len(r["curve"]["env_steps"]) > 1]
-            if not runs:
-                continue
-            end = min(r["curve"]["env_steps"][-1] for r in runs)
-            grid = np.linspace(min(r["curve"]["env_steps"][0] for r in runs), end, 100)
-            ys = []
-            for r in runs:
-                x, y = np.asarray(r["curve"]["env_steps"]), np.asarray(r["curve"]["return"])
-                k = max(1, len(y) // 20)  # trailing mean over ~5 % of the run (no padding at the ends)
-                y = np.convolve(y, np.ones(k))[: len(y)] / np.minimum(np.arange(1, len(y) + 1), k)
-                ys.append(np.interp(grid, x, y))
-            ys = np.asarray(ys)
-            mean, std = ys.mean(0), ys.std(0)
-            ax.plot(grid, mean, label=f"{ALGO_LABELS[algo]} ({len(runs)} seed{'s' if len(runs) > 1 else ''})")
-            ax.fill_between(grid, mean - std, mean + std, alpha=0.2)
-        ax.set_title(f"{task.upper()}: mean training episode return (U_train)")
-        ax.set_xlabel("env steps")
-        ax.set_ylabel("return")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    _save(fig, path)
+            runs = groups.get((algo, task), [])
+            for split in sets:
+                with_rows = [(r, _row(r, split)) for r in runs if _row(r, split)]
+                if not with_rows:
+                    continue
+                for metric in ("return", "completion", "success"):
+                    per = [_per_coalition(r, row, metric) for r, row in with_rows]
+                    if len({p.size for p in per}) != 1:
+                        print(f"warning: {algo}/{task} {split}: runs evaluated different numbers of coalitions; "
+                              "left out of aggregates.csv", file=sys.stderr)
+                        continue
+                    scores = np.stack(per)
+                    agg = aggregate(scores)
+                    plain, half = mean_ci(scores.mean(axis=1))
+                    writer.writerow([task, algo, split, metric, scores.shape[0], scores.shape[1], agg["mean"],
+                                     agg["mean_lo"], agg["mean_hi"], agg["iqm"], agg["iqm_lo"], agg["iqm_hi"],
+                                     plain, half])
+    return buf.getvalue()
 
 
-def _fig5(rows: list[dict], tasks: list[str], algos: list[str], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
-    for ax, task in zip(axes[0], tasks):
-        sel = [r for r in rows if r["task"] == task]
-        x = np.arange(len(sel))
-        train = [r["train_return"] for r in sel]
-        test = [r["test_return"] for r in sel]
-        ax.bar(x - 0.2, train, 0.4, yerr=[0 if math.isnan(v) else v for v in (r["train_ci95"] for r in sel)],
-               label="train (U_train)", color="tab:red")
-        ax.bar(x + 0.2, test, 0.4, yerr=[0 if math.isnan(v) else v for v in (r["test_ci95"] for r in sel)],
-               label="unseen (U_test)", color="tab:orange")
-        for i, r in enumerate(sel):
-            if not math.isnan(r["retention"]):
-                top = np.nanmax([r["train_return"], r["test_return"], 0.0])
-                ax.annotate(f"{100 * r['retention']:.0f}%", (i, top), ha="center", va="bottom", fontsize=8)
-        ax.set_xticks(x, [ALGO_LABELS[r["algo"]] for r in sel])
-        ax.set_title(f"{task.upper()}: return, train vs unseen (retention %)")
-        ax.axhline(0, color="k", lw=0.5)
-        ax.legend(fontsize=8)
-    _save(fig, path)
+def _by_team_size(groups: dict, sets: list[str]) -> dict:
+    """(algo, task) -> team size -> per seed {"return", "completion"} means over its episodes."""
+    out: dict = {}
+    for key, runs in groups.items():
+        sizes: dict[int, list[dict[str, float]]] = {}
+        for r in runs:
+            eps = [e for split in sets if (row := _row(r, split)) for e in row["per_episode"]]
+            for n in sorted({int(e["team_size"]) for e in eps}):
+                mine = [e for e in eps if int(e["team_size"]) == n]
+                sizes.setdefault(n, []).append({m: float(np.mean([e[m] for e in mine])) for m in ("return", "completion")})
+        if sizes:
+            out[key] = sizes
+    return out
 
 
 def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None = None) -> dict:
-    """Write Table I, the generalization table and Fig. 4/5 for ``run_folders`` into ``out``."""
+    """Write :data:`REPORT_FILES` for ``run_folders`` into the folder ``out`` (which must exist)."""
     if not run_folders:
         raise ValueError("make_report needs at least one run folder")
     out = Path(out)
@@ -225,21 +320,30 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     missing = [r["folder"] for r in runs if r["evaluation"] is None]
     if len(missing) == len(runs):
         raise ValueError(f"none of the {len(runs)} run folder(s) has an evaluation (evaluation_<tier>.json, tier "
-                         f"{runs[0]['tier']!r}): run `comat eval --checkpoint RUN/checkpoint.pt` on each first")
+                         f"{runs[0]['tier']!r}): run `comat eval --policy RUN` on each first")
     for folder in missing:
-        print(f"warning: {folder} has no evaluation in the {tier or 'training'} tier: left out of the tables",
-              file=sys.stderr)
+        print(f"warning: {folder} has no evaluation in the {tier or 'training'} tier: left out of the tables and "
+              "of Fig. 5 and 6 (its training curve stays in Fig. 4)", file=sys.stderr)
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         groups.setdefault((r["algo"], r["task"]), []).append(r)
     tasks = [t for t in ("pcp", "hmt") if any(k[1] == t for k in groups)]
     algos = [a for a in ALGO_ORDER if any(k[0] == a for k in groups)]
-    md, table_csv = _table1(groups, tasks, algos)
-    rows, gen_csv = _generalization(groups, tasks, algos)
-    files = {"table1.md": md, "table1.csv": table_csv, "generalization.csv": gen_csv}
+    evaluated = {k: [r for r in v if r["evaluation"]] for k, v in groups.items()}
+    sets = _sets_present(runs)
+    md, table_csv = _table1(evaluated, tasks, algos)
+    rows, gen_csv = _generalization(evaluated, tasks, algos, sets)
+    files = {"table1.md": md, "table1.csv": table_csv, "generalization.csv": gen_csv,
+             "aggregates.csv": _aggregates(evaluated, tasks, algos, sets)}
     for name, text in files.items():
         write_atomic(out / name, text)
-    _fig4(groups, tasks, algos, out / "fig4_training_return.png")
-    _fig5(rows, tasks, algos, out / "fig5_generalization.png")
-    return {"runs": len(runs), "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()},
-            "files": [*files, "fig4_training_return.png", "fig5_generalization.png"], "generalization": rows}
+    budgets = {t: _budgets(groups, t, algos) for t in tasks}
+    curves = {k: [(np.asarray(r["curve"]["env_steps"]), np.asarray(r["curve"]["return"])) for r in v]
+              for k, v in groups.items()}
+    names = list(files)
+    names += figures.fig4(curves, tasks, algos, budgets, out / "fig4_training_return")
+    names += figures.fig5(rows, tasks, algos, sets, budgets, out / "fig5_generalization")
+    names += figures.fig_team_size(_by_team_size(evaluated, sets), tasks, algos, budgets, out / "fig6_team_size")
+    assert set(names) == set(REPORT_FILES), names
+    return {"runs": len(runs), "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()}, "sets": sets,
+            "files": names, "generalization": rows}

@@ -5,6 +5,9 @@
 * :func:`record_episodes` runs a policy (heuristic, random, checkpoint or callable) for some
   episodes and writes them to one ``.rrd`` file, one tab per episode (:func:`rollout_blueprint`).
 * :func:`check_rrd_path` and :func:`resolve_policy` are the checks done before anything runs.
+* :mod:`comat.viz.frames` draws an episode top-down with matplotlib (``env.render()`` with
+  ``render_mode="rgb_array"``); :mod:`comat.viz.video` encodes those frames to ``.mp4``/``.gif``
+  (``comat rollout --video``).
 
 Entity layout: :mod:`comat.viz.scene`. Open a file with ``rerun file.rrd``.
 

@@ -44,7 +44,7 @@ __all__ = [
     "resolve_policy",
 ]
 
-POLICY_NAMES = ("heuristic", "random")
+POLICY_NAMES = ("heuristic", "random", "constant")
 """Built-in policies; any other ``--policy`` value is a checkpoint path."""
 TASKS = ("pcp", "hmt")
 
@@ -89,6 +89,7 @@ class RolloutResult:
     wall_s: float = 0.0
     recorder_cpu_s: float = 0.0
     background_cpu_s: float = 0.0
+    video: Path | None = None
 
     @property
     def bytes_per_robot_step(self) -> float:
@@ -105,8 +106,15 @@ def _random(env, seed: int) -> Act:
     return lambda obs, mask, state: random_actions(rng, mask)
 
 
+def _constant(env, seed: int) -> Act:
+    from comat.eval.evaluate import BEST_CONSTANT_ACTION
+
+    action = BEST_CONSTANT_ACTION[env.task.name]
+    return lambda obs, mask, state: np.where(mask, action, 0)
+
+
 def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
-    """A :class:`PolicySpec` from ``"heuristic"``, ``"random"``, a checkpoint path or a callable.
+    """A :class:`PolicySpec` from ``"heuristic"``, ``"random"``, ``"constant"``, a checkpoint path or a callable.
 
     Raises:
         ValueError: an unknown name that is no file either, or a checkpoint for another task
@@ -118,12 +126,14 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         return PolicySpec(getattr(policy, "__name__", "policy"), lambda env, seed: policy)
     if not isinstance(policy, (str, Path)):
         raise TypeError(
-            f"policy must be 'heuristic', 'random', a checkpoint path or a callable, got {type(policy).__name__}"
+            f"policy must be 'heuristic', 'random', 'constant', a checkpoint path or a callable, got {type(policy).__name__}"
         )
     if str(policy) == "heuristic":
         return PolicySpec("heuristic", _heuristic)
     if str(policy) == "random":
         return PolicySpec("random", _random)
+    if str(policy) == "constant":
+        return PolicySpec("constant", _constant)
     if not Path(policy).is_file():
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
@@ -140,8 +150,10 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     )
 
 
-def check_rrd_path(path: str | Path) -> Path:
+def check_rrd_path(path: str | Path, flag: str = "out", folder: bool = True) -> Path:
     """``path`` as a Path once it is known that an ``.rrd`` file can be written there.
+
+    ``folder=False``: only the name checks (its folder is to be created, e.g. by ``--out``).
 
     Raises:
         ValueError: naming the path and what is wrong: not ``.rrd``, a folder, a missing
@@ -149,24 +161,26 @@ def check_rrd_path(path: str | Path) -> Path:
     """
     p = Path(path)
     if p.suffix != ".rrd":
-        raise ValueError(f"out must be a file name ending in .rrd, got {str(p)!r}")
+        raise ValueError(f"{flag} must be a file name ending in .rrd, got {str(p)!r}")
     if p.is_dir():
-        raise ValueError(f"out must be a file, got {str(p)!r}, which is a folder")
+        raise ValueError(f"{flag} must be a file, got {str(p)!r}, which is a folder")
+    if not folder:
+        return p
     parent = p.parent
     if not parent.exists():
-        raise ValueError(f"out: folder {str(parent)!r} does not exist (create it first), got {str(p)!r}")
+        raise ValueError(f"{flag}: folder {str(parent)!r} does not exist (create it first), got {str(p)!r}")
     if not parent.is_dir():
-        raise ValueError(f"out: {str(parent)!r} is not a folder, got {str(p)!r}")
+        raise ValueError(f"{flag}: {str(parent)!r} is not a folder, got {str(p)!r}")
     try:  # permissions, read-only mounts, quotas: only trying tells
         fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
         os.close(fd)
         os.unlink(probe)
     except OSError as err:
         raise ValueError(
-            f"out: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}"
+            f"{flag}: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}"
         ) from err
     if p.exists() and not os.access(p, os.W_OK):
-        raise ValueError(f"out: {str(p)!r} exists and is not writable")
+        raise ValueError(f"{flag}: {str(p)!r} exists and is not writable")
     return p
 
 
@@ -186,9 +200,13 @@ def play_episodes(
     use_state: bool = False,
     teams: Sequence[TeamSpec] | None = None,
     metadata: dict[str, Any] | None = None,
+    on_frame: Callable[[np.ndarray], None] | None = None,
 ) -> list[dict]:
     """Run ``episodes`` episodes of a :class:`comat.envs.TaskEnv`, each one recorded by ``recorder``
-    (a disabled recorder records nothing); returns each episode's metrics plus ``team_size``."""
+    (a disabled recorder records nothing); returns each episode's metrics plus ``team_size``.
+
+    ``on_frame``: called with ``env.render()`` (an env made with ``render_mode="rgb_array"``)
+    after every reset and every step: T + 1 frames for an episode of T steps."""
     core = env.core
     results = []
     for k in range(episodes):
@@ -198,6 +216,9 @@ def play_episodes(
             core, 0, episode=k, metadata={**(metadata or {}), "seed": seed + k, "team_size": env.team.size}
         )
         n = env.team.size
+        if on_frame is not None:
+            env.render_caption = f"{(metadata or {}).get('policy', '')} · episode {k}: {n} robots, seed {seed + k}"
+            on_frame(env.render())
         metrics: dict[str, float] = {}
         while env.agents:
             actions = np.asarray(act(core.observe(), core.mask, core.global_state() if use_state else None))[
@@ -208,6 +229,8 @@ def play_episodes(
             recorder.step(
                 actions, rewards["robot_0"], {t: info[f"reward/{t}"] for t in core.task.reward_terms}
             )
+            if on_frame is not None:
+                on_frame(env.render())
             if not env.agents:
                 metrics = {k_[len("episode/") :]: v for k_, v in info.items() if k_.startswith("episode/")}
         recorder.end(metrics)
@@ -222,13 +245,15 @@ def record_episodes(
     *,
     episodes: int | None = None,
     teams: Sequence[TeamSpec] | None = None,
-    coalitions: str = "train",
+    coalitions: str | Sequence[TeamSpec] = "train",
     seed: int = 0,
     tier: str | None = None,
     ticks_per_step: int | None = None,
     use_state: bool | None = None,
     max_robots: int | None = None,
     policy_name: str | None = None,
+    video: str | Path | None = None,
+    fps: int = 10,
 ) -> RolloutResult:
     """Run and record episodes of ``task`` ("pcp" or "hmt") to the ``.rrd`` file ``path``.
 
@@ -236,17 +261,25 @@ def record_episodes(
         path: output file; None runs the same episodes without recording (benchmarks).
         policy: "heuristic", "random", a checkpoint path, an ``act`` callable, or a PolicySpec.
         episodes: how many (default: one per entry of ``teams``, else 1).
-        teams: the team of each episode (else drawn from ``coalitions``, "train" or "test").
+        teams: the team of each episode (else drawn from ``coalitions``: "train", "test", "scale" or
+            a list of teams).
         seed: episode k resets with ``seed + k``.
-        tier: dynamics tier (default: the checkpoint's, else "wheels").
+        tier: dynamics tier (default: the checkpoint's, else :data:`comat.cli_args.REFERENCE_TIER`).
         ticks_per_step: control ticks per env step (default: the task's).
         use_state, max_robots: override what the policy declares (a trainer's own policy).
         policy_name: how the recording names the policy.
+        video: also (or, with ``path`` None, only) write the episodes as a ``.mp4`` or ``.gif``
+            of ``env.render()`` frames (:mod:`comat.viz.video`), ``fps`` frames per second, one
+            frame per env step and one at each start.
 
     Returns:
         A :class:`RolloutResult`; the file holds one recording, each episode under ``episode_<k>/``.
     """
     out = None if path is None else check_rrd_path(path)
+    if video is not None:
+        from comat.viz.video import VideoWriter, check_video_path
+
+        video = check_video_path(video)
     spec = policy if isinstance(policy, PolicySpec) else resolve_policy(policy, task)
     if teams is not None:
         teams = list(teams)
@@ -260,23 +293,34 @@ def record_episodes(
     episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
     if teams is not None and len(teams) < episodes:
         raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
-    if coalitions not in COALITION_SETS:
-        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)}, got {coalitions!r}")
+    if isinstance(coalitions, str) and coalitions not in COALITION_SETS:
+        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)} or a list of teams, got {coalitions!r}")
     import comat
+    from comat.cli_args import REFERENCE_TIER
 
-    tier = tier or spec.tier or "wheels"
+    tier = tier or spec.tier or REFERENCE_TIER
     slots = max_robots if max_robots is not None else spec.max_robots
+    # Given teams are the env's whole set: its robot slots fit the largest of them.
+    pool = teams if teams is not None else coalitions
+    from comat.envs.base import resolve_coalitions
+
+    largest = max(t.size for t in resolve_coalitions(pool, task))
+    if slots is not None and largest > slots:
+        raise ValueError(f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
+                         f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)")
     env = comat.make_env(
-        f"{task}_v0", coalitions=coalitions, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
+        f"{task}_v0", coalitions=pool, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
         state_robots=slots or 8,  # a baseline's centralized state covers all its slots
+        render_mode=None if video is None else "rgb_array",
     )
     act = spec.bind(env, seed)
     meta = {
         "policy": policy_name or spec.name,
-        "coalition set": "given teams" if teams is not None else coalitions,
+        "coalition set": "given teams" if teams is not None else coalitions if isinstance(coalitions, str)
+        else f"{len(coalitions)} teams given",
     }
     state = spec.use_state if use_state is None else use_state
-    rec = tmp = None
+    rec = tmp = writer = None
     t0, thread0, others0 = time.perf_counter(), time.thread_time(), time.process_time() - time.thread_time()
     if out is not None:
         tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
@@ -294,20 +338,27 @@ def record_episodes(
             rec.save(tmp, default_blueprint=rollout_blueprint(range(episodes)))
         file_cpu = time.thread_time() - thread0
         recorder = EpisodeRecorder(rec)
+        writer = None if video is None else VideoWriter(video, fps)
         results = play_episodes(
-            env, act, recorder, episodes=episodes, seed=seed, use_state=state, teams=teams, metadata=meta
+            env, act, recorder, episodes=episodes, seed=seed, use_state=state, teams=teams, metadata=meta,
+            on_frame=None if writer is None else writer.append,
         )
+        if writer is not None:
+            writer.close()
         if rec is not None:
             thread1 = time.thread_time()
             rec.disconnect()  # writes the footer: the file is complete only now
             os.replace(tmp, out)
             file_cpu += time.thread_time() - thread1
     except BaseException:
+        if writer is not None:
+            writer.abort()
         if rec is not None:
             rec.disconnect()
             tmp.unlink(missing_ok=True)
         raise
     result = _result(out, results, time.perf_counter() - t0)
+    result.video = video
     if rec is not None:
         result.recorder_cpu_s = file_cpu + recorder.cpu_s
         result.background_cpu_s = time.process_time() - time.thread_time() - others0

@@ -36,6 +36,7 @@ import rerun as rr
 
 from comat import constants as C
 from comat.task_logic import ACTION_NAMES, ZONE1_CENTRE, ZONE1_RADIUS, ZONE2_X
+from comat.viz.frames import PREY_COLORS, TYPE_COLORS  # one palette for recordings and frames
 
 __all__ = [
     "ACTION_COLORS",
@@ -47,17 +48,6 @@ __all__ = [
     "meta_markdown",
     "robot_labels",
 ]
-
-TYPE_COLORS: dict[str, tuple[int, int, int]] = {
-    "sensing": (66, 133, 244),
-    "capture": (219, 68, 55),
-    "fast": (15, 157, 88),
-    "slow": (142, 68, 173),
-}
-"""Robot colour by type (RGB)."""
-
-PREY_COLORS = np.array([[150, 150, 150, 255], [244, 180, 0, 255], [15, 157, 88, 255]], dtype=np.uint8)
-"""Prey colour by state: free, sensed, captured."""
 
 ACTION_COLORS = ((120, 120, 120), (230, 120, 20), (230, 120, 20), (20, 140, 230), (20, 140, 230))
 """Waypoint arrow colour per action (stay, ±x, ±y)."""

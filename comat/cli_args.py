@@ -1,0 +1,255 @@
+"""The one grammar of every ``comat`` command that runs a policy (rollout, export, eval, probe, bench viz).
+
+Shared flags, defined here once so their spelling, choices (in one order) and defaults agree:
+
+===================  =========================================================================
+``--policy P``       a checkpoint file, a run folder (its ``checkpoint.pt``), or a reference
+                     policy: ``heuristic`` (scripted, reads the task state), ``random``,
+                     ``constant`` (every robot always the task's best single action)
+``--task T``         ``pcp`` or ``hmt``; inferred from a checkpoint (a different ``--task`` is an
+                     error); needed with a reference policy
+``--team TEAM``      one team: ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set)
+                     or a JSON/YAML file ``{"robots": [...]}``
+``--teams SET``      a set of teams: ``train``, ``test``, ``scale``, ``both`` (train and test),
+                     ``all``, or a file (a coalition list ``{"coalitions": [...]}`` or one team);
+                     default ``both``
+``--tier T``         ``wheels`` or ``unicycle``; default the checkpoint's training tier, else
+                     :data:`REFERENCE_TIER`
+``--seed S``         default :data:`DEFAULT_SEED` (the evaluation seed; never a training seed)
+``--out`` / ``--force``  created if missing; refused if it would overwrite unless ``--force``;
+                     removed again if the command fails (:func:`comat.files.new_outputs`)
+===================  =========================================================================
+
+Old spellings keep working for one release with a one-line note on stderr: ``--checkpoint
+FILE`` (now ``--policy FILE``) and ``--set SET`` (now ``--teams SET``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from comat.team import COALITION_SETS
+
+__all__ = [
+    "ALGOS",
+    "DEFAULT_SEED",
+    "DEFAULT_TEAMS",
+    "REFERENCE_POLICIES",
+    "REFERENCE_TIER",
+    "TASKS",
+    "TIERS",
+    "PolicyArg",
+    "add_force",
+    "add_policy",
+    "add_seed",
+    "add_task",
+    "add_team",
+    "add_teams",
+    "add_tier",
+    "parse_team",
+    "parse_teams",
+    "resolve_policy_arg",
+]
+
+TASKS = ("pcp", "hmt")
+"""Task choices, in this order in every command."""
+TIERS = ("wheels", "unicycle")
+ALGOS = ("comat", "mat", "mappo", "qmix")
+REFERENCE_POLICIES = ("heuristic", "random", "constant")
+REFERENCE_TIER = "unicycle"
+"""Tier of a policy that has no training tier (the reference policies): the presets' training tier,
+so reference numbers sit next to a checkpoint's evaluated in the same dynamics."""
+DEFAULT_SEED = 2_000_003
+"""Default ``--seed`` of episodes a command plays (comat.eval.evaluate.EVAL_SEED)."""
+DEFAULT_TEAMS = "both"
+TEAM_SETS = (*COALITION_SETS, "both", "all")
+
+
+class _Deprecated(argparse.Action):
+    """An old spelling: stores like the new one, says so on stderr (one line)."""
+
+    def __init__(self, option_strings, dest, new: str, **kwargs) -> None:
+        self.new = new
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(f"comat: {option_string} is deprecated and will be removed; use {self.new} {values}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_policy(p: argparse.ArgumentParser, *, required: bool = False, references: tuple[str, ...] = REFERENCE_POLICIES,
+               checkpoint_alias: bool = True) -> None:
+    """``--policy`` (default heuristic unless ``required``) and the deprecated ``--checkpoint``.
+
+    A required ``--policy`` is checked by :func:`resolve_policy_arg`, not argparse, so that the old
+    spelling still satisfies it."""
+    refs = "|".join(references)
+    p.add_argument("--policy", default=None if required else "heuristic",
+                   metavar=f"CHECKPOINT|RUN_FOLDER{'|' + refs if refs else ''}",
+                   help="a checkpoint.pt, a run folder (its checkpoint.pt)"
+                   + (f", or a reference policy ({', '.join(references)})" if references else "")
+                   + (" (required)" if required else " (default: %(default)s)"))
+    if checkpoint_alias:
+        p.add_argument("--checkpoint", dest="policy", action=_Deprecated, new="--policy", help=argparse.SUPPRESS)
+
+
+def add_task(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--task", choices=TASKS, default=None,
+                   help="task (default: the checkpoint's; needed with a reference policy)")
+
+
+def add_team(p: argparse.ArgumentParser, *, required: bool = False) -> None:
+    p.add_argument("--team", required=required, default=None, metavar="SET:K|FILE",
+                   help=f"one team: {', '.join(f'{s}:K' for s in COALITION_SETS)} (coalition K of that set) or a "
+                   "JSON/YAML file {\"robots\": [...]} (instead of --teams)")
+
+
+def add_teams(p: argparse.ArgumentParser, *, set_alias: bool = True) -> None:
+    p.add_argument("--teams", default=DEFAULT_TEAMS, metavar="|".join(TEAM_SETS) + "|FILE",
+                   help="a set of teams: " + ", ".join(COALITION_SETS) + " (the composition sets), both = train and "
+                   "test, all = " + " and ".join(COALITION_SETS) + ", or a coalition file "
+                   "({\"coalitions\": [...]} or one team) (default: %(default)s)")
+    if set_alias:
+        p.add_argument("--set", dest="teams", action=_Deprecated, new="--teams", help=argparse.SUPPRESS)
+
+
+def add_tier(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--tier", choices=TIERS, default=None,
+                   help=f"dynamics tier (default: the checkpoint's training tier; {REFERENCE_TIER} for a reference "
+                   "policy)")
+
+
+def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> None:
+    p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"{what} (default: %(default)s)")
+
+
+def add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true", help="replace output files that already exist (default: refuse)")
+
+
+@dataclass(frozen=True)
+class PolicyArg:
+    """A resolved ``--policy``: a reference policy's name, or a checkpoint with its run's facts."""
+
+    name: str
+    task: str
+    checkpoint: Path | None = None
+    algo: str | None = None
+    trained_tier: str | None = None
+
+    @property
+    def tier(self) -> str:
+        """The default tier: the training tier of a checkpoint, else :data:`REFERENCE_TIER`."""
+        return self.trained_tier or REFERENCE_TIER
+
+
+def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[str, ...] = REFERENCE_POLICIES,
+                       algos: tuple[str, ...] = ALGOS) -> PolicyArg:
+    """Check ``--policy`` against ``--task`` (ValueError naming the flag, expected and got)."""
+    from comat.rl.checkpoint import load_checkpoint
+
+    if policy is None:
+        raise ValueError("--policy is required: a checkpoint.pt or a run folder"
+                         + (f", or one of {', '.join(references)}" if references else ""))
+    if policy in REFERENCE_POLICIES:
+        if policy not in references:
+            raise ValueError("--policy must be a checkpoint or run folder"
+                             + (f" or one of {list(references)}" if references else "") + f" here, got {policy!r}")
+        if task is None:
+            raise ValueError(f"--task is needed with --policy {policy} (a reference policy has no task of its own)")
+        return PolicyArg(policy, task)
+    path = Path(policy)
+    if path.is_dir():
+        if not (path / "checkpoint.pt").is_file():
+            raise ValueError(f"--policy {policy!r} is a folder without a checkpoint.pt (not a run folder, or its "
+                             "run has not saved one yet)")
+        path = path / "checkpoint.pt"
+    elif not path.is_file():
+        refs = f", or one of {', '.join(references)}" if references else ""
+        raise ValueError(f"--policy must be a checkpoint.pt or a run folder{refs}, got {policy!r} (no such file)")
+    data = load_checkpoint(path)  # CheckpointError (a ValueError) names a foreign or corrupt file
+    if task is not None and task != data["task"]:
+        raise ValueError(f"--task {task!r} disagrees with the checkpoint, which is for task {data['task']!r} ({path})")
+    if data["algo"] not in algos:
+        raise ValueError(f"--policy must be a checkpoint of {'/'.join(algos)} here, got a {data['algo']} checkpoint "
+                         f"({path})")
+    tier = (data.get("config") or {}).get("tier")
+    return PolicyArg(f"{data['algo']} checkpoint", data["task"], path, data["algo"], tier)
+
+
+def _read_team_file(value: str, task: str, flag: str):
+    """A team (dict with 'robots') or a coalition list (dict with 'coalitions') from a JSON/YAML file."""
+    import yaml
+
+    path = Path(value)
+    expected = "a JSON/YAML file with {'robots': [...]}" + (" or {'coalitions': [...]}" if flag == "--teams" else "")
+    if not path.is_file():
+        why = "a folder" if path.is_dir() else "no such file"
+        return None, f"{flag} must be {_team_forms(flag)}, got {value!r} ({why})"
+    try:
+        data = yaml.safe_load(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, yaml.YAMLError) as err:
+        return None, f"{flag} {value!r} must be {expected}, got a file that is not JSON/YAML ({type(err).__name__})"
+    if data is None:
+        return None, f"{flag} {value!r} must be {expected}, got a file that is empty"
+    if not isinstance(data, dict):
+        return None, (f"{flag} {value!r} must hold a JSON object (YAML mapping) {{'robots': [...]}}, got a "
+                      f"{type(data).__name__}")
+    if not {"robots", "coalitions"} & set(data):
+        return None, f"{flag} {value!r} must be {expected}, got a mapping with keys {sorted(data)}"
+    return data, None
+
+
+def _team_forms(flag: str) -> str:
+    sets = ", ".join(f"'{s}:K'" for s in COALITION_SETS)
+    if flag == "--team":
+        return f"{sets} or a JSON/YAML file with {{'robots': [...]}}"
+    return f"one of {list(TEAM_SETS)} or a file with {{'coalitions': [...]}} or {{'robots': [...]}}"
+
+
+def parse_team(value: str, task: str, flag: str = "--team"):
+    """A TeamSpec from ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set) or a team file."""
+    from comat.envs.base import resolve_coalitions
+    from comat.team import TeamSpec
+
+    split, sep, index = value.partition(":")
+    if sep and split in COALITION_SETS:
+        teams = resolve_coalitions(split, task)
+        if not index.isdigit() or int(index) >= len(teams):
+            raise ValueError(f"{flag} {value!r}: index must be 0..{len(teams) - 1}, got {index!r}")
+        return teams[int(index)]
+    data, error = _read_team_file(value, task, flag)
+    if error:
+        raise ValueError(error)
+    if "robots" not in data:
+        raise ValueError(f"{flag} {value!r} must hold one team {{'robots': [...]}}, got a coalition list (use --teams)")
+    return TeamSpec.from_dict({"task": task, **data})
+
+
+def parse_teams(value: str, task: str) -> list[tuple[str, list]]:
+    """``--teams``: ``[(set name, teams), ...]`` — the named sets, or one set read from a file
+    (named by its path)."""
+    from comat.envs.base import resolve_coalitions
+    from comat.team import TeamSpec
+
+    if value in TEAM_SETS:
+        names = {"both": ["train", "test"], "all": list(COALITION_SETS)}.get(value, [value])
+        return [(name, resolve_coalitions(name, task)) for name in names]
+    data, error = _read_team_file(value, task, "--teams")
+    if error:
+        raise ValueError(error)
+    raw = data.get("coalitions", [data])
+    if not isinstance(raw, list) or not raw:
+        raise ValueError(f"--teams {value!r}: 'coalitions' must be a non-empty list of teams, got {raw!r:.80}")
+    teams = []
+    for i, t in enumerate(raw):
+        if not isinstance(t, dict):
+            raise ValueError(f"--teams {value!r}: coalition {i} must be a mapping with 'robots', got {t!r:.80}")  # noqa: TRY004 - bad file content
+        team = TeamSpec.from_dict({"task": task, **t})
+        if team.task != task:
+            raise ValueError(f"--teams {value!r}: coalition {i} is a {team.task!r} team, but the policy runs {task!r}")
+        teams.append(team)
+    return [(value, teams)]

@@ -1,0 +1,207 @@
+"""The report's figures (matplotlib, Agg): Fig. 4, Fig. 5 and return / progress against team size.
+
+Every figure uses :data:`ALGO_COLORS` — one colour per algorithm in every figure and every
+report — and says in its caption what a line, band or bar is: the statistic, over what
+(seeds), the interval method and the env-step budget. Each is written as PNG (200 dpi) and
+PDF (vector), atomically.
+
+Inputs are plain dicts built by :mod:`comat.eval.report` (shapes in each function).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from comat.eval.metrics import mean_ci
+from comat.files import write_atomic
+
+__all__ = ["ALGO_COLORS", "ALGO_LABELS", "SET_HATCHES", "TRAIN_SIZES", "fig4", "fig5", "fig_team_size", "save"]
+
+ALGO_LABELS = {"mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "comat": "COMAT"}
+ALGO_COLORS = {"comat": "#d62728", "mat": "#1f77b4", "mappo": "#2ca02c", "qmix": "#9467bd"}
+"""Colour of each algorithm, fixed (not by the order runs are given)."""
+SET_HATCHES = {"train": "", "test": "//", "scale": ".."}
+"""Composition sets are told apart by hatching, never by colour (colour means algorithm)."""
+SET_LABELS = {"train": "U_train", "test": "U_test (unseen)", "scale": "U_scale (10-20 robots)"}
+TRAIN_SIZES = (3, 5, 7)
+"""Team sizes of U_train (paper §III-D)."""
+METRIC_AXES = {"return": "episode return (team reward, sum over steps)",
+               "completion": "progress (% of prey captured / material delivered)"}
+FORMATS = ("png", "pdf")
+
+
+def save(fig, stem: Path) -> list[str]:
+    """Write ``fig`` as ``stem.png`` and ``stem.pdf``; returns the file names."""
+    import matplotlib.pyplot as plt
+
+    names = []
+    for fmt in FORMATS:
+        buf = io.BytesIO()
+        fig.savefig(buf, format=fmt, dpi=200, bbox_inches="tight")
+        write_atomic(stem.with_suffix(f".{fmt}"), buf.getvalue())
+        names.append(f"{stem.name}.{fmt}")
+    plt.close(fig)
+    return names
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _budget_text(budgets: Mapping[str, Sequence[int]]) -> str:
+    """'COMAT 51,200, MAT 51,200 env steps per run' (a range where seeds differ)."""
+    parts = []
+    for algo, b in budgets.items():
+        lo, hi = min(b), max(b)
+        parts.append(f"{ALGO_LABELS[algo]} {lo:,}" + ("" if lo == hi else f"-{hi:,}"))
+    return ", ".join(parts) + " env steps per run (paper: 4,000,000)"
+
+
+def fig4(curves: Mapping[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]], tasks: list[str], algos: list[str],
+         budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path) -> list[str]:
+    """Training return against env steps, one panel per task.
+
+    ``curves[(algo, task)]``: per seed (env_steps (T,), episode return (T,)). Line: mean over
+    seeds of the smoothed curves (trailing mean over ~5 % of each run); band: 95 % Student-t
+    interval over seeds (no band with one seed)."""
+    plt = _plt()
+    fig, axes = plt.subplots(len(tasks), 1, figsize=(7, 3.4 * len(tasks)), squeeze=False)
+    for ax, task in zip(axes[:, 0], tasks):
+        for algo in algos:
+            runs = [c for c in curves.get((algo, task), []) if len(c[0]) > 1]
+            if not runs:
+                continue
+            grid = np.linspace(max(x[0] for x, _ in runs), min(x[-1] for x, _ in runs), 100)
+            ys = []
+            for x, y in runs:
+                k = max(1, len(y) // 20)  # trailing mean over ~5 % of the run (no padding at the ends)
+                y = np.convolve(y, np.ones(k))[: len(y)] / np.minimum(np.arange(1, len(y) + 1), k)
+                ys.append(np.interp(grid, x, y))
+            ys = np.asarray(ys)
+            mean = ys.mean(0)
+            color = ALGO_COLORS[algo]
+            ax.plot(grid, mean, color=color, label=f"{ALGO_LABELS[algo]} ({len(runs)} seed{'s' * (len(runs) > 1)})")
+            if len(runs) > 1:
+                half = np.array([mean_ci(col)[1] for col in ys.T])
+                ax.fill_between(grid, mean - half, mean + half, color=color, alpha=0.2, lw=0)
+        ax.set_title(f"{task.upper()}: training episode return on U_train\n{_budget_text(budgets.get(task, {}))}",
+                     fontsize=9)
+        ax.set_xlabel("env steps")
+        ax.set_ylabel("episode return\n(team reward, sum over steps)")
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+        else:
+            ax.text(0.5, 0.5, "no training curve (fewer than two logged points per run)", transform=ax.transAxes,
+                    ha="center", va="center", fontsize=8, color="grey")
+    fig.text(0.01, -0.01, "Line: mean over seeds of each run's training episode return, smoothed by a trailing mean "
+             "over 5 % of the run. Band: 95 % Student-t interval over seeds (none with one seed).", fontsize=7,
+             ha="left", va="top", wrap=True)
+    fig.tight_layout()
+    return save(fig, stem)
+
+
+def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
+         budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path) -> list[str]:
+    """Return and progress per composition set, bars per algorithm; progress retention labels.
+
+    ``rows``: the generalization rows of :func:`comat.eval.report` (``<set>_return``,
+    ``<set>_return_ci95``, ``<set>_progress``, ``<set>_progress_ci95``, ``<set>_retention``)."""
+    plt = _plt()
+    fig, axes = plt.subplots(2, len(tasks), figsize=(1.2 + 1.3 * len(algos) * len(sets) / 2 * len(tasks) + 2,
+                                                     6.4), squeeze=False)
+    width = 0.8 / len(sets)
+    for col, task in enumerate(tasks):
+        sel = [r for r in rows if r["task"] == task and r["seeds"]]
+        x = np.arange(len(sel))
+        for row_i, (metric, key) in enumerate((("return", "return"), ("completion", "progress"))):
+            ax = axes[row_i, col]
+            for k, split in enumerate(sets):
+                scale = 100.0 if key == "progress" else 1.0
+                vals = [scale * r.get(f"{split}_{key}", math.nan) for r in sel]
+                errs = [scale * r.get(f"{split}_{key}_ci95", math.nan) for r in sel]  # nan: no bar (one seed)
+                ax.bar(x + (k - (len(sets) - 1) / 2) * width, vals, width, yerr=errs, capsize=2,
+                       color=[ALGO_COLORS[r["algo"]] for r in sel], hatch=SET_HATCHES[split], edgecolor="white",
+                       alpha=1.0 if split == "train" else 0.75, label=SET_LABELS[split])
+                if key == "progress" and split != "train":
+                    for i, r in enumerate(sel):
+                        ret = r.get(f"{split}_retention", math.nan)
+                        if not math.isnan(ret):
+                            top = max(0.0, vals[i]) if not math.isnan(vals[i]) else 0.0
+                            ax.annotate(f"{100 * ret:.0f}%", (x[i] + (k - (len(sets) - 1) / 2) * width, top),
+                                        xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
+                                        fontsize=6, color="black")
+            ax.set_xticks(x, [ALGO_LABELS[r["algo"]] for r in sel])
+            ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
+            ax.axhline(0, color="k", lw=0.5)
+            ax.grid(axis="y", alpha=0.3)
+            if row_i == 0:
+                ax.set_title(f"{task.upper()}: deterministic policy per composition set\n"
+                             f"{_budget_text(budgets.get(task, {}))}", fontsize=9)
+            # Legend of the sets: hatching, in neutral grey (colour is the algorithm's).
+            from matplotlib.patches import Patch
+
+            ax.legend(handles=[Patch(facecolor="#bbbbbb", hatch=SET_HATCHES[s], edgecolor="white",
+                                     label=SET_LABELS[s]) for s in sets], fontsize=7)
+    fig.text(0.01, -0.01, "Bars: mean over seeds of each seed's mean over the set's coalitions (one episode per "
+             "coalition unless stated). Error bars: 95 % Student-t interval over seeds (none with one seed). Labels on "
+             "the progress bars: progress retention = progress on the set / progress on U_train.", fontsize=7,
+             ha="left", va="top", wrap=True)
+    fig.tight_layout()
+    return save(fig, stem)
+
+
+def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, float]]]], tasks: list[str],
+                  algos: list[str], budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path) -> list[str]:
+    """Return and progress against team size, a line per algorithm.
+
+    ``by_size[(algo, task)][n]``: per seed ``{"return": mean, "completion": mean}`` over that
+    seed's episodes with n robots (all its evaluated sets). Line: mean over seeds; band: 95 %
+    Student-t interval over seeds; grey bars mark U_train's sizes (3, 5, 7)."""
+    plt = _plt()
+    fig, axes = plt.subplots(2, len(tasks), figsize=(5.2 * len(tasks), 6.4), squeeze=False)
+    for col, task in enumerate(tasks):
+        for row_i, metric in enumerate(("return", "completion")):
+            ax = axes[row_i, col]
+            scale = 100.0 if metric == "completion" else 1.0
+            for n in TRAIN_SIZES:
+                ax.axvspan(n - 0.35, n + 0.35, color="#dddddd", lw=0, zorder=0)
+            for algo in algos:
+                sizes = sorted(by_size.get((algo, task), {}))
+                if not sizes:
+                    continue
+                mean, half = [], []
+                for n in sizes:
+                    vals = [scale * s[metric] for s in by_size[(algo, task)][n]]
+                    m, h = mean_ci(vals)
+                    mean.append(m)
+                    half.append(0.0 if math.isnan(h) else h)
+                mean, half = np.asarray(mean), np.asarray(half)
+                color = ALGO_COLORS[algo]
+                seeds = max(len(v) for v in by_size[(algo, task)].values())
+                ax.plot(sizes, mean, "o-", color=color, ms=3, label=f"{ALGO_LABELS[algo]} ({seeds} seed"
+                        f"{'s' * (seeds > 1)})")
+                ax.fill_between(sizes, mean - half, mean + half, color=color, alpha=0.2, lw=0)
+            ax.set_xlabel("team size (robots); grey: U_train's sizes 3, 5, 7")
+            ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
+            ax.grid(alpha=0.3)
+            if row_i == 0:
+                ax.set_title(f"{task.upper()}: deterministic policy against team size\n"
+                             f"{_budget_text(budgets.get(task, {}))}", fontsize=9)
+                if ax.get_legend_handles_labels()[0]:
+                    ax.legend(fontsize=7)
+    fig.text(0.01, -0.01, "Points: mean over seeds of each seed's mean over its evaluation episodes with that many "
+             "robots (U_train, U_test and U_scale where evaluated). Band: 95 % Student-t interval over seeds (none "
+             "with one seed).", fontsize=7, ha="left", va="top", wrap=True)
+    fig.tight_layout()
+    return save(fig, stem)

@@ -1,0 +1,328 @@
+"""Top-down pictures of an episode, drawn with matplotlib (Agg: headless, no display, no GPU).
+
+One drawing serves ``env.render()`` (``render_mode="rgb_array"``) and ``comat rollout --video``:
+
+* :class:`EpisodeFrames` follows one team of a :class:`comat.envs.core.TaskCore` through an
+  episode — ``begin`` after a reset, ``after_step`` after every env step — keeping the robots'
+  trails and what the safety filter changed in the last step (through a
+  :class:`comat.viz.tap.TickTap` on the team's control ticks), and ``frame()`` draws the
+  current state as an (H, W, 3) uint8 array, H × W = :data:`FRAME_SIZE`.
+* :func:`draw_frame` draws a :class:`FrameState` (plain arrays, no env needed).
+
+What a frame shows (arena metres, x right, y up): the arena and its walls; PCP's spawn and
+prey areas and each prey coloured free / sensed / captured; HMT's two material zones and the
+drop-off with what is left and delivered; every robot as a disc of its body radius coloured by
+type, with its heading; its capability — PCP: the sensing or capture radius as a circle; HMT:
+the step length as a dashed circle and the payload as a bar filled to its load; its trail; a red
+ring and the nominal (grey) → filtered (red) velocity arrow where the barrier filter changed its
+command in the last step; a red cross where a contact, collision or boundary exit happened.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from comat import constants as C
+from comat.task_logic import ZONE1_CENTRE, ZONE1_RADIUS, ZONE2_X
+
+__all__ = [
+    "FRAME_SIZE",
+    "PREY_COLORS",
+    "TYPE_COLORS",
+    "EpisodeFrames",
+    "FrameState",
+    "draw_frame",
+]
+
+FRAME_SIZE = (448, 640)
+"""(H, W) of a frame in pixels: both multiples of 16 (what H.264 encoders want), the arena's
+3.2 × 2 m at 190 px/m below a 48 px header."""
+_DPI = 100
+_HEADER_PX = 48
+
+TYPE_COLORS: dict[str, tuple[int, int, int]] = {
+    "sensing": (66, 133, 244),
+    "capture": (219, 68, 55),
+    "fast": (15, 157, 88),
+    "slow": (142, 68, 173),
+}
+"""Robot colour by type (RGB), in frames and in Rerun recordings."""
+
+PREY_COLORS = np.array([[150, 150, 150, 255], [244, 180, 0, 255], [15, 157, 88, 255]], dtype=np.uint8)
+"""Prey colour by state (RGBA): free, sensed, captured."""
+
+TRAIL_POINTS_PER_STEP = 4
+"""Path points kept per robot and env step for the trails (evenly spaced ticks, the last always)."""
+SAFETY_ARROW_S = 0.6
+"""Velocity arrows show where the point would be after this long (0.2 m/s → 0.12 m)."""
+_LOAD_BAR_M_PER_UNIT = 0.006
+_LOAD_BAR_OFFSET_M = 0.1
+
+
+def _rgb(color: tuple[int, ...]) -> tuple[float, ...]:
+    return tuple(c / 255 for c in color)
+
+
+@dataclass
+class FrameState:
+    """What one frame draws; arrays are row-per-robot, n robots, K prey.
+
+    Attributes:
+        task: "pcp" or "hmt".
+        poses: (n, 3) x, y (m), heading (rad).
+        types: n robot type names.
+        caps: (n, 2) capabilities (PCP: sensing, capture radius m; HMT: step m, payload).
+        robot_radius_m: body radius.
+        trails: (n, P, 2) path so far (P >= 1).
+        intervened: (n,) the filter changed the robot's command in the last step.
+        origin, nominal, filtered: (n, 2) projected point and its nominal / filtered velocity
+            (m/s) at the tick of the largest change (rows where ``intervened``).
+        events: (n,) a contact, collision or boundary exit in the last step; ``event_xy`` (n, 2).
+        task_state: PCP ``prey`` (K, 2), ``sensed``, ``captured`` (K,); HMT ``left``,
+            ``initial`` (2,), ``load`` (n,), ``delivered`` ().
+        spawn_box, prey_box: PCP areas (x0, x1, y0, y1).
+        step, horizon, ret: env steps so far, the horizon, return so far.
+        title: first header line (e.g. the policy).
+    """
+
+    task: str
+    poses: np.ndarray
+    types: list[str]
+    caps: np.ndarray
+    robot_radius_m: float
+    trails: np.ndarray
+    intervened: np.ndarray
+    origin: np.ndarray
+    nominal: np.ndarray
+    filtered: np.ndarray
+    events: np.ndarray
+    event_xy: np.ndarray
+    task_state: dict[str, np.ndarray]
+    spawn_box: tuple[float, float, float, float] | None = None
+    prey_box: tuple[float, float, float, float] | None = None
+    step: int = 0
+    horizon: int = 0
+    ret: float = 0.0
+    title: str = ""
+
+
+def _figure():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    h, w = FRAME_SIZE
+    fig = Figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
+    FigureCanvasAgg(fig)  # Agg canvas bound to this figure only: pyplot's global state is never touched
+    return fig
+
+
+def draw_frame(state: FrameState, fig=None) -> np.ndarray:
+    """The (H, W, 3) uint8 picture of ``state`` (:data:`FRAME_SIZE`); ``fig``: a figure to reuse."""
+    fig = fig or _figure()
+    fig.clear()
+    h = FRAME_SIZE[0]
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0 - _HEADER_PX / h))
+    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
+    pad = (X1 - X0) * 0.0625 / 2  # the axes' 1.6 aspect holds the arena plus its walls
+    ax.set_xlim(X0 - pad, X1 + pad)
+    ax.set_ylim(Y0 - pad / 1.6, Y1 + pad / 1.6)
+    ax.set_aspect("auto")
+    ax.set_axis_off()
+    _draw_arena(ax)
+    if state.task == "pcp":
+        _draw_pcp(ax, state)
+    else:
+        _draw_hmt(ax, state)
+    _draw_robots(ax, state)
+    _draw_safety(ax, state)
+    fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
+    fig.text(0.01, 1 - 26 / h, _status_line(state), ha="left", va="top", fontsize=8, family="monospace")
+    # Legend: the types present, in order of appearance, at the header's right.
+    for k, kind in enumerate(reversed(list(dict.fromkeys(state.types)))):
+        fig.text(0.99 - 0.11 * k, 1 - 6 / h, f"● {kind}", ha="right", va="top", fontsize=8,
+                 color=_rgb(TYPE_COLORS.get(kind, (200, 200, 200))))
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    assert rgba.shape[:2] == FRAME_SIZE, rgba.shape  # fixed figure size and dpi
+    return np.ascontiguousarray(rgba[..., :3])
+
+
+def _status_line(s: FrameState) -> str:
+    head = f"{s.task.upper()}  step {s.step}/{s.horizon}  return {s.ret:7.2f}  "
+    if s.task == "pcp":
+        st = s.task_state
+        k = len(st["sensed"])
+        body = f"prey sensed {int(st['sensed'].sum())}/{k}, captured {int(st['captured'].sum())}/{k}"
+    else:
+        st = s.task_state
+        body = f"left {st['left'][0]:.1f} + {st['left'][1]:.1f}, carried {float(st['load'].sum()):.1f}, " \
+            f"delivered {float(st['delivered']):.1f}"
+    return head + body + f"  filtered {int(s.intervened.sum())}"
+
+
+def _draw_arena(ax) -> None:
+    from matplotlib.patches import Rectangle
+
+    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
+    t = C.WALL_THICKNESS_M
+    ax.add_patch(Rectangle((X0, Y0), X1 - X0, Y1 - Y0, facecolor="#f7f7f2", edgecolor="#3c3c3c", lw=1.2))
+    for x, y, w, h in ((X0 - t, Y0 - t, t, Y1 - Y0 + 2 * t), (X1, Y0 - t, t, Y1 - Y0 + 2 * t),
+                       (X0, Y0 - t, X1 - X0, t), (X0, Y1, X1 - X0, t)):
+        ax.add_patch(Rectangle((x, y), w, h, facecolor="#9a9a9a", edgecolor="none"))
+
+
+def _box(ax, box, color, label: str) -> None:
+    from matplotlib.patches import Rectangle
+
+    x0, x1, y0, y1 = box
+    ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(*color, 0.12), edgecolor=(*color, 0.7),
+                           lw=0.8, ls="--"))
+    ax.text(x0 + 0.02, y1 - 0.02, label, ha="left", va="top", fontsize=7, color=color)
+
+
+def _draw_pcp(ax, s: FrameState) -> None:
+    from matplotlib.patches import Circle
+
+    if s.spawn_box:
+        _box(ax, s.spawn_box, (0.45, 0.45, 0.45), "robot spawn")
+    if s.prey_box:
+        _box(ax, s.prey_box, (0.2, 0.6, 0.2), "prey area")
+    st = s.task_state
+    kind = np.where(st["captured"], 2, np.where(st["sensed"], 1, 0))
+    for (x, y), k in zip(st["prey"], kind):
+        ax.add_patch(Circle((x, y), 0.035, facecolor=PREY_COLORS[k, :3] / 255, edgecolor="k", lw=0.5, zorder=3))
+
+
+def _draw_hmt(ax, s: FrameState) -> None:
+    from matplotlib.patches import Circle, Rectangle
+
+    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
+    st = s.task_state
+    amber, green = (0.9, 0.67, 0.08), (0.2, 0.67, 0.31)
+    ax.add_patch(Circle(ZONE1_CENTRE, ZONE1_RADIUS, facecolor=(*amber, 0.15), edgecolor=amber, lw=1.0))
+    ax.add_patch(Rectangle((ZONE2_X, Y0), X1 - ZONE2_X, Y1 - Y0, facecolor=(*amber, 0.15), edgecolor=amber, lw=1.0))
+    ax.add_patch(Rectangle((X0, Y0), -ZONE2_X - X0, Y1 - Y0, facecolor=(*green, 0.15), edgecolor=green, lw=1.0))
+    kw = {"fontsize": 7, "ha": "center", "va": "top"}
+    ax.text(ZONE1_CENTRE[0], ZONE1_CENTRE[1] - ZONE1_RADIUS - 0.02,
+            f"zone 1: {st['left'][0]:.1f} of {st['initial'][0]:.1f}", color=amber, **kw)
+    ax.text((ZONE2_X + X1) / 2, Y1 - 0.02, f"zone 2: {st['left'][1]:.1f} of {st['initial'][1]:.1f}", color=amber, **kw)
+    ax.text((X0 - ZONE2_X) / 2, Y1 - 0.02, f"drop-off: {float(st['delivered']):.1f}", color=green, **kw)
+
+
+def _draw_robots(ax, s: FrameState) -> None:
+    from matplotlib.patches import Circle, Rectangle
+
+    for i, (pose, kind) in enumerate(zip(s.poses, s.types)):
+        color = _rgb(TYPE_COLORS.get(kind, (200, 200, 200)))
+        trail = s.trails[i]
+        ax.plot(trail[:, 0], trail[:, 1], color=color, alpha=0.45, lw=1.0, zorder=2)
+        x, y, th = pose
+        if s.task == "pcp":
+            r = s.caps[i].max()  # a PCP robot has one non-zero radius: sensing or capture
+            ax.add_patch(Circle((x, y), r, facecolor=(*color, 0.10), edgecolor=(*color, 0.6), lw=0.8, zorder=2))
+        else:
+            step, payload = s.caps[i]
+            ax.add_patch(Circle((x, y), step, fill=False, edgecolor=(*color, 0.5), lw=0.7, ls=":", zorder=2))
+            width = payload * _LOAD_BAR_M_PER_UNIT
+            bx, by = x - width / 2, y + _LOAD_BAR_OFFSET_M
+            fill = width * float(s.task_state["load"][i]) / max(payload, 1e-9)
+            ax.add_patch(Rectangle((bx, by), width, 0.025, facecolor="white", edgecolor="#505050", lw=0.6, zorder=4))
+            ax.add_patch(Rectangle((bx, by), fill, 0.025, facecolor="#e6aa14", edgecolor="none", zorder=4))
+        ax.add_patch(Circle((x, y), s.robot_radius_m, facecolor=color, edgecolor="k", lw=0.6, zorder=5))
+        ax.plot([x, x + 0.08 * np.cos(th)], [y, y + 0.08 * np.sin(th)], color="k", lw=1.2, zorder=6)
+        ax.text(x, y, str(i), ha="center", va="center", fontsize=6, color="white", zorder=7)
+
+
+def _draw_safety(ax, s: FrameState) -> None:
+    from matplotlib.patches import Circle
+
+    for i in np.flatnonzero(s.intervened):
+        x, y = s.poses[i, :2]
+        ax.add_patch(Circle((x, y), s.robot_radius_m * 1.6, fill=False, edgecolor="red", lw=1.2, zorder=8))
+        ox, oy = s.origin[i]
+        for vec, color in ((s.nominal[i], "#787878"), (s.filtered[i], "red")):
+            dx, dy = vec * SAFETY_ARROW_S
+            ax.annotate("", (ox + dx, oy + dy), (ox, oy), zorder=9,
+                        arrowprops={"arrowstyle": "->", "color": color, "lw": 1.0})
+    hits = np.flatnonzero(s.events)
+    if hits.size:
+        ax.scatter(s.event_xy[hits, 0], s.event_xy[hits, 1], marker="x", s=60, color="red", zorder=10)
+
+
+class EpisodeFrames:
+    """Follows env ``b`` of a TaskCore through an episode and draws it (see the module docstring).
+
+    Args:
+        title: first header line of every frame (e.g. the policy).
+    """
+
+    def __init__(self, title: str = "") -> None:
+        self.title = title
+        self._core = self._tap = self._last = self._fig = None
+        self._b = 0
+        self._trails: list[np.ndarray] = []
+        self._return = 0.0
+
+    def begin(self, core, b: int = 0) -> None:
+        """Start following env ``b`` of ``core``, just reset (a new team: a new tick tap)."""
+        from comat.viz.tap import TickTap
+
+        self.close()
+        self._core, self._b = core, b
+        self._tap = TickTap(core.safe, b, core.ticks_per_step, core.safety_config.projection_distance_m)
+        core.safe.tick_observers.append(self._tap)
+        n = core.teams[b].size
+        self._trails = [core.poses()[b, :n, :2].copy()[:, None]]
+        self._last = None
+        self._return = 0.0
+
+    def after_step(self, reward: float) -> None:
+        """Take in the env step just run (its team reward)."""
+        if self._tap is None:
+            raise RuntimeError("after_step() before begin(): reset the environment first")
+        summary = self._tap.summarize()
+        K = summary.path.shape[1] - 1
+        keep = np.unique(np.round(np.linspace(0, K, min(K, TRAIL_POINTS_PER_STEP) + 1)).astype(np.int64))[1:]
+        self._trails.append(summary.path[:, keep])
+        self._last = summary
+        self._return += float(reward)
+
+    def frame(self) -> np.ndarray:
+        """(H, W, 3) uint8 picture of the followed team now."""
+        if self._core is None:
+            raise RuntimeError("frame() before begin(): reset the environment first")
+        core, b = self._core, self._b
+        n = core.teams[b].size
+        last = self._last
+        zeros2, none = np.zeros((n, 2)), np.zeros(n, dtype=bool)
+        task = core.task
+        if task.name == "pcp":
+            st = {k: core.state[k][b].copy() for k in ("prey", "sensed", "captured")}
+        else:
+            st = {"left": core.state["left"][b].copy(), "initial": core.state["initial"][b].copy(),
+                  "load": core.state["load"][b, :n].copy(), "delivered": np.array(core.state["delivered"][b])}
+        state = FrameState(
+            task=task.name, poses=core.poses()[b, :n].copy(), types=[r.type for r in core.teams[b].robots],
+            caps=core.caps[b, :n].copy(), robot_radius_m=C.PROFILES[core.sim_config.profile].radius_m,
+            trails=np.concatenate(self._trails, axis=1),
+            intervened=none if last is None else last.intervened, origin=zeros2 if last is None else last.origin,
+            nominal=zeros2 if last is None else last.nominal, filtered=zeros2 if last is None else last.filtered,
+            events=none if last is None else last.events[:, [0, 1, 2]].any(axis=1),
+            event_xy=zeros2 if last is None else last.event_xy, task_state=st,
+            spawn_box=getattr(task, "spawn_box", None) if task.name == "pcp" else None,
+            prey_box=getattr(task, "prey_box", None), step=int(core.steps[b]), horizon=int(task.horizon),
+            ret=self._return, title=self.title,
+        )
+        if self._fig is None:
+            self._fig = _figure()  # one figure per follower: drawing reuses it
+        return draw_frame(state, self._fig)
+
+    def close(self) -> None:
+        """Stop observing the team's ticks (before its environment resets)."""
+        if self._tap is not None and self._core is not None:
+            observers = self._core.safe.tick_observers
+            if self._tap in observers:
+                observers.remove(self._tap)
+        self._tap = None

@@ -1,0 +1,113 @@
+"""One grammar across commands: every subcommand's parser walked, the shared flags compared."""
+
+import argparse
+
+import pytest
+
+from comat.cli import build_parser
+from comat.cli_args import ALGOS, DEFAULT_SEED, DEFAULT_TEAMS, TASKS, TIERS
+from comat.eval.evaluate import EVAL_SEED
+from comat.team import COALITION_SETS
+
+POLICY_COMMANDS = ("rollout", "export", "eval", "probe", "bench viz")
+
+# Flag -> commands that must have it with the same choices (in order) and the same default.
+SHARED = {
+    "--policy": ("rollout", "eval", "bench viz"),
+    "--task": ("rollout", "export", "eval"),
+    "--teams": ("rollout", "eval"),
+    "--team": ("rollout", "export"),
+    "--tier": ("rollout", "eval", "bench viz", "train", "sweep"),
+    "--seed": ("rollout", "export", "eval", "bench viz"),
+    "--episodes": ("rollout", "eval", "sweep"),
+    "--force": ("rollout", "eval", "probe", "report"),
+    "--tasks": ("sweep", "bench env"),
+}
+# Where a flag of that name deliberately differs, and why (each one stated in its --help).
+EXCEPTIONS = {
+    ("--policy", "export"): "required: an export names what it ships",
+    ("--policy", "probe"): "required, a checkpoint only: it probes a learner",
+    ("--tier", "demo"): "the demo shows the reference physics (wheels)",
+    ("--tier", "export"): "--check's MuJoCo side: wheels, the reference next to rps",
+    ("--seed", "train"): "the preset's training seed",
+    ("--seed", "probe"): "the run's own seed, to replay its training rollout",
+    ("--seed", "demo"): "the demo's teams",
+    ("--seed", "coalitions"): "the composition sets' seed (the envs use 0)",
+    ("--seed", "bench soak"): "the soak's own episodes",
+    ("--episodes", "bench viz"): "episodes per timed rollout",
+    ("--episodes", "demo"): "teams per row",
+    ("--episodes", "bench soak"): "total episodes",
+    ("--tasks", "bench viz"): "default: a checkpoint's own task",
+}
+
+
+def _commands(parser, prefix=""):
+    """(command name, parser) of every subcommand, nested ones as 'bench viz'."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                full = f"{prefix} {name}".strip()
+                yield full, sub
+                yield from _commands(sub, full)
+
+
+def _options(parser):
+    return {opt: a for a in parser._actions for opt in a.option_strings if a.help != argparse.SUPPRESS}
+
+
+COMMANDS = dict(_commands(build_parser()))
+
+
+def test_every_policy_command_speaks_the_grammar():
+    for name in POLICY_COMMANDS:
+        opts = _options(COMMANDS[name])
+        assert "--policy" in opts, name
+        assert "--checkpoint" not in opts, name  # the old spelling is hidden (still accepted)
+    for name, parser in COMMANDS.items():
+        opts = _options(parser)
+        for flag, action in opts.items():
+            if action.dest in ("task", "tasks", "algo") or flag == "--algos":
+                if action.dest == "algo" or flag == "--algos":  # bench learn adds comat_paper after comat
+                    assert tuple(c for c in action.choices if c in ALGOS) == ALGOS, (name, flag)
+                else:
+                    assert tuple(action.choices) == TASKS, (name, flag)  # one order everywhere
+            if action.choices is not None and set(action.choices) == set(TIERS):
+                assert tuple(action.choices) == TIERS, (name, flag)
+
+
+@pytest.mark.parametrize("flag", sorted(SHARED))
+def test_shared_flags_have_one_spelling_choice_order_and_default(flag):
+    specs = {}
+    for name, parser in COMMANDS.items():
+        action = _options(parser).get(flag)
+        if action is None:
+            continue
+        if (flag, name) in EXCEPTIONS:
+            assert "default" in (action.help or "") or action.default is None, (flag, name)
+            continue
+        default = tuple(action.default) if isinstance(action.default, list) else action.default
+        specs[name] = (None if action.choices is None else tuple(action.choices), default, action.nargs)
+        if action.default not in (None, False):
+            assert "default" in action.help, (flag, name)  # the default is stated in --help
+    missing = [c for c in SHARED[flag] if c not in specs]
+    assert not missing, (flag, missing)
+    assert len(set(specs.values())) == 1, (flag, specs)
+
+
+def test_the_shared_defaults_are_the_documented_ones():
+    assert DEFAULT_SEED == EVAL_SEED and DEFAULT_TEAMS == "both"
+    opts = _options(COMMANDS["eval"])
+    assert opts["--policy"].default == "heuristic" and opts["--tier"].default is None
+    assert opts["--seed"].default == DEFAULT_SEED and opts["--teams"].default == DEFAULT_TEAMS
+    for name in ("rollout", "eval"):
+        assert all(s in _options(COMMANDS[name])["--teams"].metavar for s in COALITION_SETS)
+
+
+def test_old_spellings_work_with_a_one_line_note(capsys):
+    args = build_parser().parse_args(["eval", "--checkpoint", "r/checkpoint.pt", "--set", "test"])
+    assert args.policy == "r/checkpoint.pt" and args.teams == "test"
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["comat: --checkpoint is deprecated and will be removed; use --policy r/checkpoint.pt",
+                   "comat: --set is deprecated and will be removed; use --teams test"]
+    args = build_parser().parse_args(["rollout", "--set", "scale", "--task", "pcp"])
+    assert args.teams == "scale"
