@@ -72,6 +72,15 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     combos = [(task, split, policy) for task in ("pcp", "hmt") for split in sets for policy in ("heuristic", "random")]
     envs = {(task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
             for task in ("pcp", "hmt") for split in sets for tier in ("unicycle", "wheels")}
+    # Warm-up, not counted: a few steps in every environment, so that what is allocated on first
+    # use (MuJoCo data, filters, OSQP problems, compiled kernels) is in place before the first
+    # memory sample; the wheels environments are otherwise first used at random moments.
+    from comat.envs.heuristics import random_actions
+
+    for env in envs.values():
+        _, info = env.reset(seed=seed)
+        for _ in range(3):
+            _, _, _, _, info = env.step(random_actions(rng, info["agent_mask"]))
     totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
                                "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "success")}
     by_tier = {"unicycle": 0, "wheels": 0}
