@@ -232,6 +232,13 @@ def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
                 checks[f"faster_than_rps_per_robot_tick_{tier}_B64_N8"] = {
                     "value": ratio, "target": ">= 5", "pass": ratio >= 5
                 }
+    # The barrier scales (comat.safety.sparse): 4x the robots may cost at most 6x the tick and 8x
+    # the filter (all-pairs QP: 12.2x and 37x).
+    small, large = find("unicycle", 8, 64), find("unicycle", 32, 64)
+    if small and large:
+        for part, attr, limit in (("tick", "tick_us", 6.0), ("filter", "filter_us", 8.0)):
+            ratio = getattr(large, attr) / max(getattr(small, attr), 1e-9)
+            checks[f"{part}_N32_over_N8_unicycle_B64"] = {"value": ratio, "target": f"<= {limit}", "pass": ratio <= limit}
     return checks
 
 
