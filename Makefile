@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test test-slow test-all bench mjcf clean
+.PHONY: setup demo test test-slow test-all test-wheel bench mjcf clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,9 @@ test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario 
 	$(BIN)/python -m pytest -q -m slow
 
 test-all: test test-slow
+
+test-wheel:  ## the built wheel in a fresh venv: train, eval, export, rollout from an empty folder (about 4 minutes)
+	bash .ci/wheel-smoke
 
 bench: $(STAMP)  ## comat bench sim, env, learn and fidelity; JSON under benchmarks/results/
 	$(BIN)/comat bench sim

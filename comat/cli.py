@@ -16,7 +16,7 @@ __all__ = ["main"]
 
 
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
-from comat.team import COALITION_SETS
+from comat.team import COALITION_SETS, COALITIONS_DIR
 from sim2real.cli import add_export_parser
 
 
@@ -296,7 +296,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "as YAML; the environments use the same teams (seed 0).")
     p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
     p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
-    p.add_argument("--out", default="train/coalitions", help="output folder (default: %(default)s)")
+    p.add_argument("--out", default=str(COALITIONS_DIR),
+                   help="output folder (default: the package's copies, train/coalitions/ in a checkout)")
     p.set_defaults(func=_cmd_coalitions)
 
     p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks; a quick COMAT training",
@@ -316,11 +317,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train COMAT, MAT, MAPPO or QMIX on HMT or PCP",
                        description="Train a policy on the task's training coalitions (U_train), with periodic "
                        "evaluation, CSV + TensorBoard logs, atomic checkpoints and --resume. Settings come from a "
-                       "preset in train/configs/ (values only); the resolved config is written to the run folder.")
+                       "preset (train/configs/ in a checkout, comat/data/presets/ when installed; values only); the resolved config is written to the run folder.")
     p.add_argument("--algo", choices=["comat", "mat", "mappo", "qmix"], help="algorithm (required for a new run)")
     p.add_argument("--task", choices=["hmt", "pcp"], help="task (required for a new run)")
     p.add_argument("--preset", default="paper",
-                   help="preset name in train/configs/ (paper, quick, learning, sweep) or a YAML path (default: %(default)s)")
+                   help="preset name (paper, quick, learning, sweep; train/configs/) or a YAML path (default: %(default)s)")
     p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
     p.add_argument("--tier", choices=["wheels", "unicycle"], default=None, help="dynamics tier (default: the preset's)")
     p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")

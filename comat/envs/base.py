@@ -24,7 +24,7 @@ from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coali
 __all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team", "team_source"]
 
 COALITION_SEED = 0
-"""Seed of the paper's composition sets (train/coalitions/*.yaml hold the same teams)."""
+"""Seed of the paper's composition sets (``comat.team.COALITIONS_DIR`` holds the same teams as YAML)."""
 
 
 def resolve_team(value: Any, task: str, name: str = "team") -> TeamSpec:

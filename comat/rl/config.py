@@ -1,4 +1,5 @@
-"""Run configuration: presets in ``train/configs/*.yaml`` resolved for one algo, task and seed.
+"""Run configuration: presets (``comat/data/presets/*.yaml``, also seen as ``train/configs/``) resolved
+for one algo, task and seed.
 
 A preset holds values only, for every algorithm at once::
 
@@ -30,7 +31,9 @@ __all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "apply_overrides", "loa
 ALGOS = ("comat", "mat", "mappo", "qmix")
 TASKS = ("hmt", "pcp")
 TIERS = ("wheels", "unicycle")
-PRESETS_DIR = Path(__file__).resolve().parents[2] / "train" / "configs"
+PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
+"""The named presets. They ship inside the package (a wheel has no ``train/``); the checkout's
+``train/configs`` is a link to this folder, so there is one copy to edit."""
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
              "env_workers", "torch_threads", "physics_threads")
@@ -94,7 +97,7 @@ def preset_names() -> list[str]:
 
 
 def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, Any]:
-    """A preset by name (``train/configs/<name>.yaml``) or path, checked for unknown keys.
+    """A preset by name (``<name>.yaml`` in :data:`PRESETS_DIR`) or path, checked for unknown keys.
 
     A preset may name another as ``base: NAME`` (a name or a path): it is the base's settings with
     this file's keys changed (sections merged key by key)."""
@@ -119,7 +122,7 @@ def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, An
     if data is None:
         # An empty file would silently mean every default, e.g. a 4,000,000-step run.
         raise ValueError(f"preset {str(path)!r} is empty; expected a mapping of settings "
-                         f"(see train/configs/*.yaml)")
+                         f"(see {PRESETS_DIR}/*.yaml)")
     if not isinstance(data, dict):
         raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
     _check_preset_keys(data, f"preset {str(path)!r}")
