@@ -60,6 +60,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     from comat.rl.checkpoint import load_checkpoint
     from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
+    from comat.rl.device import resolve_device
     from comat.rl.runner import saved_config, train
 
     if args.resume and args.overrides:
@@ -72,8 +73,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if config is None:
             data = load_checkpoint(ckpt, algo=args.algo, task=args.task)
             config = RunConfig.from_dict(data["config"])
-        for name in ("seed", "tier", "env_workers"):
-            given = getattr(args, name)
+        device = None if args.device is None else resolve_device(args.device)
+        for name, given in (("seed", args.seed), ("tier", args.tier), ("env_workers", args.env_workers),
+                            ("device", device)):
             if given is not None and given != getattr(config, name):
                 raise ValueError(f"--{name} {given!r} does not match the run being resumed ({getattr(config, name)!r})")
         if args.steps is not None:
@@ -82,10 +84,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if args.algo is None or args.task is None:
             raise ValueError("--algo and --task are required for a new run")
         config = resolve(apply_overrides(load_preset(args.preset), args.overrides), args.algo, args.task, args.seed,
-                         args.tier, args.steps,
-                         args.env_workers)
+                         args.tier, args.steps, args.env_workers, resolve_device(args.device or "auto"))
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
-    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier), seed {config.seed}, "
+    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, updates on {config.device}), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
     summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every,
                     overrides=tuple(args.overrides))
@@ -170,7 +171,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-_SWEEP_FLAGS = ("algos", "tasks", "seeds", "preset", "steps", "tier", "eval_tiers", "eval_sets", "episodes")
+_SWEEP_FLAGS = ("algos", "tasks", "seeds", "preset", "steps", "tier", "eval_tiers", "eval_sets", "episodes", "device")
 
 
 def _sweep_given(args: argparse.Namespace) -> dict:
@@ -350,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env-workers", type=int, default=None,
                    help="processes stepping the environments (default: the preset's; results are reproducible "
                    "for the same value)")
+    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default=None,
+                   help="where the learner's update runs; acting stays on the CPU (default: auto, cuda where "
+                   "PyTorch sees one; a resumed run keeps its own)")
     p.add_argument("--out", default=None, help="run folder (default: runs/<algo>_<task>_s<seed>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress line")
@@ -422,6 +426,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "baselines with 20 slots, models.<algo>.max_robots=20)")
     p.add_argument("--episodes", type=int, default=None, help="evaluation episodes per coalition (default: 1)")
     p.add_argument("--no-eval", action="store_true", help="train only")
+    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default=None,
+                   help="where each job's update runs (default: auto, cuda where the cluster has GPUs: each job "
+                   "then reserves one)")
     p.add_argument("--retries", type=int, default=None,
                    help="times a failed trial is retried, resuming from its checkpoint (default: 2)")
     p.add_argument("--jobs", type=int, default=None,

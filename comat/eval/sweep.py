@@ -39,7 +39,7 @@ __all__ = ["RECORD", "plan", "prepare_sweep", "read_record", "run_job", "run_swe
 RECORD = "sweep.json"
 DEFAULTS = {"algos": ["comat", "mat", "mappo", "qmix"], "tasks": ["pcp", "hmt"], "seeds": None, "preset": "paper",
             "steps": None, "tier": None, "eval_tiers": ["unicycle"], "eval_sets": ["train", "test"], "episodes": 1,
-            "overrides": [], "max_failures": 2}
+            "overrides": [], "max_failures": 2, "device": "auto"}
 """Settings of a new sweep where none is given (``seeds`` None: the preset's)."""
 _PROGRESS_EVERY_S = 30.0
 
@@ -108,6 +108,7 @@ def prepare_sweep(root: str | Path, given: dict, command: list[str] | None = Non
     lines to tell the user (where the seeds come from; that a recorded sweep continues)."""
     from comat.rl.checkpoint import versions
     from comat.rl.config import apply_overrides, load_preset
+    from comat.rl.device import DEVICES
 
     root = Path(os.path.expanduser(str(root))).resolve()
     unknown = sorted(set(given) - set(DEFAULTS))
@@ -136,6 +137,8 @@ def prepare_sweep(root: str | Path, given: dict, command: list[str] | None = Non
     if spec["steps"] is not None and (isinstance(spec["steps"], bool) or not isinstance(spec["steps"], int)
                                       or spec["steps"] < 1):
         raise ValueError(f"--steps must be an integer >= 1, got {spec['steps']!r}")
+    if spec["device"] not in DEVICES:
+        raise ValueError(f"--device must be one of {list(DEVICES)}, got {spec['device']!r}")
     if isinstance(spec["episodes"], bool) or not isinstance(spec["episodes"], int) or spec["episodes"] < 1:
         raise ValueError(f"--episodes must be an integer >= 1, got {spec['episodes']!r}")
     cpus = _cpus_per_trial(settings, spec["algos"], spec["tasks"], spec["tier"], spec["steps"])  # checks the preset
@@ -219,7 +222,8 @@ def run_job(params: dict) -> dict:
     algo, task, seed = params["algo"], params["task"], params["seed"]
     folder = _job_dir(Path(record["root"]), algo, task, seed)
     t0 = time.perf_counter()
-    config = resolve(record["settings"], algo, task, seed=seed, tier=record["tier"], total_env_steps=record["steps"])
+    config = resolve(record["settings"], algo, task, seed=seed, tier=record["tier"], total_env_steps=record["steps"],
+                     device=record["device_resolved"])
     eval_sets = record["eval_sets"]
     if plan(record["root"], [algo], [task], [seed], record["eval_tiers"], eval_sets)[0]["state"] == "done":
         tune.report({"env_steps": 0, "skipped": True, "done": True})
@@ -293,6 +297,29 @@ def _code() -> list:
     return [comat, sim2real]
 
 
+def _write_record(root: Path, record: dict) -> None:
+    """Create the root folder and write the record, once (a continued sweep keeps its first one)."""
+    from comat.files import write_atomic
+
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        if not (root / RECORD).is_file():
+            write_atomic(root / RECORD, json.dumps(record, indent=2))
+    except OSError as err:
+        raise ValueError(f"--out {str(root)!r} cannot be written ({err.strerror or err}); expected a folder this "
+                         "user can create and write") from err
+
+
+def _cluster_device(name: str) -> str:
+    """``--device`` on a cluster: auto is cuda where the cluster has a GPU; cuda needs one."""
+    import ray
+
+    gpus = ray.cluster_resources().get("GPU", 0)
+    if name == "cuda" and gpus < 1:
+        raise ValueError("--device cuda: the Ray cluster has no GPU; use --device cpu or auto")
+    return "cuda" if name == "cuda" or (name == "auto" and gpus >= 1) else "cpu"
+
+
 def run_sweep(record: dict, address: str | None = None, jobs: int | None = None, progress=print) -> list[dict]:
     """Write the record (a new sweep) and run its unfinished jobs on Ray Tune; returns one
     :func:`plan` row per job, with ``error`` for those that did not finish."""
@@ -309,36 +336,37 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
         raise ValueError(f"comat sweep runs on Ray Tune, which cannot be imported here ({err}); install it with "
                          "pip install 'comat[ray]'") from err
 
-    from comat.files import write_atomic
     from comat.rl.config import resolve
+    from comat.rl.device import resolve_device
 
     root = Path(record["root"])
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-        if not (root / RECORD).is_file():
-            write_atomic(root / RECORD, json.dumps(record, indent=2))
-    except OSError as err:
-        raise ValueError(f"--out {str(root)!r} cannot be written ({err.strerror or err}); expected a folder this "
-                         "user can create and write") from err
     grid = (record["algos"], record["tasks"], record["seeds"], record["eval_tiers"], record["eval_sets"])
     jobs_now = plan(root, *grid)
     todo = [j for j in jobs_now if j["state"] != "done"]
-    cpus = record["cpus_per_trial"]
-    progress(f"comat sweep: {len(jobs_now)} jobs, {len(jobs_now) - len(todo)} finished, {len(todo)} to run "
-             f"({sum(j['state'] == 'resume' for j in todo)} resumed), {cpus} CPU(s) each, in {root}")
-    if not todo:
+    if (root / RECORD).is_file() and not todo:
+        progress(f"comat sweep: {len(jobs_now)} jobs, all finished, in {root}")
         return jobs_now
+    cpus = record["cpus_per_trial"]
     if address is None:
+        record = {**record, "device_resolved": record.get("device_resolved") or resolve_device(record["device"])}
+        _write_record(root, record)  # before Ray starts: an unwritable --out fails at once
         ray.init(num_cpus=None if jobs is None else jobs * cpus, include_dashboard=False, log_to_driver=False)
     else:
         # A cluster's workers get the driver's code, not whatever their node has installed.
         ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": _code(),
                                                                    "excludes": ["__pycache__"]})
     try:
+        if address is not None:
+            record = {**record, "device_resolved": record.get("device_resolved") or _cluster_device(record["device"])}
+            _write_record(root, record)
+        progress(f"comat sweep: {len(jobs_now)} jobs, {len(jobs_now) - len(todo)} finished, {len(todo)} to run "
+                 f"({sum(j['state'] == 'resume' for j in todo)} resumed), {cpus} CPU(s) each, updates on "
+                 f"{record['device_resolved']}, in {root}")
         totals = {(a, t): resolve(record["settings"], a, t, tier=record["tier"],
                                   total_env_steps=record["steps"]).total_env_steps
                   for a, t in itertools.product(record["algos"], record["tasks"])}
-        trainable = tune.with_resources(run_job, {"cpu": cpus})
+        gpus = 1 if record["device_resolved"] == "cuda" else 0
+        trainable = tune.with_resources(run_job, {"cpu": cpus, "gpu": gpus})
         run_config = tune.RunConfig(name=".tune", storage_path=str(root), verbose=0,
                                     failure_config=tune.FailureConfig(max_failures=record["max_failures"]),
                                     callbacks=[_reporter(progress, totals)])

@@ -63,6 +63,10 @@ class RunConfig:
     Part of the run's identity: results are exactly reproducible for the same value."""
     torch_threads: int = 2
     """``torch.set_num_threads`` for the learner (recorded: reductions depend on it)."""
+    device: str = "cpu"
+    """Where the update runs: ``"cpu"`` (in place) or ``"cuda"`` (a copy of the networks there,
+    mirrored to the CPU ones that act; :mod:`comat.rl.device`). Part of the run's identity: GPU
+    kernels round differently."""
     physics_threads: int = 1
     """Threads MuJoCo steps each environment process's teams on (:attr:`SimConfig.threads`;
     results do not depend on it). More than 1 pays with ``env_workers: 1`` on an otherwise
@@ -175,8 +179,9 @@ def apply_overrides(preset: dict[str, Any], overrides: list[str] | tuple[str, ..
 
 
 def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
-            total_env_steps: int | None = None, env_workers: int | None = None) -> RunConfig:
-    """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it."""
+            total_env_steps: int | None = None, env_workers: int | None = None, device: str | None = None) -> RunConfig:
+    """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it
+    (``device``: "cpu" or "cuda", as :func:`comat.rl.device.resolve_device` gives)."""
     _check_choice("algo", algo, ALGOS)
     _check_choice("task", task, TASKS)
     tier = tier or preset.get("tier", "unicycle")
@@ -197,6 +202,9 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         least = 0 if key == "eval_episodes_per_team" else 1
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise ValueError(f"{key} must be an integer >= {least}, got {value!r}")
+    if device is not None:
+        _check_choice("device", device, ("cpu", "cuda"))
+        run["device"] = device
     section = "qmix" if algo == "qmix" else "ppo"
     return RunConfig.from_dict({
         "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
