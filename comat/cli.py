@@ -15,8 +15,8 @@ import time
 __all__ = ["main"]
 
 
-from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from comat.team import COALITION_SETS, COALITIONS_DIR
+from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from sim2real.cli import add_export_parser
 
 
@@ -269,7 +269,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "soak":
         from comat.bench.soak import run_soak
 
-        result = run_soak(args.episodes, args.wheels_share, args.seed, args.out)
+        result = run_soak(args.episodes, args.wheels_share, args.seed, args.out, sets=args.sets)
         return 0 if all(c["pass"] for c in result["checks"].values()) else 1
     if args.what == "fidelity":
         from comat.bench.fidelity_bench import run_fidelity_bench
@@ -462,7 +462,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "next to the Robotarium simulator's loop per env step.")
     b.add_argument("--tasks", nargs="+", choices=["pcp", "hmt"], default=["pcp", "hmt"])
     b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["wheels", "unicycle"])
-    b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 16], help="team sizes (default: %(default)s)")
+    b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 12, 16, 20], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
     b.add_argument("--out", default=None,
@@ -478,10 +478,12 @@ def build_parser() -> argparse.ArgumentParser:
                         description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "
                         "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
                         "algorithm on PCP in the unicycle tier with the paper's settings.")
-    b.add_argument("--algos", nargs="+", choices=["comat", "comat_paper", "mat", "mappo", "qmix"],
+    b.add_argument("--algos", nargs="+",
+                   choices=["comat", "comat_paper", "mat", "mappo", "qmix", "mat_20", "mappo_20", "qmix_20"],
                    default=["comat", "comat_paper", "mat", "mappo", "qmix"],
                    help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
-                   "to compare today's default with it in one run (default: all)")
+                   "to compare today's default with it in one run; mat_20, mappo_20, qmix_20: the baseline with 20 "
+                   "robot slots instead of 8 (default: %(default)s)")
     b.add_argument("--workers", type=int, nargs="+", default=[1, 2],
                    help="environment worker processes to compare (default: %(default)s)")
     b.add_argument("--iterations", type=int, default=2,
@@ -491,12 +493,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="benchmarks/results/learn.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     b = bsub.add_parser("soak", help="many reference-policy episodes: contacts, collisions, NaN, memory drift",
-                        description="Episodes of the scripted and the random policy on U_train and U_test of both "
+                        description="Episodes of the scripted and the random policy on composition sets of both "
                         "tasks (unicycle tier, a share in the wheels tier): every contact, collision, boundary exit, "
                         "actuator error, NaN, filter recovery and fallback counted, and resident memory after each "
-                        "thousand episodes. Not part of the tests: one round of 160 episodes took 2 min on this 2-core "
-                        "machine (under load), so 10,000 take an hour or more.")
+                        "thousand episodes. Not part of the tests: one round of 160 episodes (U_train and U_test) "
+                        "took 2 min on this 2-core machine (under load), so 10,000 take an hour or more.")
     b.add_argument("--episodes", type=int, default=10_000, help="at least this many episodes (default: %(default)s)")
+    b.add_argument("--sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
+                   help="composition sets (default: %(default)s; scale: 10-20 robots, slower per episode)")
     b.add_argument("--wheels-share", type=float, default=0.1,
                    help="share of rounds run in the wheels tier (default: %(default)s)")
     b.add_argument("--seed", type=int, default=0, help="seed of the episodes (default: %(default)s)")

@@ -66,7 +66,7 @@ def bench_rps_env(task: str, n: int, iterations: int = 150) -> EnvBenchRow | Non
 
 
 def run_env_bench(
-    tasks=("pcp", "hmt"), tiers=("wheels", "unicycle"), sizes=(2, 5, 8, 16), batches=(1, 64), steps: int = 20, out=None, progress=print
+    tasks=("pcp", "hmt"), tiers=("wheels", "unicycle"), sizes=(2, 5, 8, 12, 16, 20), batches=(1, 64), steps: int = 20, out=None, progress=print
 ) -> dict:
     rows: list[EnvBenchRow] = []
     for task in tasks:

@@ -10,7 +10,9 @@ Two parts:
 * **train**: env steps per second of complete training iterations (collect a rollout + learn
   from it, exactly what ``comat train`` runs) for each algorithm on PCP in the unicycle tier
   with the paper's settings, split into time in the environment, in acting and in learning.
-  The first iteration (set-ups, caches) is not timed.
+  The first iteration (set-ups, caches) is not timed. ``mat_20``, ``mappo_20``, ``qmix_20``: the
+  baseline with 20 robot slots (``max_robots: 20``, to play U_scale) instead of 8, on the same
+  U_train teams: what the extra slots cost.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ TRAIN_TARGET = 400.0
 """COMAT env-steps/s on PCP, unicycle tier, the learners issue's target for a 2-core machine."""
 DECODE_TARGET = 3.0
 """Cached decoding vs a full re-run per robot, 8 robots."""
+WIDE_SLOTS = 20
+"""Robot slots of the ``<baseline>_20`` rows (the Robotarium's largest team)."""
 
 
 def _best_time(fn, repeats: int) -> float:
@@ -77,17 +81,20 @@ def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: i
 def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0) -> dict:
     """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on PCP (unicycle);
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
-    measure what today's default costs against it in the same run."""
+    measure what today's default costs against it in the same run; ``<baseline>_20``: that
+    baseline with 20 robot slots."""
     from comat.models.comat import PAPER_FORM
     from comat.rl.algos import Dims, make_learner
     from comat.rl.config import load_preset, resolve
     from comat.rl.runner import _make_env
 
     settings = load_preset(preset)
-    label, algo = algo, "comat" if algo == "comat_paper" else algo
-    if label == "comat_paper":
+    label = algo
+    algo = "comat" if label == "comat_paper" else label.removesuffix(f"_{WIDE_SLOTS}")
+    change = PAPER_FORM if label == "comat_paper" else {"max_robots": WIDE_SLOTS} if label != algo else None
+    if change:
         models = dict(settings.get("models") or {})
-        models["comat"] = {**(models.get("comat") or {}), **PAPER_FORM}
+        models[algo] = {**(models.get(algo) or {}), **change}
         settings = {**settings, "models": models}
     config = resolve(settings, algo, "pcp", seed=seed, tier="unicycle", env_workers=env_workers)
     torch.set_num_threads(config.torch_threads)
@@ -136,6 +143,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
         env.close()
     total = collect_s + update_s
     return {"algo": label, "task": "pcp", "tier": "unicycle", "num_envs": config.trainer.num_envs,
+            "robot_slots": getattr(config.model, "max_robots", None),
             "env_workers": env_workers, "torch_threads": config.torch_threads, "env_steps": int(steps),
             "env_steps_per_s": steps / total, "env_s": env_s, "act_s": collect_s - env_s, "learn_s": update_s,
             "env_only_steps_per_s": steps / env_s if env_workers == 1 else None}
@@ -182,11 +190,11 @@ def run_learn_bench(algos=("comat", "comat_paper", "mat", "mappo", "qmix"), work
     for r in decode:
         progress(f"{r['model']:<7}{r['batch']:>5}{r['encode_ms']:>11.2f}{r['encode_act_ms']:>12.2f}{r['act_cached_ms']:>11.2f}"
                  f"{r['act_uncached_ms']:>13.2f}{r['decode_speedup']:>10.2f}{r['act_speedup']:>8.2f}")
-    head = f"{'algo':<7}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}{'env only/s':>12}"
+    head = f"{'algo':<9}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}{'env only/s':>12}"
     progress(head + "\n" + "-" * len(head))
     for r in train:
         env_only = "-" if r["env_only_steps_per_s"] is None else f"{r['env_only_steps_per_s']:.1f}"
-        progress(f"{r['algo']:<7}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
+        progress(f"{r['algo']:<9}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
                  f"{r['learn_s']:>9.2f}{env_only:>12}")
     progress("env s: waiting for the environments (with several workers, the part of their steps that the "
              "policy's turns on other shards did not hide); act s: the rest of collecting.")

@@ -51,27 +51,34 @@ def _episodes(env, policy: str, teams, seed: int, rng: np.random.Generator) -> t
 
 
 def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, out: str | None = None,
-             progress=print) -> dict:
-    """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × 2 sets × 2 tasks)."""
+             progress=print, sets=("train", "test")) -> dict:
+    """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × len(sets) × 2 tasks);
+    resident memory is sampled every thousand episodes (every tenth of a shorter run)."""
     from comat.bench.sim_bench import finish
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
+    from comat.team import COALITION_SETS
 
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 160:
-        raise ValueError(f"episodes must be an integer >= 160 (one round of every task, set and policy), got {episodes!r}")
+    sets = tuple(sets)
+    if not sets or any(s not in COALITION_SETS for s in sets) or len(set(sets)) < len(sets):
+        raise ValueError(f"sets must be distinct names of {list(COALITION_SETS)}, got {list(sets)!r}")
+    per_round = 20 * 2 * 2 * len(sets)
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < per_round:
+        raise ValueError(f"episodes must be an integer >= {per_round} (one round of every task, set and policy), "
+                         f"got {episodes!r}")
     if not 0 <= wheels_share <= 1:
         raise ValueError(f"wheels_share must be in [0, 1], got {wheels_share!r}")
     rng = np.random.default_rng(seed)
-    combos = [(task, split, policy) for task in ("pcp", "hmt") for split in ("train", "test")
-              for policy in ("heuristic", "random")]
+    combos = [(task, split, policy) for task in ("pcp", "hmt") for split in sets for policy in ("heuristic", "random")]
     envs = {(task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
-            for task in ("pcp", "hmt") for split in ("train", "test") for tier in ("unicycle", "wheels")}
+            for task in ("pcp", "hmt") for split in sets for tier in ("unicycle", "wheels")}
     totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
                                "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "success")}
     by_tier = {"unicycle": 0, "wheels": 0}
     memory: list[tuple[int, int]] = []
     done, rounds, t0 = 0, 0, time.perf_counter()
-    next_mark = 1000
+    mark_every = max(per_round, min(1000, episodes // 10))
+    next_mark = mark_every
     while done < episodes:
         for task, split, policy in combos:
             tier = "wheels" if rng.random() < wheels_share else "unicycle"
@@ -89,7 +96,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                 totals["success"] += e["success"] if policy == "heuristic" else 0.0
             if done >= next_mark:
                 memory.append((done, _rss_bytes()))
-                next_mark += 1000
+                next_mark += mark_every
                 rate = done / (time.perf_counter() - t0)
                 progress(f"  {done:,} / {episodes:,} episodes, {rate:.1f} episodes/s, RSS {memory[-1][1] / 2**20:.0f} MiB")
         rounds += 1
@@ -102,14 +109,14 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                                 ("boundary_exits", "boundary_exits"), ("actuator_errors", "actuator_errors"),
                                 ("nan_observation_steps", "nan_obs_steps"), ("nan_returns", "nan_returns"),
                                 ("fallback_ticks", "fallbacks"))}
-    checks["rss_growth_first_to_last_thousand"] = {"value": growth, "target": f"< {MEMORY_GROWTH_TARGET}",
+    checks["rss_growth_first_to_last_mark"] = {"value": growth, "target": f"< {MEMORY_GROWTH_TARGET}",
                                                    "pass": growth < MEMORY_GROWTH_TARGET}
     result = {"benchmark": "soak", "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
-              "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
+              "sets": list(sets), "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
               "scripted_success_share": totals["success"] / max(1.0, totals["episodes"] / 2),
               "rss_bytes": memory, "wall_s": time.perf_counter() - t0, "checks": checks}
     progress(f"{'metric':<28}{'total':>14}")
     for key, value in totals.items():
         progress(f"{key:<28}{value:>14,.0f}")
-    progress(f"{'RSS growth (first→last 1k)':<28}{100 * growth:>13.2f}%")
+    progress(f"{'RSS growth (first→last mark)':<28}{100 * growth:>13.2f}%")
     return finish(result, checks, out, progress)

@@ -4,7 +4,9 @@ Decision variable: the stacked single-integrator velocities u (2R,) of all R rob
 teams, robot r at entries (2r, 2r+1). Rows, in this order:
 
 * pair rows, one per unordered pair (i, j) of the same team, e = p_i - p_j:
-  ``-2eᵀu_i + 2eᵀu_j <= γ·(‖e‖² - d_s²)`` (ḣ >= -γh for h = ‖e‖² - d_s²);
+  ``-2eᵀu_i + 2eᵀu_j <= γ·(‖e‖² - d_s²)`` (ḣ >= -γh for h = ‖e‖² - d_s²); a layout may keep
+  only some pairs (those closer than :func:`binding_distance`: the others hold for every
+  command the wheels allow, so dropping them leaves the QP's answer unchanged);
 * boundary rows, two per robot (x and y): ``-γ_b·(p - lo) <= u <= γ_b·(hi - p)`` where
   [lo, hi] is the arena shrunk by the margin;
 * wheel rows, two per robot: ``|u·(ê ± k·n̂)| <= r·φ̇_max`` with k = l_axle / (2·projection),
@@ -17,6 +19,7 @@ reference :func:`reference_rows` builds the same rows with plain loops, for test
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -24,10 +27,11 @@ import numpy as np
 
 from comat import constants as C
 from comat import kernels
-from comat.sim.kinematics import wheel_rhombus
+from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE, wheel_rhombus
 from comat.sim.layout import TeamLayout, team_layout
 
-__all__ = ["OSQP_INFINITY", "Layout", "RowValues", "make_layout", "reference_rows", "row_constants", "row_values"]
+__all__ = ["OSQP_INFINITY", "Layout", "RowValues", "binding_distance", "edge_binding_distance", "make_layout",
+           "point_speed_bound", "reference_rows", "row_constants", "row_values"]
 
 OSQP_INFINITY = 1e30
 """OSQP's infinity: bounds at or beyond it are treated as absent (pair rows have no lower bound)."""
@@ -42,6 +46,7 @@ class Layout:
         row_team: (n_rows,) team of each row.
         n_rows: total rows = P + 4R.
         rows, cols: (nnz,) coordinates of the nonzeros, in :func:`row_values` data order.
+        n_pair_rows: P, the pair rows (one per pair of ``teams``).
     """
 
     teams: TeamLayout
@@ -49,15 +54,25 @@ class Layout:
     n_rows: int
     rows: np.ndarray
     cols: np.ndarray
+    n_pair_rows: int
 
 
-def make_layout(team_sizes: Sequence[int]) -> Layout:
-    """The QP structure for teams of the given sizes (each >= 1)."""
-    t = team_layout(tuple(team_sizes))
-    R, P = t.n_robots, t.n_pairs
+def make_layout(team_sizes: Sequence[int], pairs: tuple[np.ndarray, np.ndarray] | None = None) -> Layout:
+    """The QP structure for teams of the given sizes (each >= 1): a row for every same-team pair,
+    or only for ``pairs`` = (pair_i, pair_j), (P,) robot rows with i < j in the same team, sorted
+    (the pairs that can bind, see :func:`binding_distance`)."""
+    if pairs is None:
+        t = team_layout(tuple(team_sizes))
+    else:
+        sizes = tuple(int(n) for n in team_sizes)
+        offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        robot_team = np.repeat(np.arange(len(sizes)), sizes)
+        t = TeamLayout(sizes, offsets, robot_team, pairs[0], pairs[1], robot_team[pairs[0]])
+    pair_i, pair_j, pair_team = t.pair_i, t.pair_j, t.pair_team
+    R, P = t.n_robots, pair_i.size
     # Pair rows: 4 nonzeros each, columns [2i, 2i+1, 2j, 2j+1].
     pr = np.repeat(np.arange(P), 4)
-    pc = np.stack([2 * t.pair_i, 2 * t.pair_i + 1, 2 * t.pair_j, 2 * t.pair_j + 1], axis=1).ravel()
+    pc = np.stack([2 * pair_i, 2 * pair_i + 1, 2 * pair_j, 2 * pair_j + 1], axis=1).ravel()
     # Boundary rows: row P + 2r (+1) has one nonzero at column 2r (+1).
     br = P + np.arange(2 * R)
     bc = np.arange(2 * R)
@@ -67,11 +82,43 @@ def make_layout(team_sizes: Sequence[int]) -> Layout:
     per_robot = np.repeat(t.robot_team, 2)
     return Layout(
         teams=t,
-        row_team=np.concatenate([t.pair_team, per_robot, per_robot]).astype(np.int64),
+        row_team=np.concatenate([pair_team, per_robot, per_robot]).astype(np.int64),
         n_rows=P + 4 * R,
         rows=np.concatenate([pr, br, wr]).astype(np.int64),
         cols=np.concatenate([pc, bc, wc]).astype(np.int64),
+        n_pair_rows=P,
     )
+
+
+def point_speed_bound(cfg, profile: C.RobotProfile) -> float:
+    """v̄ (m/s): no command the filter accepts moves a projected point faster.
+
+    Accepted commands keep each point inside its wheel rhombus |a| + k·|b| <= v, up to the true
+    wheel limit ``v·WHEEL_LIMIT_TOLERANCE / fraction``; the rhombus's farthest points are its
+    vertices, so ‖u‖ <= max(v, v/k) (0.2 m/s with the defaults)."""
+    k, v = _limits(cfg, profile)
+    return max(v, v / k) * WHEEL_LIMIT_TOLERANCE / cfg.wheel_speed_fraction
+
+
+def binding_distance(cfg, profile: C.RobotProfile) -> float:
+    """Projected-point distance (m) beyond which a pair row holds for every command the filter
+    can return, so the row cannot bind and may be left out of the QP.
+
+    With ‖u‖ <= v̄ (:func:`point_speed_bound`) the row's left side is at most
+    |2eᵀ(u_i - u_j)| <= 4·‖e‖·v̄, and ``4‖e‖v̄ <= γ(‖e‖² - d_s²)`` holds for
+    ‖e‖ >= D = (2v̄ + √(4v̄² + γ²d_s²)) / γ. With the defaults (v̄ = 0.2 m/s, γ = 10 /s,
+    d_s = 0.2 m) D = 0.244 m: a pair row matters only for robots within about one robot's
+    width of the safety distance, so the rows grow with the neighbours, not with N².
+    """
+    v_bar = point_speed_bound(cfg, profile)
+    g, d = cfg.barrier_gain, cfg.safety_distance_m
+    return (2.0 * v_bar + math.sqrt(4.0 * v_bar**2 + (g * d) ** 2)) / g
+
+
+def edge_binding_distance(cfg, profile: C.RobotProfile) -> float:
+    """Distance (m) of a projected point from the margin's edge beyond which its boundary rows
+    ``-γ_b·(p - lo) <= u <= γ_b·(hi - p)`` hold for every accepted command: v̄ / γ_b (0.02 m)."""
+    return point_speed_bound(cfg, profile) / cfg.boundary_gain
 
 
 @dataclass

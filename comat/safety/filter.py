@@ -8,7 +8,13 @@ Three exact stages, cheapest first, decided per team:
 2. else each robot's command is projected onto its wheel-limit rhombus (the QP restricted to
    the wheel rows, solved in closed form); if that meets every other row it is the optimum;
 3. else the remaining teams go to one block-diagonal OSQP problem, set up once per tuple of
-   team sizes and then only updated in place (``update(Ax=...)``) and warm-started.
+   team sizes and then only updated in place (``update(Ax=...)``) and warm-started. Teams of
+   ``sparse_from`` robots or more (default 9) get pair rows only for the pairs closer than
+   :func:`~comat.safety.constraints.binding_distance` (0.244 m): the others hold for any
+   command the wheels allow, so the answer is the all-pairs QP's, while the rows grow with the
+   robots' neighbours instead of N² (496 pairs at N = 32). Such a problem's pattern changes
+   with the neighbours, so it is set up anew when they change (~0.4 ms); below ``sparse_from``
+   a cached all-pairs problem is cheaper (and unchanged bit for bit).
 
 The answer is never trusted blindly: a team passes only if OSQP reports *solved* and its
 answer meets its rows within ``feasibility_tol`` (after a repair of eps-sized misses). Failing
@@ -35,9 +41,10 @@ from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
-from comat.safety.constraints import RowValues, row_constants
+from comat.safety.constraints import RowValues, binding_distance, edge_binding_distance, row_constants
 from comat.safety.qp import BarrierQP
 from comat.safety.recovery import recovery_command
+from comat.safety.sparse import CoupledRows, CouplingPattern
 from comat.sim.kinematics import limit_to_wheels, si_to_uni, uni_to_si
 
 __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
@@ -45,6 +52,10 @@ __all__ = ["InfeasibleError", "SafetyFilter", "SafetyInfo"]
 _MAX_CACHED_QPS = 256
 _QP_TEAM_BLOCK = 4
 """Teams of a QP are padded up to a multiple of this (see :meth:`SafetyFilter._qp_teams`)."""
+SPARSE_FROM_ROBOTS = 9
+"""Teams of at least this many robots get only the pair rows that can bind (module docstring).
+Measured with ``comat bench sim`` (unicycle, batch 64): at N = 8 the cached all-pairs problem
+(28 pairs) is cheaper than a fresh sparse set-up; from N = 16 (120 pairs) the sparse one wins."""
 
 
 class InfeasibleError(RuntimeError):
@@ -136,6 +147,8 @@ class SafetyFilter:
         profile: robot profile (wheel limits, axle length).
         qp_cache: a dict to keep OSQP problems in, shared with other filters (same config and
             profile) so that a new layout reuses the problems already set up.
+        sparse_from: teams of at least this many robots get pair rows only for the pairs that
+            can bind (same answer within solver tolerance; see the module docstring).
 
     Attributes:
         last_solver_s: wall time of the last tick's OSQP update/solve calls (0 if none).
@@ -148,6 +161,7 @@ class SafetyFilter:
         config: SafetyConfig | None = None,
         profile: C.RobotProfile = C.DEFAULT_PROFILE,
         qp_cache: OrderedDict | None = None,
+        sparse_from: int = SPARSE_FROM_ROBOTS,
     ) -> None:
         sizes = (team_sizes,) if isinstance(team_sizes, (int, np.integer)) else tuple(team_sizes)
         if not sizes or any(isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1 for n in sizes):
@@ -171,6 +185,11 @@ class SafetyFilter:
         self._teams_with_pairs = np.flatnonzero(np.array(t.team_sizes) > 1)
         self._pair_starts = np.searchsorted(t.pair_team, self._teams_with_pairs)
         self._row_constants = row_constants(self.config, profile)
+        self._sparse_team = self._sizes >= sparse_from  # (B,)
+        _, _, lo, hi = self._row_constants
+        self._pattern = CouplingPattern(t, self._sparse_team, binding_distance(self.config, profile),
+                                        edge_binding_distance(self.config, profile), lo, hi)
+        self._pattern_qp: tuple[CoupledRows, BarrierQP] | None = None
         self.last_solver_s = 0.0
         self.last_solver_c_s = 0.0
 
@@ -235,43 +254,70 @@ class SafetyFilter:
                 need &= ~ok
             left = need.any()
         if left:  # Stage 3: the QP for the teams still left.
-            teams = self._qp_teams(need)
-            x, Ax, good, rows, cols, status, sub = self._solve(teams, vals, u_nom, self.config, u_wheel)
-            # Teams that needed the QP take its answer; padding teams keep their stage-2 answer.
-            if kernels.enabled():
-                kernels.sub_problem_scatter(need, teams, good, sub.teams.robot_team, sub.row_team, rows, cols, x, Ax, out, Au)
-            else:
-                take = need[teams] & good
-                take_c = np.repeat(take[sub.teams.robot_team], 2)
-                out[cols[take_c]] = x[take_c]
-                take_r = take[sub.row_team]
-                Au[rows[take_r]] = Ax[take_r]
-            for b in teams[need[teams] & ~good]:  # rare: re-solve alone, precisely, or recover, or brake
-                x_b, Ax_b, (good_b,), rows_b, cols_b, _, _ = self._solve(np.array([b]), vals, u_nom, self._precise, u_wheel)
-                if good_b:
-                    out[cols_b], Au[rows_b] = x_b, Ax_b
+            sparse = need & self._sparse_team
+            dense = need & ~sparse
+            retry = []  # (teams, reduced problem or None) to re-solve precisely
+            if dense.any():
+                teams = self._qp_teams(dense)
+                x, Ax, good, rows, cols, status, sub = self._solve(teams, vals, u_nom, self.config, u_wheel)
+                self._scatter(dense, teams, good, sub, rows, cols, x, Ax, out, Au)
+                retry += [(np.array([b]), None) for b in teams[dense[teams] & ~good]]  # rare: each alone
+            if sparse.any():
+                # Robots outside the reduced problem keep their stage-2 command (its optimum).
+                robots_c = np.repeat(sparse[t.robot_team], 2)
+                out[robots_c] = u_wheel[robots_c]
+                red = self._pattern.rows(vals.e, points, np.flatnonzero(sparse))
+                x, Ax, good, rows, cols, status, sub = self._solve(red.teams, vals, u_nom, self.config, u_wheel, red)
+                self._scatter(sparse, red.teams, good, sub, rows, cols, x, Ax, out, Au)
+                failed = red.teams[sparse[red.teams] & ~good]
+                if failed.size:  # together: a large problem's polish sometimes misses a few teams
+                    retry.append((failed, self._pattern.subset(failed)))
+            everyone = np.ones(t.n_teams, dtype=bool)
+            while retry:  # re-solve precisely, else recover, else brake
+                teams, red = retry.pop()
+                x, Ax, good, rows, cols, _, sub = self._solve(teams, vals, u_nom, self._precise, u_wheel, red)
+                self._scatter(everyone, teams, good, sub, rows, cols, x, Ax, out, Au)
+                if teams.size > 1:  # one team outside the safe set makes the whole problem infeasible
+                    retry += [(np.array([b]), self._pattern.subset(np.array([b]))) for b in teams[~good]]
                     continue
-                # No command meets the hard rows (outside the safe set): the softened problem.
-                u_b = None if cfg.strict else self._recover(b, points, poses, u_nom[cols_b])
-                if u_b is not None:
-                    recovery[b] = True
-                    out[cols_b] = u_b
-                else:
-                    fallback[b] = True
-                    out[cols_b] = 0.0
-                    Au[rows_b] = 0.0
+                for b in teams[~good]:
+                    self._recover_or_brake(b, points, poses, u_nom, out, Au, recovery, fallback)
             if fallback.any() and cfg.strict:
                 raise InfeasibleError(self._explain(np.flatnonzero(fallback), points, status))
-            if recovery.any():
+            if sparse.any():
+                Au = vals.products(out)  # the reduced problem left the products of the rows it dropped stale
+            elif recovery.any():
                 rows_r = recovery[lay.row_team]
                 Au[rows_r] = vals.products(out)[rows_r]
         return out.reshape(-1, 2), self._info(vals, out, u_nom, Au, fallback, status, recovery)
 
-    def _recover(self, b: int, points: np.ndarray, poses: np.ndarray, u_nom_b: np.ndarray) -> np.ndarray | None:
-        """Team b's command from the softened problem (:mod:`comat.safety.recovery`), or None."""
+    def _scatter(self, need, teams, good, sub, rows, cols, x, Ax, out, Au) -> None:
+        """Teams that needed the QP take its answer (padding teams keep their stage-2 answer)."""
+        if kernels.enabled():
+            kernels.sub_problem_scatter(need, teams, good, sub.teams.robot_team, sub.row_team, rows, cols, x, Ax, out, Au)
+            return
+        take = need[teams] & good
+        take_c = np.repeat(take[sub.teams.robot_team], 2)
+        out[cols[take_c]] = x[take_c]
+        take_r = take[sub.row_team]
+        Au[rows[take_r]] = Ax[take_r]
+
+    def _recover_or_brake(self, b: int, points, poses, u_nom, out, Au, recovery, fallback) -> None:
+        """Team b, for which no command meets the hard rows (outside the safe set): the answer of
+        the softened problem (:mod:`comat.safety.recovery`), or a brake if that fails too."""
         t = self.layout.teams
         lo, hi = t.offsets[b], t.offsets[b + 1]
-        return recovery_command(points[lo:hi], poses[lo:hi, 2], u_nom_b, self.config, self.profile)
+        cols = slice(2 * lo, 2 * hi)
+        u_b = None
+        if not self.config.strict:
+            u_b = recovery_command(points[lo:hi], poses[lo:hi, 2], u_nom[cols], self.config, self.profile)
+        if u_b is not None:
+            recovery[b] = True
+            out[cols] = u_b
+        else:
+            fallback[b] = True
+            out[cols] = 0.0
+            Au[self.layout.row_team == b] = 0.0
 
     def _stages_compiled(self, poses: np.ndarray, u_nom: np.ndarray, c: np.ndarray, s: np.ndarray):
         """Rows and stages 1–2 of :meth:`_filter` in one kernel call (the numpy branch there is
@@ -350,10 +396,12 @@ class SafetyFilter:
         cols = [np.arange(2 * t.offsets[b], 2 * t.offsets[b + 1]) for b in order]
         return np.concatenate(rows), np.concatenate(cols), np.concatenate(nnz)
 
-    def _solve(self, teams: np.ndarray, vals, u_nom, config, x0):
+    def _solve(self, teams: np.ndarray, vals, u_nom, config, x0, reduced: CoupledRows | None = None):
         """Solve the QP of the given teams only.
 
-        The rows are those of the full problem restricted to the teams, in the teams' order. Warm
+        The rows are those of the full problem restricted to the teams, in the teams' order; with
+        ``reduced`` (teams of ``sparse_from`` robots or more) only its rows and robots
+        (:mod:`comat.safety.sparse`; the caller gives the others their stage-2 command). Warm
         start: primal from the wheel projection, duals from each row's last solve (the set of
         teams in a problem changes from tick to tick, so the solver's own memory is not theirs).
 
@@ -365,14 +413,18 @@ class SafetyFilter:
         t = lay.teams
         if self._data is None:
             self._data = vals.data()
-        if teams.size == t.n_teams:  # the whole batch: no slicing
+        if reduced is None and teams.size == t.n_teams:  # the whole batch: no slicing
             qp = self._qp(t.team_sizes, config)
             res = qp.solve(qp.matrix(self._data), vals, u_nom, x0=x0, y0=self._duals)
             self._duals = res.y
             rows, cols = self._all_rows, self._all_cols
         else:
-            rows, cols, nnz = self._sub_indices(teams)
-            qp = self._qp(tuple(self._sizes[teams].tolist()), config)
+            if reduced is None:
+                rows, cols, nnz = self._sub_indices(teams)
+                qp = self._qp(tuple(self._sizes[teams].tolist()), config)
+            else:
+                rows, cols, nnz = reduced.rows, reduced.cols, reduced.nnz
+                qp = self._reduced_qp(reduced, config)
             if kernels.enabled():
                 A, sub, u_sub, x0_sub, y0_sub = self._gather_compiled(qp, rows, cols, nnz, vals, u_nom, x0)
             else:
@@ -383,6 +435,16 @@ class SafetyFilter:
         self.last_solver_s += res.solver_wall_s
         self.last_solver_c_s += res.solver_c_s
         return res.x, res.Ax, res.good, rows, cols, res.status, qp.layout
+
+    def _reduced_qp(self, red: CoupledRows, config: SafetyConfig) -> BarrierQP:
+        """The OSQP problem of a reduced problem: the kept pattern's own while it lasts (set up
+        once, then updated in place like the cached ones), a fresh one for the rare others."""
+        if config is self.config and self._pattern_qp is not None and self._pattern_qp[0] is red:
+            return self._pattern_qp[1]
+        qp = BarrierQP(tuple(red.sizes.tolist()), config, self.profile, (red.pair_i, red.pair_j))
+        if config is self.config and red is self._pattern.current:
+            self._pattern_qp = (red, qp)
+        return qp
 
     def _gather_compiled(self, qp: BarrierQP, rows, cols, nnz, vals, u_nom, x0):
         """The sub-problem's matrix, bounds, nominal and warm start, gathered in one kernel call

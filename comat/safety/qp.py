@@ -44,10 +44,12 @@ class QPResult:
 
 
 class BarrierQP:
-    """The barrier QP of :mod:`comat.safety.constraints` for teams of ``team_sizes`` robots."""
+    """The barrier QP of :mod:`comat.safety.constraints` for teams of ``team_sizes`` robots (with
+    pair rows for all their pairs, or for the given ``pairs`` only)."""
 
-    def __init__(self, team_sizes: tuple[int, ...], config: SafetyConfig, profile: C.RobotProfile) -> None:
-        self.layout = make_layout(team_sizes)
+    def __init__(self, team_sizes: tuple[int, ...], config: SafetyConfig, profile: C.RobotProfile,
+                 pairs: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        self.layout = make_layout(team_sizes, pairs)
         self.config = config
         self.profile = profile
         self.pattern, self.perm = matrix_of(self.layout)
@@ -86,10 +88,11 @@ class BarrierQP:
         wheel_factor = self.wheel_factor
         if kernels.enabled():
             return kernels.team_violations(
-                Au, vals.lower, vals.upper, tol, t.n_pairs + 2 * t.n_robots, wheel_factor, self.layout.row_team, t.n_teams
+                Au, vals.lower, vals.upper, tol, self.layout.n_pair_rows + 2 * t.n_robots, wheel_factor,
+                self.layout.row_team, t.n_teams,
             )
         viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
-        w = slice(self.layout.teams.n_pairs + 2 * self.layout.teams.n_robots, None)
+        w = slice(self.layout.n_pair_rows + 2 * t.n_robots, None)
         limit = vals.upper[w] * wheel_factor
         viol[w] = np.abs(Au[w]) > limit
         return self.per_team(viol) == 0
