@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install --disable-pip-version-check -q -e ".[test,robotarium,ray]"
+	$(BIN)/pip install --disable-pip-version-check -q -e ".[test,robotarium,ray,interop]"
 	touch $(STAMP)
 
 setup: $(STAMP)

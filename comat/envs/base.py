@@ -101,8 +101,12 @@ class TaskEnv(ParallelEnv):
         ticks_per_step: int | None = None,
         max_robots: int | None = None,
         state_robots: int = 8,
+        render_mode: str | None = None,
         **task_options: Any,
     ) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
         self.task = self.task_cls(**task_options)
         self.coalitions, self.fixed_team, slots = team_source(self.task.name, coalitions, team, max_robots)
         sim = sim or SimConfig(tier=tier)
@@ -142,16 +146,21 @@ class TaskEnv(ParallelEnv):
         self.core.reset([0], [team], [self._np_random])
         self.agents = self.possible_agents[: team.size]
         obs = self._obs()
-        return obs, {a: {} for a in self.agents}
+        # The rest of possible_agents sit this episode out: done before it starts, so wrappers that
+        # size their arrays by possible_agents (TorchRL, SuperSuit) find every key at reset.
+        blank = np.zeros_like(obs[self.agents[0]])
+        return {**obs, **{a: blank.copy() for a in self.possible_agents[team.size:]}}, \
+            {a: {} for a in self.possible_agents}
 
     def step(self, actions: dict):
         if not self.agents:
             raise RuntimeError("step() called after the episode ended; call reset()")
         act = np.zeros((1, self.core.N), dtype=np.int64)
         missing = [a for a in self.agents if a not in actions]
-        extra = [a for a in actions if a not in self.agents]
+        extra = [a for a in actions if a not in self.possible_agents]
         if missing or extra:
-            raise ValueError(f"actions must cover exactly the agents {self.agents}; missing {missing}, not in the team {extra}")
+            raise ValueError(f"actions must cover the agents {self.agents} (actions of the other possible_agents are "
+                             f"ignored); missing {missing}, not possible agents {extra}")
         for i, a in enumerate(self.agents):
             value = actions[a]
             if isinstance(value, np.ndarray) and value.shape == ():
