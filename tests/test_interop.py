@@ -23,8 +23,8 @@ def test_torchrl_rollout_across_team_changes_passes_the_spec_check():
     env = comat.make_env("pcp_v0", coalitions=teams, tier="unicycle", ticks_per_step=1)
     # done_on_any=False: the episode ends when every agent is done; the agents outside this episode's
     # team are done from its start (the spec sheet's "Team changes").
-    wrapped = PettingZooWrapper(env, use_mask=True, categorical_actions=True, return_state=True, done_on_any=False,
-                                seed=0)
+    wrapped = PettingZooWrapper(env, use_mask=True, categorical_actions=True, return_state=True,
+                                done_on_any=False, seed=0)
     check_env_specs(wrapped)
     td = wrapped.rollout(12 * 80, break_when_any_done=False)
     mask = td["robot", "mask"]  # (T, 8): this step's team

@@ -159,8 +159,8 @@ class TaskEnv(ParallelEnv):
         missing = [a for a in self.agents if a not in actions]
         extra = [a for a in actions if a not in self.possible_agents]
         if missing or extra:
-            raise ValueError(f"actions must cover the agents {self.agents} (actions of the other possible_agents are "
-                             f"ignored); missing {missing}, not possible agents {extra}")
+            raise ValueError(f"actions must cover the agents {self.agents} (those of the other possible_agents "
+                             f"are ignored); missing {missing}, not possible agents {extra}")
         for i, a in enumerate(self.agents):
             value = actions[a]
             if isinstance(value, np.ndarray) and value.shape == ():
