@@ -24,7 +24,7 @@ test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario 
 
 test-all: test test-slow test-cluster
 
-test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, a two-node cluster on loopback (about 5 minutes)
+test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, two nodes on loopback, ray job submit (about 7 minutes)
 	$(BIN)/python -m pytest -q -m cluster
 
 test-wheel:  ## the built wheel in a fresh venv: train, eval, export, rollout from an empty folder (about 4 minutes)

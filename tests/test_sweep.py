@@ -270,31 +270,43 @@ LOOPBACK = "127.0.0.2"
 
 
 @contextlib.contextmanager
-def _two_nodes(ray_env: dict):
-    """A Ray head and a second node on loopback, one CPU each, each with its own temp dir; both
-    stopped (by the ids of their processes) on the way out."""
+def _cluster(ray_env: dict, nodes: int = 2, dashboard: bool = False):
+    """A Ray head (and ``nodes - 1`` more nodes) on loopback, one CPU each, each with its own temp
+    dir; yields the head's address (and the dashboard's, for ``ray job submit``); every process
+    stopped by its id on the way out."""
     import psutil
 
     ray = shutil.which("ray", path=str(Path(sys.executable).parent)) or shutil.which("ray")
-    temps = [tempfile.mkdtemp(prefix="rn", dir="/tmp") for _ in range(2)]  # short: Ray's socket paths
-    gcs, client, dash, *agent = _free_ports(7)
+    temps = [tempfile.mkdtemp(prefix="rn", dir="/tmp") for _ in range(nodes)]  # short: Ray's socket paths
+    gcs, client, dash, *agent = _free_ports(3 + 2 * nodes)
     common = ["--node-ip-address", LOOPBACK, "--num-cpus", "1", "--disable-usage-stats"]
-    head = [ray, "start", "--head", "--port", str(gcs), "--temp-dir", temps[0], "--include-dashboard", "false",
-            "--dashboard-port", str(dash), "--ray-client-server-port", str(client),
-            "--dashboard-agent-listen-port", str(agent[0]), "--metrics-export-port", str(agent[1]), *common]
-    node = [ray, "start", "--address", f"{LOOPBACK}:{gcs}", "--temp-dir", temps[1],
-            "--dashboard-agent-listen-port", str(agent[2]), "--metrics-export-port", str(agent[3]), *common]
+    cmds = [[ray, "start", "--head", "--port", str(gcs), "--temp-dir", temps[0], "--include-dashboard",
+             str(dashboard).lower(), "--dashboard-host", LOOPBACK, "--dashboard-port", str(dash),
+             "--ray-client-server-port", str(client)]]
+    cmds += [[ray, "start", "--address", f"{LOOPBACK}:{gcs}", "--temp-dir", t] for t in temps[1:]]
     try:
-        for cmd in (head, node):
-            done = subprocess.run(cmd, check=False, env=ray_env, cwd="/", capture_output=True, text=True, timeout=180)
+        for k, cmd in enumerate(cmds):
+            ports = ["--dashboard-agent-listen-port", str(agent[2 * k]), "--metrics-export-port", str(agent[2 * k + 1])]
+            done = subprocess.run([*cmd, *ports, *common], check=False, env=ray_env, cwd="/", capture_output=True,
+                                  text=True, timeout=180)
             assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
-        yield f"{LOOPBACK}:{gcs}"
+        yield f"{LOOPBACK}:{gcs}", f"http://{LOOPBACK}:{dash}"
     finally:
         started = [p for p in psutil.process_iter(["cmdline"])
                    if any(t in " ".join(p.info["cmdline"] or []) for t in temps)]
         _end(list({q.pid: q for p in started for q in [p, *_descendants(p.pid)]}.values()))
         for t in temps:
             shutil.rmtree(t, ignore_errors=True)
+
+
+def _ray_env(tmp_path: Path) -> dict:
+    """The environment of the test cluster's nodes: a token of its own, and no PYTHONPATH (the nodes
+    do not see this checkout; the driver ships its code)."""
+    token = tmp_path / "token"
+    token.write_text(secrets.token_hex(32))
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN_PATH=str(token))
+    return env
 
 
 def _holder(folder: Path):
@@ -316,15 +328,11 @@ def test_a_sweep_on_a_two_node_cluster_lands_under_its_out_and_a_killed_worker_r
     where an uninterrupted run ends. The nodes have no access to this checkout (no PYTHONPATH, run
     from /): the driver ships its code."""
     preset = _preset(tmp_path, steps=240)
-    token = tmp_path / "token"
-    token.write_text(secrets.token_hex(32))
-    ray_env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    ray_env.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN_PATH=str(token))
+    ray_env = _ray_env(tmp_path)
     (tmp_path / "elsewhere").mkdir()
     root = tmp_path / "elsewhere" / "sw"
-    with _two_nodes(ray_env) as address:
-        env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token),
-               "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    with _cluster(ray_env) as (address, _):
+        env = {**ray_env, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
         proc = subprocess.Popen([sys.executable, "-m", "comat.cli", "sweep", "--address", address, "--preset",
                                  str(preset), "--algos", "comat", "--tasks", "pcp", "--seeds", "0", "1", "--no-eval",
                                  "--out", "sw"], cwd=tmp_path / "elsewhere", env=env, stdout=subprocess.PIPE,
@@ -352,3 +360,24 @@ def test_a_sweep_on_a_two_node_cluster_lands_under_its_out_and_a_killed_worker_r
     straight = _straight(preset, "comat", int(killed.name[-1]), tmp_path / "straight")
     assert_same(swept["trainer"], straight["trainer"], "trainer")
     assert not (Path("/") / "sw").exists()
+
+
+@pytest.mark.cluster
+def test_ray_job_submit_runs_a_sweep_on_the_cluster(tmp_path):
+    """The README's cluster recipe: ``ray job submit -- comat sweep --address auto ...`` (the driver
+    runs on the cluster, inside a job with a runtime env of its own); both runs land under --out."""
+    preset = _preset(tmp_path)
+    ray_env = _ray_env(tmp_path)
+    ray = shutil.which("ray", path=str(Path(sys.executable).parent)) or shutil.which("ray")
+    root = tmp_path / "sw"
+    with _cluster(ray_env, nodes=1, dashboard=True) as (_, dashboard):
+        job_env = json.dumps({"env_vars": {"PYTHONPATH": str(ROOT)}})  # the job's driver imports this checkout
+        done = subprocess.run([ray, "job", "submit", "--address", dashboard, "--runtime-env-json", job_env, "--",
+                               str(Path(sys.executable).with_name("comat")), "sweep", "--address", "auto", "--preset",
+                               str(preset), "--algos", "comat", "--tasks", "pcp", "--seeds", "0", "1", "--no-eval",
+                               "--out", str(root)], check=False, env=ray_env, capture_output=True, text=True,
+                              timeout=600)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
+    assert "2 of 2 jobs finished" in done.stdout
+    for seed in (0, 1):
+        assert json.loads((root / f"comat_pcp_s{seed}" / "summary.json").read_text())["env_steps"] == 12

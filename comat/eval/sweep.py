@@ -288,13 +288,14 @@ def _reporter(progress, total_steps: dict):
     return Lines()
 
 
-def _code() -> list:
+def _code() -> list[str]:
     """The packages shipped to cluster workers: the driver's own comat (and sim2real, which export
-    and evaluation import), so every node runs the code that planned the sweep."""
+    and evaluation import), so every node runs the code that planned the sweep. Folders, not module
+    objects: inside a ``ray job submit`` job Ray merges this with the job's runtime env by pickling it."""
     import comat
     import sim2real
 
-    return [comat, sim2real]
+    return [str(Path(m.__file__).parent) for m in (comat, sim2real)]
 
 
 def _write_record(root: Path, record: dict) -> None:
