@@ -72,6 +72,23 @@ def team_source(task: str, coalitions: Any, team: Any, max_robots: Any) -> tuple
     return teams, fixed, max_robots or largest
 
 
+class _SatOut(dict):
+    """A reset dict keyed by this episode's team; looking up an agent that sits the episode out gives
+    ``blank()`` (a plain ``in`` test and iteration see the team only)."""
+
+    def __init__(self, items: dict, out: set[str], blank) -> None:
+        super().__init__(items)
+        self._out, self._blank = out, blank
+
+    def __missing__(self, agent: str):
+        if agent in self._out:
+            return self._blank()
+        raise KeyError(agent)
+
+    def __reduce__(self):  # copies (TorchRL deep-copies it) keep the lookup
+        return type(self), (dict(self), self._out, self._blank)
+
+
 class TaskEnv(ParallelEnv):
     """A Robotarium task as a PettingZoo parallel environment (subclasses set ``task_cls``).
 
@@ -146,11 +163,12 @@ class TaskEnv(ParallelEnv):
         self.core.reset([0], [team], [self._np_random])
         self.agents = self.possible_agents[: team.size]
         obs = self._obs()
-        # The rest of possible_agents sit this episode out: done before it starts, so wrappers that
-        # size their arrays by possible_agents (TorchRL, SuperSuit) find every key at reset.
+        # The rest of possible_agents sit this episode out, done before it starts. The dicts hold this
+        # team's keys (PettingZoo's conversions want exactly these); a wrapper that reads every possible
+        # agent at reset (TorchRL sizes its arrays by possible_agents) gets a zero observation, an empty info.
+        out = set(self.possible_agents[team.size:])
         blank = np.zeros_like(obs[self.agents[0]])
-        return {**obs, **{a: blank.copy() for a in self.possible_agents[team.size:]}}, \
-            {a: {} for a in self.possible_agents}
+        return _SatOut(obs, out, lambda: blank.copy()), _SatOut({a: {} for a in self.agents}, out, dict)
 
     def step(self, actions: dict):
         if not self.agents:
