@@ -4,11 +4,11 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test test-slow test-all bench mjcf clean
+.PHONY: setup demo test test-slow test-all test-cluster test-wheel bench mjcf clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install --disable-pip-version-check -q -e ".[test,robotarium]"
+	$(BIN)/pip install --disable-pip-version-check -q -e ".[test,robotarium,ray,interop]"
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -22,7 +22,13 @@ test: $(STAMP)  ## the fast suite (about 7 minutes on 2 cores)
 test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario and tier, fidelity spread
 	$(BIN)/python -m pytest -q -m slow
 
-test-all: test test-slow
+test-all: test test-slow test-cluster
+
+test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, two nodes on loopback, ray job submit (about 7 minutes)
+	$(BIN)/python -m pytest -q -m cluster
+
+test-wheel:  ## the built wheel in a fresh venv: train, eval, export, rollout from an empty folder (about 4 minutes)
+	bash .ci/wheel-smoke
 
 bench: $(STAMP)  ## comat bench sim, env, learn and fidelity; JSON under benchmarks/results/
 	$(BIN)/comat bench sim

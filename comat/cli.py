@@ -26,7 +26,7 @@ from comat.cli_args import (
     add_teams,
     add_tier,
 )
-from comat.team import COALITION_SETS
+from comat.team import COALITION_SETS, COALITIONS_DIR
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from sim2real.cli import add_export_parser
 
@@ -71,6 +71,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     from comat.rl.checkpoint import load_checkpoint
     from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
+    from comat.rl.device import resolve_device
     from comat.rl.runner import saved_config, train
 
     if args.resume and args.overrides:
@@ -83,8 +84,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if config is None:
             data = load_checkpoint(ckpt, algo=args.algo, task=args.task)
             config = RunConfig.from_dict(data["config"])
-        for name in ("seed", "tier", "env_workers"):
-            given = getattr(args, name)
+        device = None if args.device is None else resolve_device(args.device)
+        for name, given in (("seed", args.seed), ("tier", args.tier), ("env_workers", args.env_workers),
+                            ("device", device)):
             if given is not None and given != getattr(config, name):
                 raise ValueError(f"--{name} {given!r} does not match the run being resumed ({getattr(config, name)!r})")
         if args.steps is not None:
@@ -93,10 +95,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if args.algo is None or args.task is None:
             raise ValueError("--algo and --task are required for a new run")
         config = resolve(apply_overrides(load_preset(args.preset), args.overrides), args.algo, args.task, args.seed,
-                         args.tier, args.steps,
-                         args.env_workers)
+                         args.tier, args.steps, args.env_workers, resolve_device(args.device or "auto"))
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
-    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier), seed {config.seed}, "
+    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, updates on {config.device}), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
     summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every,
                     overrides=tuple(args.overrides))
@@ -181,16 +182,33 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+_SWEEP_FLAGS = ("algos", "tasks", "seeds", "preset", "steps", "tier", "eval_tiers", "eval_sets", "episodes", "device")
+
+
+def _sweep_given(args: argparse.Namespace) -> dict:
+    """The sweep settings given on the command line (a recorded sweep is checked against them)."""
+    given = {k: getattr(args, k) for k in _SWEEP_FLAGS if getattr(args, k) is not None}
+    if args.no_eval:
+        given["eval_sets"] = []
+    if args.overrides:
+        given["overrides"] = list(args.overrides)
+    if args.retries is not None:
+        given["max_failures"] = args.retries
+    return given
+
+
 def _print_sweep_status(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from comat.eval.sweep import sweep_status
+    from comat.eval.sweep import RECORD, prepare_sweep, sweep_status
 
     if not Path(args.out).is_dir():
         raise FileNotFoundError(f"--out {args.out!r} does not exist: no sweep has run there "
                                 f"(start it with the same command without --status)")
-    rows = sweep_status(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
-                        args.eval_tiers, [] if args.no_eval else args.eval_sets, tuple(args.overrides))
+    record, _ = prepare_sweep(args.out, _sweep_given(args))
+    if not (Path(args.out) / RECORD).is_file():
+        print(f"(no {RECORD} in {args.out}, a sweep from before sweeps kept a record: the grid of these flags)")
+    rows = sweep_status(record["root"], record)
     print(f"{'job':<18}{'state':<8}{'env steps':>22}{'env-steps/s':>13}{'time left':>11}")
     for r in rows:
         rate = "-" if r["env_steps_per_s"] is None else f"{r['env_steps_per_s']:.0f}"
@@ -208,16 +226,21 @@ def _print_sweep_status(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from comat.eval.sweep import run_sweep
+    from comat.eval.sweep import prepare_sweep, run_sweep
 
     if args.status:
         return _print_sweep_status(args)
-    records = run_sweep(args.out, args.algos, args.tasks, args.seeds, args.preset, args.steps, args.tier,
-                        args.eval_tiers, [] if args.no_eval else args.eval_sets, args.episodes, args.address,
-                        args.jobs, overrides=tuple(args.overrides))
-    failed = [r for r in records if "error" in r]
-    print(f"comat sweep: {len(records) - len(failed)} of {len(records)} jobs finished; report with: comat report "
-          f"{args.out}/*_s* --out results")
+    if args.jobs is not None and args.jobs < 1:
+        raise ValueError(f"--jobs must be an integer >= 1, got {args.jobs}")
+    record, notes = prepare_sweep(args.out, _sweep_given(args), command=["comat", *sys.argv[1:]])
+    for line in notes:
+        print(f"comat sweep: {line}")
+    rows = run_sweep(record, args.address, args.jobs)
+    failed = [r for r in rows if "error" in r]
+    for r in failed:
+        print(f"comat sweep: {os.path.basename(r['folder'])} did not finish: {r['error']:.300}", file=sys.stderr)
+    print(f"comat sweep: {len(rows) - len(failed)} of {len(rows)} jobs finished; report with: comat report "
+          f"{record['root']}/*_s* --out results")
     return 1 if failed else 0
 
 
@@ -307,7 +330,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "as YAML; the environments use the same teams (seed 0).")
     p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
     p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
-    p.add_argument("--out", default="train/coalitions", help="output folder (default: %(default)s)")
+    p.add_argument("--out", default=str(COALITIONS_DIR),
+                   help="output folder (default: the package's copies, train/coalitions/ in a checkout)")
     p.set_defaults(func=_cmd_coalitions)
 
     p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks; a quick COMAT training",
@@ -327,17 +351,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train COMAT, MAT, MAPPO or QMIX on HMT or PCP",
                        description="Train a policy on the task's training coalitions (U_train), with periodic "
                        "evaluation, CSV + TensorBoard logs, atomic checkpoints and --resume. Settings come from a "
-                       "preset in train/configs/ (values only); the resolved config is written to the run folder.")
+                       "preset (train/configs/ in a checkout, comat/data/presets/ when installed; values only); the resolved config is written to the run folder.")
     p.add_argument("--algo", choices=ALGOS, help="algorithm (required for a new run)")
     p.add_argument("--task", choices=TASKS, help="task (required for a new run)")
     p.add_argument("--preset", default="paper",
-                   help="preset name in train/configs/ (paper, quick, learning, sweep) or a YAML path (default: %(default)s)")
+                   help="preset name (paper, quick, learning, sweep; train/configs/) or a YAML path (default: %(default)s)")
     p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
     p.add_argument("--tier", choices=TIERS, default=None, help="dynamics tier (default: the preset's)")
     p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")
     p.add_argument("--env-workers", type=int, default=None,
                    help="processes stepping the environments (default: the preset's; results are reproducible "
                    "for the same value)")
+    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default=None,
+                   help="where the learner's update runs; acting stays on the CPU (default: auto, cuda where "
+                   "PyTorch sees one; a resumed run keeps its own)")
     p.add_argument("--out", default=None, help="run folder (default: runs/<algo>_<task>_s<seed>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress line")
@@ -395,28 +422,43 @@ def build_parser() -> argparse.ArgumentParser:
     add_force(p)
     p.set_defaults(func=_cmd_report)
 
-    p = sub.add_parser("sweep", help="train and evaluate a grid of runs as resumable Ray jobs",
-                       description="Algorithms x tasks x seeds as independent Ray jobs (a local Ray instance, or a "
-                       "cluster with --address), one run folder each under --out. Re-running the same command skips "
-                       "finished jobs and resumes interrupted ones.")
-    p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS), help="algorithms (default: all)")
-    p.add_argument("--tasks", nargs="+", choices=TASKS, default=list(TASKS), help="tasks (default: %(default)s)")
-    p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="run seeds (default: %(default)s)")
-    p.add_argument("--preset", default="paper", help="preset name or YAML path (default: %(default)s)")
+    p = sub.add_parser("sweep", help="train and evaluate a grid of runs as resumable Ray Tune trials",
+                       description="Algorithms x tasks x seeds as Ray Tune trials (a local Ray instance, or a cluster "
+                       "with --address), one comat run folder each under --out, next to the sweep's record "
+                       "(sweep.json, written at the start). A trial whose worker fails is retried and resumes from "
+                       "its checkpoint; running `comat sweep --out DIR` again continues the recorded sweep "
+                       "(finished runs are skipped, interrupted ones resume). Settings not given: the recorded "
+                       "sweep's, else the defaults shown.")
+    p.add_argument("--algos", nargs="+", choices=ALGOS, default=None,
+                   help="algorithms (default: all four)")
+    p.add_argument("--tasks", nargs="+", choices=TASKS, default=None, help="tasks (default: pcp hmt)")
+    p.add_argument("--seeds", type=int, nargs="+", default=None,
+                   help="seeds (default: the preset's seeds; given, they replace them, and the sweep says so)")
+    p.add_argument("--preset", default=None, help="preset name or YAML path (default: paper)")
     p.add_argument("--steps", type=int, default=None, help="env steps per run (default: the preset's)")
     p.add_argument("--tier", choices=TIERS, default=None, help="training tier (default: the preset's)")
-    p.add_argument("--eval-tiers", nargs="+", choices=TIERS, default=["unicycle"],
-                   help="tiers to evaluate each final policy in (default: %(default)s)")
-    p.add_argument("--eval-sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
-                   help="coalition sets to evaluate each final policy on (default: %(default)s; scale needs "
+    p.add_argument("--eval-tiers", nargs="+", choices=TIERS, default=None,
+                   help="tiers to evaluate each final policy in (default: unicycle)")
+    p.add_argument("--eval-sets", nargs="+", choices=list(COALITION_SETS), default=None,
+                   help="coalition sets to evaluate each final policy on (default: train test; scale needs "
                         "baselines with 20 slots, models.<algo>.max_robots=20)")
-    p.add_argument("--episodes", type=int, default=1, help="evaluation episodes per coalition (default: %(default)s)")
+    p.add_argument("--episodes", type=int, default=None, help="evaluation episodes per coalition (default: 1)")
     p.add_argument("--no-eval", action="store_true", help="train only")
-    p.add_argument("--jobs", type=int, default=None, help="jobs at once on a local Ray instance (default: CPUs)")
-    p.add_argument("--address", default=None, help="an existing Ray cluster ('auto' or ray://host:10001)")
-    p.add_argument("--out", default="runs/sweep", help="root folder of the run folders (default: %(default)s)")
+    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default=None,
+                   help="where each job's update runs (default: auto, cuda where the cluster has GPUs: each job "
+                   "then reserves one)")
+    p.add_argument("--retries", type=int, default=None,
+                   help="times a failed trial is retried, resuming from its checkpoint (default: 2)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="trials at once (default: as many as the CPUs hold; each reserves max(env_workers, "
+                   "torch_threads) CPUs)")
+    p.add_argument("--address", default=None,
+                   help="an existing Ray cluster ('auto', or HOST:PORT of its head); --out must then be on storage "
+                   "every node sees at the same path")
+    p.add_argument("--out", default="runs/sweep", help="root folder of the sweep (default: %(default)s)")
     p.add_argument("--status", action="store_true",
-                   help="print where each job stands (env steps, rate, hours left) and start nothing")
+                   help="print where each job of the recorded sweep stands (env steps, rate, hours left) and start "
+                   "nothing")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
                    help="settings changed from the preset for every job (as for comat train)")
     p.set_defaults(func=_cmd_sweep)

@@ -3,8 +3,9 @@
 A task declares its robot types and capability names (:data:`TASK_TYPES`); a robot is a
 ``RobotSpec(type, capabilities)``; a team is a ``TeamSpec(task, robots)`` with at least one
 robot of each type. The paper's composition sets (§III-D) are generated from a seed by
-:func:`generate_coalitions` and stored under ``train/coalitions/`` as YAML
-(``comat coalitions`` regenerates them):
+:func:`generate_coalitions` — the envs use that function, so the code is the source of these sets —
+and stored as YAML in :data:`COALITIONS_DIR` (inside the package, linked from the checkout as
+``train/coalitions/``; ``comat coalitions`` regenerates them, a test checks they match):
 
 * U_train: 20 coalitions per task, team sizes drawn from {3, 5, 7};
 * U_test: 20 coalitions per task, team sizes drawn from {2, 4, 6, 8};
@@ -25,8 +26,13 @@ from typing import Any
 
 import numpy as np
 
+COALITIONS_DIR = Path(__file__).resolve().parent / "data" / "coalitions"
+"""The stored copies ``<task>_<set>.yaml`` of the composition sets, shipped in the package so an
+installed comat has them to read and to pass as ``coalitions=PATH``."""
+
 __all__ = [
     "CAPABILITY_RANGES",
+    "COALITIONS_DIR",
     "COALITION_SETS",
     "SIZES",
     "TASK_TYPES",

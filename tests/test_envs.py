@@ -183,7 +183,7 @@ def test_bad_actions():
         env.step({**good, "robot_0": 7})
     with pytest.raises(ValueError, match=r"missing \['robot_1'\]"):
         env.step({k: v for k, v in good.items() if k != "robot_1"})
-    with pytest.raises(ValueError, match=r"not in the team \['robot_9'\]"):
+    with pytest.raises(ValueError, match=r"not possible agents \['robot_9'\]"):
         env.step({**good, "robot_9": 0})
     with pytest.raises(ValueError, match=r"larger than this environment's 2 agents"):
         pair = TeamSpec("pcp", (RobotSpec("sensing", (0.4, 0)), RobotSpec("capture", (0, 0.4))))

@@ -1,5 +1,5 @@
 """Evaluation: confidence intervals on hand-made episodes, `comat eval`, `comat report` on
-hand-made run folders, and a two-job `comat sweep` on a local Ray instance."""
+hand-made run folders (`comat sweep`: tests/test_sweep.py)."""
 
 import csv
 import io
@@ -14,7 +14,6 @@ import yaml
 from comat.cli import main
 from comat.eval.metrics import REPORTED, mean_ci, summarize_ci, violations
 from comat.eval.report import PAPER_TABLE1, REPORT_FILES, make_report
-from comat.eval.sweep import plan, run_sweep, sweep_status
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
@@ -245,63 +244,6 @@ def test_aggregate_iqm_and_stratified_bootstrap_by_hand():
     assert one["mean_lo"] == pytest.approx(one["mean"]) == pytest.approx(one["mean_hi"])
     with pytest.raises(ValueError, match=r"\(seeds, coalitions\) array, got shape \(3,\)"):
         aggregate(np.ones(3))
-
-
-# -- comat sweep ---------------------------------------------------------------------------------------
-def test_sweep_two_tiny_jobs_then_skip(tmp_path):
-    from test_rl import TINY_MODELS
-
-    preset = tmp_path / "tiny.yaml"
-    preset.write_text(yaml.safe_dump({
-        "total_env_steps": 6, "eval_every_steps": 10**9, "eval_episodes_per_team": 0, "checkpoint_every_steps": 6,
-        "tier": "unicycle", "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1},
-        "models": TINY_MODELS}))
-    root = tmp_path / "sweep"
-    (root / "mat_pcp_s0").mkdir(parents=True)  # a run stopped before its first checkpoint
-    (root / "mat_pcp_s0" / "config.yaml").write_text("partial")
-    args = {"algos": ["comat", "mat"], "tasks": ["pcp"], "seeds": [0], "preset": str(preset), "eval_sets": (), "num_cpus": 2,
-                "progress": lambda _m: None}
-    first = run_sweep(root, **args)
-    assert sorted(r["algo"] for r in first) == ["comat", "mat"] and not any(r["skipped"] for r in first)
-    assert all("error" not in r and r["env_steps"] == 6 for r in first)
-    assert all((root / f"{a}_pcp_s0" / "summary.json").is_file() for a in ("comat", "mat"))
-    assert (root / ".aborted" / "mat_pcp_s0-1" / "config.yaml").read_text() == "partial"  # kept, set aside
-    again = run_sweep(root, **args)
-    assert all(r["skipped"] for r in again) and len(again) == 2
-    # with an evaluation asked for, the finished runs still need it
-    assert {j["state"] for j in plan(root, ["comat"], ["pcp"], [0], eval_sets=("train",))} == {"resume"}
-    with pytest.raises(ValueError, match="algos"):
-        run_sweep(root, ["ppo"], ["pcp"], [0], preset=str(preset))
-
-
-def _progress(folder, rows):
-    folder.mkdir(parents=True)
-    folder.joinpath("progress.csv").write_text("env_steps,updates,wall_s\n" + "".join(f"{e},1,{w}\n" for e, w in rows))
-
-
-def test_sweep_status_on_hand_made_folders(tmp_path, capsys):
-    preset = tmp_path / "p.yaml"
-    preset.write_text(yaml.safe_dump({"total_env_steps": 10000}))
-    root = tmp_path / "sweep"
-    _progress(root / "comat_pcp_s0", [(5000, 50.0), (10240, 100.0)])  # done: summary + evaluation
-    for name in ("summary.json", "evaluation_unicycle.json", "checkpoint.pt"):
-        (root / "comat_pcp_s0" / name).write_text("{}")
-    _progress(root / "comat_pcp_s1", [(2000, 40.0), (4000, 80.0)])  # 50 env-steps/s, 6000 left
-    (root / "comat_pcp_s1" / "checkpoint.pt").write_text("")
-    rows = {r["seed"]: r for r in sweep_status(root, ["comat"], ["pcp", "hmt"], [0, 1, 2], preset=str(preset))
-            if r["task"] == "pcp"}
-    assert [rows[s]["state"] for s in (0, 1, 2)] == ["done", "resume", "new"]
-    assert rows[0]["hours_left"] == 0.0 and rows[0]["env_steps_per_s"] == pytest.approx(102.4)
-    assert rows[1]["env_steps"] == 4000 and rows[1]["hours_left"] == pytest.approx(6000 / 50 / 3600)
-    # a job not started: the mean rate of the task's other runs, (102.4 + 50) / 2
-    assert rows[2]["hours_left"] == pytest.approx(10000 / 76.2 / 3600)
-    hmt = [r for r in sweep_status(root, ["comat"], ["hmt"], [0], preset=str(preset))]
-    assert hmt[0]["state"] == "new" and hmt[0]["hours_left"] is None  # no HMT run yet: no rate
-    assert main(["sweep", "--status", "--preset", str(preset), "--algos", "comat", "--tasks", "pcp",
-                 "--jobs", "2", "--out", str(root)]) == 0
-    out = capsys.readouterr().out
-    assert "comat_pcp_s1 resume 4,000 / 10,000 50 0:02" in [" ".join(line.split()) for line in out.splitlines()]
-    assert "1 of 3 jobs done" in out and not (root / "comat_pcp_s2").exists()
 
 
 # -- comat probe ---------------------------------------------------------------------------------------

@@ -5,6 +5,7 @@ import pytest
 
 from comat.team import (
     CAPABILITY_RANGES,
+    COALITIONS_DIR,
     SIZES,
     TASK_TYPES,
     RobotSpec,
@@ -14,6 +15,19 @@ from comat.team import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_checkout_train_folder_is_the_package_data():
+    """train/configs and train/coalitions are the package's own folders (one copy to edit), so
+    what a user edits there is what a wheel ships."""
+    from comat.rl.config import PRESETS_DIR
+
+    for link, target in (("configs", PRESETS_DIR), ("coalitions", COALITIONS_DIR)):
+        if not (ROOT / "train" / link).exists():
+            pytest.skip("not a checkout")
+        assert (ROOT / "train" / link).resolve() == target
+    assert sorted(p.name for p in COALITIONS_DIR.glob("*.yaml")) == sorted(
+        f"{task}_{split}.yaml" for task, split in CAPABILITY_RANGES)
 
 
 @pytest.mark.parametrize("task,split", sorted(CAPABILITY_RANGES))
@@ -38,7 +52,7 @@ def test_sets_are_reproducible_and_seed_dependent():
 
 @pytest.mark.parametrize("task,split", sorted(CAPABILITY_RANGES))
 def test_stored_files_equal_the_generator(task, split):
-    path = ROOT / "train" / "coalitions" / f"{task}_{split}.yaml"
+    path = COALITIONS_DIR / f"{task}_{split}.yaml"
     assert load_coalitions(path) == generate_coalitions(task, split, seed=0), (
         f"{path} is stale: run `comat coalitions`"
     )

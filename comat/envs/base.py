@@ -25,7 +25,7 @@ from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coali
 __all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team", "team_source"]
 
 COALITION_SEED = 0
-"""Seed of the paper's composition sets (train/coalitions/*.yaml hold the same teams)."""
+"""Seed of the paper's composition sets (``comat.team.COALITIONS_DIR`` holds the same teams as YAML)."""
 
 
 def resolve_team(value: Any, task: str, name: str = "team") -> TeamSpec:
@@ -71,6 +71,23 @@ def team_source(task: str, coalitions: Any, team: Any, max_robots: Any) -> tuple
     if max_robots is not None and (isinstance(max_robots, bool) or not isinstance(max_robots, int) or max_robots < largest):
         raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
     return teams, fixed, max_robots or largest
+
+
+class _SatOut(dict):
+    """A reset dict keyed by this episode's team; looking up an agent that sits the episode out gives
+    ``blank()`` (a plain ``in`` test and iteration see the team only)."""
+
+    def __init__(self, items: dict, out: set[str], blank) -> None:
+        super().__init__(items)
+        self._out, self._blank = out, blank
+
+    def __missing__(self, agent: str):
+        if agent in self._out:
+            return self._blank()
+        raise KeyError(agent)
+
+    def __reduce__(self):  # copies (TorchRL deep-copies it) keep the lookup
+        return type(self), (dict(self), self._out, self._blank)
 
 
 class TaskEnv(ParallelEnv):
@@ -160,16 +177,22 @@ class TaskEnv(ParallelEnv):
             self._frames.begin(self.core, 0)
         self.agents = self.possible_agents[: team.size]
         obs = self._obs()
-        return obs, {a: {} for a in self.agents}
+        # The rest of possible_agents sit this episode out, done before it starts. The dicts hold this
+        # team's keys (PettingZoo's conversions want exactly these); a wrapper that reads every possible
+        # agent at reset (TorchRL sizes its arrays by possible_agents) gets a zero observation, an empty info.
+        out = set(self.possible_agents[team.size:])
+        blank = np.zeros_like(obs[self.agents[0]])
+        return _SatOut(obs, out, lambda: blank.copy()), _SatOut({a: {} for a in self.agents}, out, dict)
 
     def step(self, actions: dict):
         if not self.agents:
             raise RuntimeError("step() called after the episode ended; call reset()")
         act = np.zeros((1, self.core.N), dtype=np.int64)
         missing = [a for a in self.agents if a not in actions]
-        extra = [a for a in actions if a not in self.agents]
+        extra = [a for a in actions if a not in self.possible_agents]
         if missing or extra:
-            raise ValueError(f"actions must cover exactly the agents {self.agents}; missing {missing}, not in the team {extra}")
+            raise ValueError(f"actions must cover the agents {self.agents} (those of the other possible_agents "
+                             f"are ignored); missing {missing}, not possible agents {extra}")
         for i, a in enumerate(self.agents):
             value = actions[a]
             if isinstance(value, np.ndarray) and value.shape == ():

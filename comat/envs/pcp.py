@@ -3,6 +3,7 @@
 | | |
 |---|---|
 | Agents | ``robot_0 … robot_{n-1}``, n = 2…; types ``sensing`` and ``capture``, >= 1 of each |
+| Team changes | ``possible_agents`` = the largest team the env may get; ``agents`` = this episode's team, the first n of them. The others sit the episode out as agents done before it starts: ``reset``'s dicts hold the team's keys, and looking one of the others up gives a zero observation or an empty info (TorchRL's ``PettingZooWrapper(use_mask=True, done_on_any=False)`` reads every possible agent; SuperSuit's ``pad_observations_v0`` / ``black_death_v3`` and PettingZoo's conversions want the team's keys only); ``step`` ignores actions for them and returns none for them |
 | Capabilities | [sensing radius m, capture radius m]: sensing robots (r_s, 0), capture robots (0, r_c) |
 | Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a 0.2 m waypoint for the robot's projected point |
 | Step | 29 control ticks of 0.033 s (0.96 s): waypoint controller → safety filter → MuJoCo |

@@ -121,8 +121,11 @@ class Learner:
 def make_learner(config, env, dims: Dims) -> Learner:
     """Modules and trainer for a :class:`comat.rl.config.RunConfig` on ``env``."""
     modules = build_modules(config.algo, dims, config.model)
+    device = None if config.device == "cpu" else config.device  # on the CPU the update trains in place
     if config.algo == "qmix":
-        trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, seed=config.seed)
+        trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, seed=config.seed,
+                              device=device)
     else:
-        trainer = PPOTrainer(modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo))
+        trainer = PPOTrainer(modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo),
+                             device=device)
     return Learner(config.algo, modules, trainer)

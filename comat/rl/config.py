@@ -1,4 +1,5 @@
-"""Run configuration: presets in ``train/configs/*.yaml`` resolved for one algo, task and seed.
+"""Run configuration: presets (``comat/data/presets/*.yaml``, also seen as ``train/configs/``) resolved
+for one algo, task and seed.
 
 A preset holds values only, for every algorithm at once::
 
@@ -30,7 +31,9 @@ __all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "apply_overrides", "loa
 ALGOS = ("comat", "mat", "mappo", "qmix")
 TASKS = ("hmt", "pcp")
 TIERS = ("wheels", "unicycle")
-PRESETS_DIR = Path(__file__).resolve().parents[2] / "train" / "configs"
+PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
+"""The named presets. They ship inside the package (a wheel has no ``train/``); the checkout's
+``train/configs`` is a link to this folder, so there is one copy to edit."""
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
              "env_workers", "torch_threads", "physics_threads")
@@ -60,6 +63,10 @@ class RunConfig:
     Part of the run's identity: results are exactly reproducible for the same value."""
     torch_threads: int = 2
     """``torch.set_num_threads`` for the learner (recorded: reductions depend on it)."""
+    device: str = "cpu"
+    """Where the update runs: ``"cpu"`` (in place) or ``"cuda"`` (a copy of the networks there,
+    mirrored to the CPU ones that act; :mod:`comat.rl.device`). Part of the run's identity: GPU
+    kernels round differently."""
     physics_threads: int = 1
     """Threads MuJoCo steps each environment process's teams on (:attr:`SimConfig.threads`;
     results do not depend on it). More than 1 pays with ``env_workers: 1`` on an otherwise
@@ -94,7 +101,7 @@ def preset_names() -> list[str]:
 
 
 def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, Any]:
-    """A preset by name (``train/configs/<name>.yaml``) or path, checked for unknown keys.
+    """A preset by name (``<name>.yaml`` in :data:`PRESETS_DIR`) or path, checked for unknown keys.
 
     A preset may name another as ``base: NAME`` (a name or a path): it is the base's settings with
     this file's keys changed (sections merged key by key)."""
@@ -119,7 +126,7 @@ def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, An
     if data is None:
         # An empty file would silently mean every default, e.g. a 4,000,000-step run.
         raise ValueError(f"preset {str(path)!r} is empty; expected a mapping of settings "
-                         f"(see train/configs/*.yaml)")
+                         f"(see {PRESETS_DIR}/*.yaml)")
     if not isinstance(data, dict):
         raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
     _check_preset_keys(data, f"preset {str(path)!r}")
@@ -172,8 +179,9 @@ def apply_overrides(preset: dict[str, Any], overrides: list[str] | tuple[str, ..
 
 
 def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
-            total_env_steps: int | None = None, env_workers: int | None = None) -> RunConfig:
-    """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it."""
+            total_env_steps: int | None = None, env_workers: int | None = None, device: str | None = None) -> RunConfig:
+    """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it
+    (``device``: "cpu" or "cuda", as :func:`comat.rl.device.resolve_device` gives)."""
     _check_choice("algo", algo, ALGOS)
     _check_choice("task", task, TASKS)
     tier = tier or preset.get("tier", "unicycle")
@@ -194,6 +202,9 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         least = 0 if key == "eval_episodes_per_team" else 1
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise ValueError(f"{key} must be an integer >= {least}, got {value!r}")
+    if device is not None:
+        _check_choice("device", device, ("cpu", "cuda"))
+        run["device"] = device
     section = "qmix" if algo == "qmix" else "ppo"
     return RunConfig.from_dict({
         "algo": algo, "task": task, "seed": seed, "tier": tier, **run,

@@ -30,6 +30,7 @@ import torch.nn.functional as F
 
 from comat.config import check_numbers
 from comat.envs.sharded import ShardedVectorEnv
+from comat.rl.device import learner_copy, to_cpu
 from comat.rl.gae import gae
 from comat.rl.valuenorm import ValueNorm
 
@@ -137,17 +138,22 @@ class PPOTrainer:
         config: PPO settings.
         seed: seeds the action sampling and the minibatch order.
         use_state: pass ``env.state()`` to the policy (MAPPO's centralized critic).
+        device: None to learn in place on the CPU; else the update runs on a copy of the policy
+            on this device, mirrored to the CPU policy after every update (:mod:`comat.rl.device`).
     """
 
-    def __init__(self, policy, env, config: PPOConfig, seed: int, use_state: bool = False) -> None:
+    def __init__(self, policy, env, config: PPOConfig, seed: int, use_state: bool = False,
+                 device: str | None = None) -> None:
         if env.num_envs != config.num_envs:
             raise ValueError(f"env has {env.num_envs} environments, config.num_envs is {config.num_envs}")
         self.policy, self.env, self.config = policy, env, config
         self.use_state = use_state
+        self.device = device
+        self.learner = learner_copy(policy, device)  # acting stays on `policy`, on the CPU
         # fused: one kernel for all parameters instead of a loop of small ones (~5 % of an update)
-        self.optimizer = torch.optim.Adam(policy.parameters(), lr=config.lr, eps=1e-5, fused=True)
-        self.target = copy.deepcopy(policy).requires_grad_(False)
-        self.value_norm = ValueNorm()
+        self.optimizer = torch.optim.Adam(self.learner.parameters(), lr=config.lr, eps=1e-5, fused=True)
+        self.target = copy.deepcopy(self.learner).requires_grad_(False)
+        self.value_norm = ValueNorm().to(device or "cpu")
         self.generator = torch.Generator().manual_seed(seed)
         self.rng = np.random.default_rng(seed)
 
@@ -227,16 +233,24 @@ class PPOTrainer:
     @torch.no_grad()
     def advantages(self, ro: Rollout) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """Step 2 for a rollout: V̂ (T, B), the robots' next values (T, B, N), the GAE returns
-        V̂ + Â (T, B) and the advantages normalized over the batch (T, B)."""
+        V̂ + Â (T, B) and the advantages normalized over the batch (T, B), on the learner's device."""
         cfg = self.config
+        ro = self._on_device(ro)
         v_hat = _team_value(self._denorm_values(ro.values), ro.mask.to(torch.float32))
-        next_values = self._next_values(self.policy, ro)
+        next_values = self._next_values(self.learner, ro)
         v_next_hat = _team_value(next_values, ro.next_mask.to(torch.float32))
         adv, returns = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
         return v_hat, next_values, returns, (adv - adv.mean()) / (adv.std() + 1e-8)
 
+    def _on_device(self, ro: Rollout) -> Rollout:
+        if self.device is None:
+            return ro
+        return Rollout(**{f.name: (v.to(self.device) if isinstance(v := getattr(ro, f.name), torch.Tensor) else v)
+                          for f in fields(Rollout)})
+
     def update(self, ro: Rollout) -> dict[str, float]:
         cfg = self.config
+        ro = self._on_device(ro)
         T, B, N, D = ro.obs.shape
         _, next_values, _, adv = self.advantages(ro)
         flat = {
@@ -260,7 +274,7 @@ class PPOTrainer:
         for epoch in range(cfg.epochs):
             if cfg.value_target == "td" and epoch % cfg.target_update_epochs == 0:
                 # Refresh V̄ and its TD targets r + γ·V̄(o'); update the normalizer on them.
-                self.target.load_state_dict(self.policy.state_dict())
+                self.target.load_state_dict(self.learner.state_dict())
                 with torch.no_grad():
                     # In epoch 0 the target is the policy that gave next_values: no second pass.
                     if epoch:
@@ -270,12 +284,12 @@ class PPOTrainer:
                     targets = self.value_norm.normalize(raw).reshape(T * B, N)
             order = self.rng.permutation(T * B)
             for idx in np.array_split(order, cfg.minibatches):
-                idx_t = torch.as_tensor(idx)
+                idx_t = torch.as_tensor(idx, device=self.device)
                 m = flat["mask"][idx_t]
                 mf = m.to(torch.float32)
                 n_real = mf.sum().clamp(min=1)
                 state = None if flat["state"] is None else flat["state"][idx_t]
-                logp, entropy, values = self.policy.evaluate_actions(flat["obs"][idx_t], m, flat["actions"][idx_t], state)
+                logp, entropy, values = self.learner.evaluate_actions(flat["obs"][idx_t], m, flat["actions"][idx_t], state)
                 ratio = torch.exp(logp - flat["logp"][idx_t])
                 a = flat["adv"][idx_t][:, None]
                 surrogate = torch.min(ratio * a, ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * a)
@@ -285,7 +299,7 @@ class PPOTrainer:
                 loss = policy_loss - cfg.entropy_coef * entropy_mean + cfg.value_coef * value_loss
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()
-                torch.nn.utils.clip_grad_norm_(self.policy.parameters(), cfg.max_grad_norm)
+                torch.nn.utils.clip_grad_norm_(self.learner.parameters(), cfg.max_grad_norm)
                 self.optimizer.step()
                 with torch.no_grad():
                     log_ratio = (logp - flat["logp"][idx_t]) * mf
@@ -294,21 +308,25 @@ class PPOTrainer:
                 stats["policy_loss"].append(policy_loss.item())
                 stats["value_loss"].append(value_loss.item())
                 stats["entropy"].append(entropy_mean.item())
+        if self.learner is not self.policy:
+            self.policy.load_state_dict(self.learner.state_dict())  # the next rollout acts with these
         return {k: float(np.mean(v)) for k, v in stats.items()}
 
     # -- checkpoint state -------------------------------------------------------------------------
     def state_dict(self) -> dict:
         return {
             "policy": self.policy.state_dict(),
-            "target": self.target.state_dict(),
-            "optimizer": self.optimizer.state_dict(),
-            "value_norm": self.value_norm.state_dict(),
+            "target": to_cpu(self.target.state_dict()),
+            "optimizer": to_cpu(self.optimizer.state_dict()),
+            "value_norm": to_cpu(self.value_norm.state_dict()),
             "generator": self.generator.get_state(),
             "rng": self.rng.bit_generator.state,
         }
 
     def load_state_dict(self, state: dict) -> None:
         self.policy.load_state_dict(state["policy"])
+        if self.learner is not self.policy:
+            self.learner.load_state_dict(state["policy"])
         self.target.load_state_dict(state["target"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.value_norm.load_state_dict(state["value_norm"])

@@ -33,6 +33,7 @@ import torch
 import torch.nn.functional as F
 
 from comat.config import check_numbers
+from comat.rl.device import learner_copy, to_cpu
 
 __all__ = ["EpisodeBuffer", "QmixConfig", "QmixTrainer"]
 
@@ -145,16 +146,21 @@ class QmixTrainer:
         env: the vector environment (``num_envs`` must equal ``config.num_envs``).
         config: QMIX settings.
         seed: seeds exploration and replay sampling.
+        device: None to learn in place on the CPU; else the learner steps run on copies of the
+            networks on this device, mirrored to the CPU ones after every update (:mod:`comat.rl.device`).
     """
 
-    def __init__(self, agents, mixer, env, config: QmixConfig, seed: int) -> None:
+    def __init__(self, agents, mixer, env, config: QmixConfig, seed: int, device: str | None = None) -> None:
         if env.num_envs != config.num_envs:
             raise ValueError(f"env has {env.num_envs} environments, config.num_envs is {config.num_envs}")
         self.agents, self.mixer, self.env, self.config = agents, mixer, env, config
-        self.params = list(agents.parameters()) + list(mixer.parameters())
+        self.device = device
+        # Acting stays on `agents` (CPU); the learner steps train these.
+        self.learn_agents, self.learn_mixer = learner_copy(agents, device), learner_copy(mixer, device)
+        self.params = list(self.learn_agents.parameters()) + list(self.learn_mixer.parameters())
         self.optimizer = torch.optim.Adam(self.params, lr=config.lr, fused=True)  # as PPO's
-        self.target_agents = copy.deepcopy(agents).requires_grad_(False)
-        self.target_mixer = copy.deepcopy(mixer).requires_grad_(False)
+        self.target_agents = copy.deepcopy(self.learn_agents).requires_grad_(False)
+        self.target_mixer = copy.deepcopy(self.learn_mixer).requires_grad_(False)
         env.reset()
         self.buffer = EpisodeBuffer(config.buffer_episodes, env.task.horizon, env.max_robots,
                                     env.single_observation_space.shape[0], env.state().shape[-1])
@@ -228,7 +234,7 @@ class QmixTrainer:
         """Double-Q value of the next states: (E, T)."""
         E, T1, N, D = obs.shape
         o, m = obs.reshape(E * T1, N, D), mask[:, None].expand(E, T1, N).reshape(E * T1, N)
-        greedy = self.agents(o, m).argmax(-1, keepdim=True)
+        greedy = self.learn_agents(o, m).argmax(-1, keepdim=True)
         q_target = self.target_agents(o, m).gather(-1, greedy)[..., 0]
         return self.target_mixer(q_target, m, state.reshape(E * T1, -1)).reshape(E, T1)
 
@@ -249,7 +255,7 @@ class QmixTrainer:
 
     def learn_step(self) -> dict[str, float]:
         cfg = self.config
-        batch = self.buffer.sample(cfg.batch_episodes, self.rng)
+        batch = {k: v.to(self.device or "cpu") for k, v in self.buffer.sample(cfg.batch_episodes, self.rng).items()}
         obs, state, mask = batch["obs"], batch["state"], batch["mask"]
         E, T1, N, D = obs.shape
         T = T1 - 1
@@ -259,9 +265,9 @@ class QmixTrainer:
             next_q = self._q_tot_target(obs, mask, state)[:, 1:]
             y = rewards + cfg.gamma * (~batch["terminated"]).to(torch.float32) * next_q
         m = mask[:, None].expand(E, T, N).reshape(E * T, N)
-        q = self.agents(obs[:, :T].reshape(E * T, N, D), m)
+        q = self.learn_agents(obs[:, :T].reshape(E * T, N, D), m)
         q_taken = q.gather(-1, batch["actions"].reshape(E * T, N, 1))[..., 0]
-        q_tot = self.mixer(q_taken, m, state[:, :T].reshape(E * T, -1)).reshape(E, T)
+        q_tot = self.learn_mixer(q_taken, m, state[:, :T].reshape(E * T, -1)).reshape(E, T)
         loss = (F.mse_loss(q_tot, y, reduction="none") * filled).sum() / filled.sum()
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
@@ -269,8 +275,11 @@ class QmixTrainer:
         self.optimizer.step()
         self.learner_steps += 1
         if self.learner_steps % cfg.target_update_interval == 0:
-            self.target_agents.load_state_dict(self.agents.state_dict())
-            self.target_mixer.load_state_dict(self.mixer.state_dict())
+            self.target_agents.load_state_dict(self.learn_agents.state_dict())
+            self.target_mixer.load_state_dict(self.learn_mixer.state_dict())
+        if self.device is not None:  # the next rollout acts with these weights
+            self.agents.load_state_dict(self.learn_agents.state_dict())
+            self.mixer.load_state_dict(self.learn_mixer.state_dict())
         return {"td_loss": loss.item(), "grad_norm": float(grad_norm),
                 "q_taken": float((q_tot.detach() * filled).sum() / filled.sum())}
 
@@ -290,16 +299,19 @@ class QmixTrainer:
     def state_dict(self) -> dict:
         return {
             "agents": self.agents.state_dict(), "mixer": self.mixer.state_dict(),
-            "target_agents": self.target_agents.state_dict(), "target_mixer": self.target_mixer.state_dict(),
-            "optimizer": self.optimizer.state_dict(), "buffer": self.buffer.state_dict(),
+            "target_agents": to_cpu(self.target_agents.state_dict()),
+            "target_mixer": to_cpu(self.target_mixer.state_dict()),
+            "optimizer": to_cpu(self.optimizer.state_dict()), "buffer": self.buffer.state_dict(),
             "reward_stats": vars(self.reward_stats).copy(), "rng": self.rng.bit_generator.state,
             "env_steps": self.env_steps, "learner_steps": self.learner_steps,
             "update_credit": self._update_credit,
         }
 
     def load_state_dict(self, state: dict) -> None:
-        self.agents.load_state_dict(state["agents"])
-        self.mixer.load_state_dict(state["mixer"])
+        for module in {id(m): m for m in (self.agents, self.learn_agents)}.values():
+            module.load_state_dict(state["agents"])
+        for module in {id(m): m for m in (self.mixer, self.learn_mixer)}.values():
+            module.load_state_dict(state["mixer"])
         self.target_agents.load_state_dict(state["target_agents"])
         self.target_mixer.load_state_dict(state["target_mixer"])
         self.optimizer.load_state_dict(state["optimizer"])

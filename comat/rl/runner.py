@@ -49,12 +49,13 @@ def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
                               sim=sim, coalitions=coalitions, **env_slots(config))
 
 
-def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = ()) -> None:
+def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = (),
+                  command: list[str] | None = None) -> None:
     """``config.yaml``: the resolved config, versions and command line of this sitting; a resumed
     run keeps those of its earlier sittings under ``earlier_sittings`` (which code trained what)."""
     import yaml
 
-    doc = {"config": config.to_dict(), "versions": versions(), "command": sys.argv,
+    doc = {"config": config.to_dict(), "versions": versions(), "command": list(command or sys.argv),
            "overrides": list(overrides), "resumed_at_env_steps": resumed_at}
     path = out / "config.yaml"
     if resumed_at is not None and path.is_file():
@@ -122,7 +123,7 @@ def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: i
 
 
 def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0,
-          overrides: tuple[str, ...] = ()) -> dict:
+          overrides: tuple[str, ...] = (), command: list[str] | None = None, on_update=None) -> dict:
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
     the final evaluation on the training coalitions (None if evaluation is off).
 
@@ -130,6 +131,10 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
     recorded in config.yaml next to the resolved config (they are already part of it).
     ``rrd_every`` = K > 0 records two evaluation episodes to ``out/rrd/`` at every K-th
     evaluation and the last (a viewing aid; not part of the run's identity).
+    ``command``: the command line recorded in config.yaml (default ``sys.argv``; a sweep job
+    records the ``comat sweep`` command, not its worker's). ``on_update(progress)`` is called after
+    every update with ``env_steps``, ``updates``, ``wall_s`` and ``checkpoint_env_steps`` (how a
+    sweep shows progress while its jobs run).
 
     Raises:
         FileExistsError: ``out`` already holds a run and ``resume`` is False (nothing is touched).
@@ -176,7 +181,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         env.set_rng_state(data["env_rngs"])
         torch.set_rng_state(data["torch_rng"])
         progress = dict(data["progress"])
-    _write_config(out, config, progress["env_steps"] if data is not None else None, tuple(overrides))
+    _write_config(out, config, progress["env_steps"] if data is not None else None, tuple(overrides), command)
     logger = RunLogger(out, resume_step=progress["env_steps"] if data is not None else None)
     if config.algo != "qmix" and not quiet:
         per = config.trainer.num_envs * (config.trainer.rollout_steps or env.task.horizon)
@@ -195,6 +200,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                         env_rngs=env.rng_state())
 
     recent: list[dict] = []
+    saved_at = progress["env_steps"] if data is not None else None
     try:
         while progress["env_steps"] < config.total_env_steps:
             t0 = time.perf_counter()
@@ -229,7 +235,10 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                           f"{last_eval['collisions']:.2f}", file=sys.stderr)
             if steps >= next_ckpt or finished:
                 checkpoint()
+                saved_at = steps
                 next_ckpt = _next_multiple(steps, config.checkpoint_every_steps)
+            if on_update is not None:
+                on_update({**progress, "checkpoint_env_steps": saved_at})
     finally:
         logger.close()
         env.close()
