@@ -17,11 +17,11 @@ SHARED = {
     "--task": ("rollout", "export", "eval"),
     "--teams": ("rollout", "eval"),
     "--team": ("rollout", "export"),
-    "--tier": ("rollout", "eval", "bench viz", "train", "sweep"),
+    "--tier": ("rollout", "eval", "bench viz", "train"),
     "--seed": ("rollout", "export", "eval", "bench viz"),
-    "--episodes": ("rollout", "eval", "sweep"),
+    "--episodes": ("rollout", "eval"),
     "--force": ("rollout", "eval", "probe", "report"),
-    "--tasks": ("sweep", "bench env"),
+    "--tasks": ("bench env",),
 }
 # Where a flag of that name deliberately differs, and why (each one stated in its --help).
 EXCEPTIONS = {
@@ -38,6 +38,9 @@ EXCEPTIONS = {
     ("--episodes", "demo"): "teams per row",
     ("--episodes", "bench soak"): "total episodes",
     ("--tasks", "bench viz"): "default: a checkpoint's own task",
+    ("--episodes", "sweep"): "not given: the recorded sweep's (see the sweep test below)",
+    ("--tasks", "sweep"): "not given: the recorded sweep's",
+    ("--tier", "sweep"): "not given: the recorded sweep's, else the preset's",
 }
 
 
@@ -111,3 +114,13 @@ def test_old_spellings_work_with_a_one_line_note(capsys):
                    "comat: --set is deprecated and will be removed; use --teams test"]
     args = build_parser().parse_args(["rollout", "--set", "scale", "--task", "pcp"])
     assert args.teams == "scale"
+
+
+def test_sweep_flags_not_given_come_from_the_recorded_sweep():
+    """``comat sweep``: a grid flag left out means the recorded sweep's value (continuing it), else
+    the default its --help states; so they default to None, and their choices follow the grammar."""
+    opts = _options(COMMANDS["sweep"])
+    for flag in ("--algos", "--tasks", "--seeds", "--preset", "--tier", "--eval-tiers", "--eval-sets", "--episodes"):
+        assert opts[flag].default is None and "default" in opts[flag].help, flag
+    assert tuple(opts["--tasks"].choices) == TASKS and tuple(opts["--tier"].choices) == TIERS
+    assert tuple(opts["--eval-sets"].choices) == COALITION_SETS

@@ -546,8 +546,12 @@ def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_pa
         if (run / "checkpoint.pt").exists():
             load_checkpoint(run / "checkpoint.pt")  # the one on disk is always a complete one
     assert kills >= 3
-    resume = ["--resume"] if (run / "config.yaml").exists() else []  # as a user would: resume what has started
-    subprocess.run([*cmd, "--out", str(run), *resume], check=True, capture_output=True, timeout=300)
+    # As a user would: --resume where a run was started (on a loaded machine every kill can land before
+    # the run wrote anything, and there is nothing to resume).
+    resume = ["--resume"] if (run / "config.yaml").exists() else []
+    final = subprocess.run([*cmd, "--out", str(run), *resume], check=False, capture_output=True, text=True,
+                           timeout=300)
+    assert final.returncode == 0, final.stderr[-2000:]  # what went wrong, if it did
     assert not list(run.glob(".*tmp*"))
     a, b = load_checkpoint(tmp_path / "straight" / "checkpoint.pt"), load_checkpoint(run / "checkpoint.pt")
     assert a["progress"]["env_steps"] == b["progress"]["env_steps"] == 96
