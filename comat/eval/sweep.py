@@ -12,7 +12,8 @@ A sweep lives in one root folder (``--out``, made absolute before anything reach
 Every trial trains (or resumes) its run folder from the recorded settings, then evaluates the
 final checkpoint on the sets and tiers asked for, as ``comat eval`` would. A trial whose worker
 dies or raises is retried by Tune (``FailureConfig(max_failures)``) and resumes from the run's own
-checkpoint, so it computes exactly what an uninterrupted run computes. Running ``comat sweep
+checkpoint, so it computes exactly what an uninterrupted run computes. Jobs start seed-major
+(seed 0 of every algorithm and task, then seed 1, ...). Running ``comat sweep
 --out ROOT`` again continues the recorded sweep: Tune restores its experiment
 (``Tuner.restore``), runs that finished are not started again, interrupted ones resume.
 
@@ -210,8 +211,8 @@ def _set_aside_partial(folder: Path) -> None:
 
 def run_job(params: dict) -> dict:
     """One grid cell, as a Ray Tune function trainable: train (or resume) the run folder, then
-    evaluate it; reports progress to Tune after every update. ``params``: ``algo``, ``task``,
-    ``seed`` (the grid's axes) and ``sweep`` (the record)."""
+    evaluate it; reports progress to Tune after every update. ``params``: ``job`` (its ``algo``,
+    ``task`` and ``seed``) and ``sweep`` (the record)."""
     from ray import tune
 
     from comat.eval.evaluate import evaluate_policies, write_results
@@ -219,7 +220,7 @@ def run_job(params: dict) -> dict:
     from comat.rl.runner import train
 
     record = params["sweep"]
-    algo, task, seed = params["algo"], params["task"], params["seed"]
+    algo, task, seed = params["job"]["algo"], params["job"]["task"], params["job"]["seed"]
     folder = _job_dir(Path(record["root"]), algo, task, seed)
     t0 = time.perf_counter()
     config = resolve(record["settings"], algo, task, seed=seed, tier=record["tier"], total_env_steps=record["steps"],
@@ -256,7 +257,7 @@ def _reporter(progress, total_steps: dict):
 
         @staticmethod
         def _name(trial) -> str:
-            c = trial.config
+            c = trial.config["job"]
             return f"{c['algo']}/{c['task']}/s{c['seed']}"
 
         def on_trial_start(self, iteration, trials, trial, **info):
@@ -267,7 +268,7 @@ def _reporter(progress, total_steps: dict):
             if result.get("done") or now - self.last.get(key, -1e9) < _PROGRESS_EVERY_S:
                 return
             self.last[key] = now
-            total = total_steps[(trial.config["algo"], trial.config["task"])]
+            total = total_steps[(trial.config["job"]["algo"], trial.config["job"]["task"])]
             rate = result["env_steps"] / result["wall_s"] if result.get("wall_s") else 0.0
             progress(f"  {key}: {result['env_steps']:,} / {total:,} env steps ({rate:.0f}/s), checkpoint at "
                      f"{result.get('checkpoint_env_steps') or 0:,}")
@@ -375,13 +376,15 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
         if tune.Tuner.can_restore(str(experiment)):
             tuner = tune.Tuner.restore(str(experiment), trainable, resume_unfinished=True, restart_errored=True)
         else:
+            # One axis of jobs in seed-major order (Tune would otherwise vary its keys alphabetically):
+            # a sweep stopped early has seed 0 of every algorithm and task, not all seeds of one.
+            order = [{"algo": a, "task": t, "seed": s}
+                     for s, t, a in itertools.product(record["seeds"], record["tasks"], record["algos"])]
             tuner = tune.Tuner(trainable, run_config=run_config,
                                tune_config=tune.TuneConfig(max_concurrent_trials=jobs),
-                               param_space={"algo": tune.grid_search(record["algos"]),
-                                            "task": tune.grid_search(record["tasks"]),
-                                            "seed": tune.grid_search(record["seeds"]), "sweep": record})
+                               param_space={"job": tune.grid_search(order), "sweep": record})
         results = tuner.fit()
-        errors = {(r.config["algo"], r.config["task"], r.config["seed"]): r.error for r in results if r.error}
+        errors = {tuple(r.config["job"][k] for k in ("algo", "task", "seed")): r.error for r in results if r.error}
     finally:
         ray.shutdown()
     rows = plan(root, *grid)
