@@ -22,7 +22,7 @@ import yaml
 from test_rl import TINY_MODELS, assert_same
 
 from comat.cli import main
-from comat.eval.sweep import RECORD, prepare_sweep, sweep_status
+from comat.eval.sweep import RECORD, param_space, prepare_sweep, sweep_status
 from comat.rl.checkpoint import load_checkpoint
 from comat.rl.config import load_preset, resolve
 from comat.rl.runner import train
@@ -84,6 +84,18 @@ def test_swept_runs_equal_comat_train_runs_and_a_second_sitting_skips_them(tmp_p
     again = _comat("sweep", "--out", "sw", cwd=tmp_path / "elsewhere")
     assert again.returncode == 0 and "continuing the sweep recorded in" in again.stdout
     assert "2 jobs, all finished" in again.stdout and "Started a local Ray instance" not in again.stderr
+
+
+def test_tune_runs_the_jobs_seed_major():
+    """The order Tune generates trials in (its variant generator, as Tuner uses it): seed 0 of every
+    algorithm and task before any seed 1, so a sweep stopped early compares all cells."""
+    pytest.importorskip("ray")
+    from ray.tune.search.variant_generator import generate_variants
+
+    record = {"algos": ["comat", "mat", "qmix"], "tasks": ["pcp", "hmt"], "seeds": [0, 1]}
+    order = [(v["job"]["seed"], v["job"]["task"], v["job"]["algo"]) for _, v in generate_variants(param_space(record))]
+    assert order == [(s, t, a) for s in (0, 1) for t in ("pcp", "hmt") for a in ("comat", "mat", "qmix")]
+    assert all(v["sweep"] == record for _, v in generate_variants(param_space(record)))
 
 
 def _progress(folder, rows):

@@ -35,7 +35,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["RECORD", "plan", "prepare_sweep", "read_record", "run_job", "run_sweep", "sweep_status"]
+__all__ = ["RECORD", "param_space", "plan", "prepare_sweep", "read_record", "run_job", "run_sweep", "sweep_status"]
 
 RECORD = "sweep.json"
 DEFAULTS = {"algos": ["comat", "mat", "mappo", "qmix"], "tasks": ["pcp", "hmt"], "seeds": None, "preset": "paper",
@@ -246,6 +246,17 @@ def run_job(params: dict) -> dict:
     return {}
 
 
+def param_space(record: dict) -> dict:
+    """Tune's search space of a sweep: one grid axis of jobs, seed-major (Tune would otherwise vary
+    the algo/task/seed keys in alphabetical order, all seeds of one algorithm first), so that a
+    sweep stopped early holds seed 0 of every algorithm and task."""
+    from ray import tune
+
+    jobs = [{"algo": a, "task": t, "seed": s}
+            for s, t, a in itertools.product(record["seeds"], record["tasks"], record["algos"])]
+    return {"job": tune.grid_search(jobs), "sweep": record}
+
+
 def _reporter(progress, total_steps: dict):
     """A Tune callback that prints a line per job when it starts, every 30 s of its progress,
     when it is retried and when it ends."""
@@ -376,13 +387,9 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
         if tune.Tuner.can_restore(str(experiment)):
             tuner = tune.Tuner.restore(str(experiment), trainable, resume_unfinished=True, restart_errored=True)
         else:
-            # One axis of jobs in seed-major order (Tune would otherwise vary its keys alphabetically):
-            # a sweep stopped early has seed 0 of every algorithm and task, not all seeds of one.
-            order = [{"algo": a, "task": t, "seed": s}
-                     for s, t, a in itertools.product(record["seeds"], record["tasks"], record["algos"])]
             tuner = tune.Tuner(trainable, run_config=run_config,
                                tune_config=tune.TuneConfig(max_concurrent_trials=jobs),
-                               param_space={"job": tune.grid_search(order), "sweep": record})
+                               param_space=param_space(record))
         results = tuner.fit()
         errors = {tuple(r.config["job"][k] for k in ("algo", "task", "seed")): r.error for r in results if r.error}
     finally:
