@@ -53,3 +53,20 @@ def test_a_20_robot_recording_costs_no_more_per_robot_than_an_8_robot_one(tmp_pa
         result = record_episodes(path, "pcp", "heuristic", teams=[team], tier="unicycle", max_robots=n)
         per_robot_step[name] = path.stat().st_size / (n * result.episodes[0]["steps"])
     assert per_robot_step["20"] < 2 * per_robot_step["8"]
+
+
+def test_layouts_of_changing_vectors_of_large_teams_hold_little_memory():
+    """A vector env's tuple of team sizes changes with nearly every reset: 300 distinct vectors of
+    32 U_scale teams leave at most 16 layouts cached (~2.4 MB at 20 robots each), where a cache of
+    256 had held ~21 MiB (the U_scale soak's memory growth, issue 21)."""
+    import numpy as np
+
+    from comat.sim.layout import team_layout
+
+    rng = np.random.default_rng(0)
+    team_layout.cache_clear()
+    for _ in range(300):
+        team_layout(tuple(rng.choice(SIZES["scale"], 32).tolist()))
+    largest = team_layout((20,) * 32)
+    held = sum(a.nbytes for a in (largest.offsets, largest.robot_team, largest.pair_i, largest.pair_j, largest.pair_team))
+    assert team_layout.cache_info().currsize <= 16 and 16 * held < 3 * 2**20
