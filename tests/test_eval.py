@@ -223,6 +223,30 @@ def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, 
     assert all(any(np.allclose(c, e, atol=0.01) for e in expected) for c in colours[0])
 
 
+def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_path):
+    """generalization.md: progress ± interval per set, and per unseen set whether COMAT's 95 %
+    interval over seeds lies above each baseline's — "above", "overlapping", "not decidable" with
+    one seed, "not evaluated" for a baseline that cannot play the set."""
+    runs = []
+    for algo, base, step in (("comat", 0.8, 0.02), ("mappo", 0.2, 0.02), ("qmix", 0.6, 0.3)):
+        for seed in range(3):
+            runs.append(tmp_path / f"{algo}{seed}")
+            _fake_run(runs[-1], algo, "pcp", seed, 10.0, 8.0, 1.0, scale_return=5.0, progress=base + step * seed)
+    runs.append(tmp_path / "mat0")
+    _fake_run(runs[-1], "mat", "pcp", 0, 9.0, 7.0, 1.0)  # one seed, no U_scale
+    out = tmp_path / "out"
+    out.mkdir()
+    make_report(runs, out)
+    md = (out / "generalization.md").read_text()
+    assert "| PCP | COMAT | 3 | 82.0 ± 5.0 | 41.0 ± 2.5 | 20.5 ± 1.2 | 50.0 ± 0.0 | 25.0 ± 0.0 |" in md
+    assert "| PCP | MAT | 1 | 50.0 | 25.0 | — | 50.0 | — |" in md
+    scale = next(line for line in md.splitlines() if line.startswith("* PCP, U_scale"))
+    assert "COMAT keeps 25.0 ± 0.0 % of its U_train progress" in scale
+    assert "MAPPO: above" in scale and "QMIX: overlapping" in scale and "MAT: not evaluated on U_scale" in scale
+    test = next(line for line in md.splitlines() if line.startswith("* PCP, U_test"))
+    assert "MAT: not decidable (needs 2+ seeds each)" in test
+
+
 def test_aggregate_iqm_and_stratified_bootstrap_by_hand():
     from scipy import stats
 
