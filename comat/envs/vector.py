@@ -21,6 +21,7 @@ from gymnasium import spaces
 from comat.config import SafetyConfig, SimConfig
 from comat.envs.base import team_source
 from comat.envs.core import EPISODE_METRICS, TaskCore
+from comat.heap import release_free_heap
 from comat.team import TeamSpec
 
 __all__ = ["VectorEnv"]
@@ -113,6 +114,7 @@ class VectorEnv:
             raise ValueError(f"teams must be a list of {self.num_envs} TeamSpec (one per environment), got {teams!r:.200}")
         self.core.reset(envs, list(teams), [self._rngs[b] for b in envs])
         self._started = True
+        release_free_heap()  # the last batch's transient peaks, held by glibc (comat.heap)
         return self.core.observe(), self._info()
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
