@@ -263,3 +263,7 @@ def test_soak_bench_one_round_is_clean(tmp_path):
     result = run_soak(160, wheels_share=0.5, seed=1, out=str(tmp_path / "soak.json"), progress=lambda m: None)
     assert result["episodes"] == 160 and all(c["pass"] for c in result["checks"].values()), result["checks"]
     assert (tmp_path / "soak.json").is_file() and result["scripted_success_share"] > 0.8
+    # memory is sampled after free heap pages go back to the OS, and before, at the same marks
+    marks = [d for d, _ in result["rss_bytes"]]
+    assert marks and marks == [d for d, _ in result["rss_bytes_before_release"]]
+    assert all(a <= b + 2**20 for (_, a), (_, b) in zip(result["rss_bytes"], result["rss_bytes_before_release"]))

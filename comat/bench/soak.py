@@ -6,7 +6,9 @@ Counted over all of them: MuJoCo robot–robot contacts, Robotarium-style collis
 exits, actuator errors, NaN in observations (env steps) or returns (episodes), filter recovery
 and fallback ticks; and
 the process's resident memory after each thousand episodes (growth from the first to the last
-thousand, target < 5 %). Episodes start inside the safe set (the envs' spawn), so the safety
+thousand, target < 5 %), sampled after handing free heap pages back to the OS
+(:func:`comat.heap.release_free_heap`, as every full env reset does): what glibc still holds of
+the last batch's transient peak is not drift; it is recorded too (``rss_bytes_before_release``). Episodes start inside the safe set (the envs' spawn), so the safety
 targets are zero contacts, zero collisions and zero fallbacks.
 """
 
@@ -57,6 +59,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     from comat.bench.sim_bench import finish
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
+    from comat.heap import release_free_heap
     from comat.team import COALITION_SETS
 
     sets = tuple(sets)
@@ -85,6 +88,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                                "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "success")}
     by_tier = {"unicycle": 0, "wheels": 0}
     memory: list[tuple[int, int]] = []
+    held: list[tuple[int, int]] = []
     done, rounds, t0 = 0, 0, time.perf_counter()
     mark_every = max(per_round, min(1000, episodes // 10))
     next_mark = mark_every
@@ -104,6 +108,8 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                     totals[key] += e[key]
                 totals["success"] += e["success"] if policy == "heuristic" else 0.0
             if done >= next_mark:
+                held.append((done, _rss_bytes()))
+                release_free_heap()
                 memory.append((done, _rss_bytes()))
                 next_mark += mark_every
                 rate = done / (time.perf_counter() - t0)
@@ -123,7 +129,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     result = {"benchmark": "soak", "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
               "sets": list(sets), "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
               "scripted_success_share": totals["success"] / max(1.0, totals["episodes"] / 2),
-              "rss_bytes": memory, "wall_s": time.perf_counter() - t0, "checks": checks}
+              "rss_bytes": memory, "rss_bytes_before_release": held, "wall_s": time.perf_counter() - t0, "checks": checks}
     progress(f"{'metric':<28}{'total':>14}")
     for key, value in totals.items():
         progress(f"{key:<28}{value:>14,.0f}")
