@@ -234,6 +234,8 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
             _fake_run(runs[-1], algo, "pcp", seed, 10.0, 8.0, 1.0, scale_return=5.0, progress=base + step * seed)
     runs.append(tmp_path / "mat0")
     _fake_run(runs[-1], "mat", "pcp", 0, 9.0, 7.0, 1.0)  # one seed, no U_scale
+    runs.append(tmp_path / "comat_hmt")
+    _fake_run(runs[-1], "comat", "hmt", 0, 9.0, 7.0, 1.0)  # a task no baseline ran
     out = tmp_path / "out"
     out.mkdir()
     make_report(runs, out)
@@ -245,6 +247,7 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     assert "MAPPO: above" in scale and "QMIX: overlapping" in scale and "MAT: not evaluated on U_scale" in scale
     test = next(line for line in md.splitlines() if line.startswith("* PCP, U_test"))
     assert "MAT: not decidable (needs 2+ seeds each)" in test
+    assert "MAPPO: no runs; QMIX: no runs; MAT: no runs." in next(ln for ln in md.splitlines() if ln.startswith("* HMT, U_test"))
 
 
 def test_aggregate_iqm_and_stratified_bootstrap_by_hand():

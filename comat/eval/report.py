@@ -275,7 +275,9 @@ def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], set
                 other = by[(task, algo)]
                 lo_c, hi_c = (mine[f"{split}_progress"] + d * mine[f"{split}_progress_ci95"] for d in (-1, 1))
                 lo_o, hi_o = (other[f"{split}_progress"] + d * other[f"{split}_progress_ci95"] for d in (-1, 1))
-                if math.isnan(other[f"{split}_progress"]):
+                if not other["seeds"]:
+                    verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: no runs")
+                elif math.isnan(other[f"{split}_progress"]):
                     verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: not evaluated on {names[split]}")
                 elif any(math.isnan(v) for v in (lo_c, hi_c, lo_o, hi_o)):
                     verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: not decidable (needs 2+ seeds each)")
