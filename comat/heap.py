@@ -8,8 +8,9 @@ process) it rose 336 -> 353 MiB over the first 2,400 episodes in steps at single
 fixed mmap threshold or a single malloc arena exactly as much, while trimming after every round
 kept it at 285-318 MiB. (With a trim at every env reset, a 3,120-episode run of that soak still
 sampled 294-378 MiB after single batches, peaking near episode 2,800; whether any of that is
-live memory is open, issue 21.) :class:`comat.envs.vector.VectorEnv` calls :func:`release_free_heap` on every full
-reset (the start of each evaluation batch); it costs a few milliseconds.
+live memory is open, issue 21.) :class:`comat.envs.vector.VectorEnv` calls
+:func:`release_free_heap` on every full reset (the start of each evaluation batch); it costs a
+few milliseconds.
 """
 
 from __future__ import annotations

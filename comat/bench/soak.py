@@ -8,8 +8,9 @@ and fallback ticks; and
 the process's resident memory after each thousand episodes (growth from the first to the last
 thousand, target < 5 %), sampled after handing free heap pages back to the OS
 (:func:`comat.heap.release_free_heap`, as every full env reset does): what glibc still holds of
-the last batch's transient peak is not drift; it is recorded too (``rss_bytes_before_release``). Episodes start inside the safe set (the envs' spawn), so the safety
-targets are zero contacts, zero collisions and zero fallbacks.
+the last batch's transient peak is not drift; it is recorded too (``rss_bytes_before_release``).
+Episodes start inside the safe set (the envs' spawn), so the safety targets are zero contacts,
+zero collisions and zero fallbacks.
 """
 
 from __future__ import annotations

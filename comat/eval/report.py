@@ -243,12 +243,12 @@ def _generalization(groups: dict, tasks: list[str], algos: list[str], sets: list
     return rows, buf.getvalue()
 
 
-def _cell(row: dict, key: str, percent: bool = True) -> str:
+def _cell(row: dict, key: str) -> str:
+    """A fraction ``row[key]`` as percent, ± its ``_ci95`` half-width where there is one."""
     mean, half = row.get(key, math.nan), row.get(f"{key}_ci95", math.nan)
     if math.isnan(mean):
         return "—"
-    scale = 100 if percent else 1
-    return f"{scale * mean:.1f}" + ("" if math.isnan(half) else f" ± {scale * half:.1f}")
+    return f"{100 * mean:.1f}" + ("" if math.isnan(half) else f" ± {100 * half:.1f}")
 
 
 def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str]) -> str:
@@ -271,19 +271,18 @@ def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], set
         mine = by.get((task, "comat"))
         for split in unseen if mine else ():
             verdicts = []
+            lo_c, hi_c = (mine[f"{split}_progress"] + d * mine[f"{split}_progress_ci95"] for d in (-1, 1))
             for algo in (a for a in algos if a != "comat"):
-                other = by[(task, algo)]
-                lo_c, hi_c = (mine[f"{split}_progress"] + d * mine[f"{split}_progress_ci95"] for d in (-1, 1))
+                other, label = by[(task, algo)], ALGO_LABELS.get(algo, algo)
                 lo_o, hi_o = (other[f"{split}_progress"] + d * other[f"{split}_progress_ci95"] for d in (-1, 1))
                 if not other["seeds"]:
-                    verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: no runs")
+                    verdicts.append(f"{label}: no runs")
                 elif math.isnan(other[f"{split}_progress"]):
-                    verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: not evaluated on {names[split]}")
+                    verdicts.append(f"{label}: not evaluated on {names[split]}")
                 elif any(math.isnan(v) for v in (lo_c, hi_c, lo_o, hi_o)):
-                    verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: not decidable (needs 2+ seeds each)")
+                    verdicts.append(f"{label}: not decidable (needs 2+ seeds each)")
                 else:
-                    word = "above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"
-                    verdicts.append(f"{ALGO_LABELS.get(algo, algo)}: {word}")
+                    verdicts.append(f"{label}: " + ("above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"))
             keep = _cell(mine, f"{split}_retention")
             lines.append(f"* {task.upper()}, {names[split]}: COMAT keeps {keep} % of its U_train progress; its 95 % "
                          f"interval vs " + ("; ".join(verdicts) if verdicts else "no baseline in these runs") + ".")
