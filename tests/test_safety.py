@@ -267,3 +267,23 @@ def test_soak_bench_one_round_is_clean(tmp_path):
     marks = [d for d, _ in result["rss_bytes"]]
     assert marks and marks == [d for d, _ in result["rss_bytes_before_release"]]
     assert all(a <= b + 2**20 for (_, a), (_, b) in zip(result["rss_bytes"], result["rss_bytes_before_release"]))
+    # one sample per batch of 20 coalitions; a one-round run's first and last windows are the same
+    assert [d for d, _ in result["rss_bytes_per_batch"]] == list(range(20, 161, 20))
+    assert set(result["rss_bytes"]) <= set(result["rss_bytes_per_batch"])
+    assert result["rss_windows"]["first"] == result["rss_windows"]["last"]
+
+
+def test_soak_memory_windows_see_drift_not_swings():
+    """The soak's memory check compares the median and peak of the first and last thousand
+    episodes' samples: a run whose samples swing between two levels does not grow, one whose
+    floor and ceiling creep up by 10 % does."""
+    from comat.bench.soak import _first_and_last_thousand, _growth
+
+    mib = 2**20
+    swings = [(20 * i, (300 if i % 3 else 330) * mib) for i in range(1, 501)]
+    first, last = _first_and_last_thousand(swings, 1000)
+    assert first["samples"] == last["samples"] == 50
+    assert abs(_growth(first["median"], last["median"])) < 0.01 and _growth(first["peak"], last["peak"]) == 0
+    creep = [(d, rss * (1 + 0.1 * d / 10_000)) for d, rss in swings]
+    first, last = _first_and_last_thousand(creep, 1000)
+    assert _growth(first["median"], last["median"]) > 0.08 and _growth(first["peak"], last["peak"]) > 0.08
