@@ -228,10 +228,12 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     interval over seeds lies above each baseline's — "above", "overlapping", "not decidable" with
     one seed, "not evaluated" for a baseline that cannot play the set."""
     runs = []
+    finished = {"comat": (1.0, 1.0, 1.0), "mappo": (0.5, 0.5, 0.5), "qmix": (0.0, 0.5, 1.0)}
     for algo, base, step in (("comat", 0.8, 0.02), ("mappo", 0.2, 0.02), ("qmix", 0.6, 0.3)):
         for seed in range(3):
             runs.append(tmp_path / f"{algo}{seed}")
-            _fake_run(runs[-1], algo, "pcp", seed, 10.0, 8.0, 1.0, scale_return=5.0, progress=base + step * seed)
+            _fake_run(runs[-1], algo, "pcp", seed, 10.0, 8.0, finished[algo][seed], scale_return=5.0,
+                      progress=base + step * seed)
     runs.append(tmp_path / "mat0")
     _fake_run(runs[-1], "mat", "pcp", 0, 9.0, 7.0, 1.0)  # one seed, no U_scale
     runs.append(tmp_path / "comat_hmt")
@@ -248,6 +250,12 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     test = next(line for line in md.splitlines() if line.startswith("* PCP, U_test"))
     assert "MAT: not decidable (needs 2+ seeds each)" in test
     assert "MAPPO: no runs; QMIX: no runs; MAT: no runs." in next(ln for ln in md.splitlines() if ln.startswith("* HMT, U_test"))
+    # the finished share per set, with its own verdicts: where progress saturates, it still separates
+    assert "| PCP | MAPPO | 3 | 50.0 ± 0.0 | 50.0 ± 0.0 | 50.0 ± 0.0 |" in md
+    assert "| PCP | QMIX | 3 | 50.0 ± 124.2 | 50.0 ± 124.2 | 50.0 ± 124.2 |" in md
+    scale = [line for line in md.splitlines() if line.startswith("* PCP, U_scale")]
+    assert len(scale) == 2 and "COMAT finishes 100.0 ± 0.0 % of its episodes" in scale[1]
+    assert "MAPPO: above" in scale[1] and "QMIX: overlapping" in scale[1]
 
 
 def test_aggregate_iqm_and_stratified_bootstrap_by_hand():

@@ -16,9 +16,9 @@ Outputs in ``--out`` (:data:`REPORT_FILES`):
 * ``generalization.csv``: per algorithm and task and per composition set (U_scale where a run
   has it), return and progress, and progress retention (progress on the set / progress on
   U_train — a ratio of non-negative fractions, unlike a ratio of returns that change sign).
-  ``generalization.md``: the same progress and retention as a table, and per unseen set whether
-  COMAT's 95 % interval over seeds lies above each baseline's (the paper's claim, where it can
-  be decided: two or more seeds each).
+  ``generalization.md``: the same progress and retention as a table, then the finished share per
+  set, and under each, per unseen set whether COMAT's 95 % interval over seeds lies above each
+  baseline's (the paper's claim, where it can be decided: two or more seeds each).
 * ``aggregates.csv``: over seeds × coalitions (each coalition's mean over its episodes), the
   plain mean and the interquartile mean with 95 % stratified-bootstrap intervals (rliable:
   seeds resampled within each coalition, 2,000 resamples, fixed random state).
@@ -252,41 +252,64 @@ def _cell(row: dict, key: str) -> str:
 
 
 def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str]) -> str:
-    """Progress per set and retention per unseen set, each mean ± 95 % half-width over seeds, then
-    per task and unseen set whether COMAT's interval lies above (or below) each baseline's."""
+    """Progress per set and retention per unseen set, then the share of episodes finished per set,
+    each mean ± 95 % half-width over seeds; under each table, per task and unseen set, whether
+    COMAT's interval lies above (or below) each baseline's."""
     names = {"train": "U_train", "test": "U_test", "scale": "U_scale"}
     unseen = [s for s in sets if s != "train"]
     head = ["Task", "Algorithm", "Seeds", *(f"{names[s]} progress (%)" for s in sets),
             *(f"{names[s]} retention (%)" for s in unseen)]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for row in rows:
-        cells = [row["task"].upper(), ALGO_LABELS.get(row["algo"], row["algo"]), str(row["seeds"]),
-                 *(_cell(row, f"{s}_progress") for s in sets), *(_cell(row, f"{s}_retention") for s in unseen)]
-        lines.append("| " + " | ".join(cells) + " |")
+    lines = _table(rows, head, lambda row: [*(_cell(row, f"{s}_progress") for s in sets),
+                                            *(_cell(row, f"{s}_retention") for s in unseen)])
     lines += ["", ("Progress: share of prey captured / material delivered, each seed's mean over the set's "
               "coalitions (deterministic policy); retention: progress on the set / progress on U_train, per seed. "
               "± : 95 % Student-t half-width over seeds (none with one seed)."), ""]
+    lines += _verdicts(rows, tasks, algos, unseen, "progress",
+                       lambda mine, split: f"keeps {_cell(mine, f'{split}_retention')} % of its U_train progress")
+    head = ["Task", "Algorithm", "Seeds", *(f"{names[s]} finished (%)" for s in sets)]
+    lines += ["", *_table(rows, head, lambda row: [_cell(row, f"{s}_completion") for s in sets])]
+    lines += ["", ("Finished: share of the set's episodes in which every prey was captured / all material "
+              "delivered (the paper's completion), each seed's share, then over seeds: the finer measure where "
+              "progress is near 100 % for every algorithm (U_scale PCP keeps 6 prey for 10–20 robots)."), ""]
+    lines += _verdicts(rows, tasks, algos, unseen, "completion",
+                       lambda mine, split: f"finishes {_cell(mine, f'{split}_completion')} % of its episodes")
+    return "\n".join(lines) + "\n"
+
+
+def _table(rows: list[dict], head: list[str], cells) -> list[str]:
+    """A markdown table: task, algorithm and seeds, then ``cells(row)``."""
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for row in rows:
+        lines.append("| " + " | ".join([row["task"].upper(), ALGO_LABELS.get(row["algo"], row["algo"]),
+                                        str(row["seeds"]), *cells(row)]) + " |")
+    return lines
+
+
+def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list[str], key: str, lead) -> list[str]:
+    """Per task and unseen set, COMAT's 95 % interval of ``<set>_<key>`` against each baseline's:
+    above, below, overlapping, or why it cannot be said."""
+    names = {"test": "U_test", "scale": "U_scale"}
     by = {(r["task"], r["algo"]): r for r in rows}
+    lines = []
     for task in tasks:
         mine = by.get((task, "comat"))
         for split in unseen if mine else ():
             verdicts = []
-            lo_c, hi_c = (mine[f"{split}_progress"] + d * mine[f"{split}_progress_ci95"] for d in (-1, 1))
+            lo_c, hi_c = (mine[f"{split}_{key}"] + d * mine[f"{split}_{key}_ci95"] for d in (-1, 1))
             for algo in (a for a in algos if a != "comat"):
                 other, label = by[(task, algo)], ALGO_LABELS.get(algo, algo)
-                lo_o, hi_o = (other[f"{split}_progress"] + d * other[f"{split}_progress_ci95"] for d in (-1, 1))
+                lo_o, hi_o = (other[f"{split}_{key}"] + d * other[f"{split}_{key}_ci95"] for d in (-1, 1))
                 if not other["seeds"]:
                     verdicts.append(f"{label}: no runs")
-                elif math.isnan(other[f"{split}_progress"]):
+                elif math.isnan(other[f"{split}_{key}"]):
                     verdicts.append(f"{label}: not evaluated on {names[split]}")
                 elif any(math.isnan(v) for v in (lo_c, hi_c, lo_o, hi_o)):
                     verdicts.append(f"{label}: not decidable (needs 2+ seeds each)")
                 else:
                     verdicts.append(f"{label}: " + ("above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"))
-            keep = _cell(mine, f"{split}_retention")
-            lines.append(f"* {task.upper()}, {names[split]}: COMAT keeps {keep} % of its U_train progress; its 95 % "
-                         f"interval vs " + ("; ".join(verdicts) if verdicts else "no baseline in these runs") + ".")
-    return "\n".join(lines) + "\n"
+            lines.append(f"* {task.upper()}, {names[split]}: COMAT {lead(mine, split)}; its 95 % interval vs "
+                         + ("; ".join(verdicts) if verdicts else "no baseline in these runs") + ".")
+    return lines
 
 
 def aggregate(scores: np.ndarray, reps: int = BOOTSTRAP_REPS, seed: int = 0) -> dict[str, float]:
