@@ -513,8 +513,8 @@ def build_parser() -> argparse.ArgumentParser:
     b = bsub.add_parser("soak", help="many reference-policy episodes: contacts, collisions, NaN, memory drift",
                         description="Episodes of the scripted and the random policy on composition sets of both "
                         "tasks (unicycle tier, a share in the wheels tier): every contact, collision, boundary exit, "
-                        "actuator error, NaN, filter recovery and fallback counted, and resident memory after each "
-                        "thousand episodes. Not part of the tests: one round of 160 episodes (U_train and U_test) "
+                        "actuator error, NaN, filter recovery and fallback counted, and resident memory after every batch, "
+                        "compared over the first and the last thousand episodes. Not part of the tests: one round of 160 episodes (U_train and U_test) "
                         "took 2 min on this 2-core machine (under load), so 10,000 take an hour or more.")
     b.add_argument("--episodes", type=int, default=10_000, help="at least this many episodes (default: %(default)s)")
     b.add_argument("--sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
