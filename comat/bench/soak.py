@@ -9,10 +9,10 @@ the process's resident memory, sampled after every batch (one vector env's pass 
 20 coalitions) once free heap pages are handed back to the OS (:func:`comat.heap.release_free_heap`,
 as every full env reset does; what glibc still holds of a batch's transient peak is not drift).
 Growth is measured from the first to the last thousand episodes on the median and on the peak of
-the samples in each (target < 5 % for both): a single sample depends on which of the 12 envs ran
-last (a 20-robot U_scale batch leaves larger live workspaces than a 3-robot one), and swings by
-~15 % between neighbouring marks with no trend. The samples at each thousand, before and after the
-release, are kept too (``rss_bytes``, ``rss_bytes_before_release``).
+the samples in each (target < 5 % for both): a single sample depends on the batch that ran last
+and swung by up to 15 % between neighbouring thousands (284-337 MiB over the three sets). The
+samples at each thousand, before and after the release, are kept too (``rss_bytes``,
+``rss_bytes_before_release``).
 Episodes start inside the safe set (the envs' spawn), so the safety targets are zero contacts,
 zero collisions and zero fallbacks.
 """
