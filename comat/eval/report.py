@@ -50,6 +50,10 @@ REFERENCES = ("heuristic", "constant", "random")
 PAPER_BUDGET = 4_000_000
 """Env steps per run in the paper's experiments."""
 BOOTSTRAP_REPS = 2000
+SET_NAMES = {"train": "U_train", "test": "U_test", "scale": "U_scale"}
+"""The composition sets as the paper names them."""
+
+
 REPORT_FILES = ("table1.md", "table1.csv", "generalization.md", "generalization.csv", "aggregates.csv",
                 *(f"{stem}.{fmt}" for stem in ("fig4_training_return", "fig5_generalization", "fig6_team_size")
                   for fmt in figures.FORMATS))
@@ -255,10 +259,9 @@ def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], set
     """Progress per set and retention per unseen set, then the share of episodes finished per set,
     each mean ± 95 % half-width over seeds; under each table, per task and unseen set, whether
     COMAT's interval lies above (or below) each baseline's."""
-    names = {"train": "U_train", "test": "U_test", "scale": "U_scale"}
     unseen = [s for s in sets if s != "train"]
-    head = ["Task", "Algorithm", "Seeds", *(f"{names[s]} progress (%)" for s in sets),
-            *(f"{names[s]} retention (%)" for s in unseen)]
+    head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} progress (%)" for s in sets),
+            *(f"{SET_NAMES[s]} retention (%)" for s in unseen)]
     lines = _table(rows, head, lambda row: [*(_cell(row, f"{s}_progress") for s in sets),
                                             *(_cell(row, f"{s}_retention") for s in unseen)])
     lines += ["", ("Progress: share of prey captured / material delivered, each seed's mean over the set's "
@@ -266,7 +269,7 @@ def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], set
               "± : 95 % Student-t half-width over seeds (none with one seed)."), ""]
     lines += _verdicts(rows, tasks, algos, unseen, "progress",
                        lambda mine, split: f"keeps {_cell(mine, f'{split}_retention')} % of its U_train progress")
-    head = ["Task", "Algorithm", "Seeds", *(f"{names[s]} finished (%)" for s in sets)]
+    head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} finished (%)" for s in sets)]
     lines += ["", *_table(rows, head, lambda row: [_cell(row, f"{s}_completion") for s in sets])]
     lines += ["", ("Finished: share of the set's episodes in which every prey was captured / all material "
               "delivered (the paper's completion), each seed's share, then over seeds: the finer measure where "
@@ -288,7 +291,6 @@ def _table(rows: list[dict], head: list[str], cells) -> list[str]:
 def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list[str], key: str, lead) -> list[str]:
     """Per task and unseen set, COMAT's 95 % interval of ``<set>_<key>`` against each baseline's:
     above, below, overlapping, or why it cannot be said."""
-    names = {"test": "U_test", "scale": "U_scale"}
     by = {(r["task"], r["algo"]): r for r in rows}
     lines = []
     for task in tasks:
@@ -302,12 +304,12 @@ def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list
                 if not other["seeds"]:
                     verdicts.append(f"{label}: no runs")
                 elif math.isnan(other[f"{split}_{key}"]):
-                    verdicts.append(f"{label}: not evaluated on {names[split]}")
+                    verdicts.append(f"{label}: not evaluated on {SET_NAMES[split]}")
                 elif any(math.isnan(v) for v in (lo_c, hi_c, lo_o, hi_o)):
                     verdicts.append(f"{label}: not decidable (needs 2+ seeds each)")
                 else:
                     verdicts.append(f"{label}: " + ("above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"))
-            lines.append(f"* {task.upper()}, {names[split]}: COMAT {lead(mine, split)}; its 95 % interval vs "
+            lines.append(f"* {task.upper()}, {SET_NAMES[split]}: COMAT {lead(mine, split)}; its 95 % interval vs "
                          + ("; ".join(verdicts) if verdicts else "no baseline in these runs") + ".")
     return lines
 
