@@ -96,3 +96,17 @@ def test_heuristic_solves_training_coalitions_unicycle(task):
 @pytest.mark.parametrize("task", ["pcp", "hmt"])
 def test_heuristic_solves_training_coalitions_wheels(task):
     _check_heuristic(_heuristic_episodes(task, "wheels"))
+
+
+def test_episodes_leave_no_osqp_problems_and_repeat_exactly():
+    """``run_episodes`` ends by dropping the env's OSQP problems (an env waiting for its next
+    batch holds none), and that changes nothing: the same batch again gives the same metrics."""
+    teams = generate_coalitions("pcp", "train")[:4]
+    env = make_vec_env("pcp_v0", 4, seed=0, tier="unicycle", coalitions=teams)
+    env.reset(seed=0, teams=teams)
+    for _ in range(3):
+        env.step(random_actions(np.random.default_rng(0), env.agent_mask))
+    assert env.core.safe._qp_cache, "the steps should have set up OSQP problems"
+    first = run_episodes(env, lambda obs, mask, state: heuristic_actions(env.core), teams, seed=3)
+    assert not env.core.safe._qp_cache and env.core.safe.filter._pattern_qp is None
+    assert run_episodes(env, lambda obs, mask, state: heuristic_actions(env.core), teams, seed=3) == first

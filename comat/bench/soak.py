@@ -6,13 +6,12 @@ Counted over all of them: MuJoCo robot–robot contacts, Robotarium-style collis
 exits, actuator errors, NaN in observations (env steps) or returns (episodes), filter recovery
 and fallback ticks; and
 the process's resident memory, sampled after every batch (one vector env's pass over a set's
-20 coalitions) once free heap pages are handed back to the OS (:func:`comat.heap.release_free_heap`,
-as every full env reset does; what glibc still holds of a batch's transient peak is not drift).
+20 coalitions, which ends by dropping that env's OSQP problems and handing free heap pages back
+to the OS: :meth:`comat.envs.VectorEnv.release_solvers`), and its peak during every batch.
 Growth is measured from the first to the last thousand episodes on the median and on the peak of
-the samples in each (target < 5 % for both): a single sample depends on the batch that ran last
-and swung by up to 15 % between neighbouring thousands (284-337 MiB over the three sets). The
-samples at each thousand, before and after the release, are kept too (``rss_bytes``,
-``rss_bytes_before_release``).
+the after-batch samples in each, and on the median of the batch peaks (target < 5 % for all
+three): a single sample depends on the batch that ran last. The after-batch samples at each
+thousand are kept too (``rss_bytes``).
 Episodes start inside the safe set (the envs' spawn), so the safety targets are zero contacts,
 zero collisions and zero fallbacks.
 """
@@ -39,6 +38,24 @@ def _rss_bytes() -> int:
             return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):
         return 0
+
+
+def _peak_rss_bytes() -> int:
+    """Highest resident set size since the last :func:`_reset_peak_rss` (Linux VmHWM; 0 where unavailable)."""
+    try:
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmHWM:"))
+    except (OSError, ValueError, IndexError, StopIteration):
+        return 0
+
+
+def _reset_peak_rss() -> None:
+    """Start a new peak: VmHWM falls to the current RSS (Linux >= 4.0; no-op where unavailable)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+    except OSError:
+        pass
 
 
 def _first_and_last_thousand(samples: list[tuple[int, int]], window: int) -> tuple[dict, dict]:
@@ -78,7 +95,6 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     from comat.bench.sim_bench import finish
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
-    from comat.heap import release_free_heap
     from comat.team import COALITION_SETS
 
     sets = tuple(sets)
@@ -95,20 +111,22 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     envs = {(task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
             for task in ("pcp", "hmt") for split in sets for tier in ("unicycle", "wheels")}
     # Warm-up, not counted: a few steps in every environment, so that what is allocated on first
-    # use (MuJoCo data, filters, OSQP problems, compiled kernels) is in place before the first
-    # memory sample; the wheels environments are otherwise first used at random moments.
+    # use (MuJoCo data, filters, compiled kernels) is in place before the first memory sample; the
+    # wheels environments are otherwise first used at random moments. Their OSQP problems are
+    # dropped again, as after every batch (held, they would inflate the first samples).
     from comat.envs.heuristics import random_actions
 
     for env in envs.values():
         _, info = env.reset(seed=seed)
         for _ in range(3):
             _, _, _, _, info = env.step(random_actions(rng, info["agent_mask"]))
+        env.release_solvers()
     totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
                                "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "success")}
     by_tier = {"unicycle": 0, "wheels": 0}
     memory: list[tuple[int, int]] = []
-    held: list[tuple[int, int]] = []
     batches: list[tuple[int, int]] = []
+    batch_peaks: list[tuple[int, int]] = []
     done, rounds, t0 = 0, 0, time.perf_counter()
     mark_every = max(per_round, min(1000, episodes // 10))
     next_mark = mark_every
@@ -116,10 +134,11 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
         for task, split, policy in combos:
             tier = "wheels" if rng.random() < wheels_share else "unicycle"
             teams = resolve_coalitions(split, task)
+            _reset_peak_rss()
+            # run_episodes ends by dropping the env's OSQP problems and trimming the heap
             eps, bad_obs_steps = _episodes(envs[task, split, tier], policy, teams, seed + 1000 * rounds, rng)
             done += len(eps)
-            before = _rss_bytes()
-            release_free_heap()
+            batch_peaks.append((done, _peak_rss_bytes()))
             batches.append((done, _rss_bytes()))
             by_tier[tier] += len(eps)
             totals["nan_obs_steps"] += bad_obs_steps
@@ -131,7 +150,6 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                     totals[key] += e[key]
                 totals["success"] += e["success"] if policy == "heuristic" else 0.0
             if done >= next_mark:
-                held.append((done, before))
                 memory.append(batches[-1])
                 next_mark += mark_every
                 rate = done / (time.perf_counter() - t0)
@@ -143,12 +161,17 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
         env.close()
     windows = _first_and_last_thousand(batches, mark_every)
     growth = {stat: _growth(windows[0][stat], windows[1][stat]) for stat in ("median", "peak")}
+    peak_windows = _first_and_last_thousand(batch_peaks, mark_every)
+    growth["batch_peak_median"] = _growth(peak_windows[0]["median"], peak_windows[1]["median"])
     first, last = (memory[0][1], memory[-1][1]) if memory else (0, 0)
     checks = {name: {"value": totals[key], "target": "== 0", "pass": totals[key] == 0}
               for name, key in (("mujoco_contacts", "collisions"), ("robotarium_collisions", "robotarium_collisions"),
                                 ("boundary_exits", "boundary_exits"), ("actuator_errors", "actuator_errors"),
                                 ("nan_observation_steps", "nan_obs_steps"), ("nan_returns", "nan_returns"),
                                 ("fallback_ticks", "fallbacks"))}
+    checks["batch_peak_rss_growth_first_to_last_thousand_median"] = {
+        "value": growth["batch_peak_median"], "target": f"< {MEMORY_GROWTH_TARGET}",
+        "pass": growth["batch_peak_median"] < MEMORY_GROWTH_TARGET}
     for stat in ("median", "peak"):
         checks[f"rss_growth_first_to_last_thousand_{stat}"] = {
             "value": growth[stat], "target": f"< {MEMORY_GROWTH_TARGET}", "pass": growth[stat] < MEMORY_GROWTH_TARGET}
@@ -156,12 +179,16 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
               "sets": list(sets), "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
               "scripted_success_share": totals["success"] / max(1.0, totals["episodes"] / 2),
               "rss_windows": {"first": windows[0], "last": windows[1]},
+              "batch_peak_rss_windows": {"first": peak_windows[0], "last": peak_windows[1]},
+              "rss_peak_bytes_per_batch": batch_peaks,
               "rss_growth_first_to_last_mark": _growth(first, last), "rss_bytes_per_batch": batches,
-              "rss_bytes": memory, "rss_bytes_before_release": held, "wall_s": time.perf_counter() - t0, "checks": checks}
+              "rss_bytes": memory, "wall_s": time.perf_counter() - t0, "checks": checks}
     progress(f"{'metric':<28}{'total':>14}")
     for key, value in totals.items():
         progress(f"{key:<28}{value:>14,.0f}")
     for stat in ("median", "peak"):
         mib = f"{windows[0][stat] / 2**20:.0f} → {windows[1][stat] / 2**20:.0f} MiB"
         progress(f"{f'RSS {stat}, first → last {mark_every}':<28}{100 * growth[stat]:>13.2f}%  ({mib})")
+    mib = f"{peak_windows[0]['median'] / 2**20:.0f} → {peak_windows[1]['median'] / 2**20:.0f} MiB"
+    progress(f"{'batch peak RSS, median':<28}{100 * growth['batch_peak_median']:>13.2f}%  ({mib})")
     return finish(result, checks, out, progress)

@@ -73,6 +73,8 @@ def _worker(conn, env_id: str, num_envs: int, first: int, total: int, seed: int,
                 result = env.set_rng_state(arg)
             elif cmd == "teams":
                 result = env.teams()
+            elif cmd == "release_solvers":
+                result = env.release_solvers()
             else:
                 raise ValueError(f"unknown worker command {cmd!r}")
             conn.send(("ok", result, None))
@@ -224,6 +226,10 @@ class ShardedVectorEnv:
         if len(states) != self.num_envs:
             raise ValueError(f"expected {self.num_envs} generator states (one per environment), got {len(states)}")
         self._call("set_rng_state", [states[sl] for sl in self._slices])
+
+    def release_solvers(self) -> None:
+        """Every worker drops its OSQP problems (see :meth:`comat.envs.VectorEnv.release_solvers`)."""
+        self._call("release_solvers")
 
     def close(self) -> None:
         """Stop the workers (idempotent)."""

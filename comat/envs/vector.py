@@ -174,5 +174,16 @@ class VectorEnv:
         """The current team of every environment."""
         return list(self.core.teams)
 
+    def release_solvers(self) -> None:
+        """Drop the filter's OSQP problems and hand the freed heap back to the OS.
+
+        For an environment that waits between batches of episodes (evaluation, the soak): it would
+        otherwise hold its last batch's problems, set up for the teams that ran last, until its
+        next full reset drops them anyway. Nothing a later episode computes changes (each batch
+        starts with a full reset, which forgets the solver state).
+        """
+        self.core.safe.forget_solver_state()
+        release_free_heap()
+
     def close(self) -> None:
-        pass
+        self.release_solvers()

@@ -45,6 +45,7 @@ def run_episodes(env: VectorEnv, act: Policy, teams: list[TeamSpec], seed: int, 
                     found[b]["team_size"] = chunk[b].size
             mask = info["agent_mask"]
         results += found[:n_real]
+    env.release_solvers()  # the environment may wait long for its next batch: hold no OSQP problems
     return results
 
 
