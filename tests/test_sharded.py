@@ -104,3 +104,18 @@ def test_shard_by_shard_steps_equal_whole_steps():
             np.testing.assert_array_equal(got[1][5], whole.state()[2:])
         with pytest.raises(ValueError, match=r"actions of worker 1 must have shape \(3, "):
             parts.step_send(1, actions)
+
+
+def test_evaluation_episodes_run_on_a_sharded_env():
+    """``run_episodes`` (evaluation) works on a sharded env, whose workers drop their OSQP problems
+    at its end, and gives the same episodes again."""
+    from comat.eval.episodes import run_episodes
+    from comat.team import generate_coalitions
+
+    teams = generate_coalitions("pcp", "train")[:4]
+    with make_vec_env("pcp_v0", 4, workers=2, seed=0, coalitions=teams, **OPTS) as env:
+        rng = np.random.default_rng(0)
+        random = lambda obs, mask, state: np.where(mask, rng.integers(0, 5, mask.shape), 0)  # noqa: E731
+        first = run_episodes(env, random, teams, seed=5)
+        rng = np.random.default_rng(0)
+        assert run_episodes(env, random, teams, seed=5) == first and len(first) == 4
