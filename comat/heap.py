@@ -6,9 +6,9 @@ unless they sit at the top of its heap. Resident memory then ratchets up with ea
 without anything being leaked: in a soak over U_train, U_test and U_scale (12 vector envs in one
 process) it rose 336 -> 353 MiB over the first 2,400 episodes in steps at single batches, with a
 fixed mmap threshold or a single malloc arena exactly as much, while trimming after every round
-kept it at 285-318 MiB. (With a trim at every env reset, the 10,080-episode soak still rose
-301 -> 338 MiB in its median per thousand episodes, most of it over the first 7,000, with glibc's
-in-use bytes flat after the first 1,200: README "Reliability", issue 21.)
+kept it at 285-318 MiB. (With a trim at every env reset the 10,080-episode soak still rose
+301 -> 338 MiB while idle envs held their last batch's OSQP problems; with those dropped after
+every batch, :meth:`comat.envs.VectorEnv.release_solvers`, 264 -> 271 MiB: README "Reliability".)
 :class:`comat.envs.vector.VectorEnv` calls
 :func:`release_free_heap` on every full reset (the start of each evaluation batch); it costs a
 few milliseconds.
