@@ -109,13 +109,15 @@ def test_shard_by_shard_steps_equal_whole_steps():
 def test_evaluation_episodes_run_on_a_sharded_env():
     """``run_episodes`` (evaluation) works on a sharded env, whose workers drop their OSQP problems
     at its end, and gives the same episodes again."""
+    from comat.envs.heuristics import random_actions
     from comat.eval.episodes import run_episodes
     from comat.team import generate_coalitions
 
+    def random_policy():
+        rng = np.random.default_rng(0)
+        return lambda obs, mask, state: random_actions(rng, mask)
+
     teams = generate_coalitions("pcp", "train")[:4]
     with make_vec_env("pcp_v0", 4, workers=2, seed=0, coalitions=teams, **OPTS) as env:
-        rng = np.random.default_rng(0)
-        random = lambda obs, mask, state: np.where(mask, rng.integers(0, 5, mask.shape), 0)  # noqa: E731
-        first = run_episodes(env, random, teams, seed=5)
-        rng = np.random.default_rng(0)
-        assert run_episodes(env, random, teams, seed=5) == first and len(first) == 4
+        first = run_episodes(env, random_policy(), teams, seed=5)
+        assert run_episodes(env, random_policy(), teams, seed=5) == first and len(first) == 4
