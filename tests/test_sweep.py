@@ -227,12 +227,24 @@ def _end(procs) -> None:
             p.kill()
 
 
+def _file_id(path: Path) -> tuple | None:
+    """Which version of a file is on disk: each (atomic) write replaces it, so its inode or mtime change."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return None
+    return st.st_ino, st.st_mtime_ns
+
+
 @pytest.mark.cluster
 def test_kill_9_of_a_sweep_at_random_moments_then_rerun_equals_an_uninterrupted_run(tmp_path):
-    """``comat sweep`` killed with SIGKILL at random moments (while Ray starts, before the first
-    checkpoint, between and during checkpoint writes), then run again as a user would: the checkpoint
-    on disk always loads, the finished run equals an uninterrupted ``comat train`` run, and no
-    temporary file remains."""
+    """``comat sweep`` killed with SIGKILL in each phase of a run (while Ray starts, before the first
+    checkpoint, between checkpoints, during a checkpoint write when the poll catches its temporary
+    file), then run again as a user would: the checkpoint on disk always loads, the finished run equals
+    an uninterrupted ``comat train`` run, and no temporary file remains.
+
+    The kills follow what the sweep has written, not the clock, so they land in the same phases on a
+    fast CI machine (where a whole 96-step sweep takes a few seconds) and on a loaded one."""
     import psutil
 
     preset = _preset(tmp_path, steps=96)
@@ -241,23 +253,43 @@ def test_kill_9_of_a_sweep_at_random_moments_then_rerun_equals_an_uninterrupted_
             "--seeds", "3", "--no-eval", "--out", str(root), "--jobs", "1"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     run = root / "comat_pcp_s3"
-    kills = 0
-    for delay in np.random.default_rng(0).uniform(4.0, 16.0, size=5):
+    rng = np.random.default_rng(0)
+    phases = ["ray starting", "before the first checkpoint", "between checkpoints", "during a checkpoint write",
+              "between checkpoints"]
+    killed_in = []
+    for phase in phases:
+        first, config = _file_id(run / "checkpoint.pt"), _file_id(run / "config.yaml")
         proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         tree: dict[int, psutil.Process] = {}
-        deadline = time.monotonic() + delay
-        while time.monotonic() < deadline and proc.poll() is None:
-            tree.update({p.pid: p for p in _descendants(proc.pid)})  # Ray's processes, to end if they linger
-            time.sleep(0.2)
+        seen, polls = {first}, 0
+        while proc.poll() is None:
+            if polls % 40 == 0:
+                tree.update({p.pid: p for p in _descendants(proc.pid)})  # Ray's processes, to end if they linger
+            polls += 1
+            seen.add(_file_id(run / "checkpoint.pt"))
+            new = len(seen - {first, None})  # checkpoints written in this sitting (a fast pair may count once)
+            started = _file_id(run / "config.yaml") not in (None, config)  # each sitting writes it first
+            if phase == "ray starting" and (tree or started):
+                time.sleep(rng.uniform(0.0, 0.5))
+                break
+            if phase == "before the first checkpoint" and (started or new >= 1):
+                break  # with a checkpoint already written the window was missed: killed right after it
+            if phase == "between checkpoints" and new >= 1:
+                time.sleep(rng.uniform(0.0, 0.2))
+                break
+            if phase == "during a checkpoint write" and (list(run.glob(".checkpoint.pt.*.tmp")) or new >= 2):
+                break
+            time.sleep(0.005)
         if proc.poll() is None:
+            tree.update({p.pid: p for p in _descendants(proc.pid)})
             proc.send_signal(signal.SIGKILL)
-            kills += 1
+            killed_in.append(phase)
         proc.wait(timeout=60)
         _, alive = psutil.wait_procs(list(tree.values()), timeout=20)  # the instance ends with its driver...
         _end(alive)  # ...but for Ray's agent processes, which outlive it
         if (run / "checkpoint.pt").exists():
             load_checkpoint(run / "checkpoint.pt")  # the one on disk is always a complete one
-    assert kills >= 3
+    assert killed_in == phases  # each sitting was killed before the run could finish
     final = subprocess.run(argv, check=False, env=env, capture_output=True, text=True, timeout=600)
     assert final.returncode == 0, final.stderr[-3000:]
     assert not list(run.glob(".*tmp*")) and not list(root.glob(".*tmp*"))
