@@ -139,6 +139,19 @@ def _fake_run(folder, algo, task, seed, train_return, test_return, success, scal
     (folder / "evaluation_unicycle.json").write_text(json.dumps(result))
 
 
+def test_retention_names_the_seeds_it_covers(tmp_path):
+    """A seed with no U_train progress has no retention: the mean is over the others, and the table
+    says so instead of printing the seed count of the row."""
+    for seed, progress in enumerate((0.8, 0.4, 0.0)):
+        _fake_run(tmp_path / f"r{seed}", "qmix", "pcp", seed, 40.0, 30.0, 0.0, progress=progress)
+    out = tmp_path / "results"
+    out.mkdir()
+    gen = make_report([tmp_path / f"r{seed}" for seed in range(3)], out)["generalization"][0]
+    assert gen["seeds"] == 3 and gen["test_retention_seeds"] == 2 and gen["test_retention"] == pytest.approx(0.5)
+    row = next(line for line in (out / "generalization.md").read_text().splitlines() if line.startswith("| PCP"))
+    assert row.endswith("| 50.0 ± 0.0 (2 of 3 seeds) |"), row
+
+
 def test_report_on_fake_runs(tmp_path, capsys):
     _fake_run(tmp_path / "a", "comat", "pcp", 0, 40.0, 30.0, 1.0, progress=0.8)
     _fake_run(tmp_path / "b", "comat", "pcp", 1, 60.0, 50.0, 0.5, progress=0.4)

@@ -236,6 +236,7 @@ def _generalization(groups: dict, tasks: list[str], algos: list[str], sets: list
                         ratios.append(un / tr)
                 mean, half = mean_ci(ratios) if ratios else (math.nan, math.nan)
                 row[f"{split}_retention"], row[f"{split}_retention_ci95"] = mean, half
+                row[f"{split}_retention_seeds"] = len(ratios)  # a seed without U_train progress has none
             tr, te = row.get("train_return", math.nan), row.get("test_return", math.nan)
             row["test_return_ratio"] = te / tr if tr > 0 and te >= 0 else math.nan  # the paper's form, where defined
             row["paper_retention_return_ratio"] = PAPER_RETENTION.get((task, algo), math.nan)
@@ -255,6 +256,12 @@ def _cell(row: dict, key: str) -> str:
     return f"{100 * mean:.1f}" + ("" if math.isnan(half) else f" ± {100 * half:.1f}")
 
 
+def _retention_cell(row: dict, split: str) -> str:
+    """Retention over seeds, naming how many seeds it covers where some had no U_train progress."""
+    cell, n = _cell(row, f"{split}_retention"), row.get(f"{split}_retention_seeds", row["seeds"])
+    return cell if n == row["seeds"] else f"{cell} ({n} of {row['seeds']} seeds)"
+
+
 def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str]) -> str:
     """Progress per set and retention per unseen set, then the share of episodes finished per set,
     each mean ± 95 % half-width over seeds; under each table, per task and unseen set, whether
@@ -263,9 +270,10 @@ def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], set
     head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} progress (%)" for s in sets),
             *(f"{SET_NAMES[s]} retention (%)" for s in unseen)]
     lines = _table(rows, head, lambda row: [*(_cell(row, f"{s}_progress") for s in sets),
-                                            *(_cell(row, f"{s}_retention") for s in unseen)])
+                                            *(_retention_cell(row, s) for s in unseen)])
     lines += ["", ("Progress: share of prey captured / material delivered, each seed's mean over the set's "
-              "coalitions (deterministic policy); retention: progress on the set / progress on U_train, per seed. "
+              "coalitions (deterministic policy); retention: progress on the set / progress on U_train, per seed "
+              "(undefined for a seed with no U_train progress, which the cell then names). "
               "± : 95 % Student-t half-width over seeds (none with one seed)."), ""]
     lines += _verdicts(rows, tasks, algos, unseen, "progress",
                        lambda mine, split: f"keeps {_cell(mine, f'{split}_retention')} % of its U_train progress")
