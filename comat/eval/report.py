@@ -259,7 +259,7 @@ def _cell(row: dict, key: str) -> str:
 def _retention_cell(row: dict, split: str) -> str:
     """Retention over seeds, naming how many seeds it covers where some had no U_train progress."""
     cell, n = _cell(row, f"{split}_retention"), row.get(f"{split}_retention_seeds", row["seeds"])
-    return cell if n == row["seeds"] else f"{cell} ({n} of {row['seeds']} seeds)"
+    return cell if n in (0, row["seeds"]) else f"{cell} ({n} of {row['seeds']} seeds)"  # 0: "—", no set or none
 
 
 def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str]) -> str:
