@@ -1,0 +1,61 @@
+"""The transfer gap of the grid's COMAT runs: trained in `unicycle`, evaluated in both tiers.
+
+    .venv/bin/python results/grid_scale/wheels_gap.py [RUN ...]   (default: runs/comat_*_s* here)
+
+Reads each run's evaluation_unicycle.json and evaluation_wheels.json (`comat eval --teams all`,
+same coalitions and seeds in both tiers) and writes comat_wheels/gap.md: per run and set the
+progress in each tier and the difference (wheels − unicycle, points), the finished shares and collisions, then per task and set the
+mean difference over seeds with its 95 % Student-t half-width.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from comat.eval.metrics import mean_ci
+
+HERE = Path(__file__).resolve().parent
+SETS = ("train", "test", "scale")
+
+
+def _rows(run: Path, tier: str) -> dict[str, dict]:
+    data = json.loads((run / f"evaluation_{tier}.json").read_text())
+    return {r["set"]: r["metrics"] for r in data["rows"] if r["policy"] == data["algo"]}
+
+
+def main(runs: list[Path]) -> str:
+    head = ("| run | set | unicycle progress (%) | wheels progress (%) | gap (points) "
+            "| finished unicycle / wheels (%) | collisions unicycle / wheels |")
+    lines = [head, "|---|---|---|---|---|---|---|"]
+    gaps: dict[tuple[str, str], list[float]] = {}
+    for run in runs:
+        uni, whe = _rows(run, "unicycle"), _rows(run, "wheels")
+        task = json.loads((run / "summary.json").read_text())["task"]
+        for split in SETS:
+            if split not in uni or split not in whe:
+                continue
+            u, w = 100 * uni[split]["completion"]["mean"], 100 * whe[split]["completion"]["mean"]
+            gaps.setdefault((task, split), []).append(w - u)
+            done = f"{100 * uni[split]['success']['mean']:.0f} / {100 * whe[split]['success']['mean']:.0f}"
+            hits = f"{uni[split]['collisions']['mean']:g} / {whe[split]['collisions']['mean']:g}"
+            lines.append(f"| {run.name} | U_{split} | {u:.1f} | {w:.1f} | {w - u:+.1f} | {done} | {hits} |")
+    lines += ["", "| task | set | seeds | gap over seeds (points, 95 % interval) |", "|---|---|---|---|"]
+    for (task, split), values in sorted(gaps.items(), key=lambda kv: (kv[0][0], SETS.index(kv[0][1]))):
+        mean, half = mean_ci(values)
+        spread = f" ± {half:.1f}" if len(values) > 1 else ""
+        lines.append(f"| {task.upper()} | U_{split} | {len(values)} | {mean:+.1f}{spread} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    folders = [Path(a) for a in sys.argv[1:]] or sorted(HERE.glob("runs/comat_*_s*"))
+    both = [f for f in folders if all((f / f"evaluation_{t}.json").is_file() for t in ("unicycle", "wheels"))]
+    for f in sorted(set(folders) - set(both)):
+        print(f"wheels_gap: {f} left out: it needs evaluation_unicycle.json and evaluation_wheels.json", file=sys.stderr)
+    folders = both
+    if not folders:
+        sys.exit("wheels_gap: no run folder has both evaluations (run `comat eval --policy RUN --teams all --tier wheels`)")
+    text = main(folders)
+    (HERE / "comat_wheels" / "gap.md").write_text(text)
+    print(text, end="")
