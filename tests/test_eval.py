@@ -258,7 +258,8 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     assert "| PCP | COMAT | 3 | 82.0 ± 5.0 | 41.0 ± 2.5 | 20.5 ± 1.2 | 50.0 ± 0.0 | 25.0 ± 0.0 |" in md
     assert "| PCP | MAT | 1 | 50.0 | 25.0 | — | 50.0 | — |" in md
     scale = next(line for line in md.splitlines() if line.startswith("* PCP, U_scale"))
-    assert "COMAT keeps 25.0 ± 0.0 % of its U_train progress" in scale
+    # the verdict compares progress (not retention), and says so
+    assert "COMAT reaches 20.5 ± 1.2 % progress (25.0 ± 0.0 % of its U_train progress); its 95 % progress interval vs" in scale
     assert "MAPPO: above" in scale and "QMIX: overlapping" in scale and "MAT: not evaluated on U_scale" in scale
     test = next(line for line in md.splitlines() if line.startswith("* PCP, U_test"))
     assert "MAT: not decidable (needs 2+ seeds each)" in test
@@ -267,7 +268,7 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     assert "| PCP | MAPPO | 3 | 50.0 ± 0.0 | 50.0 ± 0.0 | 50.0 ± 0.0 |" in md
     assert "| PCP | QMIX | 3 | 50.0 ± 124.2 | 50.0 ± 124.2 | 50.0 ± 124.2 |" in md
     scale = [line for line in md.splitlines() if line.startswith("* PCP, U_scale")]
-    assert len(scale) == 2 and "COMAT finishes 100.0 ± 0.0 % of its episodes" in scale[1]
+    assert len(scale) == 2 and "COMAT finishes 100.0 ± 0.0 % of its episodes; its 95 % finished-share interval" in scale[1]
     assert "MAPPO: above" in scale[1] and "QMIX: overlapping" in scale[1]
 
 

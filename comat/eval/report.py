@@ -276,7 +276,8 @@ def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], set
               "(undefined for a seed with no U_train progress, which the cell then names). "
               "± : 95 % Student-t half-width over seeds (none with one seed)."), ""]
     lines += _verdicts(rows, tasks, algos, unseen, "progress",
-                       lambda mine, split: f"keeps {_cell(mine, f'{split}_retention')} % of its U_train progress")
+                       lambda mine, split: f"reaches {_cell(mine, f'{split}_progress')} % progress "
+                       f"({_cell(mine, f'{split}_retention')} % of its U_train progress)")
     head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} finished (%)" for s in sets)]
     lines += ["", *_table(rows, head, lambda row: [_cell(row, f"{s}_completion") for s in sets])]
     lines += ["", ("Finished: share of the set's episodes in which every prey was captured / all material "
@@ -298,8 +299,9 @@ def _table(rows: list[dict], head: list[str], cells) -> list[str]:
 
 def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list[str], key: str, lead) -> list[str]:
     """Per task and unseen set, COMAT's 95 % interval of ``<set>_<key>`` against each baseline's:
-    above, below, overlapping, or why it cannot be said."""
+    above, below, overlapping, or why it cannot be said. The sentence names the measure compared."""
     by = {(r["task"], r["algo"]): r for r in rows}
+    noun = {"progress": "progress", "completion": "finished-share"}[key]
     lines = []
     for task in tasks:
         mine = by.get((task, "comat"))
@@ -317,7 +319,7 @@ def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list
                     verdicts.append(f"{label}: not decidable (needs 2+ seeds each)")
                 else:
                     verdicts.append(f"{label}: " + ("above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"))
-            lines.append(f"* {task.upper()}, {SET_NAMES[split]}: COMAT {lead(mine, split)}; its 95 % interval vs "
+            lines.append(f"* {task.upper()}, {SET_NAMES[split]}: COMAT {lead(mine, split)}; its 95 % {noun} interval vs "
                          + ("; ".join(verdicts) if verdicts else "no baseline in these runs") + ".")
     return lines
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Issue 18 part 4: the grid on U_train, U_test and U_scale, from the repository root.
-#   results/grid_scale/run.sh            train + evaluate every run (resumes), COMAT in wheels, report
+#   results/grid_scale/run.sh            train + evaluate every run (resumes), COMAT in wheels, report, gap
 #   results/grid_scale/run.sh collect    only copy the finished runs' small files here
 # SWEEP = the sweep's root (checkpoints stay there; only small files are committed).
 set -euo pipefail
@@ -25,3 +25,4 @@ done
 collect
 comat report "$HERE"/runs/*_s* --out "$HERE" --force
 comat report "$HERE"/runs/comat_*_s* --tier wheels --out "$HERE/comat_wheels" --force
+python "$HERE/wheels_gap.py"   # the transfer gap per run and over seeds: comat_wheels/gap.md
