@@ -474,6 +474,14 @@ def test_versions_record_the_source_commit():
     assert commit.removesuffix("-dirty") == head.stdout.strip()
 
 
+def test_versions_record_the_cpu_the_learner_ran_on():
+    """Runs of one seed are equal bit for bit only on machines whose PyTorch CPU kernels dispatch
+    alike, so every run records that level and the CPU model."""
+    recorded = versions()
+    assert recorded["torch_cpu"] == torch.backends.cpu.get_cpu_capability() and recorded["torch_cpu"]
+    assert recorded["cpu"] and recorded["cpu"] != "unknown"
+
+
 @pytest.mark.parametrize("case", ["team_missing", "team_folder", "team_empty", "team_bytes", "team_nan",
                                   "team_list", "preset_nan_lr", "preset_negative", "preset_wrong_type",
                                   "report_not_a_run", "check_not_a_submission", "eval_out_is_a_file"])

@@ -77,13 +77,30 @@ def source_commit() -> str:
         return "unknown"
 
 
+def cpu_model() -> str:
+    """The CPU's model name (Linux /proc/cpuinfo, else the platform's word for it)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown"
+
+
 def versions() -> dict[str, str]:
+    """What a run's numbers depend on besides its config. ``torch_cpu`` is the vector instruction
+    level PyTorch's CPU kernels dispatch to (e.g. AVX2, AVX512): the same seed and code give the same
+    run bit for bit on one machine, but machines that dispatch differently round the learner's sums
+    differently (measured: a COMAT PCP run retrained elsewhere differs from update 1 by ~1e-7 in the
+    policy loss, and its final policy differs)."""
     import mujoco
 
     from comat import __version__
 
     return {"comat": __version__, "commit": source_commit(), "torch": str(torch.__version__),
-            "mujoco": str(mujoco.__version__), "numpy": str(np.__version__), "python": platform.python_version()}
+            "mujoco": str(mujoco.__version__), "numpy": str(np.__version__), "python": platform.python_version(),
+            "torch_cpu": str(torch.backends.cpu.get_cpu_capability()), "cpu": cpu_model()}
 
 
 def to_plain(obj: Any) -> Any:

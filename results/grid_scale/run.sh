@@ -24,5 +24,5 @@ for run in "$SWEEP"/comat_*_s*/; do  # the transfer gap: COMAT trained in unicyc
 done
 collect
 comat report "$HERE"/runs/*_s* --out "$HERE" --force
-comat report "$HERE"/runs/comat_*_s* --tier wheels --out "$HERE/comat_wheels" --force
-python "$HERE/wheels_gap.py"   # the transfer gap per run and over seeds: comat_wheels/gap.md
+# COMAT's wheels report and gap (comat_wheels/); runs whose checkpoints were gone are retrained first
+"$(dirname "$0")/retrain_wheels.sh"

@@ -1,11 +1,14 @@
 """The transfer gap of the grid's COMAT runs: trained in `unicycle`, evaluated in both tiers.
 
-    .venv/bin/python results/grid_scale/wheels_gap.py [RUN ...]   (default: runs/comat_*_s* here)
+    .venv/bin/python results/grid_scale/wheels_gap.py [RUN ...]
 
-Reads each run's evaluation_unicycle.json and evaluation_wheels.json (`comat eval --teams all`,
-same coalitions and seeds in both tiers) and writes comat_wheels/gap.md: per run and set the
-progress in each tier and the difference (wheels − unicycle, points), the finished shares and collisions, then per task and set the
-mean difference over seeds with its 95 % Student-t half-width.
+Without RUN: every COMAT run of the grid (runs/comat_*_s* here, or its retrain in
+comat_wheels/runs/ where one is kept: see retrain_wheels.sh), written to comat_wheels/gap.md;
+with RUN folders: those, printed only. Reads each run's evaluation_unicycle.json and
+evaluation_wheels.json (`comat eval --teams all`, same coalitions and seeds in both tiers) and
+gives per run and set the progress in each tier, the difference (wheels − unicycle, points), the
+finished shares and collisions, then per task and set the mean difference over seeds with its
+95 % Student-t half-width.
 """
 from __future__ import annotations
 
@@ -49,7 +52,9 @@ def main(runs: list[Path]) -> str:
 
 
 if __name__ == "__main__":
-    folders = [Path(a) for a in sys.argv[1:]] or sorted(HERE.glob("runs/comat_*_s*"))
+    grid = [HERE / "comat_wheels" / "runs" / r.name if (HERE / "comat_wheels" / "runs" / r.name).is_dir() else r
+            for r in sorted(HERE.glob("runs/comat_*_s*"))]
+    folders = [Path(a) for a in sys.argv[1:]] or grid
     both = [f for f in folders if all((f / f"evaluation_{t}.json").is_file() for t in ("unicycle", "wheels"))]
     for f in sorted(set(folders) - set(both)):
         print(f"wheels_gap: {f} left out: it needs evaluation_unicycle.json and evaluation_wheels.json", file=sys.stderr)
@@ -57,5 +62,6 @@ if __name__ == "__main__":
     if not folders:
         sys.exit("wheels_gap: no run folder has both evaluations (run `comat eval --policy RUN --teams all --tier wheels`)")
     text = main(folders)
-    (HERE / "comat_wheels" / "gap.md").write_text(text)
+    if not sys.argv[1:]:
+        (HERE / "comat_wheels" / "gap.md").write_text(text)
     print(text, end="")
