@@ -270,6 +270,12 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     scale = [line for line in md.splitlines() if line.startswith("* PCP, U_scale")]
     assert len(scale) == 2 and "COMAT finishes 100.0 ± 0.0 % of its episodes; its 95 % finished-share interval" in scale[1]
     assert "MAPPO: above" in scale[1] and "QMIX: overlapping" in scale[1]
+    # COMAT's runs alone (e.g. its wheels-tier report): the lines say there is nothing to compare with
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    make_report([r for r in runs if r.name.startswith("comat")], alone)
+    lines = [ln for ln in (alone / "generalization.md").read_text().splitlines() if ln.startswith("* PCP, U_scale")]
+    assert lines[0].endswith("(25.0 ± 0.0 % of its U_train progress); no baseline in these runs.")
 
 
 def test_aggregate_iqm_and_stratified_bootstrap_by_hand():

@@ -319,8 +319,8 @@ def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list
                     verdicts.append(f"{label}: not decidable (needs 2+ seeds each)")
                 else:
                     verdicts.append(f"{label}: " + ("above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"))
-            lines.append(f"* {task.upper()}, {SET_NAMES[split]}: COMAT {lead(mine, split)}; its 95 % {noun} interval vs "
-                         + ("; ".join(verdicts) if verdicts else "no baseline in these runs") + ".")
+            versus = f"its 95 % {noun} interval vs " + "; ".join(verdicts) if verdicts else "no baseline in these runs"
+            lines.append(f"* {task.upper()}, {SET_NAMES[split]}: COMAT {lead(mine, split)}; {versus}.")
     return lines
 
 
