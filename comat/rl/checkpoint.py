@@ -90,10 +90,10 @@ def cpu_model() -> str:
 
 def versions() -> dict[str, str]:
     """What a run's numbers depend on besides its config. ``torch_cpu`` is the vector instruction
-    level PyTorch's CPU kernels dispatch to (e.g. AVX2, AVX512): the same seed and code give the same
-    run bit for bit on one machine, but machines that dispatch differently round the learner's sums
-    differently (measured: a COMAT PCP run retrained elsewhere differs from update 1 by ~1e-7 in the
-    policy loss, and its final policy differs)."""
+    level PyTorch's CPU kernels dispatch to (e.g. AVX2, AVX512). The same seed and code gave the
+    same run bit for bit on one machine but not across two (the policy loss ~1e-7 apart from update
+    1 on, the final policies different), most likely because the learner's sums were ordered by
+    different kernels: recorded so that such a difference can be traced."""
     import mujoco
 
     from comat import __version__
