@@ -278,6 +278,21 @@ def test_generalization_table_decides_the_claim_only_where_intervals_allow(tmp_p
     assert lines[0].endswith("(25.0 ± 0.0 % of its U_train progress); no baseline in these runs.")
 
 
+def test_a_report_written_twice_is_the_same_bytes(tmp_path):
+    """Every file of a report, the PDFs included (no creation date), so regenerating committed
+    results shows a diff only where a number or a figure changed."""
+    for seed in range(2):
+        _fake_run(tmp_path / f"c{seed}", "comat", "pcp", seed, 10.0 + seed, 8.0, 1.0, scale_return=5.0)
+    written = []
+    for k in range(2):
+        out = tmp_path / f"out{k}"
+        out.mkdir()
+        make_report([tmp_path / "c0", tmp_path / "c1"], out)
+        written.append({f.name: f.read_bytes() for f in sorted(out.iterdir())})
+    assert any(name.endswith(".pdf") for name in written[0])
+    assert written[0] == written[1]
+
+
 def test_aggregate_iqm_and_stratified_bootstrap_by_hand():
     from scipy import stats
 

@@ -36,13 +36,15 @@ FORMATS = ("png", "pdf")
 
 
 def save(fig, stem: Path) -> list[str]:
-    """Write ``fig`` as ``stem.png`` and ``stem.pdf``; returns the file names."""
+    """Write ``fig`` as ``stem.png`` and ``stem.pdf``; returns the file names. No creation date in
+    the PDF, so the same report written twice is the same bytes (a regenerated report shows no diff)."""
     import matplotlib.pyplot as plt
 
     names = []
     for fmt in FORMATS:
         buf = io.BytesIO()
-        fig.savefig(buf, format=fmt, dpi=200, bbox_inches="tight")
+        fig.savefig(buf, format=fmt, dpi=200, bbox_inches="tight",
+                    metadata={"CreationDate": None} if fmt == "pdf" else None)
         write_atomic(stem.with_suffix(f".{fmt}"), buf.getvalue())
         names.append(f"{stem.name}.{fmt}")
     plt.close(fig)
