@@ -2,8 +2,11 @@
 
 Every figure uses :data:`ALGO_COLORS` — one colour per algorithm in every figure and every
 report — and says in its caption what a line, band or bar is: the statistic, over what
-(seeds), the interval method and the env-step budget. Each is written as PNG (200 dpi) and
-PDF (vector), atomically.
+(seeds), the interval method and the env-step budget. Evaluation intervals are the report's: the
+95 % Student-t interval over per-seed means, each seed's mean first averaging its K episodes per
+coalition, then its coalitions (:mod:`comat.eval.stats`). Progress axes start at 0, and the team-size
+figure writes how many coalitions each point averages. Each is written as PNG (200 dpi)
+and PDF (vector), atomically.
 
 Inputs are plain dicts built by :mod:`comat.eval.report` (shapes in each function).
 """
@@ -20,14 +23,20 @@ import numpy as np
 from comat.eval.metrics import mean_ci
 from comat.files import write_atomic
 
-__all__ = ["ALGO_COLORS", "ALGO_LABELS", "SET_HATCHES", "TRAIN_SIZES", "fig4", "fig5", "fig_team_size", "save"]
+__all__ = ["ALGO_COLORS", "ALGO_LABELS", "SET_HATCHES", "SIZE_SETS", "TRAIN_SIZES", "fig4", "fig5", "fig_team_size",
+           "save"]
 
 ALGO_LABELS = {"mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "comat": "COMAT"}
 ALGO_COLORS = {"comat": "#d62728", "mat": "#1f77b4", "mappo": "#2ca02c", "qmix": "#9467bd"}
 """Colour of each algorithm, fixed (not by the order runs are given)."""
-SET_HATCHES = {"train": "", "test": "//", "scale": ".."}
+SET_HATCHES = {"train": "", "val": "\\\\", "test": "//", "scale": "..", "size": "xx", "capability": "oo"}
 """Composition sets are told apart by hatching, never by colour (colour means algorithm)."""
-SET_LABELS = {"train": "U_train", "test": "U_test (unseen)", "scale": "U_scale (10-20 robots)"}
+SET_LABELS = {"train": "U_train", "val": "U_val (validation)", "test": "U_test (unseen)",
+              "scale": "U_scale (10-20 robots)", "size": "U_size (2-20 robots, training capabilities)",
+              "capability": "U_cap (capabilities outside training)"}
+SIZE_SETS = ("train", "test", "scale", "size")
+"""Sets pooled in the team-size figure: U_val repeats U_train's draw (it is for model selection)
+and U_cap varies capability at the training sizes, so neither belongs on a size axis."""
 TRAIN_SIZES = (3, 5, 7)
 """Team sizes of U_train (paper §III-D)."""
 METRIC_AXES = {"return": "episode return (team reward, sum over steps)",
@@ -61,11 +70,15 @@ def _plt():
 
 
 def _budget_text(budgets: Mapping[str, Sequence[int]]) -> str:
-    """'COMAT 51,200, MAT 51,200 env steps per run' (a range where seeds differ)."""
+    """'COMAT 51,200, MAT 102,400 env steps per run' (a range where seeds differ), or '51,200 env
+    steps per run, every algorithm' where all runs of several algorithms had the same budget."""
     parts = []
     for algo, b in budgets.items():
         lo, hi = min(b), max(b)
         parts.append(f"{ALGO_LABELS[algo]} {lo:,}" + ("" if lo == hi else f"-{hi:,}"))
+    every = {x for b in budgets.values() for x in b}
+    if len(budgets) > 1 and len(every) == 1:
+        return f"{every.pop():,} env steps per run, every algorithm (paper: 4,000,000)"
     return ", ".join(parts) + " env steps per run (paper: 4,000,000)"
 
 
@@ -113,15 +126,21 @@ def fig4(curves: Mapping[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]], 
     return save(fig, stem)
 
 
+def _method(k_text: str) -> str:
+    return ("95 % Student-t interval over per-seed means (none with one seed); each seed's mean first averages its "
+            f"{k_text} episode(s) per coalition, then its coalitions")
+
+
 def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
-         budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path) -> list[str]:
+         budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path, k_text: str = "1") -> list[str]:
     """Return and progress per composition set, bars per algorithm; progress retention labels.
 
-    ``rows``: the generalization rows of :func:`comat.eval.report` (``<set>_return``,
-    ``<set>_return_ci95``, ``<set>_progress``, ``<set>_progress_ci95``, ``<set>_retention``)."""
+    ``rows``: the generalization rows of :mod:`comat.eval.generalization` (``<set>_return``,
+    ``<set>_return_ci95``, ``<set>_progress``, ``<set>_progress_ci95``, ``<set>_retention``);
+    ``k_text``: episodes per coalition, for the caption."""
     plt = _plt()
-    fig, axes = plt.subplots(2, len(tasks), figsize=(1.2 + 1.3 * len(algos) * len(sets) / 2 * len(tasks) + 2,
-                                                     6.4), squeeze=False)
+    fig, axes = plt.subplots(2, len(tasks), figsize=(len(tasks) * (1.5 + 0.35 * len(algos) * len(sets)) + 1, 6.4),
+                             squeeze=False)
     width = 0.8 / len(sets)
     for col, task in enumerate(tasks):
         sel = [r for r in rows if r["task"] == task and r["seeds"]]
@@ -145,6 +164,8 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
                                         fontsize=6, color="black")
             ax.set_xticks(x, [ALGO_LABELS[r["algo"]] for r in sel])
             ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
+            if key == "progress":
+                ax.set_ylim(bottom=0)  # a share: its axis starts at 0, so bar heights compare honestly
             ax.axhline(0, color="k", lw=0.5)
             ax.grid(axis="y", alpha=0.3)
             if row_i == 0:
@@ -155,21 +176,42 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
 
             ax.legend(handles=[Patch(facecolor="#bbbbbb", hatch=SET_HATCHES[s], edgecolor="white",
                                      label=SET_LABELS[s]) for s in sets], fontsize=7)
-    fig.text(0.01, -0.01, "Bars: mean over seeds of each seed's mean over the set's coalitions (one episode per "
-             "coalition unless stated). Error bars: 95 % Student-t interval over seeds (none with one seed). Labels on "
-             "the progress bars: progress retention = progress on the set / progress on U_train.", fontsize=7,
-             ha="left", va="top", wrap=True)
+    counts = {r.get(f"{s}_progress_seeds", r["seeds"]) for r in rows if r["seeds"] for s in sets} - {0}
+    seeds = f"{counts.pop()} seeds per bar" if len(counts) == 1 else "seeds per bar: generalization.md"
+    fig.text(0.01, -0.01, f"Bars: mean over seeds ({seeds}) of each seed's mean over the set's coalitions. Error bars: "
+             f"{_method(k_text)}. Labels on the progress bars: progress retention = progress on the set / progress on "
+             "U_train.", fontsize=7, ha="left", va="top", wrap=True)
     fig.tight_layout()
     return save(fig, stem)
 
 
+def _count_labels(ax, counts: Mapping[str, Mapping[int, tuple[str, float]]]) -> None:
+    """Write how many coalitions each point averages: once per size along the axis bottom where
+    every algorithm's point there has the same count, else next to each algorithm's point."""
+    sizes = sorted({n for per in counts.values() for n in per})
+    shared = all(len({per[n][0] for per in counts.values() if n in per}) == 1 for n in sizes)
+    for k, (algo, per) in enumerate(counts.items()):
+        for n, (text, y) in per.items():
+            if shared:
+                if k == min(i for i, p in enumerate(counts.values()) if n in p):  # first algorithm with this size
+                    ax.annotate(text, (n, 0), xycoords=("data", "axes fraction"), xytext=(0, 3),
+                                textcoords="offset points", ha="center", fontsize=6, color="dimgrey")
+            else:
+                ax.annotate(text, (n, y), xytext=(3, -8 - 6 * k), textcoords="offset points", fontsize=5,
+                            color=ALGO_COLORS[algo])
+
+
 def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, float]]]], tasks: list[str],
-                  algos: list[str], budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path) -> list[str]:
+                  algos: list[str], budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path,
+                  sets: Sequence[str] = ("train", "test", "scale"), k_text: str = "1") -> list[str]:
     """Return and progress against team size, a line per algorithm.
 
-    ``by_size[(algo, task)][n]``: per seed ``{"return": mean, "completion": mean}`` over that
-    seed's episodes with n robots (all its evaluated sets). Line: mean over seeds; band: 95 %
-    Student-t interval over seeds; grey bars mark U_train's sizes (3, 5, 7)."""
+    ``by_size[(algo, task)][n]``: per seed ``{"return": mean, "completion": mean, "coalitions":
+    count}``, the mean over that seed's coalitions with n robots in ``sets`` (each coalition its
+    episodes' mean). Line: mean over seeds; band: 95 % Student-t interval over seeds; the
+    coalitions each point averages per seed, along the bottom (next to each point where the
+    algorithms differ, with the seeds where fewer than the legend's); grey bars mark U_train's
+    sizes (3, 5, 7)."""
     plt = _plt()
     fig, axes = plt.subplots(2, len(tasks), figsize=(5.2 * len(tasks), 6.4), squeeze=False)
     for col, task in enumerate(tasks):
@@ -178,6 +220,7 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
             scale = 100.0 if metric == "completion" else 1.0
             for n in TRAIN_SIZES:
                 ax.axvspan(n - 0.35, n + 0.35, color="#dddddd", lw=0, zorder=0)
+            counts: dict[str, dict[int, tuple[str, float]]] = {}  # algo -> size -> (count text, y)
             for algo in algos:
                 sizes = sorted(by_size.get((algo, task), {}))
                 if not sizes:
@@ -194,16 +237,26 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
                 ax.plot(sizes, mean, "o-", color=color, ms=3, label=f"{ALGO_LABELS[algo]} ({seeds} seed"
                         f"{'s' * (seeds > 1)})")
                 ax.fill_between(sizes, mean - half, mean + half, color=color, alpha=0.2, lw=0)
+                for n, m in zip(sizes, mean):  # the count behind each point: coalitions (per seed)
+                    per = by_size[(algo, task)][n]
+                    text = "/".join(map(str, sorted({int(s["coalitions"]) for s in per})))
+                    counts.setdefault(algo, {})[n] = (text + ("" if len(per) == seeds else f" ({len(per)} seeds)"), m)
+            _count_labels(ax, counts)
             ax.set_xlabel("team size (robots); grey: U_train's sizes 3, 5, 7")
             ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
+            if metric == "completion":
+                ax.set_ylim(0, 105)  # a share: from 0, so a drop reads at its true size
             ax.grid(alpha=0.3)
             if row_i == 0:
                 ax.set_title(f"{task.upper()}: deterministic policy against team size\n"
                              f"{_budget_text(budgets.get(task, {}))}", fontsize=9)
                 if ax.get_legend_handles_labels()[0]:
                     ax.legend(fontsize=7)
-    fig.text(0.01, -0.01, "Points: mean over seeds of each seed's mean over its evaluation episodes with that many "
-             "robots (U_train, U_test and U_scale where evaluated). Band: 95 % Student-t interval over seeds (none "
-             "with one seed).", fontsize=7, ha="left", va="top", wrap=True)
+    names = ", ".join(SET_LABELS[s].split(" ")[0] for s in sets) or "none"
+    fig.text(0.01, -0.01, "Points: mean over seeds of each seed's mean over its coalitions with that many robots "
+             f"(each coalition its episodes' mean; sets pooled: {names}, where evaluated; U_val and U_cap left out). "
+             f"Band: {_method(k_text)}. Numbers along the bottom (or, where algorithms differ, next to each point): "
+             "coalitions of that size per seed.", fontsize=7,
+             ha="left", va="top", wrap=True)
     fig.tight_layout()
     return save(fig, stem)

@@ -2,26 +2,34 @@
 
 A run folder (``comat train`` / ``comat sweep``) holds ``config.yaml`` (algo, task, seed, env-step
 budget), ``progress.csv`` (training curve) and ``evaluation_<tier>.json`` (``comat eval``: the
-deterministic policy on U_train, U_test and, where evaluated, U_scale; reference policies on the
-same episodes). Runs are grouped by (algo, task); seeds are the independent units: each seed's
-mean over a set's coalitions is one sample, and tables give the mean over seeds ± the 95 %
-Student-t interval over seeds (± nan with one seed). Runs without an evaluation are left out
-with a warning; when none has one, nothing is written.
+deterministic policy on the composition sets, K episodes (start states) per coalition; reference
+policies on the same episodes). Runs are grouped by (algo, task); runs without an evaluation are
+left out with a warning; when none has one, nothing is written.
+
+Intervals (:mod:`comat.eval.stats`, which says why and gives their measured coverage). The seed
+is the replicated unit: every coalition of a run is played by the same policy. Each seed's score
+on a set first averages its K episodes per coalition, then its coalitions (so K episodes never
+count as K seeds); tables give the mean over seeds ± the 95 % Student-t interval over those
+per-seed means (nan with one seed). COMAT is compared with each baseline by Welch's t-test over
+per-seed means; the test, not a look at two intervals, decides. The hierarchical bootstrap
+(seeds, then coalitions within a seed) is in ``aggregates.csv`` only, as a descriptive interval:
+it undercovers with 3–5 seeds. An episode's coalition is its row's ``coalition``; rows of older
+files lack it and are coalition ``i % C`` (C = episodes / ``episodes_per_coalition``).
 
 Outputs in ``--out`` (:data:`REPORT_FILES`):
 
 * ``table1.md`` / ``table1.csv``: per task and metric, each algorithm's U_train result next to
   the paper's Table I (completion = share of episodes finished, the paper's meaning), with the
   env-step budget next to the paper's 4 M; the reference policies' rows below.
-* ``generalization.csv``: per algorithm and task and per composition set (U_scale where a run
-  has it), return and progress, and progress retention (progress on the set / progress on
-  U_train — a ratio of non-negative fractions, unlike a ratio of returns that change sign).
-  ``generalization.md``: the same progress and retention as a table, then the finished share per
-  set, and under each, per unseen set whether COMAT's 95 % interval over seeds lies above each
-  baseline's (the paper's claim, where it can be decided: two or more seeds each).
-* ``aggregates.csv``: over seeds × coalitions (each coalition's mean over its episodes), the
-  plain mean and the interquartile mean with 95 % stratified-bootstrap intervals (rliable:
-  seeds resampled within each coalition, 2,000 resamples, fixed random state).
+* ``generalization.csv``: per algorithm and task and per composition set present (:data:`SETS`
+  order), return, progress, the finished share and, where the evaluations carry them,
+  ``progress_auc`` and ``time_to_90``, each with its t half-width and seed count; progress
+  retention per set (progress on it / on U_train, per seed); COMAT − this algorithm on progress,
+  finished share and ``progress_auc`` with Welch's interval, t, df and p.
+  ``generalization.md``: the same as tables, and the Welch comparisons.
+* ``aggregates.csv``: per task, algorithm, set and metric, the mean over seeds with the t-interval
+  over per-seed means, and the mean and interquartile mean of the seed x coalition cells with
+  hierarchical-bootstrap intervals (2,000 resamples, generator seed 0).
 * ``fig4_training_return``, ``fig5_generalization``, ``fig6_team_size`` (.png and .pdf):
   :mod:`comat.eval.figures`.
 """
@@ -39,20 +47,30 @@ import numpy as np
 
 from comat.eval import figures
 from comat.eval.figures import ALGO_LABELS
-from comat.eval.metrics import mean_ci
+from comat.eval.metrics import mean_ci, violations
+from comat.eval.stats import cell_means, hierarchical_bootstrap
 from comat.files import write_atomic
 
-__all__ = ["PAPER_RETENTION", "PAPER_TABLE1", "REPORT_FILES", "aggregate", "load_run", "make_report"]
+__all__ = ["ENDPOINTS", "PAPER_RETENTION", "PAPER_TABLE1", "REPORT_FILES", "SETS", "SET_NAMES", "load_run",
+           "make_report", "method_text", "run_cells", "seed_means"]
 
 ALGO_ORDER = ("mappo", "qmix", "mat", "comat")
-SETS = ("train", "test", "scale")
+SETS = ("train", "val", "test", "scale", "size", "capability")
+"""Composition sets in table order (``comat.team.COALITION_SETS``); only those present appear."""
+SET_NAMES = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
+             "capability": "U_cap"}
+"""The composition sets as the reports name them."""
+ENDPOINTS = (("return", "return"), ("completion", "progress"), ("success", "finished"),
+             ("progress_auc", "progress_auc"), ("time_to_90", "time_to_90"))
+"""(evaluation metric, report key): the per-set endpoints of the generalization table. The last two
+appear only where the evaluation rows carry them (files written before issue 28 do not)."""
+COMPARED = ("progress", "finished", "progress_auc")
+"""Endpoints on which COMAT is compared with each baseline (Welch's t-test over seeds)."""
 REFERENCES = ("heuristic", "constant", "random")
 PAPER_BUDGET = 4_000_000
 """Env steps per run in the paper's experiments."""
-BOOTSTRAP_REPS = 2000
-SET_NAMES = {"train": "U_train", "test": "U_test", "scale": "U_scale"}
-"""The composition sets as the paper names them."""
-
+ALPHA = 0.05
+"""Two-sided level of the Welch tests."""
 
 REPORT_FILES = ("table1.md", "table1.csv", "generalization.md", "generalization.csv", "aggregates.csv",
                 *(f"{stem}.{fmt}" for stem in ("fig4_training_return", "fig5_generalization", "fig6_team_size")
@@ -113,25 +131,62 @@ def _row(run: dict, split: str, policy: str | None = None) -> dict | None:
     return None
 
 
-def _eval_mean(run: dict, split: str, metric: str) -> float | None:
-    row = _row(run, split)
-    return None if row is None else row["metrics"][metric]["mean"]
+def _episodes_per_coalition(run: dict) -> int:
+    return int(run["evaluation"].get("episodes_per_coalition") or 1)
+
+
+def _value(episode: dict, metric: str) -> float | None:
+    if metric == "violations":
+        keys = ("robotarium_collisions", "boundary_exits", "actuator_errors")
+        return violations(episode) if all(k in episode for k in keys) else None
+    return float(episode[metric]) if metric in episode else None
+
+
+def run_cells(run: dict, split: str, metric: str, policy: str | None = None) -> tuple[list, np.ndarray] | None:
+    """``(coalitions, means (C,))``: each coalition's mean of ``metric`` over its episodes in the
+    run's evaluation row of ``policy`` on ``split``; None where there is no such row or an
+    episode lacks the metric (a file written before it existed)."""
+    row = _row(run, split, policy)
+    if row is None or not row.get("per_episode"):
+        return None
+    eps = row["per_episode"]
+    values = [_value(e, metric) for e in eps]
+    if any(v is None for v in values):
+        return None
+    if all("coalition" in e for e in eps):
+        coalition = [int(e["coalition"]) for e in eps]
+    else:  # older files: episode i is coalition i % C (the set repeated K times)
+        k = _episodes_per_coalition(run)
+        if len(eps) % k:
+            raise ValueError(f"{run['folder']}: {split} has {len(eps)} episodes, not a multiple of its "
+                             f"episodes_per_coalition {k}")
+        coalition = [i % (len(eps) // k) for i in range(len(eps))]
+    table, _, coals = cell_means(np.zeros(len(eps)), coalition, values)
+    return coals, table[0]
+
+
+def seed_means(runs: list[dict], split: str, metric: str) -> list[float]:
+    """Each run's (seed's) mean over coalitions of its coalition means; runs without it left out."""
+    return [float(c[1].mean()) for c in (run_cells(r, split, metric) for r in runs) if c is not None]
 
 
 def _over_seeds(runs: list[dict], split: str, metric: str) -> tuple[float, float, int]:
-    values = [v for v in (_eval_mean(r, split, metric) for r in runs) if v is not None]
+    values = seed_means(runs, split, metric)
     if not values:
         return math.nan, math.nan, 0
     mean, half = mean_ci(values)
     return mean, half, len(values)
 
 
-def _per_coalition(run: dict, row: dict, metric: str) -> np.ndarray:
-    """(C,) each coalition's mean over its episodes (``comat eval`` plays coalition c as episodes
-    c, c + C, c + 2C, …: the set repeated ``episodes_per_coalition`` times)."""
-    per = np.array([e[metric] for e in row["per_episode"]], dtype=float)
-    reps = int(run["evaluation"].get("episodes_per_coalition") or 1)
-    return per.reshape(reps, -1).mean(axis=0)
+def method_text(seeds: str, k: str) -> str:
+    """The interval method, as every caption states it."""
+    return (f"mean over seeds ± 95 % t-interval over per-seed means ({seeds}); each seed's mean first averages "
+            f"its {k} episode(s) per coalition, then its coalitions")
+
+
+def _k_text(runs: list[dict]) -> str:
+    ks = sorted({_episodes_per_coalition(r) for r in runs if r["evaluation"]})
+    return "/".join(map(str, ks)) if ks else "1"
 
 
 def _fmt(mean: float, half: float, metric: str) -> str:
@@ -176,37 +231,41 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
                 cells += [_fmt(mean, half, metric), "—" if paper_v is None else _fmt(paper_v, math.nan, metric)]
                 writer.writerow([task, metric, algo, n, mean, half, "" if paper_v is None else paper_v])
             lines.append(f"| {task.upper()} | {label} | " + " | ".join(cells) + " |")
-    seeds = {f"{ALGO_LABELS[a]}/{t.upper()}": len([r for r in groups.get((a, t), []) if r["evaluation"]])
+    seeds = {f"{ALGO_LABELS[a]}/{t.upper()}": len(seed_means(groups.get((a, t), []), "train", "return"))
              for t in tasks for a in algos}
-    lines += ["", "Training coalitions (U_train), deterministic actions; ours: mean over seeds ± 95 % Student-t "
-              "interval over seeds (seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()) + "), each "
-              "seed's value its mean over the 20 coalitions. Completion = share of episodes in which every prey was "
-              "captured / all material delivered (the paper's definition). The paper trains 4 M env steps per run."]
+    every = [r for rs in groups.values() for r in rs]
+    lines += ["", "Training coalitions (U_train), deterministic actions; ours: "
+              + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), _k_text(every))
+              + ". Completion = share of episodes in which every prey was captured / all material delivered (the "
+              "paper's definition). The paper trains 4 M env steps per run."]
     lines += _reference_lines(groups, tasks)
     return "\n".join(lines) + "\n", buf.getvalue()
 
 
 def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
     """Reference policies (heuristic, constant, random) on the same episodes, from the first run
-    per task whose evaluation has them."""
+    per task whose evaluation has them; one policy each, so the interval is over coalitions."""
     out = []
     for task in tasks:
         runs = [r for (a, t), rs in groups.items() if t == task for r in rs if r["evaluation"]]
         for split in SETS:
-            found = next(({p: _row(r, split, p) for p in REFERENCES} for r in runs
+            found = next(((r, {p: _row(r, split, p) for p in REFERENCES}) for r in runs
                           if any(_row(r, split, p) for p in REFERENCES)), None)
             if not found:
                 continue
             if not out:
-                out += ["", "Reference policies on the same episodes (mean ± 95 % interval over episodes):", "",
+                out += ["", ("Reference policies on the same episodes (one policy each: mean ± 95 % t-interval over "
+                        "the set's coalitions, each coalition's episodes averaged first; no seed spread):"), "",
                         "| Task | Set | Policy | Return | Progress | Completion |", "|---|---|---|---|---|---|"]
-            for policy, row in found.items():
+            run, rows = found
+            for policy, row in rows.items():
                 if row is None:
                     continue
-                m = row["metrics"]
-                out.append(f"| {task.upper()} | {split} | {policy} | {_fmt(m['return']['mean'], m['return']['ci95'], 'return')}"
-                           f" | {_fmt(m['completion']['mean'], m['completion']['ci95'], 'return')} | "
-                           f"{_fmt(m['success']['mean'], m['success']['ci95'], 'success')} |")
+                cells = []
+                for metric, kind in (("return", "return"), ("completion", "return"), ("success", "success")):
+                    got = run_cells(run, split, metric, policy)
+                    cells.append("—" if got is None else _fmt(*mean_ci(got[1]), kind))
+                out.append(f"| {task.upper()} | {SET_NAMES[split]} | {policy} | " + " | ".join(cells) + " |")
     return out
 
 
@@ -214,180 +273,66 @@ def _sets_present(runs: list[dict]) -> list[str]:
     return [s for s in SETS if any(_row(r, s) for r in runs)]
 
 
-def _generalization(groups: dict, tasks: list[str], algos: list[str], sets: list[str]) -> tuple[list[dict], str]:
-    """Per (task, algo): each set's return and progress over seeds and progress retention per
-    unseen set (progress on it / progress on U_train, per seed, then over seeds)."""
-    rows = []
-    for task in tasks:
-        for algo in algos:
-            runs = groups.get((algo, task), [])
-            row = {"task": task, "algo": algo, "seeds": _over_seeds(runs, "train", "return")[2]}
-            for split in sets:
-                for metric, key in (("return", "return"), ("completion", "progress"), ("success", "completion")):
-                    mean, half, _ = _over_seeds(runs, split, metric)
-                    row[f"{split}_{key}"], row[f"{split}_{key}_ci95"] = mean, half
-            for split in sets:
-                if split == "train":
-                    continue
-                ratios = []
-                for r in runs:
-                    tr, un = _eval_mean(r, "train", "completion"), _eval_mean(r, split, "completion")
-                    if tr is not None and un is not None and tr > 0:
-                        ratios.append(un / tr)
-                mean, half = mean_ci(ratios) if ratios else (math.nan, math.nan)
-                row[f"{split}_retention"], row[f"{split}_retention_ci95"] = mean, half
-                row[f"{split}_retention_seeds"] = len(ratios)  # a seed without U_train progress has none
-            tr, te = row.get("train_return", math.nan), row.get("test_return", math.nan)
-            row["test_return_ratio"] = te / tr if tr > 0 and te >= 0 else math.nan  # the paper's form, where defined
-            row["paper_retention_return_ratio"] = PAPER_RETENTION.get((task, algo), math.nan)
-            rows.append(row)
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
-    writer.writeheader()
-    writer.writerows(rows)
-    return rows, buf.getvalue()
+def _endpoints_present(runs: list[dict], sets: list[str]) -> list[tuple[str, str]]:
+    """ENDPOINTS that some run's own row carries on some set (older files lack the new ones)."""
+    return [(m, k) for m, k in ENDPOINTS
+            if any(run_cells(r, s, m) is not None for r in runs if r["evaluation"] for s in sets)]
 
 
-def _cell(row: dict, key: str) -> str:
-    """A fraction ``row[key]`` as percent, ± its ``_ci95`` half-width where there is one."""
-    mean, half = row.get(key, math.nan), row.get(f"{key}_ci95", math.nan)
-    if math.isnan(mean):
-        return "—"
-    return f"{100 * mean:.1f}" + ("" if math.isnan(half) else f" ± {100 * half:.1f}")
-
-
-def _retention_cell(row: dict, split: str) -> str:
-    """Retention over seeds, naming how many seeds it covers where some had no U_train progress."""
-    cell, n = _cell(row, f"{split}_retention"), row.get(f"{split}_retention_seeds", row["seeds"])
-    return cell if n in (0, row["seeds"]) else f"{cell} ({n} of {row['seeds']} seeds)"  # 0: "—", no set or none
-
-
-def _generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str]) -> str:
-    """Progress per set and retention per unseen set, then the share of episodes finished per set,
-    each mean ± 95 % half-width over seeds; under each table, per task and unseen set, whether
-    COMAT's interval lies above (or below) each baseline's."""
-    unseen = [s for s in sets if s != "train"]
-    head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} progress (%)" for s in sets),
-            *(f"{SET_NAMES[s]} retention (%)" for s in unseen)]
-    lines = _table(rows, head, lambda row: [*(_cell(row, f"{s}_progress") for s in sets),
-                                            *(_retention_cell(row, s) for s in unseen)])
-    lines += ["", ("Progress: share of prey captured / material delivered, each seed's mean over the set's "
-              "coalitions (deterministic policy); retention: progress on the set / progress on U_train, per seed "
-              "(undefined for a seed with no U_train progress, which the cell then names). "
-              "± : 95 % Student-t half-width over seeds (none with one seed)."), ""]
-    lines += _verdicts(rows, tasks, algos, unseen, "progress",
-                       lambda mine, split: f"reaches {_cell(mine, f'{split}_progress')} % progress "
-                       f"({_cell(mine, f'{split}_retention')} % of its U_train progress)")
-    head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} finished (%)" for s in sets)]
-    lines += ["", *_table(rows, head, lambda row: [_cell(row, f"{s}_completion") for s in sets])]
-    lines += ["", ("Finished: share of the set's episodes in which every prey was captured / all material "
-              "delivered (the paper's completion), each seed's share, then over seeds: the finer measure where "
-              "progress is near 100 % for every algorithm (U_scale PCP keeps 6 prey for 10–20 robots)."), ""]
-    lines += _verdicts(rows, tasks, algos, unseen, "completion",
-                       lambda mine, split: f"finishes {_cell(mine, f'{split}_completion')} % of its episodes")
-    return "\n".join(lines) + "\n"
-
-
-def _table(rows: list[dict], head: list[str], cells) -> list[str]:
-    """A markdown table: task, algorithm and seeds, then ``cells(row)``."""
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for row in rows:
-        lines.append("| " + " | ".join([row["task"].upper(), ALGO_LABELS.get(row["algo"], row["algo"]),
-                                        str(row["seeds"]), *cells(row)]) + " |")
-    return lines
-
-
-def _verdicts(rows: list[dict], tasks: list[str], algos: list[str], unseen: list[str], key: str, lead) -> list[str]:
-    """Per task and unseen set, COMAT's 95 % interval of ``<set>_<key>`` against each baseline's:
-    above, below, overlapping, or why it cannot be said. The sentence names the measure compared."""
-    by = {(r["task"], r["algo"]): r for r in rows}
-    noun = {"progress": "progress", "completion": "finished-share"}[key]
-    lines = []
-    for task in tasks:
-        mine = by.get((task, "comat"))
-        for split in unseen if mine else ():
-            verdicts = []
-            lo_c, hi_c = (mine[f"{split}_{key}"] + d * mine[f"{split}_{key}_ci95"] for d in (-1, 1))
-            for algo in (a for a in algos if a != "comat"):
-                other, label = by[(task, algo)], ALGO_LABELS.get(algo, algo)
-                lo_o, hi_o = (other[f"{split}_{key}"] + d * other[f"{split}_{key}_ci95"] for d in (-1, 1))
-                if not other["seeds"]:
-                    verdicts.append(f"{label}: no runs")
-                elif math.isnan(other[f"{split}_{key}"]):
-                    verdicts.append(f"{label}: not evaluated on {SET_NAMES[split]}")
-                elif any(math.isnan(v) for v in (lo_c, hi_c, lo_o, hi_o)):
-                    verdicts.append(f"{label}: not decidable (needs 2+ seeds each)")
-                else:
-                    verdicts.append(f"{label}: " + ("above" if lo_c > hi_o else "below" if hi_c < lo_o else "overlapping"))
-            versus = f"its 95 % {noun} interval vs " + "; ".join(verdicts) if verdicts else "no baseline in these runs"
-            lines.append(f"* {task.upper()}, {SET_NAMES[split]}: COMAT {lead(mine, split)}; {versus}.")
-    return lines
-
-
-def aggregate(scores: np.ndarray, reps: int = BOOTSTRAP_REPS, seed: int = 0) -> dict[str, float]:
-    """Mean and interquartile mean of ``scores`` (seeds, coalitions) with 95 % stratified-bootstrap
-    intervals (rliable: seeds resampled with replacement within each coalition)."""
-    from rliable import library as rly
-    from rliable import metrics
-
-    scores = np.asarray(scores, dtype=float)
-    if scores.ndim != 2 or scores.size == 0:
-        raise ValueError(f"scores must be a non-empty (seeds, coalitions) array, got shape {scores.shape}")
-
-    def both(x: np.ndarray) -> np.ndarray:
-        return np.array([metrics.aggregate_mean(x), metrics.aggregate_iqm(x)])
-
-    # rliable 1.2 draws its resamples from numpy's global generator (StratifiedBootstrap.update_indices
-    # calls np.random.choice; random_state= only reaches arch, which does not draw them): seed it
-    # for these calls alone and give the caller's state back.
-    saved = np.random.get_state()
-    try:
-        np.random.seed(seed)
-        point, interval = rly.get_interval_estimates({"x": scores}, both, reps=reps)
-    finally:
-        np.random.set_state(saved)
-    (mean, iqm), ci = point["x"], interval["x"]
-    return {"mean": float(mean), "mean_lo": float(ci[0, 0]), "mean_hi": float(ci[1, 0]),
-            "iqm": float(iqm), "iqm_lo": float(ci[0, 1]), "iqm_hi": float(ci[1, 1])}
-
-
-def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str]) -> str:
+def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str], endpoints) -> str:
+    """Per task, algorithm, set and metric: the t-interval over per-seed means and, over the
+    seed x coalition cells, the mean and IQM with hierarchical-bootstrap intervals."""
     buf = io.StringIO()
     writer = csv.writer(buf)
-    writer.writerow(["task", "algo", "set", "metric", "seeds", "coalitions", "mean", "mean_ci95_lo", "mean_ci95_hi",
-                     "iqm", "iqm_ci95_lo", "iqm_ci95_hi", "mean_over_seeds", "t_ci95_over_seeds"])
+    writer.writerow(["task", "algo", "set", "metric", "seeds", "coalitions", "episodes_per_coalition",
+                     "mean_over_seeds", "sd_over_seeds", "t_ci95_lo_over_seeds", "t_ci95_hi_over_seeds", "t_df",
+                     "hier_boot_mean_ci95_lo", "hier_boot_mean_ci95_hi", "iqm_of_cells", "hier_boot_iqm_ci95_lo",
+                     "hier_boot_iqm_ci95_hi"])
     for task in tasks:
         for algo in algos:
             runs = groups.get((algo, task), [])
             for split in sets:
-                with_rows = [(r, _row(r, split)) for r in runs if _row(r, split)]
-                if not with_rows:
-                    continue
-                for metric in ("return", "completion", "success"):
-                    per = [_per_coalition(r, row, metric) for r, row in with_rows]
-                    if len({p.size for p in per}) != 1:
-                        print(f"warning: {algo}/{task} {split}: runs evaluated different numbers of coalitions; "
-                              "left out of aggregates.csv", file=sys.stderr)
+                for metric, _ in endpoints:
+                    got = [(r, c) for r in runs if (c := run_cells(r, split, metric)) is not None]
+                    if not got:
                         continue
-                    scores = np.stack(per)
-                    agg = aggregate(scores)
-                    plain, half = mean_ci(scores.mean(axis=1))
-                    writer.writerow([task, algo, split, metric, scores.shape[0], scores.shape[1], agg["mean"],
-                                     agg["mean_lo"], agg["mean_hi"], agg["iqm"], agg["iqm_lo"], agg["iqm_hi"],
-                                     plain, half])
+                    per_seed = np.array([c[1].mean() for _, c in got])
+                    mean, half = mean_ci(per_seed)
+                    sd = float(per_seed.std(ddof=1)) if per_seed.size > 1 else math.nan
+                    same = len({tuple(c[0]) for _, c in got}) == 1
+                    if same:
+                        boot = hierarchical_bootstrap(np.stack([c[1] for _, c in got]))
+                    else:
+                        print(f"warning: {algo}/{task} {split}: runs evaluated different coalitions; no "
+                              "hierarchical bootstrap in aggregates.csv", file=sys.stderr)
+                        boot = dict.fromkeys(("mean_lo", "mean_hi", "iqm", "iqm_lo", "iqm_hi"), math.nan)
+                    writer.writerow([task, algo, split, metric, per_seed.size, len(got[0][1][0]) if same else "",
+                                     _k_text([r for r, _ in got]), mean, sd, mean - half, mean + half,
+                                     per_seed.size - 1, boot["mean_lo"], boot["mean_hi"], boot["iqm"],
+                                     boot["iqm_lo"], boot["iqm_hi"]])
     return buf.getvalue()
 
 
 def _by_team_size(groups: dict, sets: list[str]) -> dict:
-    """(algo, task) -> team size -> per seed {"return", "completion"} means over its episodes."""
+    """(algo, task) -> team size -> per seed ``{"return", "completion", "coalitions"}``: the mean
+    over that seed's coalitions of that size (each its episodes' mean) in ``sets``, and how many."""
     out: dict = {}
     for key, runs in groups.items():
         sizes: dict[int, list[dict[str, float]]] = {}
         for r in runs:
-            eps = [e for split in sets if (row := _row(r, split)) for e in row["per_episode"]]
-            for n in sorted({int(e["team_size"]) for e in eps}):
-                mine = [e for e in eps if int(e["team_size"]) == n]
-                sizes.setdefault(n, []).append({m: float(np.mean([e[m] for e in mine])) for m in ("return", "completion")})
+            cells: dict[int, dict[str, list[float]]] = {}
+            for split in sets:
+                size = run_cells(r, split, "team_size")
+                if size is None:
+                    continue
+                metrics = {m: run_cells(r, split, m)[1] for m in ("return", "completion")}
+                for c, n in enumerate(size[1]):
+                    mine = cells.setdefault(int(n), {"return": [], "completion": []})
+                    for m, v in metrics.items():
+                        mine[m].append(float(v[c]))
+            for n in sorted(cells):
+                sizes.setdefault(n, []).append({m: float(np.mean(v)) for m, v in cells[n].items()}
+                                               | {"coalitions": len(cells[n]["return"])})
         if sizes:
             out[key] = sizes
     return out
@@ -395,6 +340,8 @@ def _by_team_size(groups: dict, sets: list[str]) -> dict:
 
 def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None = None) -> dict:
     """Write :data:`REPORT_FILES` for ``run_folders`` into the folder ``out`` (which must exist)."""
+    from comat.eval.generalization import generalization_csv, generalization_md, generalization_rows
+
     if not run_folders:
         raise ValueError("make_report needs at least one run folder")
     out = Path(out)
@@ -415,20 +362,25 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     algos = [a for a in ALGO_ORDER if any(k[0] == a for k in groups)]
     evaluated = {k: [r for r in v if r["evaluation"]] for k, v in groups.items()}
     sets = _sets_present(runs)
+    endpoints = _endpoints_present(runs, sets)
+    k_text = _k_text(runs)
     md, table_csv = _table1(evaluated, tasks, algos)
-    rows, gen_csv = _generalization(evaluated, tasks, algos, sets)
-    files = {"table1.md": md, "table1.csv": table_csv, "generalization.md": _generalization_md(rows, tasks, algos, sets),
-             "generalization.csv": gen_csv,
-             "aggregates.csv": _aggregates(evaluated, tasks, algos, sets)}
+    rows = generalization_rows(evaluated, tasks, algos, sets, endpoints)
+    files = {"table1.md": md, "table1.csv": table_csv,
+             "generalization.md": generalization_md(rows, tasks, algos, sets, endpoints, k_text),
+             "generalization.csv": generalization_csv(rows),
+             "aggregates.csv": _aggregates(evaluated, tasks, algos, sets, endpoints)}
     for name, text in files.items():
         write_atomic(out / name, text)
     budgets = {t: _budgets(groups, t, algos) for t in tasks}
     curves = {k: [(np.asarray(r["curve"]["env_steps"]), np.asarray(r["curve"]["return"])) for r in v]
               for k, v in groups.items()}
+    size_sets = [s for s in sets if s in figures.SIZE_SETS]
     names = list(files)
     names += figures.fig4(curves, tasks, algos, budgets, out / "fig4_training_return")
-    names += figures.fig5(rows, tasks, algos, sets, budgets, out / "fig5_generalization")
-    names += figures.fig_team_size(_by_team_size(evaluated, sets), tasks, algos, budgets, out / "fig6_team_size")
+    names += figures.fig5(rows, tasks, algos, sets, budgets, out / "fig5_generalization", k_text)
+    names += figures.fig_team_size(_by_team_size(evaluated, size_sets), tasks, algos, budgets,
+                                   out / "fig6_team_size", size_sets, k_text)
     assert set(names) == set(REPORT_FILES), names
     return {"runs": len(runs), "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()}, "sets": sets,
             "files": names, "generalization": rows}

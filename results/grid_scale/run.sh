@@ -2,17 +2,19 @@
 # Issue 18 part 4: the grid on U_train, U_test and U_scale, from the repository root.
 #   results/grid_scale/run.sh            train + evaluate every run (resumes), COMAT in wheels, report, gap
 #   results/grid_scale/run.sh collect    only copy the finished runs' small files here
-# SWEEP = the sweep's root (checkpoints stay there; only small files are committed).
+# SWEEP = the sweep's root (checkpoints stay there; only small files are committed, among them each
+# run's policy.pt: the weights to act, so every reported run can be evaluated again).
 set -euo pipefail
 SWEEP=${SWEEP:-runs/grid18all}
 HERE=results/grid_scale
 
-collect() {  # the small files of every finished run (checkpoints are not committed)
+collect() {  # the small files of every finished run and its policy.pt (checkpoints are not committed)
   for run in "$SWEEP"/*_s*/; do
     [ -f "$run/summary.json" ] && [ -f "$run/evaluation_unicycle.json" ] || continue
+    [ -f "$run/policy.pt" ] || comat policy "$run"  # a run trained before policy files: from its checkpoint
     dst="$HERE/runs/$(basename "$run")"
     mkdir -p "$dst"
-    cp "$run"/{config.yaml,progress.csv,eval.csv,summary.json} "$run"/evaluation_*.{json,csv} "$dst/"
+    cp "$run"/{config.yaml,progress.csv,eval.csv,summary.json,policy.pt} "$run"/evaluation_*.{json,csv} "$dst/"
   done
 }
 
