@@ -1,7 +1,7 @@
 """The ``comat`` command line: ``comat <command> --help`` documents each command.
 
-Commands: ``train`` (COMAT, MAT, MAPPO, QMIX on HMT or PCP), ``demo``, ``bench``
-(sim, env, fidelity, learn), ``mjcf`` (the golden MJCF files), ``coalitions``.
+Commands: ``train`` (COMAT, MAT, MAPPO, QMIX on HMT or PCP), ``policy`` (a run's policy file),
+``demo``, ``bench`` (sim, env, fidelity, learn), ``mjcf`` (the golden MJCF files), ``coalitions``.
 """
 
 from __future__ import annotations
@@ -48,13 +48,18 @@ def _cmd_mjcf(args: argparse.Namespace) -> int:
 def _cmd_coalitions(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from comat.team import CAPABILITY_RANGES, generate_coalitions, save_coalitions
+    from comat.team import CAPABILITY_RANGES, SET_LABELS, generate_coalitions, save_coalitions
 
+    # What each file's first line says its set is (the paper's two sets keep their old header).
+    about = {"train": "(paper §III-D)", "test": "(paper §III-D)", "scale": "(sizes 10-20, U_test's capability ranges)",
+             "val": "(drawn like U_train, no U_train team; the only set for model selection)",
+             "size": "(sizes 2-20, two of each, the training capability ranges)",
+             "capability": "(sizes 3/5/7, every capability outside the training range)"}
     for task, split in sorted(CAPABILITY_RANGES):
         teams = generate_coalitions(task, split, args.count, args.seed)
         path = Path(args.out) / f"{task}_{split}.yaml"
-        save_coalitions(teams, path, header=f"comat coalitions --seed {args.seed} --count {args.count}: U_{split} for {task} "
-                        + ("(sizes 10-20, U_test's capability ranges)" if split == "scale" else "(paper §III-D)"))
+        save_coalitions(teams, path, header=f"comat coalitions --seed {args.seed} --count {args.count}: "
+                        f"{SET_LABELS[split]} for {task} {about[split]}")
         sizes = sorted({t.size for t in teams})
         print(f"wrote {path}: {len(teams)} teams, sizes {sizes}")
     return 0
@@ -106,6 +111,41 @@ def _cmd_train(args: argparse.Namespace) -> int:
         f"; on the training coalitions (deterministic): return {ev['return']:.2f}, completion "
         f"{ev['success']:.0%} (progress {ev['completion']:.0%}), steps {ev['steps']:.1f}, collisions {ev['collisions']:.2f}")
     print(f"done: {summary['env_steps']:,} env steps in {summary['wall_s'] / 60:.1f} min{result}; run folder {out}")
+    _print_policy_file(out / "policy.pt")
+    return 0
+
+
+def _print_policy_file(path) -> None:
+    from comat.rl.policy import format_size
+
+    print(f"{path} ({format_size(path.stat().st_size)}): weights and config to act; evaluate with "
+          f"comat eval --policy {path} --teams capability --out DIR")
+
+
+def _cmd_policy(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from comat.files import new_outputs
+    from comat.rl.checkpoint import POLICY_FORMAT, load_trained
+    from comat.rl.policy import POLICY_FILE, describe_policy, policy_file_of, policy_from_checkpoint
+
+    # a run folder: its checkpoint.pt, else its policy.pt
+    source = policy_file_of(args.source, flag="RUN_FOLDER|CHECKPOINT|POLICY")
+    data = load_trained(source)  # CheckpointError (a ValueError) names a foreign or corrupt file
+    if data["format"] == POLICY_FORMAT:
+        if args.out is not None:
+            raise ValueError(f"--out: {str(source)!r} is already a policy file (copy it to move it); give a "
+                             "checkpoint.pt or a run folder with one to make a policy file")
+        print(describe_policy(source, data))
+        return 0
+    out = Path(args.out) if args.out is not None else source.parent / POLICY_FILE
+    if out.is_dir():
+        out = out / POLICY_FILE
+    elif out.suffix != ".pt":
+        raise ValueError(f"--out must be a .pt file or an existing folder, got {str(out)!r}")
+    with new_outputs(out.parent, [out.name], force=args.force):
+        policy_from_checkpoint(data, out)
+    _print_policy_file(out)
     return 0
 
 
@@ -146,7 +186,8 @@ def _cmd_probe(args: argparse.Namespace) -> int:
     from comat.eval.probe import print_probe, probe_checkpoint, write_probe
     from comat.files import new_outputs
 
-    pol = resolve_policy_arg(args.policy, None, references=())
+    pol = resolve_policy_arg(args.policy, None, references=(),
+                             need_checkpoint="comat probe reads the learner's value estimates (critic, mixer)")
     out = Path(args.out) if args.out else pol.checkpoint.parent
     with new_outputs(out, ["probe.json"], force=args.force):
         print(f"comat probe: {pol.checkpoint}", file=sys.stderr)
@@ -158,7 +199,7 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from comat.eval.report import REPORT_FILES, make_report
+    from comat.eval.report import REPORT_FILES, SETS, make_report
     from comat.files import new_outputs
 
     with new_outputs(args.out, REPORT_FILES, force=args.force) as out:
@@ -169,10 +210,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
         if not row["seeds"]:
             continue  # no runs of this algorithm on this task (yet)
         line = f"  {row['algo']:<6}{row['task']:<4}"
-        for split in ("train", "test", "scale"):
+        for split in SETS:
             if not math.isnan(row.get(f"{split}_progress", math.nan)):
                 line += f" {split} progress {100 * row[f'{split}_progress']:.0f}%"
-        for split in ("test", "scale"):
+        for split in SETS[1:]:
             value = row.get(f"{split}_retention", math.nan)
             if not math.isnan(value):
                 line += f", {split}/train retention {100 * value:.0f}%"
@@ -325,9 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_mjcf)
 
-    p = sub.add_parser("coalitions", help="regenerate the paper's train/test team composition sets",
-                       description="Write U_train and U_test (20 coalitions each, per task) from a seed "
-                       "as YAML; the environments use the same teams (seed 0).")
+    p = sub.add_parser("coalitions", help="regenerate the team composition sets (" + ", ".join(COALITION_SETS) + ")",
+                       description="Write every composition set (U_train, U_val, U_test, U_scale, U_size, U_cap; "
+                       "20 coalitions each, per task; what each holds: comat.team) from a seed as YAML; the "
+                       "environments use the same teams (seed 0).")
     p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
     p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
     p.add_argument("--out", default=str(COALITIONS_DIR),
@@ -376,10 +418,27 @@ def build_parser() -> argparse.ArgumentParser:
                    "models.comat.heads=8 total_env_steps=200000); typed and checked like the preset")
     p.set_defaults(func=_cmd_train)
 
+    p = sub.add_parser("policy", help="write a run's policy file (weights and config to act) from its checkpoint",
+                       description="Make the policy file of a trained run: policy.pt, the float32 weights "
+                       "deterministic acting needs (COMAT's and MAT's policy, MAPPO's actors, QMIX's agent network) "
+                       "with the resolved run config, sizes, versions and env steps; no optimizer state, critic, "
+                       "mixer or replay buffer, so it is small enough to commit. comat train writes it when a run "
+                       "finishes; this makes it for a run trained before. Every --policy takes it (eval, rollout, "
+                       "export, bench viz; probe and --resume need the checkpoint). Given a policy.pt, prints what "
+                       "it holds and weighs.")
+    p.add_argument("source", metavar="RUN_FOLDER|CHECKPOINT|POLICY",
+                   help="a run folder (its checkpoint.pt, else its policy.pt), a checkpoint.pt, or a policy.pt to "
+                   "describe")
+    p.add_argument("--out", default=None, metavar="FILE.pt|FOLDER",
+                   help="a .pt file to write (its folder created if missing) or an existing folder (default: "
+                   "policy.pt next to the checkpoint)")
+    add_force(p)
+    p.set_defaults(func=_cmd_policy)
+
     p = sub.add_parser("eval", help="evaluate a policy (and reference policies) on training and unseen coalitions",
                        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
                        "scripted heuristic, the best constant action and a random policy, on the coalition sets "
-                       "(U_train, U_test, U_scale) or teams of your own: a table on screen, evaluation_<tier>.json "
+                       "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, evaluation_<tier>.json "
                        "and .csv in --out (default: the checkpoint's run folder).")
     add_policy(p)
     add_task(p)
@@ -399,7 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "advantage the policy loss sees); for QMIX greedy episodes (Q_tot at the start against "
                        "the discounted return, the agents' action gap, the mixer's gain, greedy action shares). "
                        "Both next to the bound max step reward / (1 - gamma). A table and probe.json in --out.")
-    add_policy(p, required=True, references=())
+    add_policy(p, required=True, references=(), policy_files=False)
     p.add_argument("--seed", type=int, default=None,
                    help="environment and sampling seed (default: the run's own, to replay its training rollout)")
     p.add_argument("--envs", type=int, default=None, help="environments (default: the run's num_envs)")
@@ -411,8 +470,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("report", help="Table I, Fig. 4, Fig. 5 and team-size figure from run folders",
                        description="Aggregate run folders (algorithms x tasks x seeds) into the paper's Table I "
                        "(markdown + CSV, next to the paper's values and the env-step budget), the generalization "
-                       "table (progress retention per composition set), aggregates over seeds x coalitions "
-                       "(interquartile mean and stratified-bootstrap intervals, rliable), Fig. 4 (training return "
+                       "table (progress, retention, finished share per composition set; t-intervals over per-seed means; "
+                       "Welch tests of COMAT against each baseline), aggregates.csv (also the hierarchical bootstrap "
+                       "over seeds then coalitions, descriptive), Fig. 4 (training return "
                        "vs env steps), Fig. 5 (train vs unseen) and return/progress vs team size, as PNG and PDF. "
                        "Runs need `comat eval` first.")
     p.add_argument("runs", nargs="+", help="run folders (each with config.yaml, progress.csv, evaluation_<tier>.json)")

@@ -3,15 +3,17 @@
 Shared flags, defined here once so their spelling, choices (in one order) and defaults agree:
 
 ===================  =========================================================================
-``--policy P``       a checkpoint file, a run folder (its ``checkpoint.pt``), or a reference
-                     policy: ``heuristic`` (scripted, reads the task state), ``random``,
-                     ``constant`` (every robot always the task's best single action)
-``--task T``         ``pcp`` or ``hmt``; inferred from a checkpoint (a different ``--task`` is an
-                     error); needed with a reference policy
-``--team TEAM``      one team: ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set)
+``--policy P``       a policy file (``policy.pt``), a checkpoint file, a run folder (its
+                     ``checkpoint.pt``, else its ``policy.pt``), or a reference policy:
+                     ``heuristic`` (scripted, reads the task state), ``random``, ``constant``
+                     (every robot always the task's best single action); ``probe`` needs a
+                     checkpoint
+``--task T``         ``pcp`` or ``hmt``; inferred from a checkpoint or policy file (a different
+                     ``--task`` is an error); needed with a reference policy
+``--team TEAM``      one team: ``SET:K`` (coalition K of a set below, e.g. ``capability:3``)
                      or a JSON/YAML file ``{"robots": [...]}``
-``--teams SET``      a set of teams: ``train``, ``test``, ``scale``, ``both`` (train and test),
-                     ``all``, or a file (a coalition list ``{"coalitions": [...]}`` or one team);
+``--teams SET``      a set of teams: ``train``, ``val``, ``test``, ``scale``, ``size``, ``capability``,
+                     ``both`` (train and test), ``all`` (every set), or a file (a coalition list ``{"coalitions": [...]}`` or one team);
                      default ``both``
 ``--tier T``         ``wheels`` or ``unicycle``; default the checkpoint's training tier, else
                      :data:`REFERENCE_TIER`
@@ -81,15 +83,18 @@ class _Deprecated(argparse.Action):
 
 
 def add_policy(p: argparse.ArgumentParser, *, required: bool = False, references: tuple[str, ...] = REFERENCE_POLICIES,
-               checkpoint_alias: bool = True) -> None:
-    """``--policy`` (default heuristic unless ``required``) and the deprecated ``--checkpoint``.
+               checkpoint_alias: bool = True, policy_files: bool = True) -> None:
+    """``--policy`` (default heuristic unless ``required``) and the deprecated ``--checkpoint``;
+    ``policy_files=False``: a command that needs the checkpoint (probe).
 
     A required ``--policy`` is checked by :func:`resolve_policy_arg`, not argparse, so that the old
     spelling still satisfies it."""
     refs = "|".join(references)
     p.add_argument("--policy", default=None if required else "heuristic",
-                   metavar=f"CHECKPOINT|RUN_FOLDER{'|' + refs if refs else ''}",
-                   help="a checkpoint.pt, a run folder (its checkpoint.pt)"
+                   metavar=f"{'POLICY|' if policy_files else ''}CHECKPOINT|RUN_FOLDER{'|' + refs if refs else ''}",
+                   help=("a policy.pt, a checkpoint.pt, a run folder (its checkpoint.pt, else its policy.pt)"
+                         if policy_files else "a checkpoint.pt or a run folder (its checkpoint.pt; a policy.pt has "
+                         "no value estimates)")
                    + (f", or a reference policy ({', '.join(references)})" if references else "")
                    + (" (required)" if required else " (default: %(default)s)"))
     if checkpoint_alias:
@@ -132,13 +137,17 @@ def add_force(p: argparse.ArgumentParser) -> None:
 
 @dataclass(frozen=True)
 class PolicyArg:
-    """A resolved ``--policy``: a reference policy's name, or a checkpoint with its run's facts."""
+    """A resolved ``--policy``: a reference policy's name, or a trained policy's file with its run's
+    facts. ``checkpoint`` is that file, a ``checkpoint.pt`` or a ``policy.pt`` (``kind`` says which;
+    both load with :func:`comat.rl.runner.load_policy`)."""
 
     name: str
     task: str
     checkpoint: Path | None = None
     algo: str | None = None
     trained_tier: str | None = None
+    kind: str | None = None
+    """"checkpoint" or "policy" (a policy file); None for a reference policy."""
 
     @property
     def tier(self) -> str:
@@ -147,37 +156,47 @@ class PolicyArg:
 
 
 def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[str, ...] = REFERENCE_POLICIES,
-                       algos: tuple[str, ...] = ALGOS) -> PolicyArg:
-    """Check ``--policy`` against ``--task`` (ValueError naming the flag, expected and got)."""
-    from comat.rl.checkpoint import load_checkpoint
+                       algos: tuple[str, ...] = ALGOS, need_checkpoint: str | None = None) -> PolicyArg:
+    """Check ``--policy`` against ``--task`` (ValueError naming the flag, expected and got).
 
+    ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
+    learner's value estimates"); a policy file is then refused with that reason."""
+    from comat.rl.checkpoint import POLICY_FORMAT, load_checkpoint, load_trained
+    from comat.rl.policy import policy_file_of
+
+    what = "a checkpoint.pt or a run folder" if need_checkpoint else "a policy.pt, a checkpoint.pt or a run folder"
     if policy is None:
-        raise ValueError("--policy is required: a checkpoint.pt or a run folder"
+        raise ValueError(f"--policy is required: {what}"
                          + (f", or one of {', '.join(references)}" if references else ""))
     if policy in REFERENCE_POLICIES:
         if policy not in references:
-            raise ValueError("--policy must be a checkpoint or run folder"
-                             + (f" or one of {list(references)}" if references else "") + f" here, got {policy!r}")
+            kinds = "a checkpoint or run folder" if need_checkpoint else "a policy file, checkpoint or run folder"
+            raise ValueError(f"--policy must be {kinds}" + (f" or one of {list(references)}" if references else "")
+                             + f" here, got {policy!r}")
         if task is None:
             raise ValueError(f"--task is needed with --policy {policy} (a reference policy has no task of its own)")
         return PolicyArg(policy, task)
     path = Path(policy)
-    if path.is_dir():
-        if not (path / "checkpoint.pt").is_file():
-            raise ValueError(f"--policy {policy!r} is a folder without a checkpoint.pt (not a run folder, or its "
-                             "run has not saved one yet)")
-        path = path / "checkpoint.pt"
-    elif not path.is_file():
+    if not path.exists():
         refs = f", or one of {', '.join(references)}" if references else ""
-        raise ValueError(f"--policy must be a checkpoint.pt or a run folder{refs}, got {policy!r} (no such file)")
-    data = load_checkpoint(path)  # CheckpointError (a ValueError) names a foreign or corrupt file
+        raise ValueError(f"--policy must be {what}{refs}, got {policy!r} (no such file)")
+    path = policy_file_of(path, need_checkpoint)
+    try:  # CheckpointError (a ValueError) names a foreign or corrupt file
+        data = load_checkpoint(path) if need_checkpoint else load_trained(path)
+    except ValueError as err:
+        if need_checkpoint and "is a comat policy file" in str(err):
+            raise ValueError(f"--policy {policy!r} is a policy file (the weights to act only): {need_checkpoint}; "
+                             "give the run's checkpoint.pt") from err
+        raise
+    kind = "policy" if data["format"] == POLICY_FORMAT else "checkpoint"
+    noun = "policy file" if kind == "policy" else "checkpoint"
     if task is not None and task != data["task"]:
-        raise ValueError(f"--task {task!r} disagrees with the checkpoint, which is for task {data['task']!r} ({path})")
+        raise ValueError(f"--task {task!r} disagrees with the {noun}, which is for task {data['task']!r} ({path})")
     if data["algo"] not in algos:
-        raise ValueError(f"--policy must be a checkpoint of {'/'.join(algos)} here, got a {data['algo']} checkpoint "
-                         f"({path})")
+        raise ValueError(f"--policy must be a checkpoint or policy file of {'/'.join(algos)} here, got a "
+                         f"{data['algo']} {noun} ({path})")
     tier = (data.get("config") or {}).get("tier")
-    return PolicyArg(f"{data['algo']} checkpoint", data["task"], path, data["algo"], tier)
+    return PolicyArg(f"{data['algo']} {kind}", data["task"], path, data["algo"], tier, kind)
 
 
 def _read_team_file(value: str, task: str, flag: str):
@@ -211,7 +230,8 @@ def _team_forms(flag: str) -> str:
 
 
 def parse_team(value: str, task: str, flag: str = "--team"):
-    """A TeamSpec from ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set) or a team file."""
+    """A TeamSpec from ``SET:K`` (coalition K of a set of :data:`comat.team.COALITION_SETS`, e.g.
+    ``capability:3``) or a team file."""
     from comat.envs.base import resolve_coalitions
     from comat.team import TeamSpec
 

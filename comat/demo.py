@@ -95,7 +95,7 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
 def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     from comat.envs import make_vec_env
     from comat.envs.heuristics import heuristic_actions, random_actions
-    from comat.eval.episodes import run_episodes
+    from comat.eval.episodes import run_episodes, summarize
     from comat.team import generate_coalitions
 
     rng = np.random.default_rng(seed)
@@ -114,7 +114,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
                 env = make_vec_env(f"{task}_v0", len(teams), seed=seed, tier=tier, coalitions=teams)
                 t0 = time.perf_counter()
                 res = run_episodes(env, policy(env), teams, seed)
-                mean = {k: float(np.mean([r[k] for r in res])) for k in res[0]}
+                mean = summarize(res)  # the scalar metrics (rows also hold curves and per-robot lists)
                 viol = mean["robotarium_collisions"] + mean["boundary_exits"]
                 ok &= mean["collisions"] == 0 and viol == 0
                 print(

@@ -163,9 +163,18 @@ class _Task:
 class PredatorCapturePrey(_Task):
     """PCP: sensing robots find static prey, capture robots capture the sensed ones.
 
-    State per env: prey positions (B, K, 2), sensed (B, K), captured (B, K). A prey becomes
-    sensed (for good) when a sensing robot is within its sensing radius; a sensed prey is
-    captured when a capture robot is within its capture radius.
+    State per env: prey positions (B, K, 2), sensed (B, K), captured (B, K), active (B, K). A
+    prey becomes sensed (for good) when a sensing robot is within its sensing radius; a sensed
+    prey is captured when a capture robot is within its capture radius.
+
+    Prey per team (:meth:`prey_for`): K(N) = 6 for N <= 8 robots (the paper's 6: every U_train and
+    U_test team), round(1.2 N) above (12 at 10 robots, 24 at 20), so prey per robot do not fall
+    as teams grow; ``n_prey=K`` instead gives every team K prey (before the rule every team had
+    6). Teams of one batch may differ in K: the arrays hold K_max prey slots (the count
+    of the largest team the environment may get, :meth:`fit_teams`), and a slot past a team's K
+    is *inactive*: ``active`` False, sensed and captured from the start, parked outside the arena
+    (:attr:`parked`). Rewards, observations, the scripted policy, ``done`` and ``completion`` see
+    active prey only; :meth:`global_features` keeps all K_max slots (a fixed length).
     """
 
     name = "pcp"
@@ -182,24 +191,75 @@ class PredatorCapturePrey(_Task):
     reward_terms = ("sensed", "captured", "time", "violation")
     reward_weights: ClassVar[dict] = {"sensed": 1.0, "captured": 5.0, "time": -0.05, "violation": -5.0}
 
-    def __init__(self, n_prey: int = 6):
-        if not isinstance(n_prey, (int, np.integer)) or n_prey < 1:
-            raise ValueError(f"n_prey must be a positive integer, got {n_prey!r}")
-        self.n_prey = int(n_prey)
+    base_prey = 6
+    """Prey of every team of up to :attr:`base_team` robots (the paper's 6)."""
+    base_team = 8
+    """The largest team the rule leaves at :attr:`base_prey` prey: U_test's (and the paper's) largest."""
+    prey_per_robot = 1.2
+    """Prey per robot above :attr:`base_team` (1.2 × 5 = the paper's 6 for its 5-robot teams)."""
+    parked = (2.6, 0.0)
+    """Where inactive prey slots sit, m: 1 m outside the arena, where no robot can be."""
+
+    def __init__(self, n_prey: int | None = None):
+        bad = isinstance(n_prey, bool) or not isinstance(n_prey, (int, np.integer)) or n_prey < 1
+        if n_prey is not None and bad:
+            raise ValueError(f"n_prey must be a positive integer (that many prey for every team) or None "
+                             f"(the rule K(N) of PredatorCapturePrey.prey_for), got {n_prey!r}")
+        self.n_prey = None if n_prey is None else int(n_prey)
+        self.largest_team: int | None = None
+
+    @classmethod
+    def prey_for(cls, n_robots: int) -> int:
+        """K(N): prey of a team of ``n_robots`` under the rule (:attr:`base_prey` up to
+        :attr:`base_team` robots, else round(:attr:`prey_per_robot` · N))."""
+        if n_robots <= cls.base_team:
+            return cls.base_prey
+        # 1.2 N in integers: 12 N is even, so 12 N / 10 is never halfway and +5 // 10 rounds it.
+        return (round(10 * cls.prey_per_robot) * int(n_robots) + 5) // 10
+
+    def team_prey(self, n_robots: int) -> int:
+        """Prey of a team of ``n_robots`` in this task: ``n_prey`` if fixed, else :meth:`prey_for`."""
+        return self.n_prey if self.n_prey is not None else self.prey_for(n_robots)
+
+    def fit_teams(self, largest: int) -> None:
+        """Size the prey slots of later :meth:`new_state` calls for teams of up to ``largest`` robots
+        (the environment's largest coalition; without it, the robot slots N of ``new_state``)."""
+        self.largest_team = int(largest)
 
     def step_lengths(self, caps: np.ndarray) -> np.ndarray:
         """Waypoint step (B, N), m: fixed 0.2 m in PCP."""
         return np.full(caps.shape[:-1], self.step_m)
 
     def new_state(self, B: int, N: int) -> dict:
-        K = self.n_prey
-        return {"prey": np.zeros((B, K, 2)), "sensed": np.zeros((B, K), bool), "captured": np.zeros((B, K), bool)}
+        """Task state of B environments with N robot slots: K_max prey slots each."""
+        K = self.team_prey(self.largest_team if self.largest_team is not None else N)
+        return {"prey": np.zeros((B, K, 2)), "sensed": np.zeros((B, K), bool),
+                "captured": np.zeros((B, K), bool), "active": np.ones((B, K), bool)}
+
+    def reserve(self, state: dict, n_robots: int) -> None:
+        """Grow every environment's prey slots, in place in ``state``, to fit a team of
+        ``n_robots`` (a team larger than the environment's largest coalition, passed to a reset);
+        the added slots are inactive. The global state grows with them: a learner that reads it
+        never meets such a team in training (its slots come from its training coalitions)."""
+        k, slots = self.team_prey(n_robots), state["prey"].shape[1]
+        if k <= slots:
+            return
+        B, extra = state["prey"].shape[0], k - slots
+        state["prey"] = np.concatenate([state["prey"], np.broadcast_to(self.parked, (B, extra, 2))], axis=1)
+        for key, value in (("sensed", True), ("captured", True), ("active", False)):
+            state[key] = np.concatenate([state[key], np.full((B, extra), value)], axis=1)
 
     def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
-        """Place env b's prey (its team's capabilities ``caps`` (n, 2) are not needed here)."""
-        state["prey"][b] = _spread(rng, self.n_prey, self.prey_box, self.prey_spacing, "pcp prey area", "prey")
-        state["sensed"][b] = False
-        state["captured"][b] = False
+        """Place env b's prey for its team (capabilities ``caps`` (n, 2): only n is used): K(n)
+        active prey, the remaining slots inactive."""
+        k, slots = self.team_prey(caps.shape[0]), state["prey"].shape[1]
+        assert k <= slots, "reserve() the prey slots before resetting a larger team"
+        inactive = np.arange(slots) >= k
+        state["prey"][b, :k] = _spread(rng, k, self.prey_box, self.prey_spacing, "pcp prey area", "prey")
+        state["prey"][b, k:] = self.parked
+        state["active"][b] = ~inactive
+        state["sensed"][b] = inactive
+        state["captured"][b] = inactive
 
     def _within(self, state: dict, poses: np.ndarray, radius: np.ndarray, mask: np.ndarray) -> np.ndarray:
         """(B, N, K) robot i within radius_i of prey k (and a real robot)."""
@@ -220,12 +280,18 @@ class PredatorCapturePrey(_Task):
         return state["captured"].all(axis=1)
 
     def completion(self, state: dict) -> np.ndarray:
-        """Fraction of prey captured (B,)."""
-        return state["captured"].mean(axis=1)
+        """Fraction of the active prey captured (B,)."""
+        return self._fraction(state["captured"], state)
+
+    @staticmethod
+    def _fraction(flags: np.ndarray, state: dict) -> np.ndarray:
+        """(B,) share of the active prey whose flag (B, K) is set."""
+        return (flags & state["active"]).sum(axis=1) / state["active"].sum(axis=1)
 
     def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         """[seen, dx, dy] to the nearest uncaptured prey inside the robot's own sensing radius
-        (only sensing robots see prey), then the team's fractions of prey sensed and captured."""
+        (only sensing robots see prey), then the team's fractions of its (active) prey sensed and
+        captured. Inactive slots count as captured, so no robot ever sees one."""
         d = state["prey"][:, None, :, :] - poses[:, :, None, :2]  # (B, N, K, 2)
         dist2 = d[..., 0] ** 2 + d[..., 1] ** 2
         visible = (dist2 <= caps[..., 0:1] ** 2) & ~state["captured"][:, None, :] & (type_ids == 0)[..., None]
@@ -234,13 +300,14 @@ class PredatorCapturePrey(_Task):
         seen = np.isfinite(np.take_along_axis(dist2, k[..., None], -1))[..., 0]
         near = np.take_along_axis(d, k[..., None, None], 2)[..., 0, :] * seen[..., None]
         _B, N = mask.shape
-        progress = np.stack([state["sensed"].mean(1), state["captured"].mean(1)], -1)[:, None, :].repeat(N, 1)
+        progress = np.stack([self._fraction(state["sensed"], state), self._fraction(state["captured"], state)],
+                            -1)[:, None, :].repeat(N, 1)
         return np.concatenate([seen[..., None].astype(float), near, progress], axis=-1)
 
     def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Sensing robots: the nearest prey nobody has sensed yet; capture robots: the nearest
         sensed, uncaptured prey; either, when it has none: the nearest uncaptured prey (to be
-        close when it is sensed)."""
+        close when it is sensed). Inactive slots are captured: never a target."""
         B, N = type_ids.shape
         K = state["prey"].shape[1]
         open_prey = ~state["captured"]
@@ -254,7 +321,8 @@ class PredatorCapturePrey(_Task):
         return target, ok
 
     def global_features(self, state: dict) -> np.ndarray:
-        """(B, 4K) prey positions, sensed and captured flags."""
+        """(B, 4 K_max) prey positions, sensed and captured flags of every slot (inactive slots:
+        parked, sensed and captured; K_max = 6 for teams of up to 8 robots, as before the rule)."""
         return np.concatenate(
             [state["prey"].reshape(state["prey"].shape[0], -1), state["sensed"].astype(float), state["captured"].astype(float)],
             axis=-1,
@@ -326,7 +394,8 @@ class MaterialTransport(_Task):
                 loaded[:, i] += take
                 empty &= take <= 0
         load += loaded
-        return {"loaded": loaded.sum(axis=1), "unloaded": unload.sum(axis=1)}
+        # unloaded_by_robot (B, N): who delivered what (per-robot diagnostics; not a reward term)
+        return {"loaded": loaded.sum(axis=1), "unloaded": unload.sum(axis=1), "unloaded_by_robot": unload}
 
     def done(self, state: dict) -> np.ndarray:
         return state["delivered"] >= state["initial"].sum(axis=1) * (1.0 - 1e-12)

@@ -1,20 +1,43 @@
-"""Team compositions: robots with a type and a capability vector, teams, and the paper's sets.
+"""Team compositions: robots with a type and a capability vector, teams, and the composition sets.
 
 A task declares its robot types and capability names (:data:`TASK_TYPES`); a robot is a
 ``RobotSpec(type, capabilities)``; a team is a ``TeamSpec(task, robots)`` with at least one
-robot of each type. The paper's composition sets (§III-D) are generated from a seed by
+robot of each type. The composition sets are generated from a seed by
 :func:`generate_coalitions` — the envs use that function, so the code is the source of these sets —
 and stored as YAML in :data:`COALITIONS_DIR` (inside the package, linked from the checkout as
-``train/coalitions/``; ``comat coalitions`` regenerates them, a test checks they match):
+``train/coalitions/``; ``comat coalitions`` regenerates them, a test checks they match). Each set
+holds 20 coalitions per task and draws from its own random stream, so adding a set changes no
+other set's teams. The sets (:data:`COALITION_SETS`; report names in :data:`SET_LABELS`):
 
-* U_train: 20 coalitions per task, team sizes drawn from {3, 5, 7};
-* U_test: 20 coalitions per task, team sizes drawn from {2, 4, 6, 8};
+* ``train`` (U_train, the paper §III-D): team sizes drawn from {3, 5, 7}, the *training* ranges.
+* ``val`` (U_val): drawn exactly like U_train (sizes {3, 5, 7}, training ranges) from another
+  stream, and no team equal to a U_train team (same robots in any order). The only set model
+  selection or tuning may look at: U_test, U_scale, U_size and U_cap stay unseen.
+* ``test`` (U_test, the paper §III-D): sizes drawn from {2, 4, 6, 8}, the paper's *unseen* ranges
+  (they overlap the training ranges: many of its robots are not novel).
+* ``scale`` (U_scale): sizes drawn from {10, 12, 16, 20}, U_test's ranges: past the 8 slots of the
+  paper's baselines up to the Robotarium's 20 robots. Changes size and capability together.
+* ``size`` (U_size): two teams of each size 2, 4, …, 20 (listed by size), the *training* ranges:
+  team size is the only thing that differs from U_train.
+* ``capability`` (U_cap): sizes drawn from {3, 5, 7} like U_train, and every robot's every
+  capability the task uses lies *outside* its type's training range — below it or above it, each
+  side drawn with probability proportional to its band's width (so uniform over the union of the
+  two bands), inside the physical limits: capability is the only thing that differs from U_train.
+
+Capability ranges (uniform; :data:`CAPABILITY_RANGES`):
+
 * PCP (sensing radius, capture radius), m: train sensing U(0.3, 0.55), capture U(0.35, 0.45);
-  test sensing U(0.2, 0.4), capture U(0.25, 0.4). A sensing robot's capture radius is 0 and a
-  capture robot's sensing radius is 0.
+  test (and scale) sensing U(0.2, 0.4), capture U(0.25, 0.4); capability sensing
+  [0.18, 0.30) ∪ (0.55, 0.75], capture [0.22, 0.35) ∪ (0.45, 0.60]. A sensing robot's capture
+  radius is 0 and a capture robot's sensing radius is 0.
 * HMT (speed = waypoint step per env step, m; payload, units): train fast U(0.19, 0.45) /
-  U(5, 12), slow U(0.10, 0.15) / U(16, 22); test fast U(0.15, 0.35) / U(7, 15), slow
-  U(0.08, 0.18) / U(13, 28).
+  U(5, 12), slow U(0.10, 0.15) / U(16, 22); test (and scale) fast U(0.15, 0.35) / U(7, 15), slow
+  U(0.08, 0.18) / U(13, 28); capability fast [0.12, 0.19) ∪ (0.45, 0.488] / [2, 5) ∪ (12, 16],
+  slow [0.06, 0.10) ∪ (0.15, 0.19] / [10, 16) ∪ (22, 30]. The fast robots' upper speed band
+  ends at the physical limit 0.488 m (0.2 m/s over one 2.44 s step).
+
+Capabilities are rounded to 1e-6 (what the files hold); U_cap's bands stop one such step short of
+the training range, so a rounded value never lands on its edge.
 """
 
 from __future__ import annotations
@@ -34,8 +57,10 @@ __all__ = [
     "CAPABILITY_RANGES",
     "COALITIONS_DIR",
     "COALITION_SETS",
+    "SET_LABELS",
     "SIZES",
     "TASK_TYPES",
+    "Band",
     "RobotSpec",
     "TaskTypes",
     "TeamSpec",
@@ -69,28 +94,72 @@ TASK_TYPES: dict[str, TaskTypes] = {
     "hmt": TaskTypes(("fast", "slow"), ("speed_m", "payload"), ((0.0, 0.488), (0.0, 100.0)), ((0, 1), (0, 1))),
 }
 
-SIZES = {"train": (3, 5, 7), "test": (2, 4, 6, 8), "scale": (10, 12, 16, 20)}
+SIZES = {"train": (3, 5, 7), "val": (3, 5, 7), "test": (2, 4, 6, 8), "scale": (10, 12, 16, 20),
+         "size": tuple(range(2, 21, 2)), "capability": (3, 5, 7)}
 """Team sizes of each composition set. U_scale goes past the 8 slots of the paper's baselines up to the
-Robotarium's 20 robots, with U_test's capability ranges: the sizes where fixed-slot methods stop."""
+Robotarium's 20 robots, with U_test's capability ranges: the sizes where fixed-slot methods stop.
+U_size lists each of its sizes equally often instead of drawing them (see :func:`generate_coalitions`)."""
 
-COALITION_SETS = ("train", "test", "scale")
-"""The named composition sets, in the order commands list them: U_train, U_test, U_scale."""
+COALITION_SETS = ("train", "val", "test", "scale", "size", "capability")
+"""The named composition sets, in the order commands list them (module docstring)."""
 
-CAPABILITY_RANGES: dict[tuple[str, str], dict[str, tuple[tuple[float, float], ...]]] = {
-    ("pcp", "train"): {"sensing": ((0.30, 0.55), (0.0, 0.0)), "capture": ((0.0, 0.0), (0.35, 0.45))},
-    ("pcp", "test"): {"sensing": ((0.20, 0.40), (0.0, 0.0)), "capture": ((0.0, 0.0), (0.25, 0.40))},
-    ("hmt", "train"): {"fast": ((0.19, 0.45), (5.0, 12.0)), "slow": ((0.10, 0.15), (16.0, 22.0))},
-    ("hmt", "test"): {"fast": ((0.15, 0.35), (7.0, 15.0)), "slow": ((0.08, 0.18), (13.0, 28.0))},
+SET_LABELS = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
+              "capability": "U_cap"}
+"""Report and display name of each set."""
+
+Band = tuple[float, float]
+"""Inclusive (low, high) interval of capability values; (0, 0): the capability is not used."""
+
+_GRAIN = 1e-6
+"""Capabilities are rounded to this (what the YAML files hold)."""
+
+
+def _one(lo: float, hi: float) -> tuple[Band, ...]:
+    return ((lo, hi),)
+
+
+_NONE = _one(0.0, 0.0)
+
+
+def _outside(train: tuple[Band, ...], low: float, high: float) -> tuple[Band, ...]:
+    """Bands [low, train low) and (train high, high] around a one-band training range, each
+    ending one rounding step short of it (so a rounded draw is never on the range's edge)."""
+    (lo, hi), = train
+    return ((low, round(lo - _GRAIN, 6)), (round(hi + _GRAIN, 6), high))
+
+
+CAPABILITY_RANGES: dict[tuple[str, str], dict[str, tuple[tuple[Band, ...], ...]]] = {
+    ("pcp", "train"): {"sensing": (_one(0.30, 0.55), _NONE), "capture": (_NONE, _one(0.35, 0.45))},
+    ("pcp", "test"): {"sensing": (_one(0.20, 0.40), _NONE), "capture": (_NONE, _one(0.25, 0.40))},
+    ("hmt", "train"): {"fast": (_one(0.19, 0.45), _one(5.0, 12.0)), "slow": (_one(0.10, 0.15), _one(16.0, 22.0))},
+    ("hmt", "test"): {"fast": (_one(0.15, 0.35), _one(7.0, 15.0)), "slow": (_one(0.08, 0.18), _one(13.0, 28.0))},
 }
-"""(task, split) -> type -> per-capability uniform (low, high) ranges, from the paper §III-D."""
-# U_scale changes only the team sizes: the unseen capability ranges are U_test's.
-CAPABILITY_RANGES[("pcp", "scale")] = CAPABILITY_RANGES[("pcp", "test")]
-CAPABILITY_RANGES[("hmt", "scale")] = CAPABILITY_RANGES[("hmt", "test")]
+"""(task, set) -> type -> per capability, the bands its values are drawn from: uniform over their
+union (a band chosen with probability proportional to its width, then uniform inside it). One
+band for every set but U_cap. Train and test are the paper's §III-D ranges."""
+for _task in ("pcp", "hmt"):
+    # U_val is drawn like U_train; U_size keeps the training ranges; U_scale U_test's unseen ones.
+    CAPABILITY_RANGES[(_task, "val")] = CAPABILITY_RANGES[(_task, "train")]
+    CAPABILITY_RANGES[(_task, "size")] = CAPABILITY_RANGES[(_task, "train")]
+    CAPABILITY_RANGES[(_task, "scale")] = CAPABILITY_RANGES[(_task, "test")]
+_PT, _HT = CAPABILITY_RANGES[("pcp", "train")], CAPABILITY_RANGES[("hmt", "train")]
+# U_cap: below and above the training range on both sides; each band's far end chosen so the
+# set stays physically sensible (radii of 0.18-0.75 m; the fast robots' top speed is the limit).
+CAPABILITY_RANGES[("pcp", "capability")] = {
+    "sensing": (_outside(_PT["sensing"][0], 0.18, 0.75), _NONE),
+    "capture": (_NONE, _outside(_PT["capture"][1], 0.22, 0.60)),
+}
+CAPABILITY_RANGES[("hmt", "capability")] = {
+    "fast": (_outside(_HT["fast"][0], 0.12, 0.488), _outside(_HT["fast"][1], 2.0, 16.0)),
+    "slow": (_outside(_HT["slow"][0], 0.06, 0.19), _outside(_HT["slow"][1], 10.0, 30.0)),
+}
+del _task, _PT, _HT
 
 # Random stream of each set. Fixed numbers, not positions in a sorted list, so that adding a set
 # never changes the teams of another (the first four are the sets' original sorted positions).
 _STREAMS = {("hmt", "test"): 0, ("hmt", "train"): 1, ("pcp", "test"): 2, ("pcp", "train"): 3,
-            ("hmt", "scale"): 4, ("pcp", "scale"): 5}
+            ("hmt", "scale"): 4, ("pcp", "scale"): 5, ("hmt", "val"): 6, ("pcp", "val"): 7,
+            ("hmt", "size"): 8, ("pcp", "size"): 9, ("hmt", "capability"): 10, ("pcp", "capability"): 11}
 
 
 @dataclass(frozen=True)
@@ -182,8 +251,23 @@ class TeamSpec:
         return cls(str(data.get("task", "")), tuple(specs))
 
 
+def _draw(rng: np.random.Generator, bands: tuple[Band, ...]) -> float:
+    """One value uniform over the union of ``bands``, rounded to 1e-6."""
+    if len(bands) == 1:
+        lo, hi = bands[0]
+        # One band: exactly the draw the paper's sets were made with (their files must not change).
+        return round(float(rng.uniform(lo, hi)), 6) if hi > lo else float(lo)
+    widths = np.array([hi - lo for lo, hi in bands])
+    # One uniform draw over the bands laid end to end = a band with probability proportional to
+    # its width, then uniform inside it.
+    u = float(rng.uniform(0.0, widths.sum()))
+    k = min(int(np.searchsorted(np.cumsum(widths), u, side="right")), len(bands) - 1)
+    lo, hi = bands[k]
+    return round(min(lo + (u - float(widths[:k].sum())), hi), 6)
+
+
 def random_team(rng: np.random.Generator, task: str, split: str, size: int) -> TeamSpec:
-    """A team of ``size`` robots drawn like the paper's set (task, split): >= 1 robot per type."""
+    """A team of ``size`` robots drawn like the set (task, split): >= 1 robot per type."""
     tt = TASK_TYPES[task]
     ranges = CAPABILITY_RANGES[(task, split)]
     # At least one robot of each type, the rest uniformly typed; shuffled robot order.
@@ -192,19 +276,43 @@ def random_team(rng: np.random.Generator, task: str, split: str, size: int) -> T
     robots = []
     for t in types:
         # Rounded to 1e-6 (what the YAML files hold), so files and generator agree exactly.
-        caps = tuple(round(float(rng.uniform(lo, hi)), 6) if hi > lo else float(lo) for lo, hi in ranges[t])
-        robots.append(RobotSpec(t, caps))
+        robots.append(RobotSpec(t, tuple(_draw(rng, bands) for bands in ranges[t])))
     return TeamSpec(task, tuple(robots))
 
 
+def _robots_key(team: TeamSpec) -> tuple:
+    """The team as a multiset of robots: equal for the same robots in any order."""
+    return tuple(sorted((r.type, r.capabilities) for r in team.robots))
+
+
 def generate_coalitions(task: str, split: str, count: int = 20, seed: int = 0) -> list[TeamSpec]:
-    """``count`` coalitions of the paper's set (task, split), reproducible from ``seed``."""
+    """``count`` coalitions of the set (task, split), reproducible from ``seed`` (module docstring).
+
+    Sizes are drawn from ``SIZES[split]``, except for ``size``, which cycles through its sizes
+    (two teams of each of 2, 4, …, 20 for 20 coalitions) and lists the teams by size. ``val``
+    redraws any team equal to one of the U_train set of the same seed and count.
+    """
     if (task, split) not in CAPABILITY_RANGES:
         raise ValueError(f"(task, split) must be one of {sorted(CAPABILITY_RANGES)}, got {(task, split)!r}")
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+        raise ValueError(f"count must be a positive integer, got {count!r}")
     # One stream per (task, split), derived from the seed, so the sets do not depend on each other.
     rng = np.random.default_rng([seed, _STREAMS[(task, split)]])
-    sizes = rng.choice(SIZES[split], size=count)
-    return [random_team(rng, task, split, int(n)) for n in sizes]
+    if split == "size":
+        sizes = sorted(SIZES[split][i % len(SIZES[split])] for i in range(count))
+    else:
+        sizes = rng.choice(SIZES[split], size=count)
+    if split != "val":
+        return [random_team(rng, task, split, int(n)) for n in sizes]
+    seen = {_robots_key(t) for t in generate_coalitions(task, "train", count, seed)}
+    teams = []
+    for n in sizes:
+        team = random_team(rng, task, split, int(n))
+        while _robots_key(team) in seen:  # continuous capabilities: practically never
+            team = random_team(rng, task, split, int(n))
+        seen.add(_robots_key(team))
+        teams.append(team)
+    return teams
 
 
 def save_coalitions(teams: Sequence[TeamSpec], path: str | Path, header: str = "") -> None:

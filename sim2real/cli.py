@@ -1,8 +1,8 @@
 """``comat export``: write a Robotarium submission folder, or check one under rps vs MuJoCo.
 
 =========================================  ==================================================
-``comat export --policy CKPT|RUN|heuristic  export_submission: a COMAT checkpoint or run folder
-  --team TEAM --out DIR [--seed S]``       (or the scripted policy; the task is the checkpoint's),
+``comat export --policy CKPT|RUN|heuristic  export_submission: a COMAT checkpoint, policy.pt or run
+  --team TEAM --out DIR [--seed S]``       folder (or the scripted policy; the task is the policy's),
                                            team (``train:K``/``test:K``/``scale:K``, the K-th
                                            coalition of that set, or a JSON/YAML team file)
 ``comat export --check DIR… [--tier W]     check_submission: runs DIR/main.py under the installed
@@ -125,9 +125,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
 def add_export_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``export`` command to ``subparsers`` (of ``comat``'s parser)."""
     p = subparsers.add_parser("export", help="write a Robotarium submission folder, or check one under rps",
-                              description="Export a COMAT checkpoint (or the scripted policy) as a flat Robotarium "
-                              "submission (main.py, runtime.py, task_logic.py, submission_config.py, weights.npy), "
-                              "or --check an exported folder: run it under rps and in MuJoCo and compare.")
+                              description="Export a COMAT checkpoint or policy.pt (or the scripted policy) as a flat "
+                              "Robotarium submission (main.py, runtime.py, task_logic.py, submission_config.py, "
+                              "weights.npy), or --check an exported folder: run it under rps and in MuJoCo and compare.")
     from comat.cli_args import TIERS, add_policy, add_seed, add_task, add_team
 
     add_policy(p, required=True, references=("heuristic",))  # no default: an export names what it ships

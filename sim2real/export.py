@@ -12,10 +12,11 @@ Folder (flat)          ``main.py`` (``sim2real/templates/main.py``, verbatim), `
 File types             ``.py`` and ``.npy`` only (the Robotarium accepts .m .jpg .jpeg .png .gif
                        .tiff .bmp .py .mat .npy .mexa64 and no folders; JSON is not accepted,
                        hence the config as a Python literal)
-Policy                 a COMAT checkpoint (``checkpoint.pt`` of ``comat train --algo comat``), a
-                       ``comat.models.comat.Comat`` module, or ``"heuristic"``: the scripted
-                       reference policy of ``task_logic`` (it reads the task state, which the
-                       script keeps anyway; for checking a deployment end to end); other
+Policy                 a COMAT checkpoint or policy file (``checkpoint.pt`` / ``policy.pt`` of
+                       ``comat train --algo comat``), a ``comat.models.comat.Comat`` module,
+                       or ``"heuristic"``: the scripted reference policy of ``task_logic`` (it
+                       reads the task state, which the script keeps anyway; for checking a
+                       deployment end to end); other
                        algorithms raise ValueError
 Start poses            (3, N) float, default: the MuJoCo env's own spawn (and PCP prey) for
                        ``seed``; must be >= WALL_MARGIN_M inside the arena, >= MIN_SPACING_M apart
@@ -97,22 +98,20 @@ MAX_EPISODE_S = 600.0
 
 # -- inputs ----------------------------------------------------------------------------------------
 def _comat_model(checkpoint_or_policy, task: str):
-    """The torch Comat module of a checkpoint path or of a Comat instance."""
+    """The torch Comat module of a checkpoint or policy file (``policy.pt``) path or of a Comat instance."""
     if isinstance(checkpoint_or_policy, (str, Path)):
-        from comat.rl.algos import Dims, build_modules
-        from comat.rl.checkpoint import load_checkpoint
-        from comat.rl.config import RunConfig
+        from comat.rl.checkpoint import POLICY_FORMAT, load_trained
+        from comat.rl.policy import policy_modules
 
-        data = load_checkpoint(checkpoint_or_policy)
+        data = load_trained(checkpoint_or_policy)
+        noun = "policy file" if data["format"] == POLICY_FORMAT else "checkpoint"
         if data["algo"] != "comat":
-            raise ValueError(f"export supports COMAT checkpoints (and the scripted 'heuristic') only: "
-                             f"{str(checkpoint_or_policy)!r} is a {data['algo']!r} checkpoint (expected algo 'comat')")
+            raise ValueError(f"export supports COMAT checkpoints and policy files (and the scripted 'heuristic') only: "
+                             f"{str(checkpoint_or_policy)!r} is a {data['algo']!r} {noun} (expected algo 'comat')")
         if data["task"] != task:
-            raise ValueError(f"checkpoint {str(checkpoint_or_policy)!r} is for task {data['task']!r}, expected {task!r}")
-        config = RunConfig.from_dict(data["config"])
-        modules = build_modules("comat", Dims(**data["progress"]["dims"]), config.model)
-        modules["policy"].load_state_dict(data["trainer"]["policy"])
-        return modules["policy"].eval()
+            raise ValueError(f"{noun} {str(checkpoint_or_policy)!r} is for task {data['task']!r}, expected {task!r}")
+        modules, _config = policy_modules(data, checkpoint_or_policy)
+        return modules["policy"]
     from comat.models.comat import Comat
 
     if isinstance(checkpoint_or_policy, Comat):
@@ -224,7 +223,7 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
 
     Args:
-        checkpoint_or_policy: COMAT checkpoint path, a ``Comat`` model, or ``"heuristic"`` (the
+        checkpoint_or_policy: COMAT checkpoint or policy file path, a ``Comat`` model, or ``"heuristic"`` (the
             scripted policy).
         task: "pcp" or "hmt".
         team: TeamSpec or ``{"robots": [...]}``, 1..20 robots.

@@ -12,7 +12,7 @@ def test_every_command_has_help(capsys):
     for argv in (["--help"], ["mjcf", "--help"], ["demo", "--help"], ["bench", "sim", "--help"], ["bench", "fidelity", "--help"],
                  ["bench", "soak", "--help"], ["bench", "env", "--help"], ["bench", "learn", "--help"], ["bench", "viz", "--help"], ["train", "--help"],
                  ["eval", "--help"], ["report", "--help"], ["sweep", "--help"], ["rollout", "--help"], ["export", "--help"],
-                 ["coalitions", "--help"]):
+                 ["coalitions", "--help"], ["policy", "--help"]):
         with pytest.raises(SystemExit) as exc:
             parser.parse_args(argv)
         assert exc.value.code == 0

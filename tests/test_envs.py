@@ -112,11 +112,13 @@ def test_reset_with_an_explicit_team_and_observation_layout():
     assert env.state().shape == env.state_space.shape
 
 
-@pytest.mark.parametrize("task", ["pcp", "hmt"])
-def test_global_state_is_order_one_for_the_largest_teams(task):
+@pytest.mark.parametrize("task,split,slots", [("pcp", "test", 8), ("hmt", "test", 8), ("pcp", "scale", 20)])
+def test_global_state_is_order_one_for_the_largest_teams(task, split, slots):
     # Centralized critics and QMIX's mixer take the state as it is: no entry may carry raw
-    # amounts (HMT's material reached ~155 before it was scaled, and MAPPO's critic diverged).
-    env = comat.make_vec_env(f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=8, coalitions="test")
+    # amounts (HMT's material reached ~155 before it was scaled, and MAPPO's critic diverged);
+    # PCP's parked prey slots (x = 2.6 m) included.
+    env = comat.make_vec_env(f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=slots, state_robots=slots,
+                             coalitions=split)
     _, info = env.reset()
     rng = np.random.default_rng(0)
     for _ in range(5):
@@ -146,11 +148,13 @@ def test_graph_inputs_any_size():
     [
         ({"colour": "red"}, r"unknown option\(s\) \['colour'\] for pcp_v0; valid options:"),
         ({"tier": "legs"}, r"SimConfig.tier must be one of"),
-        ({"coalitions": "validation"}, r"coalitions must be 'train', 'test', 'scale', a YAML path or a non-empty list"),
+        ({"coalitions": "validation"}, (r"coalitions must be one of 'train', 'val', 'test', 'scale', 'size', 'capability', "
+                                        r"a YAML path or a non-empty list")),
         ({"team": {"robots": []}}, r"needs at least one robot of each type"),
         ({"team": {"robots": [{"type": "sensing", "capabilities": [0.4, 0.0]}]}}, r"missing \['capture'\]"),
         ({"team": {"robots": [{"type": "sensing", "capabilities": [2.0, 0.0]}, {"type": "capture", "capabilities": [0.0, 0.3]}]}}, r"sensing_radius_m must be in \[0.0, 1.0\]"),
-        ({"n_prey": 0}, r"n_prey must be a positive integer, got 0"),
+        ({"n_prey": 0}, r"n_prey must be a positive integer \(that many prey for every team\) or None .*, got 0"),
+        ({"n_prey": True}, r"n_prey must be a positive integer .*, got True"),
     ],
 )
 def test_bad_constructor_options(kwargs, match):

@@ -282,7 +282,7 @@ def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tm
     assert err[0] == "comat: --checkpoint is deprecated and will be removed; use --policy x.pt"
     assert "got 'x.pt' (no such file)" in err[1] and not (tmp_path / "new").exists()
     assert main(["export", "--policy", "random", "--team", "test:3", "--task", "pcp", "--out", str(tmp_path / "z")]) == 2
-    assert "--policy must be a checkpoint or run folder or one of ['heuristic'] here, got 'random'" in \
+    assert "--policy must be a policy file, checkpoint or run folder or one of ['heuristic'] here, got 'random'" in \
         capsys.readouterr().err
 
 

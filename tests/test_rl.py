@@ -372,6 +372,7 @@ def test_a_run_stopped_before_its_first_checkpoint_can_be_resumed_or_restarted(t
         run = tmp_path / how
         train(tiny("comat"), run, quiet=True)
         (run / "checkpoint.pt").unlink()
+        (run / "policy.pt").unlink()  # written when a run finishes: a run killed this early has none
         (run / ".checkpoint.pt.abc123.tmp").write_bytes(b"")
         if how == "resume":
             assert main(["train", "--resume", "--out", str(run), "--quiet"]) == 0
@@ -380,6 +381,9 @@ def test_a_run_stopped_before_its_first_checkpoint_can_be_resumed_or_restarted(t
         assert not list(run.glob(".*.tmp"))
         assert_same(load_checkpoint(straight / "checkpoint.pt")["trainer"], load_checkpoint(run / "checkpoint.pt")["trainer"])
     (tmp_path / "restart" / "checkpoint.pt").unlink()
+    with pytest.raises(FileExistsError, match="but no checkpoint.pt: it is not trained into again"):
+        train(tiny("comat", steps=24), tmp_path / "restart", quiet=True)  # a finished run's policy.pt is kept
+    (tmp_path / "restart" / "policy.pt").unlink()
     with pytest.raises(FileExistsError, match="stopped before its first checkpoint"):
         train(tiny("comat", steps=24), tmp_path / "restart", quiet=True)
 

@@ -13,7 +13,7 @@ from comat.team import CAPABILITY_RANGES, COALITION_SETS, SIZES, generate_coalit
 @pytest.mark.parametrize("task", ["pcp", "hmt"])
 def test_scale_set_has_teams_past_eight_slots_with_the_unseen_ranges(task):
     teams = resolve_coalitions("scale", task)
-    assert COALITION_SETS == ("train", "test", "scale") and len(teams) == 20
+    assert COALITION_SETS[:4] == ("train", "val", "test", "scale") and len(teams) == 20
     assert {t.size for t in teams} == set(SIZES["scale"]) == {10, 12, 16, 20}
     assert CAPABILITY_RANGES[(task, "scale")] == CAPABILITY_RANGES[(task, "test")]
     # Adding the set changed neither of the others (each set has its own random stream).

@@ -21,6 +21,7 @@ def _run(env, steps: int, seed: int = 0) -> dict:
             out[key].append(value)
         if "_episode" in info:
             out["final"].append((info["_episode"], info["episode"]["completion"], info["final_obs"], info["final_state"]))
+            out.setdefault("record", []).append((info["episode_curve"], info["episode_robots"], info["episode_end"]))
     return out
 
 
@@ -50,6 +51,42 @@ def test_same_teams_and_episodes_as_one_process(runs):
         np.testing.assert_array_equal(ea, eb)
         np.testing.assert_allclose(oa[ea], ob[eb], atol=2e-3)
         np.testing.assert_allclose(sa[ea], sb[eb], atol=2e-3)
+
+
+def test_episode_record_crosses_the_worker_processes(runs):
+    """The finished episodes' progress curves and per-robot counts come back from the workers in
+    environment order, as one process records them."""
+    a, b = runs[0], runs[1]
+    assert len(a["record"]) == len(b["record"]) > 0
+    for (ea, *_), (ca, ra, enda), (cb, rb, endb) in zip(a["final"], a["record"], b["record"]):
+        assert ca.shape == cb.shape == (5, 80) and set(ra) == set(rb) and set(enda) == set(endb)
+        np.testing.assert_array_equal(ca[ea], cb[ea])
+        for name in ra:
+            np.testing.assert_array_equal(ra[name][ea], rb[name][ea])
+        for name in enda:
+            np.testing.assert_array_equal(enda[name][ea], endb[name][ea])
+
+
+def test_merged_record_of_a_worker_without_finished_episodes_is_zeros():
+    from comat.envs.sharded import _merge_infos
+
+    done_env = make_vec_env("pcp_v0", 2, seed=0, ticks_per_step=2, tier="unicycle", max_robots=8)
+    busy_env = make_vec_env("pcp_v0", 3, seed=1, ticks_per_step=2, tier="unicycle", max_robots=8)
+    team_mask = done_env.reset()[1]["agent_mask"]
+    busy_env.reset()
+    for _ in range(80):
+        obs_a, *_, info_a = done_env.step(np.zeros((2, 8), int))
+    obs_b, *_, info_b = busy_env.step(np.zeros((3, 8), int))
+    assert "_episode" in info_a and "_episode" not in info_b
+    merged = _merge_infos([info_b, info_a], [obs_b, obs_a], done_env.state_size())
+    assert merged["episode_curve"].shape == (5, 80) and not merged["episode_curve"][:3].any()
+    np.testing.assert_array_equal(merged["episode_curve"][3:], info_a["episode_curve"])
+    for name, v in info_a["episode_robots"].items():
+        assert merged["episode_robots"][name].shape == (5, 8) and not merged["episode_robots"][name][:3].any()
+        np.testing.assert_array_equal(merged["episode_robots"][name][3:], v)
+    np.testing.assert_array_equal(merged["episode_robots"]["still_idle"][3:], 80 * team_mask)  # all stayed
+    np.testing.assert_array_equal(merged["episode_end"]["sensed_not_captured"][3:],
+                                  info_a["episode_end"]["sensed_not_captured"])
 
 
 def test_sharded_is_deterministic():

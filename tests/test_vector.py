@@ -57,9 +57,17 @@ def test_autoreset_same_step():
     assert trunc.all() and info["_episode"].all()
     assert (info["episode"]["steps"] == 80).all()
     assert "final_obs" in info and info["final_obs"].shape == obs.shape
-    # The returned observation already belongs to the next episode.
+    # the finished episode's record: progress after each of its 80 steps, per-robot counts, end counts
+    assert info["episode_curve"].shape == (2, 80)
+    np.testing.assert_array_equal(info["episode_curve"][:, -1], info["episode"]["completion"])
+    assert set(info["episode_robots"]) == {"still_held", "still_idle", "sensed", "captured"}
+    held_or_idle = info["episode_robots"]["still_held"] + info["episode_robots"]["still_idle"]
+    assert held_or_idle.shape == (2, env.max_robots) and (held_or_idle <= 80).all() and held_or_idle.sum() > 0
+    assert info["episode_end"]["sensed_not_captured"].shape == (2,)
+    # The returned observation already belongs to the next episode, and so does the record.
     _obs2, *_ = env.step(random_actions(rng, env.agent_mask))
     assert (env.core.steps == 1).all()
+    assert not env.core.record.curve[:, 1:].any() and (env.core.record.robots["still_held"] <= 1).all()
 
 
 def test_bad_vector_actions():

@@ -41,35 +41,46 @@ def resolve_team(value: Any, task: str, name: str = "team") -> TeamSpec:
     return team
 
 
+_SET_NAMES = ", ".join(repr(s) for s in COALITION_SETS)
+
+
 def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
-    """The coalition set: "train", "test" or "scale" (:data:`comat.team.COALITION_SETS`), a YAML path,
-    or a list of teams."""
+    """The coalition set: a set name (:data:`comat.team.COALITION_SETS`: train, val, test, scale,
+    size, capability), a YAML path, or a list of teams."""
     if isinstance(value, str) and value in COALITION_SETS:
         return generate_coalitions(task, value, seed=COALITION_SEED)
     if isinstance(value, (str, Path)):
         if not Path(value).is_file():
             raise ValueError(
-                f"coalitions must be 'train', 'test', 'scale', a YAML path or a non-empty list of teams, got {str(value)!r} "
+                f"coalitions must be one of {_SET_NAMES}, a YAML path or a non-empty list of teams, got {str(value)!r} "
                 "(no such file)"
             )
         teams = load_coalitions(value)
     elif isinstance(value, Sequence) and len(value) > 0:
         teams = [resolve_team(t, task, f"coalitions[{i}]") for i, t in enumerate(value)]
     else:
-        raise ValueError(f"coalitions must be 'train', 'test', 'scale', a YAML path or a non-empty list of teams, got {value!r}")
+        raise ValueError(f"coalitions must be one of {_SET_NAMES}, a YAML path or a non-empty list of teams, got {value!r}")
     for i, t in enumerate(teams):
         if t.task != task:
             raise ValueError(f"coalitions[{i}] is a {t.task!r} team, but this environment runs {task!r}")
     return teams
 
 
-def team_source(task: str, coalitions: Any, team: Any, max_robots: Any) -> tuple[list[TeamSpec], TeamSpec | None, int]:
-    """Checked coalition set, fixed team (or None) and number of robot slots for ``task``."""
-    teams = resolve_coalitions(coalitions, task)
-    fixed = None if team is None else resolve_team(team, task)
+def team_source(task: Any, coalitions: Any, team: Any, max_robots: Any) -> tuple[list[TeamSpec], TeamSpec | None, int]:
+    """Checked coalition set, fixed team (or None) and number of robot slots for ``task``.
+
+    ``task``: the task's name, or the task-logic instance, whose per-env arrays are then sized for
+    the largest team it may get here (``fit_teams``: PCP's prey slots come from the largest
+    coalition, not from ``max_robots``, so a 20-slot baseline on U_train keeps 6 prey slots).
+    """
+    name = task if isinstance(task, str) else task.name
+    teams = resolve_coalitions(coalitions, name)
+    fixed = None if team is None else resolve_team(team, name)
     largest = max([t.size for t in teams] + ([fixed.size] if fixed else []))
     if max_robots is not None and (isinstance(max_robots, bool) or not isinstance(max_robots, int) or max_robots < largest):
         raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
+    if not isinstance(task, str) and hasattr(task, "fit_teams"):
+        task.fit_teams(largest)
     return teams, fixed, max_robots or largest
 
 
@@ -94,8 +105,9 @@ class TaskEnv(ParallelEnv):
     """A Robotarium task as a PettingZoo parallel environment (subclasses set ``task_cls``).
 
     Keyword arguments (all optional):
-        coalitions: "train" (default) or "test" — the paper's sets — a YAML file, or a list of
-            teams; each reset draws one uniformly.
+        coalitions: a composition set (:data:`comat.team.COALITION_SETS`: "train" (default),
+            "val", "test", "scale", "size", "capability"), a YAML file, or a list of teams; each
+            reset draws one uniformly.
         team: a fixed team (TeamSpec or dict) used at every reset instead.
         tier: "wheels" (default) or "unicycle"; or ``sim`` for a full SimConfig.
         safety: SafetyConfig of the barrier filter.
@@ -104,7 +116,9 @@ class TaskEnv(ParallelEnv):
         state_robots: robots covered by ``state()`` (default 8).
         render_mode: None (default) or "rgb_array": ``render()`` then returns the arena drawn
             top-down, an (H, W, 3) uint8 frame (:mod:`comat.viz.frames`; matplotlib, headless).
-        task options: see each task (e.g. PCP ``n_prey``).
+        task options: see each task (e.g. PCP ``n_prey``: a fixed prey count instead of the
+            rule K(N)). A reset's team (``options={"team": ...}``) must not need more task slots
+            than the largest team of the set or fixed team (PCP: prey), else ValueError.
     """
 
     metadata: ClassVar[dict] = {"name": "", "render_modes": ["rgb_array"], "is_parallelizable": True}
@@ -128,7 +142,7 @@ class TaskEnv(ParallelEnv):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
         self.task = self.task_cls(**task_options)
-        self.coalitions, self.fixed_team, slots = team_source(self.task.name, coalitions, team, max_robots)
+        self.coalitions, self.fixed_team, slots = team_source(self.task, coalitions, team, max_robots)
         sim = sim or SimConfig(tier=tier)
         self.core = TaskCore(self.task, 1, slots, sim, safety, ticks_per_step, state_robots)
         self.possible_agents = [f"robot_{i}" for i in range(self.core.N)]
@@ -173,6 +187,8 @@ class TaskEnv(ParallelEnv):
         if self._frames is not None:
             self._frames.close()  # its tick tap follows the old team's rows
         self.core.reset([0], [team], [self._np_random])
+        if self.state_space.shape[0] != self.core.state_size():  # PCP grew its prey slots for this team
+            self.state_space = spaces.Box(-np.inf, np.inf, (self.core.state_size(),), np.float64)
         if self._frames is not None:
             self._frames.begin(self.core, 0)
         self.agents = self.possible_agents[: team.size]

@@ -4,7 +4,8 @@ Per env step and environment: each robot's discrete action sets a waypoint for i
 point (:func:`comat.task_logic.waypoint_goals`); then ``ticks_per_step`` control ticks of
 waypoint controller → safety filter → physics run for all B teams at once
 (:class:`comat.control.SafeTeams`: one physics call per team size and one QP per tick); then
-the task logic (:mod:`comat.task_logic`) updates its state and the named reward terms.
+the task logic (:mod:`comat.task_logic`) updates its state and the named reward terms, and
+the episode record (:mod:`comat.envs.diagnostics`: progress curve, per-robot counts) one step.
 
 Robots are padded to ``N`` slots per environment (``mask`` (B, N)); physics arrays are flat
 (R, ·) in team order, and ``_flat`` maps slots to rows. Team sizes change between episodes.
@@ -20,6 +21,7 @@ import numpy as np
 from comat import kernels
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, waypoint_controller
+from comat.envs.diagnostics import EpisodeRecorder
 from comat.task_logic import waypoint_goals
 from comat.team import TeamSpec
 
@@ -109,6 +111,7 @@ class TaskCore:
         self.teams: list[TeamSpec | None] = [None] * self.B
         self.steps = np.zeros(self.B, dtype=np.int64)
         self.stats = _Stats(self.B)
+        self.record = EpisodeRecorder(task, self.B, self.N)
         self.safe: SafeTeams | None = None
         self._flat = np.zeros((self.B, self.N), dtype=np.int64)
 
@@ -138,6 +141,8 @@ class TaskCore:
         """Start new episodes in ``envs`` with the given teams and random generators."""
         envs = np.asarray(envs, dtype=np.int64)
         starts = {}
+        if hasattr(self.task, "reserve") and len(teams):  # PCP: prey slots for the largest team here
+            self.task.reserve(self.state, max(t.size for t in teams))
         for b, team, rng in zip(envs, teams, rngs):
             n = team.size
             if n > self.N:
@@ -159,6 +164,7 @@ class TaskCore:
             self.safe.forget_solver_state()
         self.steps[envs] = 0
         self.stats.zero(envs)
+        self.record.zero(envs)
         self._last_contact = np.zeros(self.safe.world.layout.n_robots, dtype=bool)
 
     def step(self, actions: np.ndarray) -> StepResult:
@@ -166,8 +172,10 @@ class TaskCore:
         task, safe = self.task, self.safe
         lay = safe.world.layout
         flat_actions = actions[self.mask]
-        steps = task.step_lengths(self.caps)[self.mask]
-        goals = waypoint_goals(safe.points, flat_actions, steps)
+        step_len = task.step_lengths(self.caps)  # (B, N)
+        steps = step_len[self.mask]
+        points = safe.points
+        goals = waypoint_goals(points, flat_actions, steps)
         starts = lay.offsets[:-1]
         d = self.safety_config.projection_distance_m
         violations = np.zeros(self.B)
@@ -180,6 +188,7 @@ class TaskCore:
             last = events.robot_contact
         self._last_contact = last
         poses = self.poses()
+        before = self.record.before(self.state)
         raw = task.update(self.state, poses, self.type_ids, self.caps, self.mask)
         raw["time"] = np.ones(self.B)
         raw["violation"] = (violations > 0).astype(float)
@@ -194,6 +203,9 @@ class TaskCore:
         s["steps"] = self.steps.astype(float)
         s["completion"] = task.completion(self.state)
         s["success"] = terminated.astype(float)
+        moved = self.padded(np.hypot(*(safe.points - points).T))
+        self.record.add(before, raw, self.state, actions, moved, step_len, poses, self.type_ids, self.caps, self.mask,
+                        self.steps, s["completion"])
         return StepResult(rewards, terms, terminated, truncated)
 
     def _count_tick(self, starts: np.ndarray, events, info, last: np.ndarray, violations: np.ndarray) -> None:
@@ -232,6 +244,15 @@ class TaskCore:
         moved it back toward it).
         """
         return {name: float(v[b]) for name, v in self.stats.values.items()}
+
+    def episode_detail(self) -> dict:
+        """Copies of every environment's current episode record (:mod:`comat.envs.diagnostics`),
+        keyed as the vector env's ``info``: ``episode_curve`` (B, H) progress after each env step
+        (valid for the episode's ``steps`` entries), ``episode_robots`` name -> (B, N) per-robot
+        counts, ``episode_end`` name -> (B,) episode-level counts."""
+        rec = self.record
+        return {"episode_curve": rec.curve.copy(), "episode_robots": {k: v.copy() for k, v in rec.robots.items()},
+                "episode_end": rec.end(self.state)}
 
     # -- observations -------------------------------------------------------------------------------
     def observe(self) -> np.ndarray:

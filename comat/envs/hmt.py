@@ -30,6 +30,23 @@ Observation layout (per robot, fixed length whatever the team size):
 | 13 | x-offset (m) to zone 2's edge (x = 1.0) |
 | 14 | x-offset (m) to the drop-off's edge (x = −1.0) |
 
+Composition sets (``coalitions=``; :mod:`comat.team`), 20 teams each, at least one robot of each type
+(speed m per step / payload units):
+
+* ``train`` (U_train): 3, 5 or 7 robots; fast U(0.19, 0.45) / U(5, 12), slow U(0.10, 0.15) / U(16, 22).
+* ``val`` (U_val): drawn like U_train from another stream, no team equal to a U_train team; the
+  only set model selection may look at.
+* ``test`` (U_test, the paper's): 2, 4, 6 or 8 robots; fast U(0.15, 0.35) / U(7, 15), slow
+  U(0.08, 0.18) / U(13, 28).
+* ``scale`` (U_scale): 10, 12, 16 or 20 robots with U_test's capabilities.
+* ``size`` (U_size): two teams of each size 2, 4, …, 20, U_train's capabilities: only the size
+  differs from U_train (the material follows the team's payload, so a larger team moves more).
+* ``capability`` (U_cap): 3, 5 or 7 robots like U_train, every speed and payload outside its
+  type's U_train range, below or above (a side with probability proportional to its width): fast
+  [0.12, 0.19) ∪ (0.45, 0.488] / [2, 5) ∪ (12, 16], slow [0.06, 0.10) ∪ (0.15, 0.19] /
+  [10, 16) ∪ (22, 30] (0.488 m is the physical limit). Slow fast robots, fast slow ones, light
+  and heavy loads the policy has not met.
+
 Rules, after every step: a loaded robot whose centre is in the drop-off unloads everything; an
 empty robot in a zone with material left loads min(payload, left) — zone 2 first, robots in
 order.

@@ -268,6 +268,13 @@ def _merge_infos(infos: list[dict], obs: list[np.ndarray], state_size: int) -> d
     merged["episode"] = {name: np.concatenate([i["episode"][name] if "_episode" in i else np.zeros(n)
                                                for i, n in zip(infos, sizes)]) for name in EPISODE_METRICS}
     merged["final_obs"] = np.concatenate([i.get("final_obs", o) for i, o in zip(infos, obs)])
+    # the episode record: zeros for workers with no finished episode, shaped like a finisher's
+    ref = next(i for i in infos if "_episode" in i)
+    merged["episode_curve"] = np.concatenate([i["episode_curve"] if "_episode" in i else
+                                              np.zeros((n, *ref["episode_curve"].shape[1:])) for i, n in zip(infos, sizes)])
+    for key in ("episode_robots", "episode_end"):
+        merged[key] = {name: np.concatenate([i[key][name] if "_episode" in i else np.zeros((n, *v.shape[1:]))
+                                             for i, n in zip(infos, sizes)]) for name, v in ref[key].items()}
     if all("final_state" in i for i in infos if "_episode" in i):
         merged["final_state"] = np.concatenate([i.get("final_state", np.zeros((n, state_size)))
                                                 for i, n in zip(infos, sizes)])

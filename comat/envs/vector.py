@@ -7,8 +7,10 @@ N = the largest team the environment may get, with ``agent_mask`` (B, N) marking
 Autoreset is *same-step*: when an environment's episode ends, the step that ends it already
 returns the first observation of its next episode (new team, new start); the finished
 episode's last observation is in ``info["final_obs"]`` (its global state in
-``info["final_state"]`` when every team fits the state's ``state_robots`` slots) and its metrics in ``info["episode"]``, all valid where
-``info["_episode"]`` is True.
+``info["final_state"]`` when every team fits the state's ``state_robots`` slots), its metrics in
+``info["episode"]`` and its record (:meth:`comat.envs.core.TaskCore.episode_detail`: progress
+curve ``episode_curve``, per-robot counts ``episode_robots``, end counts ``episode_end``), all
+valid where ``info["_episode"]`` is True.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class VectorEnv:
         if not (0 <= first and first + num_envs <= total):
             raise ValueError(f"shard must be (first, total) with 0 <= first and first + num_envs <= total, got {shard!r}")
         self._shard = (first, total)
-        self.coalitions, self.fixed_team, slots = team_source(task.name, coalitions, team, max_robots)
+        self.coalitions, self.fixed_team, slots = team_source(task, coalitions, team, max_robots)
         self.core = TaskCore(task, num_envs, slots, sim or SimConfig(tier=tier), safety, ticks_per_step, state_robots)
         self.max_robots = self.core.N
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (task.obs_size(),), np.float64)
@@ -122,8 +124,8 @@ class VectorEnv:
 
         Returns obs (B, N, D), rewards (B,), terminated (B,), truncated (B,) and info with
         ``agent_mask``, ``reward/<term>`` (B,), and for finished episodes ``episode``
-        (metric -> (B,)), ``final_obs`` (B, N, D), ``final_state`` (B, S) and the mask
-        ``_episode`` (B,).
+        (metric -> (B,)), ``final_obs`` (B, N, D), ``final_state`` (B, S), ``episode_curve`` (B, H),
+        ``episode_robots`` (name -> (B, N)), ``episode_end`` (name -> (B,)) and the mask ``_episode`` (B,).
         """
         if not self._started:
             raise RuntimeError("call reset() before step()")
@@ -148,6 +150,7 @@ class VectorEnv:
             for b in envs:
                 for name, value in self.core.episode_metrics(b).items():
                     metrics[name][b] = value
+            info.update(self.core.episode_detail())
             self.core.reset(envs, [self._draw(b) for b in envs], [self._rngs[b] for b in envs])
             info.update({"episode": metrics, "_episode": done.copy(), "final_obs": final_obs})
             if final_state is not None:

@@ -4,10 +4,14 @@ Per episode (``EPISODE_METRICS`` of the env): return, steps, completion (1 if ev
 captured / all material delivered within the horizon, as in the paper's Table I; partial
 progress in between), success, MuJoCo robot–robot collisions, Robotarium-style violations
 (``robotarium_collisions`` + ``boundary_exits`` + ``actuator_errors``: what the real testbed
-would flag) and safety-filter interventions.
+would flag) and safety-filter interventions; from the progress curve (:func:`curve_endpoints`)
+the area under it (``progress_auc``) and the env steps to 90 % progress (``time_to_90``),
+continuous endpoints that still separate policies when progress itself saturates near 100 %.
 
-Intervals are Student-t intervals of the mean over episodes (episodes are the independent
-units; a seed's episodes are not pooled with another seed's here — see ``comat report``).
+Intervals are Student-t intervals over *coalitions*: with K episodes per coalition (K start
+states), each coalition's K episodes are averaged first and the interval is taken over the
+coalition means, so K episodes never count as K independent units. All episodes here come
+from one policy (one seed); intervals over seeds are ``comat report``'s.
 """
 
 from __future__ import annotations
@@ -17,10 +21,33 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["REPORTED", "mean_ci", "summarize_ci", "violations"]
+__all__ = ["PROGRESS_MARK", "REPORTED", "curve_endpoints", "mean_ci", "summarize_ci", "violations"]
 
-REPORTED = ("return", "steps", "completion", "success", "collisions", "violations", "interventions", "fallbacks", "recoveries")
+REPORTED = ("return", "steps", "completion", "success", "progress_auc", "time_to_90", "collisions", "violations",
+            "interventions", "fallbacks", "recoveries")
 """Metrics in evaluation tables, in order."""
+
+PROGRESS_MARK = 0.9
+"""Progress whose first crossing ``time_to_90`` times (reached when progress >= 0.9 - 1e-9: the
+slack absorbs the rounding of a sum of float payloads, as the tasks' own ``done`` does)."""
+
+
+def curve_endpoints(curve: Sequence[float], horizon: int) -> dict[str, float]:
+    """Continuous endpoints of one episode's progress curve (progress after each env step).
+
+    ``progress_auc``: the mean over the ``horizon`` env steps of the progress after each step,
+    the last value held after an episode that finished early (finishing sooner scores higher);
+    ``time_to_90``: env steps until progress first reached :data:`PROGRESS_MARK`, the horizon
+    when it never did (censored); ``reached_90``: 1.0 if it did, else 0.0.
+    """
+    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
+        raise ValueError(f"horizon must be a positive integer, got {horizon!r}")
+    c = np.asarray(curve, dtype=float)
+    if c.ndim != 1 or not 1 <= c.size <= horizon:
+        raise ValueError(f"curve must be a 1-D sequence of 1 to horizon={horizon} values, got shape {c.shape}")
+    hit = np.flatnonzero(c >= PROGRESS_MARK - 1e-9)
+    return {"progress_auc": float((c.sum() + (horizon - c.size) * c[-1]) / horizon),
+            "time_to_90": float(hit[0] + 1) if hit.size else float(horizon), "reached_90": float(hit.size > 0)}
 
 
 def violations(episode: dict) -> float:
@@ -48,13 +75,39 @@ def mean_ci(values: Sequence[float], confidence: float = 0.95) -> tuple[float, f
     return mean, float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * sem)
 
 
-def summarize_ci(episodes: Sequence[dict], confidence: float = 0.95) -> dict[str, dict[str, float]]:
-    """``{metric: {"mean", "ci95", "n"}}`` over episodes for every metric in :data:`REPORTED`."""
+def _value(episode: dict, name: str) -> float | None:
+    """Metric ``name`` of an episode; None where the row predates it (older result files)."""
+    if name == "violations":
+        return violations(episode) if all(k in episode for k in ("robotarium_collisions", "boundary_exits",
+                                                                    "actuator_errors")) else None
+    return float(episode[name]) if name in episode else None
+
+
+def summarize_ci(episodes: Sequence[dict], confidence: float = 0.95,
+                 n_coalitions: int | None = None) -> dict[str, dict[str, float]]:
+    """``{metric: {"mean", "ci95", "n"}}`` for every metric of :data:`REPORTED` the episodes carry.
+
+    The interval is over coalitions: episodes of one coalition are averaged first, then
+    :func:`mean_ci` runs over the coalition means; ``n`` is the number of coalitions. An
+    episode's coalition is its ``"coalition"``; rows without it (older result files) are
+    coalition ``i % n_coalitions`` (episode i of a set evaluated with K episodes per coalition),
+    or each its own coalition when ``n_coalitions`` is None. A metric that some episode lacks
+    (an older file) is left out.
+    """
     if not episodes:
         raise ValueError("summarize_ci needs at least one episode")
+    if n_coalitions is not None and (isinstance(n_coalitions, bool) or not isinstance(n_coalitions, int)
+                                     or n_coalitions < 1):
+        raise ValueError(f"n_coalitions must be a positive integer or None, got {n_coalitions!r}")
+    units = np.array([int(e["coalition"]) if "coalition" in e else i % n_coalitions if n_coalitions else i
+                      for i, e in enumerate(episodes)])
+    keys, which = np.unique(units, return_inverse=True)
     out = {}
     for name in REPORTED:
-        values = [violations(e) if name == "violations" else float(e[name]) for e in episodes]
-        mean, half = mean_ci(values, confidence)
-        out[name] = {"mean": mean, "ci95": half, "n": len(values)}
+        values = [_value(e, name) for e in episodes]
+        if any(v is None for v in values):
+            continue
+        means = np.bincount(which, weights=values, minlength=keys.size) / np.bincount(which, minlength=keys.size)
+        mean, half = mean_ci(means, confidence)
+        out[name] = {"mean": mean, "ci95": half, "n": int(keys.size)}
     return out

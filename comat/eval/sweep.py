@@ -5,12 +5,15 @@ A sweep lives in one root folder (``--out``, made absolute before anything reach
     sweep.json                 the sweep's record, written when it starts: its command, the grid,
                                the resolved settings (preset + overrides), evaluation, resources
     <algo>_<task>_s<seed>/     one comat run folder per grid cell, what ``comat train`` writes
-                               (+ ``evaluation_<tier>.json``): ``comat report ROOT/*_s*`` reads them
+                               (+ ``evaluation_<tier>.json``): ``comat report ROOT/*_s*`` reads them;
+                               its ``policy.pt`` (the weights to act, small enough to commit) is
+                               kept with the small files, so every reported run can be evaluated again
     .tune/                     Ray Tune's experiment state (trial table, per-trial results)
     .aborted/                  what runs stopped before their first checkpoint had written
 
 Every trial trains (or resumes) its run folder from the recorded settings, then evaluates the
-final checkpoint on the sets and tiers asked for, as ``comat eval`` would. A trial whose worker
+final checkpoint on the sets and tiers asked for, as ``comat eval`` would; a finished run without
+a ``policy.pt`` (trained before policy files existed) gets one from its checkpoint. A trial whose worker
 dies or raises is retried by Tune (``FailureConfig(max_failures)``) and resumes from the run's own
 checkpoint, so it computes exactly what an uninterrupted run computes. Jobs start seed-major
 (seed 0 of every algorithm and task, then seed 1, ...). Running ``comat sweep
@@ -217,6 +220,7 @@ def run_job(params: dict) -> dict:
 
     from comat.eval.evaluate import evaluate_policies, write_results
     from comat.rl.config import resolve
+    from comat.rl.policy import ensure_policy
     from comat.rl.runner import train
 
     record = params["sweep"]
@@ -227,6 +231,7 @@ def run_job(params: dict) -> dict:
                      device=record["device_resolved"])
     eval_sets = record["eval_sets"]
     if plan(record["root"], [algo], [task], [seed], record["eval_tiers"], eval_sets)[0]["state"] == "done":
+        ensure_policy(folder)
         tune.report({"env_steps": 0, "skipped": True, "done": True})
         return {}
     _set_aside_partial(folder)
@@ -357,6 +362,10 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
     jobs_now = plan(root, *grid)
     todo = [j for j in jobs_now if j["state"] != "done"]
     if (root / RECORD).is_file() and not todo:
+        from comat.rl.policy import ensure_policy
+
+        for job in jobs_now:  # finished before policy files existed: keep theirs now
+            ensure_policy(job["folder"])
         progress(f"comat sweep: {len(jobs_now)} jobs, all finished, in {root}")
         return jobs_now
     cpus = record["cpus_per_trial"]

@@ -5,6 +5,9 @@ observation, which carries its type and capability vector. Critic: an MLP on the
 global state concatenated with the robot's observation, one value per robot. Fixed-size
 baseline: the state covers ``state_robots`` (8) robots, so teams are at most that large.
 
+Acting needs only the actors: ``Mappo(..., critic=False)`` is the policy a policy file holds
+(:mod:`comat.rl.policy`), and ``act`` without a state returns no values.
+
 Shapes: obs (B, N, D_obs), mask (B, N), state (B, S); A = 5 actions.
 """
 
@@ -35,23 +38,31 @@ class Mappo(nn.Module):
 
     n_actions = 5
 
-    def __init__(self, layout: ObsLayout, state_dim: int, config: MappoConfig | None = None) -> None:
+    def __init__(self, layout: ObsLayout, state_dim: int, config: MappoConfig | None = None,
+                 critic: bool = True) -> None:
         super().__init__()
         cfg = config or MappoConfig()
         self.layout, self.config = layout, cfg
         self.actor = TypeHeads(layout.obs_dim, cfg.hidden, self.n_actions, layout.n_types)
-        self.critic = mlp([state_dim + layout.obs_dim, cfg.hidden, cfg.hidden, 1])
+        # Without the critic (a policy file's MAPPO) the module acts but cannot be trained or probed.
+        self.critic = mlp([state_dim + layout.obs_dim, cfg.hidden, cfg.hidden, 1]) if critic else None
 
     def _logits(self, obs):
         return self.actor(obs, obs[..., 4 : 4 + self.layout.n_types])
 
     def values(self, obs, mask, state):
+        if self.critic is None:
+            raise ValueError("this MAPPO has no critic (loaded from a policy file, which keeps the actors only): "
+                             "its values need the run's checkpoint.pt")
         if state is None:
             raise ValueError("MAPPO's critic needs the global state (env.state())")
         s = state[:, None, :].expand(-1, obs.shape[1], -1)
         return self.critic(torch.cat([s, obs], -1))[..., 0] * mask
 
     def act(self, obs, mask, state=None, deterministic: bool = False, generator: torch.Generator | None = None):
+        """Actions (B, N), their log-probabilities (B, N) and the critic's values (B, N) — None
+        where acting alone is asked for: a module without a critic, or deterministic actions
+        without a state (the actions depend on the actors only)."""
         logits = self._logits(obs)
         if deterministic:
             a = logits.argmax(-1)
@@ -60,7 +71,8 @@ class Mappo(nn.Module):
             a = (logits - torch.log(-torch.log(u))).argmax(-1)
         a = torch.where(mask, a, 0)
         logp = torch.log_softmax(logits, -1).gather(-1, a[..., None])[..., 0] * mask
-        return a, logp, self.values(obs, mask, state)
+        acting_only = self.critic is None or (state is None and deterministic)
+        return a, logp, None if acting_only else self.values(obs, mask, state)
 
     def evaluate_actions(self, obs, mask, actions, state=None):
         logp_all = torch.log_softmax(self._logits(obs), -1)

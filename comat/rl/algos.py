@@ -21,8 +21,8 @@ from comat.models.qmix import QmixAgents, QmixMixer
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
 
-__all__ = ["BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "env_slots", "make_learner", "policy_act",
-           "robot_slots"]
+__all__ = ["ACTING_MODULES", "BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "env_slots", "make_learner",
+           "policy_act", "robot_slots"]
 
 BASELINE_ROBOTS = 8
 """Default robot slots of the fixed-size baselines (``max_robots`` of their model configs)."""
@@ -61,27 +61,41 @@ class Dims:
         return asdict(self)
 
 
-def build_modules(algo: str, dims: Dims, model_config) -> dict[str, torch.nn.Module]:
-    """The networks of ``algo``, freshly initialized (seed torch first for reproducible weights)."""
+ACTING_MODULES = {"comat": ("policy",), "mat": ("policy",), "mappo": ("policy",), "qmix": ("agents",)}
+"""The modules deterministic acting needs, per algo: COMAT's and MAT's whole policy (their value
+heads share the encoder the actions are decoded from), MAPPO's policy without its critic, QMIX's
+agent network without the mixer. A policy file keeps exactly these weights."""
+
+
+def build_modules(algo: str, dims: Dims, model_config, acting_only: bool = False) -> dict[str, torch.nn.Module]:
+    """The networks of ``algo``, freshly initialized (seed torch first for reproducible weights);
+    ``acting_only``: only those deterministic acting needs (:data:`ACTING_MODULES`)."""
     if algo == "comat":
         return {"policy": Comat(dims.layout, model_config)}
     if algo == "mat":
         return {"policy": Mat(dims.layout, model_config)}
     if algo == "mappo":
-        return {"policy": Mappo(dims.layout, dims.state_dim, model_config)}
+        return {"policy": Mappo(dims.layout, dims.state_dim, model_config, critic=not acting_only)}
     if algo == "qmix":
-        return {"agents": QmixAgents(dims.layout, model_config), "mixer": QmixMixer(dims.state_dim, model_config)}
+        agents = {"agents": QmixAgents(dims.layout, model_config)}
+        return agents if acting_only else {**agents, "mixer": QmixMixer(dims.state_dim, model_config)}
     raise ValueError(f"algo must be one of ['comat', 'mat', 'mappo', 'qmix'], got {algo!r}")
 
 
 def uses_state(algo: str) -> bool:
-    """Whether acting needs ``env.state()`` (MAPPO's critic; QMIX only learns from it)."""
+    """Whether the trainer hands ``act`` ``env.state()`` (MAPPO's critic; QMIX's trainer reads it for
+    its mixer by itself). Deterministic actions (:func:`policy_act`) never use it: MAPPO's actors
+    read the robot's own observation, and MAPPO without a state (or without its critic) returns no
+    values."""
     return algo == "mappo"
 
 
 def policy_act(algo: str, modules: dict[str, torch.nn.Module]):
-    """Deterministic numpy policy ``act(obs, mask, state) -> actions (B, N)`` (evaluation)."""
-    use_state = uses_state(algo)
+    """Deterministic numpy policy ``act(obs, mask, state) -> actions (B, N)`` (evaluation).
+
+    ``state`` is accepted and ignored: a deterministic action never needs MAPPO's critic, so a
+    policy acts on sets whose centralized state differs from training's (PCP's prey slots grow
+    with U_scale's teams) and on a policy file that keeps no critic."""
 
     @torch.no_grad()
     def act(obs: np.ndarray, mask: np.ndarray, state: np.ndarray | None) -> np.ndarray:
@@ -89,8 +103,7 @@ def policy_act(algo: str, modules: dict[str, torch.nn.Module]):
         m = torch.as_tensor(mask)
         if algo == "qmix":
             return torch.where(m, modules["agents"](o, m).argmax(-1), 0).numpy()
-        s = torch.as_tensor(state, dtype=torch.float32) if use_state else None
-        return modules["policy"].act(o, m, s, deterministic=True)[0].numpy()
+        return modules["policy"].act(o, m, None, deterministic=True)[0].numpy()
 
     return act
 

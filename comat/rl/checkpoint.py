@@ -1,4 +1,4 @@
-"""Checkpoints: one file per run state, written atomically, checked before use.
+"""Checkpoints and policy files: written atomically, checked before use.
 
 A checkpoint is a ``torch.save`` dict loaded with ``weights_only=True`` (tensors and plain data
 only, so loading one never runs code):
@@ -8,8 +8,18 @@ only, so loading one never runs code):
     trainer (the trainer's state: weights, optimizer, normalizers, generators, buffers),
     env_rngs (the vector environment's generators), torch_rng.
 
-Writes go to a temporary file in the same folder, are flushed to disk, then renamed over the
-target, so a crash leaves either the old checkpoint or the new one, never half of one.
+A policy file (``policy.pt``, :mod:`comat.rl.policy`) is what acting needs and nothing else,
+small enough to commit next to a run's results:
+
+    format "comat-policy", format_version, algo, task, config (the resolved run config), dims
+    (the sizes the model is built from), versions (of the code that trained it), written_by (of
+    the code that wrote the file), env_steps and updates at which it was taken, parameters, and
+    weights: module name -> float32 state dict of the modules deterministic acting needs
+    (``comat.rl.algos.ACTING_MODULES``); no optimizer, normalizer, critic, mixer or buffer.
+
+Both load with ``weights_only=True``. Writes go to a temporary file in the same folder, are
+flushed to disk, then renamed over the target, so a crash leaves either the old file or the new
+one, never half of one.
 
 A checkpoint keeps the config that trained it. Options added to the configs later are absent
 from older checkpoints; :data:`EARLIER_DEFAULTS` gives each the value that reproduces what
@@ -32,10 +42,16 @@ import torch
 
 from comat.models.comat import PAPER_FORM
 
-__all__ = ["CheckpointError", "load_checkpoint", "save_checkpoint", "to_plain", "versions"]
+__all__ = ["POLICY_FORMAT", "CheckpointError", "load_checkpoint", "load_policy_file", "load_trained",
+           "save_checkpoint", "save_policy_file", "to_plain", "versions"]
 
 FORMAT = "comat-checkpoint"
 FORMAT_VERSION = 1
+POLICY_FORMAT = "comat-policy"
+POLICY_FORMAT_VERSION = 1
+_VERSIONS = {FORMAT: FORMAT_VERSION, POLICY_FORMAT: POLICY_FORMAT_VERSION}
+_NOUN = {FORMAT: "checkpoint", POLICY_FORMAT: "policy file"}
+_DIMS = ("obs_dim", "n_types", "n_caps", "state_dim")
 
 
 EARLIER_DEFAULTS = {
@@ -56,7 +72,8 @@ def with_earlier_defaults(config: dict) -> dict:
 
 
 class CheckpointError(ValueError):
-    """A checkpoint that cannot be used: missing, corrupt, another format, algo or task."""
+    """A checkpoint or policy file that cannot be used: missing, corrupt, another format, algo or
+    task, or a policy file where the whole learner is needed."""
 
 
 @functools.cache
@@ -127,6 +144,10 @@ def save_checkpoint(path: str | Path, *, algo: str, task: str, config: dict, pro
         "config": config, "versions": versions(), "progress": progress,
         "trainer": to_plain(trainer), "env_rngs": env_rngs, "torch_rng": torch.get_rng_state(),
     }
+    return _save(path, payload)
+
+
+def _save(path: Path, payload: dict) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -140,33 +161,109 @@ def save_checkpoint(path: str | Path, *, algo: str, task: str, config: dict, pro
     return path
 
 
+def save_policy_file(path: str | Path, *, algo: str, task: str, config: dict, dims: dict,
+                     weights: dict[str, dict[str, torch.Tensor]], env_steps: int, updates: int,
+                     trained_by: dict | None = None) -> Path:
+    """Atomically write a policy file (see the module docstring) to ``path``; returns the path.
+
+    ``weights``: module name -> state dict, copied here into tensors of their own (a view would
+    drag its whole storage into the file), values and dtypes unchanged. ``trained_by``: the
+    versions of the code that trained the weights (default: this code's)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plain = {name: {k: v.detach().to("cpu", copy=True).contiguous() for k, v in state.items()}
+             for name, state in weights.items()}
+    now = versions()
+    payload = {
+        "format": POLICY_FORMAT, "format_version": POLICY_FORMAT_VERSION, "algo": algo, "task": task,
+        "config": config, "dims": dict(dims), "versions": dict(trained_by or now), "written_by": now,
+        "env_steps": int(env_steps), "updates": int(updates),
+        "parameters": sum(v.numel() for state in plain.values() for v in state.values() if v.is_floating_point()),
+        "weights": plain,
+    }
+    return _save(path, payload)
+
+
+def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: str | None) -> dict:
+    """A checked comat file of one of ``formats``; CheckpointError naming the file and what is wrong."""
+    path = Path(path)
+    noun = " or ".join(_NOUN[f] for f in formats)
+    if path.is_dir():
+        names = " or ".join(("checkpoint.pt" if f == FORMAT else "policy.pt") for f in formats)
+        raise CheckpointError(f"{noun} {str(path)!r} is a folder; expected a {names} file")
+    if not path.is_file():
+        raise CheckpointError(f"{noun} {str(path)!r} does not exist")
+    size = path.stat().st_size
+    if size == 0:
+        raise CheckpointError(f"{noun} {str(path)!r} is empty (0 bytes): not a comat {noun}")
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises several types (and paragraphs) for foreign files
+        raise CheckpointError(f"{noun} {str(path)!r} ({size} bytes) is corrupt or not a comat {noun}: "
+                              f"torch.load could not read it ({type(err).__name__})") from err
+    kind = data.get("format") if isinstance(data, dict) else None
+    if kind == POLICY_FORMAT and kind not in formats:
+        raise CheckpointError(f"{str(path)!r} is a comat policy file (the weights to act and their config; no "
+                              "optimizer, normalizers, critic or replay buffer): this needs the run's checkpoint.pt")
+    if kind == FORMAT and kind not in formats:
+        raise CheckpointError(f"{str(path)!r} is a comat checkpoint, not a policy file; make its policy file with "
+                              f"`comat policy {path}`, or load it with load_checkpoint")
+    if kind not in formats:
+        raise CheckpointError(f"{str(path)!r} is not a comat {noun} (expected format "
+                              f"{' or '.join(repr(f) for f in formats)})")
+    noun = _NOUN[kind]
+    if data.get("format_version") != _VERSIONS[kind]:
+        raise CheckpointError(f"{noun} {str(path)!r} has format_version {data.get('format_version')!r}, "
+                              f"this comat reads {_VERSIONS[kind]}")
+    for key, want in (("algo", algo), ("task", task)):
+        if want is not None and data.get(key) != want:
+            raise CheckpointError(f"{noun} {str(path)!r} is for {key} {data.get(key)!r}, expected {want!r}")
+    if kind == POLICY_FORMAT:
+        _check_policy(path, data)
+    if isinstance(data.get("config"), dict):
+        data["config"] = with_earlier_defaults(data["config"])
+    return data
+
+
+def _check_policy(path: Path, data: dict) -> None:
+    """The keys a policy file must hold, with the types acting reads."""
+    where = f"policy file {str(path)!r}"
+    for key, kind in (("algo", str), ("task", str), ("config", dict), ("dims", dict), ("weights", dict),
+                      ("env_steps", int)):
+        if not isinstance(data.get(key), kind):
+            raise CheckpointError(f"{where} lacks {key!r} (expected a {kind.__name__}, got "
+                                  f"{type(data.get(key)).__name__})")
+    missing = [k for k in _DIMS if not isinstance(data["dims"].get(k), int)]
+    if missing:
+        raise CheckpointError(f"{where}: dims lack {missing} (expected integers {list(_DIMS)})")
+    for name, state in data["weights"].items():
+        if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
+            raise CheckpointError(f"{where}: weights[{name!r}] must map parameter names to tensors")
+
+
 def load_checkpoint(path: str | Path, algo: str | None = None, task: str | None = None) -> dict:
     """Read and check a checkpoint; ``algo``/``task``, if given, must match it.
 
     Raises:
+        CheckpointError: naming the file and what is wrong with it (a policy file included: it
+            cannot resume, probe or export a learner).
+    """
+    return _read(path, (FORMAT,), algo, task)
+
+
+def load_policy_file(path: str | Path, algo: str | None = None, task: str | None = None) -> dict:
+    """Read and check a policy file (``policy.pt``); ``algo``/``task``, if given, must match it.
+
+    Raises:
         CheckpointError: naming the file and what is wrong with it.
     """
-    path = Path(path)
-    if path.is_dir():
-        raise CheckpointError(f"checkpoint {str(path)!r} is a folder; expected a checkpoint.pt file")
-    if not path.is_file():
-        raise CheckpointError(f"checkpoint {str(path)!r} does not exist")
-    size = path.stat().st_size
-    if size == 0:
-        raise CheckpointError(f"checkpoint {str(path)!r} is empty (0 bytes): not a comat checkpoint")
-    try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as err:  # torch raises several types (and paragraphs) for foreign files
-        raise CheckpointError(f"checkpoint {str(path)!r} ({size} bytes) is corrupt or not a comat checkpoint: "
-                              f"torch.load could not read it ({type(err).__name__})") from err
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise CheckpointError(f"{str(path)!r} is not a comat checkpoint (expected format {FORMAT!r})")
-    if data.get("format_version") != FORMAT_VERSION:
-        raise CheckpointError(f"checkpoint {str(path)!r} has format_version {data.get('format_version')!r}, "
-                              f"this comat reads {FORMAT_VERSION}")
-    for key, want in (("algo", algo), ("task", task)):
-        if want is not None and data[key] != want:
-            raise CheckpointError(f"checkpoint {str(path)!r} is for {key} {data[key]!r}, expected {want!r}")
-    if isinstance(data.get("config"), dict):
-        data["config"] = with_earlier_defaults(data["config"])
-    return data
+    return _read(path, (POLICY_FORMAT,), algo, task)
+
+
+def load_trained(path: str | Path, algo: str | None = None, task: str | None = None) -> dict:
+    """A checkpoint or a policy file, checked (its ``"format"`` says which): what acting reads.
+
+    Raises:
+        CheckpointError: naming the file and what is wrong with it.
+    """
+    return _read(path, (FORMAT, POLICY_FORMAT), algo, task)

@@ -5,6 +5,8 @@ Run folder (``--out``)::
     config.yaml      the resolved RunConfig, versions and the command line (written first; a resumed
                      run keeps those of its earlier sittings under ``earlier_sittings``)
     checkpoint.pt    latest checkpoint (atomic), every ``checkpoint_every_steps`` and at the end
+    policy.pt        the final policy: the weights to act and their config, no optimizer state
+                     (:mod:`comat.rl.policy`; small enough to commit), written when the run finishes
     progress.csv     one row per update: env steps, wall time, env-steps/s, episode metrics, losses
     eval.csv         one row per evaluation on the training coalitions (deterministic actions)
     tb/              TensorBoard events of both tables
@@ -14,7 +16,8 @@ Run folder (``--out``)::
 ``train(..., resume=True)`` continues from ``checkpoint.pt``: weights, optimizer, normalizers,
 replay buffer, every random generator and the env-step counter are restored, and every
 rollout starts from freshly reset environments, so the resumed run takes exactly the updates
-the uninterrupted run would have taken.
+the uninterrupted run would have taken. A folder holding a ``policy.pt`` but no checkpoint
+(a finished run's committed files) cannot be resumed, nor trained into again.
 """
 
 from __future__ import annotations
@@ -31,10 +34,11 @@ from comat.config import SimConfig
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
-from comat.rl.algos import Dims, build_modules, env_slots, make_learner, policy_act, robot_slots, uses_state
-from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
+from comat.rl.algos import Dims, env_slots, make_learner, policy_act, robot_slots
+from comat.rl.checkpoint import CheckpointError, load_checkpoint, load_trained, save_checkpoint, versions
 from comat.rl.config import RunConfig
 from comat.rl.logger import ProgressLine, RunLogger
+from comat.rl.policy import POLICY_FILE, policy_modules, save_policy
 
 __all__ = ["EVAL_SEED_OFFSET", "load_policy", "train"]
 
@@ -72,8 +76,7 @@ def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = N
     for m in modules.values():
         m.eval()
     try:
-        episodes = run_episodes(env, policy_act(config.algo, modules), teams, config.seed + EVAL_SEED_OFFSET,
-                                use_state=uses_state(config.algo))
+        episodes = run_episodes(env, policy_act(config.algo, modules), teams, config.seed + EVAL_SEED_OFFSET)
     finally:
         env.close()
         for m in modules.values():
@@ -113,7 +116,7 @@ def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: i
     try:
         record_episodes(path, config.task, policy_act(config.algo, modules),
                         teams=resolve_coalitions("train", config.task)[:episodes],
-                        seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier, use_state=uses_state(config.algo),
+                        seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier,
                         max_robots=robot_slots(config),
                         policy_name=f"{config.algo} after {steps:,} env steps")
     finally:
@@ -125,7 +128,8 @@ def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: i
 def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0,
           overrides: tuple[str, ...] = (), command: list[str] | None = None, on_update=None) -> dict:
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
-    the final evaluation on the training coalitions (None if evaluation is off).
+    the final evaluation on the training coalitions (None if evaluation is off). A finished run
+    (or a finished one resumed) writes ``out/policy.pt`` (:func:`comat.rl.policy.save_policy`).
 
     ``overrides``: the ``key=value`` changes to the preset that ``config`` was resolved with,
     recorded in config.yaml next to the resolved config (they are already part of it).
@@ -138,11 +142,19 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
 
     Raises:
         FileExistsError: ``out`` already holds a run and ``resume`` is False (nothing is touched).
-        CheckpointError: ``resume`` without a usable checkpoint for this algo and task.
+        CheckpointError: ``resume`` without a usable checkpoint for this algo and task (a folder
+            with a policy.pt but no checkpoint.pt included).
     """
     out = Path(out)
     ckpt_path = out / "checkpoint.pt"
     data = None
+    if (out / POLICY_FILE).is_file() and not ckpt_path.exists():
+        # Not a run stopped early: a finished one whose checkpoint is gone (e.g. its committed files).
+        raise (CheckpointError if resume else FileExistsError)(
+            f"{str(out)!r} holds a finished run's {POLICY_FILE} but no checkpoint.pt: "
+            + ("a policy file keeps the weights to act, not the optimizer, normalizers, buffers or generators a "
+               "run resumes from" if resume else "it is not trained into again")
+            + "; train a new run in another --out")
     if resume and not ckpt_path.exists() and (out / "config.yaml").is_file():
         # Killed before its first checkpoint: nothing to continue, so the run starts over.
         resume = False
@@ -244,6 +256,10 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         env.close()
     if last_eval is None and config.eval_episodes_per_team:  # resumed a run that had already finished
         last_eval = evaluate(config, learner.modules)
+    # The policy to keep, from the weights the final checkpoint holds (before summary.json, which
+    # marks the run finished).
+    save_policy(out / POLICY_FILE, config, dims, {name: m.state_dict() for name, m in learner.modules.items()},
+                progress)
     summary = {"algo": config.algo, "task": config.task, "seed": config.seed, "tier": config.tier,
                "env_steps": progress["env_steps"], "wall_s": progress["wall_s"], "eval_train": last_eval}
     write_atomic(out / "summary.json", json.dumps(summary, indent=2))
@@ -251,14 +267,11 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
 
 
 def load_policy(path: str | Path, algo: str | None = None, task: str | None = None):
-    """A trained policy from a checkpoint: ``(act, config)`` with ``act(obs, mask, state) ->
-    actions`` deterministic (numpy in and out)."""
-    data = load_checkpoint(path, algo=algo, task=task)
-    config = RunConfig.from_dict(data["config"])
-    dims = Dims(**data["progress"]["dims"])
-    modules = build_modules(config.algo, dims, config.model)
-    trainer_state = data["trainer"]
-    for name, module in modules.items():
-        module.load_state_dict(trainer_state[name])
-        module.eval()
+    """A trained policy from a checkpoint or a policy file (``policy.pt``): ``(act, config)``
+    with ``act(obs, mask, state) -> actions`` deterministic (numpy in and out).
+
+    Raises:
+        CheckpointError: naming the file and what is wrong with it.
+    """
+    modules, config = policy_modules(load_trained(path, algo=algo, task=task), path)
     return policy_act(config.algo, modules), config

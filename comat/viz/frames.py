@@ -299,7 +299,8 @@ class EpisodeFrames:
         zeros2, none = np.zeros((n, 2)), np.zeros(n, dtype=bool)
         task = core.task
         if task.name == "pcp":
-            st = {k: core.state[k][b].copy() for k in ("prey", "sensed", "captured")}
+            on = core.state["active"][b]  # padded prey slots of a smaller team are not drawn
+            st = {k: core.state[k][b][on].copy() for k in ("prey", "sensed", "captured")}
         else:
             st = {"left": core.state["left"][b].copy(), "initial": core.state["initial"][b].copy(),
                   "load": core.state["load"][b, :n].copy(), "delivered": np.array(core.state["delivered"][b])}

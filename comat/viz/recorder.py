@@ -314,7 +314,8 @@ def _series(
 
 # -- task state: per task, a snapshot after every step and how the episode's snapshots are sent --
 def _pcp_snapshot(core, b: int, n: int) -> dict[str, np.ndarray]:
-    return {"sensed": core.state["sensed"][b].copy(), "captured": core.state["captured"][b].copy()}
+    on = core.state["active"][b]  # as scene.py logged them: a smaller team's padded prey slots left out
+    return {"sensed": core.state["sensed"][b][on].copy(), "captured": core.state["captured"][b][on].copy()}
 
 
 def _send_pcp(rec, p: str, core, b: int, snaps: list[dict], states, poses: np.ndarray) -> None:

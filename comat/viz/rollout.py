@@ -137,14 +137,13 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     if not Path(policy).is_file():
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
-    from comat.rl.algos import robot_slots, uses_state
+    from comat.rl.algos import robot_slots
     from comat.rl.runner import load_policy
 
     act, config = load_policy(policy, task=task)  # CheckpointError (a ValueError) names a task mismatch
     return PolicySpec(
-        f"{config.algo} checkpoint {Path(policy).name}",
+        f"{config.algo} {'policy' if Path(policy).name.startswith('policy') else 'checkpoint'} {Path(policy).name}",
         lambda env, seed: act,
-        use_state=uses_state(config.algo),
         max_robots=robot_slots(config),
         tier=config.tier,
     )

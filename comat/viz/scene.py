@@ -159,7 +159,7 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
             rr.Boxes2D(**_box(*task.prey_box), colors=[(80, 190, 80)], labels=["prey area"]),
             static=True,
         )
-        prey = core.state["prey"][b]
+        prey = core.state["prey"][b][core.state["active"][b]]  # padded slots of a smaller team: not drawn
         rec.log(
             f"{w}/prey",
             rr.Points2D(
