@@ -2,7 +2,10 @@
 
 ``SafeTeams`` composes a world (single-team :class:`~comat.sim.World` or batched
 :class:`~comat.sim.BatchWorld`) with one :class:`~comat.safety.SafetyFilter` over all its teams,
-so a tick is one physics call per team size and one QP. ``go_to_goal`` is the proportional
+so a tick is one physics call per team size and one QP. With a reality layer
+(:mod:`comat.reality`), the filter and :attr:`SafeTeams.measured_poses` read measured poses and
+the commands pass the layer's command path and motors before the physics; contacts, Robotarium
+checks and :attr:`SafeTeams.poses` stay true. ``go_to_goal`` is the proportional
 waypoint controller of the projected points (Robotarium ``si_position_controller``).
 """
 
@@ -18,9 +21,17 @@ import numpy as np
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
+from comat.reality import RealityConfig, RealityLayer
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.sim import BatchWorld, World
-from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE, limit_to_wheels, projected_points, wheel_rhombus
+from comat.sim.kinematics import (
+    WHEEL_LIMIT_TOLERANCE,
+    limit_to_wheels,
+    projected_points,
+    si_to_uni,
+    threshold_wheels,
+    wheel_rhombus,
+)
 from comat.sim.violations import TickEvents
 
 __all__ = ["SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
@@ -94,6 +105,9 @@ class SafeTeams:
         sim: world settings (tier, substeps, profile).
         safety: barrier settings.
         batched: use :class:`BatchWorld` (default) or, for a single team, :class:`World`.
+        reality: the reality layer's settings (None or a config that ``is_off``: the ideal world,
+            bit for bit).
+        reality_seed: keys of episodes reset without ``reality_keys`` (see :meth:`reset`).
     """
 
     def __init__(
@@ -102,6 +116,8 @@ class SafeTeams:
         sim: SimConfig | None = None,
         safety: SafetyConfig | None = None,
         batched: bool = True,
+        reality: RealityConfig | None = None,
+        reality_seed: int = 0,
     ) -> None:
         sizes = tuple(team_sizes)
         self.sim_config = sim or SimConfig()
@@ -114,6 +130,10 @@ class SafeTeams:
             self.world = World(sizes[0], self.sim_config)
         self._qp_cache: OrderedDict = OrderedDict()
         self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile, self._qp_cache)
+        self.reality: RealityLayer | None = None
+        """The reality layer between the world and the decisions (None: the ideal world)."""
+        if reality is not None and not reality.is_off:
+            self.reality = RealityLayer(reality, self.world.profile, self.world.layout, reality_seed)
         self.timing = TickTiming()
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
@@ -127,17 +147,44 @@ class SafeTeams:
 
     @property
     def poses(self) -> np.ndarray:
-        """(R, 3) current poses."""
+        """(R, 3) current true poses."""
         return self.world.poses
 
     @property
     def points(self) -> np.ndarray:
-        """(R, 2) current projected points (what the barrier keeps apart)."""
+        """(R, 2) current true projected points (what the barrier keeps apart)."""
         return projected_points(self.world.poses, self.safety_config.projection_distance_m)
 
-    def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None) -> None:
-        """Place robots at poses (R, 3) and zero their counters; only ``teams`` if given."""
+    @property
+    def measured_poses(self) -> np.ndarray:
+        """(R, 3) the poses the robots' script sees now (a copy; the true ones without a layer)."""
+        return self.world.poses if self.reality is None else self.reality.measured.copy()
+
+    @property
+    def measured_points(self) -> np.ndarray:
+        """(R, 2) projected points of :attr:`measured_poses`."""
+        return projected_points(self.measured_poses, self.safety_config.projection_distance_m)
+
+    def decision_poses(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """The (R, 3) poses that controllers and the filter read this tick, with their headings'
+        cosines and sines (read-only views: measured with a layer, else true)."""
+        if self.reality is None:
+            return self.world._poses, self.world.cos_sin()
+        return self.reality.measured, self.reality.cos_sin()
+
+    def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None, reality_keys: Sequence[int] | None = None) -> None:
+        """Place robots at poses (R, 3) and zero their counters; only ``teams`` if given.
+
+        With a reality layer the robots start at the requested poses plus the start error, and
+        ``reality_keys`` (one 64-bit key per reset team, e.g. :func:`comat.reality.episode_key`
+        of each env's generator) seed their episodes; None: keys from ``reality_seed``."""
+        if self.reality is not None:
+            team_ids = np.arange(self.world.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
+            poses = self.reality.start(as_float_array("poses", poses, (self.world.layout.n_robots, 3)), team_ids,
+                                       reality_keys)
         self.world.reset(poses, teams) if teams is not None else self.world.reset(poses)
+        if self.reality is not None:
+            self.reality.begin_measuring(self.world._poses, team_ids)
         sel = slice(None) if teams is None else np.asarray(teams, dtype=np.int64)
         self.interventions[sel] = 0
         self.fallbacks[sel] = 0
@@ -168,6 +215,8 @@ class SafeTeams:
             return
         self.world.set_team_sizes(sizes)
         self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile, self._qp_cache)
+        if self.reality is not None:
+            self.reality.relayout(self.world.layout)
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
         self.recoveries = np.zeros(len(sizes), np.int64)
@@ -182,7 +231,7 @@ class SafeTeams:
         for safety, and a huge command (1e150 m/s) is as well-posed as a full-speed one.
         Commands within the wheel limits pass on exactly as given."""
         dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
-        poses, (c, s) = self.world._poses, self.world.cos_sin()
+        poses, (c, s) = self.decision_poses()
         d = self.safety_config.projection_distance_m
         k, v = wheel_rhombus(d, self.world.profile)
         along, across = c * dxi[:, 0] + s * dxi[:, 1], c * dxi[:, 1] - s * dxi[:, 0]
@@ -198,8 +247,7 @@ class SafeTeams:
     def _tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
         """:meth:`tick` without input checks, for velocities made inside comat (float64, (R, 2))."""
         t0 = time.perf_counter()
-        poses = self.world._poses  # read-only here; our own arrays skip the public checks
-        cos_sin = self.world.cos_sin()
+        poses, cos_sin = self.decision_poses()  # read-only here; our own arrays skip the public checks
         nominal = dxi
         if self._detour.any():  # the deadlock tie-break (see HOLD_TICKS): keep right
             turn = self._detour > 0
@@ -216,7 +264,10 @@ class SafeTeams:
         if start.any():
             self._detour[start] = DETOUR_TICKS
             self._held[start] = 0
-        events = self.world._step_points(safe, self.safety_config.projection_distance_m)
+        if self.reality is None:
+            events = self.world._step_points(safe, self.safety_config.projection_distance_m)
+        else:
+            events = self._step_real(safe, poses, cos_sin)
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.recoveries += info.recovery
@@ -226,3 +277,15 @@ class SafeTeams:
         for observe in self.tick_observers:
             observe(nominal, safe, events, info)
         return events, info
+
+    def _step_real(self, safe: np.ndarray, poses: np.ndarray, cos_sin: tuple[np.ndarray, np.ndarray]) -> TickEvents:
+        """The physics tick through the reality layer: the script converts the filtered point
+        velocities (R, 2) to unicycle commands on the *measured* headings and clips the wheels
+        (an actuator error is judged on this request); the layer's command path and motors give
+        what the robots execute; then the world steps and the layer measures the true poses."""
+        world, layer = self.world, self.reality
+        dxu = si_to_uni(safe, poses, self.safety_config.projection_distance_m, cos_sin)
+        clipped, overrun = threshold_wheels(dxu, world.profile)
+        events = world._advance(layer.actuate(clipped), overrun)
+        layer.observe(world._poses)
+        return events

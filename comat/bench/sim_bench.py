@@ -7,6 +7,10 @@ re-drawn every 150 ticks, barrier filter at every tick. Ours: :class:`comat.cont
 ``rps`` legacy loop ``get_poses → controller → si_to_uni → unicycle barrier with boundary →
 set_velocities → step`` (cvxopt QP, Euler unicycle, no contacts), one team (it has no batching).
 
+Rows at reality level ``nominal`` (:mod:`comat.reality`: measured poses for the controller and
+filter, command path and motors before the physics) stand next to the ``off`` ones for the team
+sizes in ``reality_sizes``; the check ``reality_overhead_<tier>_B64_N8`` is their tick ratio.
+
 Reported per configuration: median µs per tick split into physics (MuJoCo's stepping calls),
 filter (OSQP's update/solve calls) and rest (everything else: Python), µs per robot-tick, and
 simulated robot-seconds per wall-second.
@@ -19,6 +23,7 @@ import os
 import platform
 import time
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +49,8 @@ class SimBenchRow:
     per_robot_tick_us: float
     robot_s_per_wall_s: float
     ticks: int
+    reality: str = "off"
+    """Reality level the row was measured at (:data:`comat.reality.REALITY_LEVELS`)."""
 
 
 def _spread(rng: np.random.Generator, n: int, spacing: float = 0.3) -> np.ndarray:
@@ -61,13 +68,16 @@ def _goals(rng: np.random.Generator, count: int) -> np.ndarray:
     return rng.uniform([x0 + 0.3, y0 + 0.3], [x1 - 0.3, y1 - 0.3], (count, 2))
 
 
-def bench_ours(tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup: int = 10) -> SimBenchRow:
-    """Time ``ticks`` control ticks of ``batch`` teams of ``n`` robots in one tier."""
+def bench_ours(tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup: int = 10,
+               reality: Any = "off") -> SimBenchRow:
+    """Time ``ticks`` control ticks of ``batch`` teams of ``n`` robots in one tier, at a reality level
+    (the controller then reads the measured points, as the envs' does)."""
     from comat.config import SimConfig
     from comat.control import SafeTeams, go_to_goal
+    from comat.reality import resolve_reality
 
     rng = np.random.default_rng(seed)
-    teams = SafeTeams((n,) * batch, SimConfig(tier=tier))
+    teams = SafeTeams((n,) * batch, SimConfig(tier=tier), reality=resolve_reality(reality), reality_seed=seed)
     starts = [np.column_stack([_spread(rng, n), rng.uniform(-np.pi, np.pi, n)]) for _ in range(batch)]
     teams.reset(np.concatenate(starts))
     goals = _goals(rng, n * batch)
@@ -75,7 +85,7 @@ def bench_ours(tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup:
     for k in range(warmup + ticks):
         if k % _REDRAW == _REDRAW - 1:
             goals = _goals(rng, n * batch)
-        teams.tick(go_to_goal(teams.points, goals, max_speed=0.15))
+        teams.tick(go_to_goal(teams.points if teams.reality is None else teams.measured_points, goals, max_speed=0.15))
         if k >= warmup:
             tot.append(teams.timing.total)
             phy.append(teams.timing.physics)
@@ -94,6 +104,7 @@ def bench_ours(tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup:
         per_robot_tick_us=total / (n * batch),
         robot_s_per_wall_s=n * batch * C.CONTROL_DT_S / (total * 1e-6),
         ticks=ticks,
+        reality=reality if isinstance(reality, str) else resolve_reality(reality).level + "+overrides",
     )
 
 
@@ -156,15 +167,16 @@ def bench_rps(n: int, ticks: int, seed: int = 0, warmup: int = 10) -> SimBenchRo
 
 def _table(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> str:
     head = (
-        f"{'system':<15}{'tier':<9}{'N':>4}{'B':>4}{'tick µs':>11}{'physics':>10}{'filter':>9}{'rest':>8}"
+        f"{'system':<15}{'tier':<9}{'reality':<9}{'N':>4}{'B':>4}{'tick µs':>11}{'physics':>10}{'filter':>9}{'rest':>8}"
         f"{'rest %':>8}{'µs/robot-tick':>15}{'robot-s/s':>11}{'vs rps':>8}"
     )
     lines = [head, "-" * len(head)]
     for r in rows:
-        ratio = rps[r.n_robots].per_robot_tick_us / r.per_robot_tick_us if r.n_robots in rps and r.system == "comat" else float("nan")
+        ratio = (rps[r.n_robots].per_robot_tick_us / r.per_robot_tick_us
+                 if r.n_robots in rps and r.system == "comat" and r.reality == "off" else float("nan"))
         rest_pct = 100 * r.rest_us / r.tick_us if r.system == "comat" else float("nan")
         lines.append(
-            f"{r.system:<15}{r.tier:<9}{r.n_robots:>4}{r.batch:>4}{r.tick_us:>11.0f}{r.physics_us:>10.0f}"
+            f"{r.system:<15}{r.tier:<9}{r.reality:<9}{r.n_robots:>4}{r.batch:>4}{r.tick_us:>11.0f}{r.physics_us:>10.0f}"
             f"{r.filter_us:>9.0f}{r.rest_us:>8.0f}{rest_pct:>8.1f}{r.per_robot_tick_us:>15.1f}"
             f"{r.robot_s_per_wall_s:>11.1f}{ratio:>8.1f}"
         )
@@ -179,8 +191,10 @@ def run_sim_bench(
     rps_ticks: int = 100,
     out: str | None = None,
     progress=print,
+    reality_sizes: tuple[int, ...] = (8,),
 ) -> dict:
-    """Run the grid, print a table, write JSON to ``out``; return the JSON dict."""
+    """Run the grid, print a table, write JSON to ``out``; return the JSON dict. Team sizes in
+    ``reality_sizes`` get a ``nominal`` row next to each ``off`` one."""
     rows: list[SimBenchRow] = []
     rps_rows: dict[int, SimBenchRow] = {}
     have_rps = rps_available()
@@ -189,6 +203,9 @@ def run_sim_bench(
             for b in batches:
                 progress(f"  comat {tier:<8} N={n:<3} B={b:<3} ...")
                 rows.append(bench_ours(tier, n, b, ticks))
+                if n in reality_sizes:
+                    progress(f"  comat {tier:<8} N={n:<3} B={b:<3} reality=nominal ...")
+                    rows.append(bench_ours(tier, n, b, ticks, reality="nominal"))
         if have_rps:
             progress(f"  rps            N={n:<3} B=1   ...")
             rps_rows[n] = bench_rps(n, rps_ticks)
@@ -209,8 +226,9 @@ def run_sim_bench(
 
 
 def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
-    def find(tier, n, b):
-        return next((r for r in rows if r.tier == tier and r.n_robots == n and r.batch == b), None)
+    def find(tier, n, b, reality="off"):
+        return next((r for r in rows if r.tier == tier and r.n_robots == n and r.batch == b and r.reality == reality),
+                    None)
 
     checks = {}
     for tier in ("wheels", "unicycle"):
@@ -232,6 +250,12 @@ def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
                 checks[f"faster_than_rps_per_robot_tick_{tier}_B64_N8"] = {
                     "value": ratio, "target": ">= 5", "pass": ratio >= 5
                 }
+    # The reality layer's cost (issue 29): at most 15 % on the tick.
+    for tier in ("wheels", "unicycle"):
+        off, nominal = find(tier, 8, 64), find(tier, 8, 64, "nominal")
+        if off and nominal:
+            ratio = nominal.tick_us / off.tick_us
+            checks[f"reality_overhead_{tier}_B64_N8"] = {"value": ratio, "target": "<= 1.15", "pass": ratio <= 1.15}
     # The barrier scales (comat.safety.sparse): 4x the robots may cost at most 6x the tick and 8x
     # the filter (all-pairs QP: 12.2x and 37x).
     small, large = find("unicycle", 8, 64), find("unicycle", 32, 64)

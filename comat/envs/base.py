@@ -114,6 +114,10 @@ class TaskEnv(ParallelEnv):
         ticks_per_step: control ticks per env step (PCP 29, HMT 74 by default).
         max_robots: size of ``possible_agents`` (default: the largest team it may get).
         state_robots: robots covered by ``state()`` (default 8).
+        reality: the reality layer between the world and the robots' decisions: "off" (default,
+            the ideal world), "nominal", "stress", a :class:`comat.reality.RealityConfig`, or a
+            mapping of its fields (``{"level": "nominal", "pose_delay_ticks": 2}``). Observations,
+            waypoints, controller and filter then read measured poses; rewards and metrics true ones.
         render_mode: None (default) or "rgb_array": ``render()`` then returns the arena drawn
             top-down, an (H, W, 3) uint8 frame (:mod:`comat.viz.frames`; matplotlib, headless).
         task options: see each task (e.g. PCP ``n_prey``: a fixed prey count instead of the
@@ -135,6 +139,7 @@ class TaskEnv(ParallelEnv):
         ticks_per_step: int | None = None,
         max_robots: int | None = None,
         state_robots: int = 8,
+        reality: Any = "off",
         render_mode: str | None = None,
         **task_options: Any,
     ) -> None:
@@ -144,7 +149,7 @@ class TaskEnv(ParallelEnv):
         self.task = self.task_cls(**task_options)
         self.coalitions, self.fixed_team, slots = team_source(self.task, coalitions, team, max_robots)
         sim = sim or SimConfig(tier=tier)
-        self.core = TaskCore(self.task, 1, slots, sim, safety, ticks_per_step, state_robots)
+        self.core = TaskCore(self.task, 1, slots, sim, safety, ticks_per_step, state_robots, reality)
         self.possible_agents = [f"robot_{i}" for i in range(self.core.N)]
         self.agents: list[str] = []
         self._np_random = np.random.default_rng()

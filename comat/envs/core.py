@@ -7,6 +7,10 @@ waypoint controller → safety filter → physics run for all B teams at once
 the task logic (:mod:`comat.task_logic`) updates its state and the named reward terms, and
 the episode record (:mod:`comat.envs.diagnostics`: progress curve, per-robot counts) one step.
 
+With a reality layer (``reality=``, :mod:`comat.reality`) the waypoints, the controller, the
+filter and the observations read *measured* poses; the task logic, rewards and metrics read
+*true* ones (:meth:`TaskCore.poses`).
+
 Robots are padded to ``N`` slots per environment (``mask`` (B, N)); physics arrays are flat
 (R, ·) in team order, and ``_flat`` maps slots to rows. Team sizes change between episodes.
 """
@@ -22,6 +26,7 @@ from comat import kernels
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, waypoint_controller
 from comat.envs.diagnostics import EpisodeRecorder
+from comat.reality import RealityConfig, episode_key, resolve_reality
 from comat.task_logic import waypoint_goals
 from comat.team import TeamSpec
 
@@ -83,6 +88,7 @@ class TaskCore:
         safety: barrier filter settings.
         ticks_per_step: control ticks per env step (default: the task's, PCP 29, HMT 74).
         state_robots: robots covered by :meth:`global_state`.
+        reality: the reality layer (see :func:`comat.reality.resolve_reality`; default off).
     """
 
     def __init__(
@@ -94,6 +100,7 @@ class TaskCore:
         safety: SafetyConfig | None = None,
         ticks_per_step: int | None = None,
         state_robots: int = 8,
+        reality: RealityConfig | str | None = None,
     ) -> None:
         for name, value in (("ticks_per_step", ticks_per_step), ("state_robots", state_robots)):
             if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
@@ -103,6 +110,8 @@ class TaskCore:
         self.B, self.N = int(num_envs), int(max_robots)
         self.sim_config = sim or SimConfig()
         self.safety_config = safety or SafetyConfig()
+        self.reality_config = resolve_reality(reality)
+        """The reality layer's settings (``is_off``: the ideal world)."""
         self.ticks_per_step = int(ticks_per_step or task.ticks_per_step)
         self.state = task.new_state(self.B, self.N)
         self.mask = np.zeros((self.B, self.N), dtype=bool)
@@ -119,7 +128,7 @@ class TaskCore:
     def _relayout(self) -> None:
         sizes = [int(m.sum()) for m in self.mask]
         if self.safe is None:
-            self.safe = SafeTeams(sizes, self.sim_config, self.safety_config)
+            self.safe = SafeTeams(sizes, self.sim_config, self.safety_config, reality=self.reality_config)
         else:
             self.safe.set_team_sizes(sizes)
         offsets = self.safe.world.layout.offsets
@@ -133,14 +142,22 @@ class TaskCore:
         return out
 
     def poses(self) -> np.ndarray:
-        """(B, N, 3) current poses (padded slots 0)."""
+        """(B, N, 3) current true poses (padded slots 0): what the task logic and metrics judge."""
         return self.padded(self.safe.world._poses)
+
+    def measured_poses(self) -> np.ndarray:
+        """(B, N, 3) the poses the robots' script sees (padded slots 0): what observations are
+        made of; the true poses when the reality layer is off."""
+        return self.padded(self.safe.decision_poses()[0])
 
     # -- episodes -----------------------------------------------------------------------------------
     def reset(self, envs: Sequence[int], teams: Sequence[TeamSpec], rngs: Sequence[np.random.Generator]) -> None:
         """Start new episodes in ``envs`` with the given teams and random generators."""
         envs = np.asarray(envs, dtype=np.int64)
         starts = {}
+        # The layer's keys come from each env's generator without advancing it: the same teams
+        # and starts are drawn at every reality level (paired comparisons).
+        keys = None if self.reality_config.is_off else [episode_key(rng) for rng in rngs]
         if hasattr(self.task, "reserve") and len(teams):  # PCP: prey slots for the largest team here
             self.task.reserve(self.state, max(t.size for t in teams))
         for b, team, rng in zip(envs, teams, rngs):
@@ -159,7 +176,7 @@ class TaskCore:
         flat = self.safe.world._poses.copy()
         for b, p in starts.items():
             flat[self._flat[b, : p.shape[0]]] = p
-        self.safe.reset(flat, teams=envs)
+        self.safe.reset(flat, teams=envs) if keys is None else self.safe.reset(flat, teams=envs, reality_keys=keys)
         if envs.size == self.B:  # every episode starts afresh: so does the solver (exact resume)
             self.safe.forget_solver_state()
         self.steps[envs] = 0
@@ -175,15 +192,20 @@ class TaskCore:
         step_len = task.step_lengths(self.caps)  # (B, N)
         steps = step_len[self.mask]
         points = safe.points
-        goals = waypoint_goals(points, flat_actions, steps)
+        real = safe.reality is not None
+        goals = waypoint_goals(safe.measured_points if real else points, flat_actions, steps)
         starts = lay.offsets[:-1]
         d = self.safety_config.projection_distance_m
         violations = np.zeros(self.B)
         s = self.stats.values
         last = self._last_contact
         for _ in range(self.ticks_per_step):
-            world = safe.world
-            events, info = safe._tick(waypoint_controller(None, goals, world._poses, WAYPOINT_GAIN, d, world.cos_sin()))
+            if real:
+                seen, cos_sin = safe.decision_poses()
+            else:
+                world = safe.world
+                seen, cos_sin = world._poses, world.cos_sin()
+            events, info = safe._tick(waypoint_controller(None, goals, seen, WAYPOINT_GAIN, d, cos_sin))
             self._count_tick(starts, events, info, last, violations)
             last = events.robot_contact
         self._last_contact = last
@@ -256,8 +278,8 @@ class TaskCore:
 
     # -- observations -------------------------------------------------------------------------------
     def observe(self) -> np.ndarray:
-        """(B, N, D) observations (padded slots 0)."""
-        return self.task.observe(self.state, self.poses(), self.type_ids, self.caps, self.mask)
+        """(B, N, D) observations (padded slots 0), made of the measured poses."""
+        return self.task.observe(self.state, self.measured_poses(), self.type_ids, self.caps, self.mask)
 
     def graph(self) -> dict[str, np.ndarray]:
         """Dense team graphs of all environments.
@@ -268,7 +290,7 @@ class TaskCore:
             cos, sin (2); edge_type (B, N, N): type_i · n_types + type_j; edge_mask (B, N, N):
             both robots real and i != j; mask (B, N).
         """
-        poses = self.poses()
+        poses = self.measured_poses()
         d = poses[:, None, :, :2] - poses[:, :, None, :2]  # [b, i, j] = p_j - p_i
         c, s = np.cos(poses[..., 2])[..., None], np.sin(poses[..., 2])[..., None]
         local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)

@@ -36,7 +36,7 @@ class VectorEnv:
         task: a :mod:`comat.task_logic` task instance.
         num_envs: B.
         seed: seeds every environment's generator (same seed, same episodes).
-        coalitions, team, tier, sim, safety, ticks_per_step, max_robots, state_robots: as for
+        coalitions, team, tier, sim, safety, ticks_per_step, max_robots, state_robots, reality: as for
             :class:`comat.envs.base.TaskEnv`.
         shard: ``(first, total)``: these are environments ``first … first + num_envs - 1`` of
             ``total`` seeded from ``seed`` (how :class:`comat.envs.sharded.ShardedVectorEnv`
@@ -57,6 +57,7 @@ class VectorEnv:
         ticks_per_step: int | None = None,
         max_robots: int | None = None,
         state_robots: int = 8,
+        reality: Any = "off",
         shard: tuple[int, int] | None = None,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
@@ -68,7 +69,8 @@ class VectorEnv:
             raise ValueError(f"shard must be (first, total) with 0 <= first and first + num_envs <= total, got {shard!r}")
         self._shard = (first, total)
         self.coalitions, self.fixed_team, slots = team_source(task, coalitions, team, max_robots)
-        self.core = TaskCore(task, num_envs, slots, sim or SimConfig(tier=tier), safety, ticks_per_step, state_robots)
+        self.core = TaskCore(task, num_envs, slots, sim or SimConfig(tier=tier), safety, ticks_per_step, state_robots,
+                             reality)
         self.max_robots = self.core.N
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (task.obs_size(),), np.float64)
         self.single_action_space = spaces.Discrete(5)

@@ -1,0 +1,240 @@
+"""The reality layer of R robots: measured poses out of the world, executed commands into it.
+
+:class:`RealityLayer` composes the pose path, the command path and the motors
+(:mod:`comat.reality.paths`, :mod:`comat.reality.motors`) for every robot of a (batched) world.
+:class:`comat.control.SafeTeams` calls it at the two boundaries of a tick::
+
+    measured poses ──> waypoint controller, safety filter, (policy)   [decide]
+    filtered command ──> si→unicycle on the measured heading ──> wheel limit
+      ──> actuate(): command path ──> motors ──> physics ──> true poses   [judge]
+      ──> observe(true poses): pose path ──> measured poses
+
+Randomness: each team gets a 64-bit key per episode (:func:`comat.reality.random.episode_key`,
+from the env's generator without advancing it), each robot a key derived from it, and every
+draw is a pure function of (robot key, robot tick, stream) (:mod:`comat.reality.random`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from comat import constants as C
+from comat.reality import random as rr
+from comat.reality.config import RealityConfig
+from comat.reality.motors import Motors
+from comat.reality.paths import CommandPath, PosePath
+from comat.sim.kinematics import diff_to_uni, projected_points, uni_to_diff
+from comat.sim.layout import TeamLayout
+
+__all__ = ["RealityLayer"]
+
+# Per-tick streams (one draw of _TICK_STREAMS uniforms per robot and tick).
+_UNIFORM = slice(0, 5)  # command: loss start, run length; pose: hold, freeze start, freeze length
+_CMD = slice(0, 2)
+_POSE_U = slice(2, 5)
+_NORMAL = slice(5, 10)  # motors: 2 (the wheels' disturbance); pose: 3 (x, y, θ of the next measurement)
+_MOTOR = slice(0, 2)
+_POSE_N = slice(2, 5)
+_TICK_STREAMS = 10
+# Per-episode stream offsets (tick = rr.EPISODE).
+_EP_POSE_DELAY, _EP_BIAS, _EP_POSE0, _EP_CMD_DELAY, _EP_MOTOR, _EP_MOTOR_N, _EP_FAULT, _EP_START = (
+    100, 200, 250, 300, 400, 450, 500, 600)
+
+
+class RealityLayer:
+    """Measured poses and executed commands of the robots of ``layout`` under ``config``.
+
+    Args:
+        config: the components and their magnitudes (:class:`~comat.control.SafeTeams` builds no
+            layer for a config that ``is_off``; a layer built anyway passes everything through).
+        profile: the robots' generation (wheel radius, axle, wheel limit).
+        layout: the teams' rows (R robots in team order).
+        seed: keys of teams reset without one (direct :class:`~comat.control.SafeTeams` users):
+            team b's k-th episode gets a key from (seed, b, k).
+    """
+
+    def __init__(self, config: RealityConfig, profile: C.RobotProfile, layout: TeamLayout, seed: int = 0) -> None:
+        self.config = config
+        self.profile = profile
+        self.seed = int(seed)
+        self.pose_on = any(getattr(config, k) for k in (
+            "pose_delay_ticks", "pose_delay_spread_ticks", "pose_hold_prob", "pose_noise_xy_m", "pose_noise_theta_rad",
+            "pose_bias_xy_m", "pose_freeze_prob"))
+        self.command_on = bool(config.command_delay_max_ticks or config.command_loss_prob)
+        self.motors_on = bool(config.motor_tau_max_s or config.motor_accel_limit_radps2 or config.motor_dead_zone_radps
+                              or config.wheel_gain_spread or config.top_speed_derate_min < 1
+                              or config.wheel_disturbance_radps or config.fault_prob)
+        self._episodes = np.zeros(0, np.int64)  # per team: episodes begun (for seed-derived keys)
+        self._build(layout)
+        self._u: np.ndarray | None = None
+
+    def _build(self, layout: TeamLayout) -> None:
+        R = layout.n_robots
+        self.layout = layout
+        self.keys = np.zeros(R, np.uint64)
+        """(R,) each robot's key for this episode."""
+        self.ticks = np.zeros(R, np.int64)
+        """(R,) ticks since each robot's episode began."""
+        self.pose = PosePath(self.config, R)
+        self.command = CommandPath(self.config, R)
+        self.motors = Motors(self.config, self.profile, R)
+        self._true = np.zeros((R, 3))
+        self._cos_sin: tuple[np.ndarray, np.ndarray] | None = None
+        episodes = np.zeros(layout.n_teams, np.int64)
+        episodes[: min(layout.n_teams, self._episodes.size)] = self._episodes[: layout.n_teams]
+        self._episodes = episodes
+
+    # -- what the robots' script sees -----------------------------------------------------------------
+    @property
+    def measured(self) -> np.ndarray:
+        """(R, 3) the latest measured poses (read-only; the true ones when the pose path is off)."""
+        return self.pose.measured if self.pose_on else self._true
+
+    def cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R,) cosines and sines of the measured headings (computed once per tick)."""
+        if self._cos_sin is None:
+            th = self.measured[:, 2]
+            self._cos_sin = (np.cos(th), np.sin(th))
+        return self._cos_sin
+
+    def points(self, distance: float) -> np.ndarray:
+        """(R, 2) the measured poses' points ``distance`` ahead of the axles."""
+        return projected_points(self.measured, distance)
+
+    @property
+    def speed_fraction(self) -> np.ndarray:
+        """(R,) each robot's speed factor from its fault now (1: healthy): what a capability
+        vector reports when ``config.fault_known``."""
+        if self.config.fault_prob <= 0:
+            return np.ones(self.layout.n_robots)
+        return np.where(self.motors.faulty(self.ticks), self.config.fault_speed_fraction, 1.0)
+
+    # -- episodes -------------------------------------------------------------------------------------
+    def start(self, poses: np.ndarray, teams: np.ndarray, keys: Sequence[int] | None) -> np.ndarray:
+        """Begin episodes of ``teams`` with their keys (None: from the seed) and return the (R, 3)
+        poses they really start at: the requested ones plus the start error, kept inside the
+        arena and apart (a robot whose error would overlap a teammate starts where requested)."""
+        lay = self.layout
+        teams = np.asarray(teams, np.int64)
+        if keys is None:
+            seed = np.array([self.seed], np.uint64)
+            keys = [rr._mix(seed ^ rr._mix(np.array([(int(b) << 32) + int(self._episodes[b])], np.uint64)))[0]
+                    for b in teams]
+        self._episodes[teams] += 1
+        rows_of = [np.arange(lay.offsets[b], lay.offsets[b + 1]) for b in teams]
+        for b, key, rows in zip(teams, keys, rows_of):
+            self.keys[rows] = rr.robot_keys(np.uint64(key), rows.size)
+        rows = np.concatenate(rows_of) if rows_of else np.zeros(0, np.int64)
+        k = self.keys[rows]
+        self.ticks[rows] = 0
+        c = self.config
+        spread = max(c.pose_delay_spread_ticks, 1)
+        self.pose.begin(rows, poses[rows], rr.uniforms(k, rr.EPISODE, spread, _EP_POSE_DELAY)[:, : c.pose_delay_spread_ticks],
+                        rr.normals(k, rr.EPISODE, 2, _EP_BIAS))
+        spread = max(c.command_delay_spread_ticks, 1)
+        self.command.begin(rows, rr.uniforms(k, rr.EPISODE, spread, _EP_CMD_DELAY)[:, : c.command_delay_spread_ticks])
+        self.motors.begin(rows, rr.uniforms(k, rr.EPISODE, 5, _EP_MOTOR), rr.normals(k, rr.EPISODE, 2, _EP_MOTOR_N),
+                          self._fault_ticks(rows_of))
+        out = poses.copy()
+        if c.start_xy_m > 0 or c.start_theta_rad > 0:
+            for rows_b in rows_of:
+                out[rows_b] = self._start_error(poses[rows_b], self.keys[rows_b])
+        return out
+
+    def _fault_ticks(self, rows_of: list[np.ndarray]) -> np.ndarray:
+        """Per robot of the reset teams: the tick its fault begins (int64 max: none)."""
+        c = self.config
+        never = np.iinfo(np.int64).max
+        out = [np.full(rows.size, never, np.int64) for rows in rows_of]
+        if c.fault_prob <= 0:
+            return np.concatenate(out) if out else np.zeros(0, np.int64)
+        for o, rows in zip(out, rows_of):
+            u = rr.uniforms(self.keys[rows[:1]], rr.EPISODE, 3, _EP_FAULT)[0]
+            if u[0] < c.fault_prob:
+                start_s = c.fault_start_min_s + (c.fault_start_max_s - c.fault_start_min_s) * u[2]
+                o[min(int(u[1] * rows.size), rows.size - 1)] = round(start_s / C.CONTROL_DT_S)
+        return np.concatenate(out)
+
+    def _start_error(self, poses: np.ndarray, keys: np.ndarray) -> np.ndarray:
+        """One team's start poses (n, 3) moved by the start error, valid for the world."""
+        c = self.config
+        u = 2.0 * rr.uniforms(keys, rr.EPISODE, 3, _EP_START) - 1.0
+        out = poses + u * np.array([c.start_xy_m, c.start_xy_m, c.start_theta_rad])
+        out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
+        r = self.profile.radius_m
+        x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+        margin = 1e-9  # the world's own check is strict at the wall
+        out[:, 0] = np.clip(out[:, 0], x0 + r + margin, x1 - r - margin)
+        out[:, 1] = np.clip(out[:, 1], y0 + r + margin, y1 - r - margin)
+        n = out.shape[0]
+        if n > 1:
+            i, j = np.triu_indices(n, 1)
+            moved = np.ones(n, dtype=bool)
+            while True:  # reset-time only; each pass returns robots to their requested poses
+                d = np.hypot(*(out[i, :2] - out[j, :2]).T)
+                bad = (d < 2 * r + 1e-9) & (moved[i] | moved[j])
+                if not bad.any():
+                    break  # (overlaps among requested poses are the world's to reject)
+                back = np.unique(np.concatenate([i[bad], j[bad]]))
+                out[back] = poses[back]
+                moved[back] = False
+        return out
+
+    def begin_measuring(self, true: np.ndarray, teams: np.ndarray) -> None:
+        """After the world placed the reset teams: their first measurement from true poses (R, 3)."""
+        lay = self.layout
+        rows = np.concatenate([np.arange(lay.offsets[b], lay.offsets[b + 1]) for b in teams]) if len(teams) else \
+            np.zeros(0, np.int64)
+        self._true = true
+        if self.pose_on and rows.size:
+            self.pose.history[rows] = true[rows][:, None, :]
+            self.pose.first(rows, true[rows], rr.normals(self.keys[rows], rr.EPISODE, 3, _EP_POSE0))
+        self._cos_sin = None
+
+    # -- ticks ----------------------------------------------------------------------------------------
+    def actuate(self, dxu: np.ndarray) -> np.ndarray:
+        """Unicycle commands (R, 2) the robots execute this tick for those the script sent (R, 2)
+        (within the wheel limits)."""
+        words = rr.bits(self.keys, self.ticks, _TICK_STREAMS)
+        u, normal = rr.to_uniform(words[:, _UNIFORM]), rr.to_normal(words[:, _NORMAL])
+        self._u = (u, normal)
+        out = self.command.update(dxu, self.ticks, u[:, _CMD]) if self.command_on else dxu
+        if self.motors_on:
+            n = normal[:, _MOTOR]
+            out = diff_to_uni(self.motors.update(uni_to_diff(out, self.profile), self.ticks, n), self.profile)
+        return out
+
+    def observe(self, true: np.ndarray) -> None:
+        """After the tick's physics: advance the robots' clocks and measure true poses (R, 3)."""
+        self.ticks += 1
+        self._true = true
+        self._cos_sin = None
+        if not self.pose_on:
+            return
+        if self._u is None:  # observed without actuate (tests, direct users): the same draws
+            words = rr.bits(self.keys, self.ticks - 1, _TICK_STREAMS)
+            self._u = (rr.to_uniform(words[:, _UNIFORM]), rr.to_normal(words[:, _NORMAL]))
+        u, normal = self._u
+        self._u = None
+        self.pose.update(true, self.ticks, normal[:, _POSE_N] if self.pose.noisy else None, u[:, _POSE_U])
+
+    # -- layout ---------------------------------------------------------------------------------------
+    def relayout(self, layout: TeamLayout) -> None:
+        """New team sizes: teams that kept their size keep their state (as the world keeps their
+        poses); the others must be started again."""
+        parts = {name: getattr(self, name) for name in ("pose", "command", "motors")}
+        keys, ticks, true = self.keys, self.ticks, self._true
+        old_layout = self.layout
+        self._build(layout)
+        for b in range(min(layout.n_teams, old_layout.n_teams)):
+            if old_layout.team_sizes[b] != layout.team_sizes[b]:
+                continue
+            new_rows = slice(layout.offsets[b], layout.offsets[b + 1])
+            old_rows = slice(old_layout.offsets[b], old_layout.offsets[b + 1])
+            self.keys[new_rows], self.ticks[new_rows], self._true[new_rows] = keys[old_rows], ticks[old_rows], true[old_rows]
+            for name, old_part in parts.items():
+                new_part = getattr(self, name)
+                for attr in old_part.ROW_STATE:
+                    getattr(new_part, attr)[new_rows] = getattr(old_part, attr)[old_rows]

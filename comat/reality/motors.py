@@ -1,0 +1,86 @@
+"""The robots' wheels as the reality layer models them: what a wheel asked for a speed actually does.
+
+Per tick and wheel (left, right), in order:
+
+1. dead zone: a wheel asked for less than ``motor_dead_zone_radps`` does not turn;
+2. gain: the request times the wheel's episode gain (radius, calibration mismatch), times the
+   robot's fault fraction once its fault has begun;
+3. top speed: clipped to 12.5 rad/s × the robot's episode derate;
+4. lag: a first-order step toward that target with the wheel's time constant, its change per
+   tick clipped by the acceleration limit;
+5. disturbance: a per-wheel Ornstein–Uhlenbeck speed error, clipped to its bound, added while
+   the wheel is driven (a wheel at rest does not creep), the sum clipped to the top speed again.
+
+All state is row-per-robot (R, 2) and advanced for every robot at once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from comat import constants as C
+from comat.reality.config import RealityConfig
+
+__all__ = ["Motors"]
+
+
+class Motors:
+    """Wheel-speed dynamics, calibration errors and faults of R robots."""
+
+    ROW_STATE = ("speed", "alpha", "gain", "cap", "noise", "fault_tick")
+
+    def __init__(self, config: RealityConfig, profile: C.RobotProfile, n_robots: int) -> None:
+        self.c = config
+        self.profile = profile
+        self.speed = np.zeros((n_robots, 2))
+        """(R, 2) current wheel speeds [left, right] (rad/s)."""
+        self.alpha = np.zeros((n_robots, 2))
+        """(R, 2) per-tick decay exp(-dt/τ) of the lag (0: no lag)."""
+        self.gain = np.ones((n_robots, 2))
+        """(R, 2) per-wheel speed gain of this episode."""
+        self.cap = np.full(n_robots, profile.max_wheel_velocity_radps)
+        """(R,) reachable wheel speed of this episode (rad/s)."""
+        self.noise = np.zeros((n_robots, 2))
+        """(R, 2) the wheels' disturbance state (rad/s)."""
+        self.fault_tick = np.full(n_robots, np.iinfo(np.int64).max)
+        """(R,) tick from which the robot runs at ``fault_speed_fraction`` (int64 max: never)."""
+        dt, tc = C.CONTROL_DT_S, config.wheel_disturbance_corr_s
+        self._rho = float(np.exp(-dt / tc))
+        self._kick = config.wheel_disturbance_radps * float(np.sqrt(1.0 - self._rho**2))
+        self._step = config.motor_accel_limit_radps2 * dt
+
+    def begin(self, rows: np.ndarray, u: np.ndarray, n: np.ndarray, fault_ticks: np.ndarray) -> None:
+        """New episodes for robots ``rows``: per-episode uniforms (r, 5) (time constants 2, gains 2,
+        derate 1), normals (r, 2) (the disturbance's stationary start) and fault ticks (r,)."""
+        c = self.c
+        tau = c.motor_tau_min_s + (c.motor_tau_max_s - c.motor_tau_min_s) * u[:, 0:2]
+        self.alpha[rows] = np.exp(-C.CONTROL_DT_S / np.maximum(tau, 1e-300)) * (tau > 0)
+        self.gain[rows] = 1.0 + c.wheel_gain_spread * (2.0 * u[:, 2:4] - 1.0)
+        self.cap[rows] = self.profile.max_wheel_velocity_radps * (c.top_speed_derate_min + (1.0 - c.top_speed_derate_min) * u[:, 4])
+        bound = c.wheel_disturbance_bound_radps
+        self.noise[rows] = np.clip(c.wheel_disturbance_radps * n, -bound, bound)
+        self.speed[rows] = 0.0
+        self.fault_tick[rows] = fault_ticks
+
+    def faulty(self, ticks: np.ndarray) -> np.ndarray:
+        """(R,) True where a robot's fault has begun at its tick."""
+        return ticks >= self.fault_tick
+
+    def update(self, wheels: np.ndarray, ticks: np.ndarray, noise_n: np.ndarray) -> np.ndarray:
+        """Wheel speeds (R, 2) this tick for requested ones (R, 2) at the robots' ticks (R,);
+        ``noise_n`` (R, 2) standard normals for the disturbance (None when it is off)."""
+        c = self.c
+        target = np.where(np.abs(wheels) < c.motor_dead_zone_radps, 0.0, wheels) * self.gain
+        if c.fault_prob > 0:
+            target = target * np.where(self.faulty(ticks), c.fault_speed_fraction, 1.0)[:, None]
+        cap = self.cap[:, None]
+        target = np.clip(target, -cap, cap)
+        new = target + (self.speed - target) * self.alpha
+        if self._step > 0:
+            new = self.speed + np.clip(new - self.speed, -self._step, self._step)
+        self.speed = new
+        if c.wheel_disturbance_radps <= 0:
+            return new
+        bound = c.wheel_disturbance_bound_radps
+        self.noise = np.clip(self.noise * self._rho + self._kick * noise_n, -bound, bound)
+        return np.clip(new + np.where(target != 0.0, self.noise, 0.0), -cap, cap)

@@ -1,0 +1,159 @@
+"""The two information paths of the reality layer: poses to the robots' script, commands to the robots.
+
+:class:`PosePath` turns true poses into measured ones (per-robot delay, Gaussian noise, an
+episode bias, holds and tracking freezes that repeat the last measured pose); :class:`CommandPath`
+turns the script's commands into those the robots execute (per-robot delay, lost commands that
+leave the last one in force, a brake once the firmware's timeout expires). Both hold per-robot
+state in row-per-robot arrays (R, ...) and are advanced for all robots at once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from comat.reality.config import RealityConfig
+
+__all__ = ["CommandPath", "PosePath", "binomial_half", "run_lengths"]
+
+
+def binomial_half(u: np.ndarray) -> np.ndarray:
+    """Binomial(n, 1/2) counts (R,) from uniforms (R, n)."""
+    return (u < 0.5).sum(axis=1).astype(np.int64)
+
+
+def run_lengths(u: np.ndarray, mean: float, longest: int) -> np.ndarray:
+    """Geometric run lengths >= 1 with the given mean, at most ``longest``, from uniforms (R,)."""
+    if mean <= 1.0:
+        return np.ones(u.shape, np.int64)
+    n = np.ceil(np.log(u) / np.log1p(-1.0 / mean))
+    return np.clip(n, 1, longest).astype(np.int64)
+
+
+class PosePath:
+    """True poses (R, 3) -> measured poses (R, 3), robot by robot (row-per-robot state).
+
+    Per tick: the true pose of ``delay`` ticks ago, plus the episode's bias and fresh Gaussian
+    noise, unless the measurement is held (probability ``pose_hold_prob``) or the tracker is
+    frozen (a run of ticks started with probability ``pose_freeze_prob``): then the last
+    measured pose repeats exactly, as the Robotarium's tracker repeats a lost marker's pose.
+    """
+
+    ROW_STATE = ("history", "delay", "bias", "measured", "freeze_left")
+
+    def __init__(self, config: RealityConfig, n_robots: int) -> None:
+        self.c = config
+        self.length = config.pose_delay_max_ticks + 1
+        self.history = np.zeros((n_robots, self.length, 3))
+        """(R, L, 3) ring buffer of true poses, slot = tick mod L."""
+        self.delay = np.zeros(n_robots, np.int64)
+        """(R,) this episode's measurement delay (ticks)."""
+        self.bias = np.zeros((n_robots, 2))
+        """(R, 2) this episode's position offset (m)."""
+        self.measured = np.zeros((n_robots, 3))
+        """(R, 3) the latest measured poses."""
+        self.freeze_left = np.zeros(n_robots, np.int64)
+        """(R,) ticks of the current freeze still to come (0: tracking)."""
+        self.rows = np.arange(n_robots)
+        self.noisy = config.pose_noise_xy_m > 0 or config.pose_noise_theta_rad > 0
+        self._scale = np.array([config.pose_noise_xy_m, config.pose_noise_xy_m, config.pose_noise_theta_rad])
+
+    def begin(self, rows: np.ndarray, true: np.ndarray, delay_u: np.ndarray, bias_n: np.ndarray) -> None:
+        """New episodes for robots ``rows`` at true poses (r, 3); per-episode uniforms (r, spread)
+        for the delay and normals (r, 2) for the bias. The first measurement is fresh."""
+        c = self.c
+        self.history[rows] = true[:, None, :]
+        self.delay[rows] = c.pose_delay_ticks + binomial_half(delay_u)
+        self.bias[rows] = c.pose_bias_xy_m * bias_n
+        self.freeze_left[rows] = 0
+
+    def first(self, rows: np.ndarray, true: np.ndarray, noise: np.ndarray) -> None:
+        """The episode's first measurement of robots ``rows`` (true (r, 3), normals (r, 3))."""
+        self.measured[rows] = self._corrupt(true, self.bias[rows], noise)
+
+    def _corrupt(self, poses: np.ndarray, bias: np.ndarray, noise: np.ndarray | None) -> np.ndarray:
+        out = poses + noise[:, :3] * self._scale if noise is not None else poses.copy()
+        out[:, :2] += bias
+        if noise is not None:  # wrapped to (-π, π], as the tiers report
+            out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
+        return out
+
+    def update(self, true: np.ndarray, ticks: np.ndarray, noise: np.ndarray, u: np.ndarray) -> None:
+        """After a tick: record true poses (R, 3) at the robots' ticks (R,) (already advanced)
+        and measure; ``noise`` (R, >= 3) normals (None: no noise), ``u`` (R, 3) uniforms (hold,
+        freeze start, length)."""
+        c, L = self.c, self.length
+        if L > 1:
+            slot = ticks % L
+            self.history[self.rows, slot] = true
+            delayed = np.take(self.history.reshape(-1, 3), self.rows * L + (slot - self.delay) % L, axis=0)
+        else:
+            delayed = true
+        fresh = self._corrupt(delayed, self.bias, noise)
+        frozen = self.freeze_left > 0
+        self.freeze_left -= frozen
+        if c.pose_freeze_prob > 0:
+            start = ~frozen & (u[:, 1] < c.pose_freeze_prob)
+            if start.any():
+                self.freeze_left[start] = run_lengths(u[start, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
+                frozen |= start
+        if c.pose_hold_prob > 0:
+            frozen |= u[:, 0] < c.pose_hold_prob
+        np.copyto(self.measured, fresh, where=~frozen[:, None])
+
+
+class CommandPath:
+    """Commands the script sends (R, 2) -> commands the robots execute (R, 2).
+
+    A robot's command arrives ``delay`` ticks after it was sent (before the first one arrives,
+    the robot is at rest). A lost command (a run of ticks started with probability
+    ``command_loss_prob``) leaves the last received one in force; once no command has arrived
+    for ``command_brake_after_s`` the robot brakes (zero command), as the GTernal firmware does.
+    """
+
+    ROW_STATE = ("sent", "delay", "last", "lost_run", "lost_left")
+
+    def __init__(self, config: RealityConfig, n_robots: int) -> None:
+        self.c = config
+        self.length = config.command_delay_max_ticks + 1
+        self.brake_after = config.command_brake_after_ticks
+        self.sent = np.zeros((n_robots, self.length, 2))
+        """(R, L, 2) ring buffer of sent commands, slot = tick mod L."""
+        self.delay = np.zeros(n_robots, np.int64)
+        """(R,) this episode's command delay (ticks)."""
+        self.last = np.zeros((n_robots, 2))
+        """(R, 2) the last command received."""
+        self.lost_run = np.zeros(n_robots, np.int64)
+        """(R,) consecutive ticks without a command (0: the last one arrived)."""
+        self.lost_left = np.zeros(n_robots, np.int64)
+        """(R,) ticks of the current run of losses still to come."""
+        self.rows = np.arange(n_robots)
+
+    def begin(self, rows: np.ndarray, delay_u: np.ndarray) -> None:
+        """New episodes for robots ``rows``; per-episode uniforms (r, spread) for the delay."""
+        self.sent[rows] = 0.0
+        self.delay[rows] = self.c.command_delay_ticks + binomial_half(delay_u)
+        self.last[rows] = 0.0
+        self.lost_run[rows] = 0
+        self.lost_left[rows] = 0
+
+    def update(self, sent: np.ndarray, ticks: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Commands (R, 2) the robots execute this tick, given those sent now (R, 2) at the robots'
+        ticks (R,) and uniforms (R, 2) (loss start, run length)."""
+        c, L = self.c, self.length
+        if L > 1:
+            self.sent[self.rows, ticks % L] = sent
+            arrived = np.where((ticks >= self.delay)[:, None], self.sent[self.rows, (ticks - self.delay) % L], 0.0)
+        else:
+            arrived = sent
+        if c.command_loss_prob <= 0:
+            self.last = arrived
+            return arrived
+        lost = self.lost_left > 0
+        self.lost_left -= lost
+        start = ~lost & (u[:, 0] < c.command_loss_prob)
+        if start.any():
+            self.lost_left[start] = run_lengths(u[start, 1], c.command_loss_mean_ticks, np.iinfo(np.int32).max) - 1
+            lost |= start
+        self.lost_run = np.where(lost, self.lost_run + 1, 0)
+        self.last = np.where(lost[:, None], self.last, arrived)
+        return np.where((self.lost_run >= self.brake_after)[:, None], 0.0, self.last)
