@@ -19,12 +19,15 @@ from comat.cli_args import (
     ALGOS,
     TASKS,
     TIERS,
+    VersionAction,
     add_force,
     add_policy,
+    add_reality,
     add_seed,
     add_task,
     add_teams,
     add_tier,
+    comat_version,  # noqa: F401  (comat.cli.comat_version, as before)
 )
 from comat.team import COALITION_SETS, COALITIONS_DIR
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
@@ -74,6 +77,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from comat.eval.evaluate import reality_name
     from comat.rl.checkpoint import load_checkpoint
     from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
     from comat.rl.device import resolve_device
@@ -102,7 +106,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = resolve(apply_overrides(load_preset(args.preset), args.overrides), args.algo, args.task, args.seed,
                          args.tier, args.steps, args.env_workers, resolve_device(args.device or "auto"))
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
-    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, updates on {config.device}), seed {config.seed}, "
+    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {reality_name(config.reality)}, "
+          f"updates on {config.device}), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
     summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every,
                     overrides=tuple(args.overrides))
@@ -152,26 +157,27 @@ def _cmd_policy(args: argparse.Namespace) -> int:
 def _cmd_eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from comat.cli_args import parse_teams, resolve_policy_arg
+    from comat.cli_args import parse_teams, reality_arg, resolve_policy_arg
     from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, write_results
     from comat.files import new_outputs
 
+    reality = reality_arg(args.reality)
     pol = resolve_policy_arg(args.policy, args.task)
     if args.out is None and pol.checkpoint is None:
         raise ValueError(f"--out is needed with --policy {pol.name} (the default is a checkpoint's run folder)")
     out = Path(args.out) if args.out else pol.checkpoint.parent
     named = parse_teams(args.teams, pol.task)
     tier = args.tier or pol.tier
-    stem = f"evaluation_{tier}"
+    stem = f"evaluation_{tier}" + ("" if reality == "off" else f"_{reality}")  # never over an off evaluation
     if pol.checkpoint is None:  # a reference policy: it, or with the other references next to it
         refs = (pol.name,) if args.no_references else REFERENCES
     else:
         refs = () if args.no_references else REFERENCES
     with new_outputs(out, [f"{stem}.json", f"{stem}.csv"], force=args.force):
         print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} "
-              f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier", file=sys.stderr)
+              f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}", file=sys.stderr)
         result = evaluate_policies(pol.checkpoint, pol.task, named, args.episodes, tier, args.seed,
-                                   references=refs, progress=lambda m: print(m, file=sys.stderr))
+                                   references=refs, progress=lambda m: print(m, file=sys.stderr), reality=reality)
         print_table(result)
         paths = write_results(result, out, stem)
     for path in paths:
@@ -331,32 +337,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     raise AssertionError(args.what)
 
 
-def comat_version() -> str:
-    """The package version and the source commit it runs from (when known)."""
-    from comat import __version__
-    from comat.rl.checkpoint import source_commit
-
-    commit = source_commit()
-    return __version__ + (f" ({commit})" if commit and commit != "unknown" else "")
-
-
-class _Version(argparse.Action):
-    """``--version``, computed only when asked (it asks git for the commit)."""
-
-    def __init__(self, option_strings, dest, **kwargs):
-        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        print(f"comat {comat_version()}")
-        parser.exit()
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="comat",
         description="MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium.",
     )
-    parser.add_argument("--version", action=_Version, help="print the version (and source commit) and exit")
+    parser.add_argument("--version", action=VersionAction, help="print the version (and source commit) and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_rollout_parser(sub)
     add_export_parser(sub)
@@ -415,7 +401,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "(and the last); 0: never (default)")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
                    help="settings changed from the preset, dotted as in the YAML (e.g. ppo.lr=3e-4 "
-                   "models.comat.heads=8 total_env_steps=200000); typed and checked like the preset")
+                   "models.comat.heads=8 total_env_steps=200000; reality=nominal trains under the reality layer, "
+                   "drawn afresh every episode, reality.pose_delay_ticks=2 changes one of its fields); typed and "
+                   "checked like the preset")
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("policy", help="write a run's policy file (weights and config to act) from its checkpoint",
@@ -439,13 +427,16 @@ def build_parser() -> argparse.ArgumentParser:
                        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
                        "scripted heuristic, the best constant action and a random policy, on the coalition sets "
                        "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, evaluation_<tier>.json "
-                       "and .csv in --out (default: the checkpoint's run folder).")
+                       "and .csv in --out (default: the checkpoint's run folder); at --reality nominal or stress, "
+                       "evaluation_<tier>_<level>.json and .csv. The reality layer defaults to off whatever level "
+                       "the policy trained at.")
     add_policy(p)
     add_task(p)
     add_teams(p)
     p.add_argument("--episodes", type=int, default=1, help="episodes per coalition (default: %(default)s)")
     add_tier(p)
     add_seed(p, "evaluation seed")
+    add_reality(p)
     p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
     p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
                    "folder)")

@@ -18,6 +18,8 @@ Shared flags, defined here once so their spelling, choices (in one order) and de
 ``--tier T``         ``wheels`` or ``unicycle``; default the checkpoint's training tier, else
                      :data:`REFERENCE_TIER`
 ``--seed S``         default :data:`DEFAULT_SEED` (the evaluation seed; never a training seed)
+``--reality L``      ``off``, ``nominal`` or ``stress``: the reality layer the episodes play at
+                     (:mod:`comat.reality`); default ``off``, never the policy's training level
 ``--out`` / ``--force``  created if missing; refused if it would overwrite unless ``--force``;
                      removed again if the command fails (:func:`comat.files.new_outputs`)
 ===================  =========================================================================
@@ -33,6 +35,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from comat.reality.config import REALITY_LEVELS
 from comat.team import COALITION_SETS
 
 __all__ = [
@@ -44,15 +47,19 @@ __all__ = [
     "TASKS",
     "TIERS",
     "PolicyArg",
+    "VersionAction",
     "add_force",
     "add_policy",
+    "add_reality",
     "add_seed",
     "add_task",
     "add_team",
     "add_teams",
     "add_tier",
+    "comat_version",
     "parse_team",
     "parse_teams",
+    "reality_arg",
     "resolve_policy_arg",
 ]
 
@@ -80,6 +87,26 @@ class _Deprecated(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None) -> None:
         print(f"comat: {option_string} is deprecated and will be removed; use {self.new} {values}", file=sys.stderr)
         setattr(namespace, self.dest, values)
+
+
+def comat_version() -> str:
+    """The package version and the source commit it runs from (when known)."""
+    from comat import __version__
+    from comat.rl.checkpoint import source_commit
+
+    commit = source_commit()
+    return __version__ + (f" ({commit})" if commit and commit != "unknown" else "")
+
+
+class VersionAction(argparse.Action):
+    """``comat --version``, computed only when asked (it asks git for the commit)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"comat {comat_version()}")
+        parser.exit()
 
 
 def add_policy(p: argparse.ArgumentParser, *, required: bool = False, references: tuple[str, ...] = REFERENCE_POLICIES,
@@ -129,6 +156,19 @@ def add_tier(p: argparse.ArgumentParser) -> None:
 
 def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> None:
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"{what} (default: %(default)s)")
+
+
+def add_reality(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--reality", default="off", metavar="{" + ",".join(REALITY_LEVELS) + "}",
+                   help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
+                   "README, Reality layer); default: off, the ideal world, NOT the level the policy trained at")
+
+
+def reality_arg(value: str) -> str:
+    """``--reality`` checked in the command (a one-line error, not argparse's usage block)."""
+    if value not in REALITY_LEVELS:
+        raise ValueError(f"--reality must be one of {list(REALITY_LEVELS)}, got {value!r}")
+    return value
 
 
 def add_force(p: argparse.ArgumentParser) -> None:

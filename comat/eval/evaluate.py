@@ -9,6 +9,11 @@ a 95 % confidence interval over the coalitions (each coalition's episodes averag
 :func:`comat.eval.metrics.summarize_ci`). Every episode row keeps its progress curve, endpoints
 and per-robot diagnostics (:func:`comat.eval.episodes.run_episodes`).
 
+Reality: every policy plays at one reality layer (:mod:`comat.reality`; default ``off``, the
+ideal world, whatever level the policy trained at), the same teams and starts at every level
+(paired episodes). Rows say it (``"reality"``: the level's name, or ``"custom"`` for a level with
+fields changed); the result holds the resolved layer (``"reality_config"``).
+
 Outputs (``--out``): ``eval.json`` (every row with means, intervals and the per-episode
 metrics) and ``eval.csv`` (one line per row and metric), both written atomically.
 """
@@ -30,7 +35,7 @@ from comat.files import write_atomic
 from comat.team import COALITION_SETS
 
 __all__ = ["BEST_CONSTANT_ACTION", "EVAL_SEED", "REFERENCES", "TABLE_NAMES", "evaluate_policies", "print_table",
-           "result_json", "write_results"]
+           "reality_name", "result_json", "write_results"]
 
 EVAL_SEED = 2_000_003
 """Default seed of evaluation episodes (never a training seed of the presets)."""
@@ -60,9 +65,15 @@ REFERENCES = ("heuristic", "constant", "random")
 """Reference rows, in table order."""
 
 
+def reality_name(config) -> str:
+    """What a row says about its reality layer: the level's name, or ``"custom"`` when any field
+    differs from the level's value."""
+    return "custom" if config.overrides() else config.level
+
+
 def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, sets=SETS, episodes: int = 1,
                       tier: str | None = None, seed: int = EVAL_SEED, references: bool | tuple[str, ...] = True,
-                      progress=print) -> dict:
+                      progress=print, reality="off") -> dict:
     """Rows of (policy, set) results; see the module docstring.
 
     Args:
@@ -73,9 +84,15 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         episodes: episodes per coalition (>= 1).
         tier: dynamics tier (default: the checkpoint's training tier, else unicycle).
         references: add the heuristic, constant and random rows (True), none (False), or those named.
+        reality: the reality layer every policy plays at: ``"off"`` (default, whatever the
+            checkpoint trained at), ``"nominal"``, ``"stress"``, a RealityConfig or a mapping of
+            its fields (:func:`comat.reality.resolve_reality`).
     """
+    import dataclasses
+
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
+    from comat.reality import resolve_reality
     from comat.rl.algos import BASELINE_ROBOTS, robot_slots
     from comat.rl.runner import load_policy
 
@@ -88,6 +105,8 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     refs = REFERENCES if references is True else tuple(references or ())
     if any(r not in REFERENCES for r in refs):
         raise ValueError(f"references must be True, False or names from {REFERENCES}, got {references!r}")
+    layer = resolve_reality(reality, "reality")
+    level = reality_name(layer)
     act, config = (None, None)
     if checkpoint is not None:
         act, config = load_policy(checkpoint, task=task)
@@ -111,18 +130,20 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         teams = coalitions * episodes
         # One process: the heuristic reads the env's task state directly.
         env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=coalitions,
-                           max_robots=slots, state_robots=slots or BASELINE_ROBOTS)
+                           max_robots=slots, state_robots=slots or BASELINE_ROBOTS, reality=layer)
         policies = _policies(config, act, env, seed)
         policies = {k: v for k, v in policies.items() if k not in REFERENCES or k in refs}
         for name, policy in policies.items():
             t0 = time.perf_counter()
             eps = run_episodes(env, policy, teams, seed, n_coalitions=len(coalitions))
-            rows.append({"policy": name, "task": task, "set": split, "tier": tier, "episodes": len(eps),
-                         "metrics": summarize_ci(eps), "per_episode": eps})
+            rows.append({"policy": name, "task": task, "set": split, "tier": tier, "reality": level,
+                         "episodes": len(eps), "metrics": summarize_ci(eps), "per_episode": eps})
             progress(f"  {name:<10} {split:<5} {len(eps)} episodes in {time.perf_counter() - t0:.0f} s")
     return {"checkpoint": None if checkpoint is None else str(checkpoint),
             "algo": None if config is None else config.algo, "trained_tier": None if config is None else config.tier,
-            "task": task, "tier": tier, "seed": seed, "episodes_per_coalition": episodes, "rows": rows}
+            "trained_reality": None if config is None else reality_name(config.reality),
+            "task": task, "tier": tier, "seed": seed, "episodes_per_coalition": episodes, "reality": level,
+            "reality_config": dataclasses.asdict(layer), "rows": rows}
 
 
 TABLE_NAMES = {"return": "return", "steps": "steps", "completion": "progress", "success": "completion*",
@@ -144,7 +165,9 @@ def print_table(result: dict, out=print) -> None:
             cells.append(("n/a" if v is None else f"{v['mean']:.2f} ± {v['ci95']:.2f}").rjust(17))
         out(f"{r['policy']:<10}{r['set']:<{width}}{r['episodes']:>4}" + "".join(cells))
     k = result.get("episodes_per_coalition", 1)
-    out("completion* = share of episodes with every prey captured / all material delivered (the paper's "
+    # Old result files predate the layer (their episodes were all in the ideal world).
+    level = f"reality layer {result['reality']} (comat eval --reality); " if "reality" in result else ""
+    out(f"{level}completion* = share of episodes with every prey captured / all material delivered (the paper's "
         "completion); progress = fraction captured / delivered; AUC = mean progress over the horizon's env steps "
         "(the final value held after an early finish); t90 = env steps to 90 % progress (the horizon when never "
         f"reached); n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each "

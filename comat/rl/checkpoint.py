@@ -23,8 +23,9 @@ one, never half of one.
 
 A checkpoint keeps the config that trained it. Options added to the configs later are absent
 from older checkpoints; :data:`EARLIER_DEFAULTS` gives each the value that reproduces what
-the older code built (COMAT's paper-form encoder, PPO's TD(0) critic target), so an older
-checkpoint loads as the model it was, whatever today's defaults are.
+the older code built (COMAT's paper-form encoder, PPO's TD(0) critic target; a reality layer
+``off``: :data:`EARLIER_RUN_DEFAULTS`), so an older checkpoint loads as the model it was,
+whatever today's defaults are.
 """
 
 from __future__ import annotations
@@ -60,11 +61,16 @@ EARLIER_DEFAULTS = {
     "trainer": {"comat": {"value_target": "td"}, "mat": {"value_target": "td"}, "mappo": {"value_target": "td"}},
 }
 """Section -> algo -> option -> the value a checkpoint without that option was trained with."""
+EARLIER_RUN_DEFAULTS = {"reality": "off"}
+"""Run-level key -> the value a checkpoint without it was trained with (before the reality layer
+existed, every run trained in the ideal world)."""
 
 
 def with_earlier_defaults(config: dict) -> dict:
     """A stored run config with every option it predates set to what the older code built."""
     out = dict(config)
+    for key, value in EARLIER_RUN_DEFAULTS.items():
+        out.setdefault(key, value)
     for section, by_algo in EARLIER_DEFAULTS.items():
         if isinstance(out.get(section), dict):
             out[section] = {**by_algo.get(out.get("algo"), {}), **out[section]}

@@ -5,7 +5,13 @@ A preset holds values only, for every algorithm at once::
 
     total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
     checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
-    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}}
+    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}},
+    reality: off | nominal | stress | {RealityConfig fields}
+
+``reality`` is the reality layer the run trains at (:mod:`comat.reality`; default ``off``): a
+level name, or a mapping of fields (``{level: nominal, pose_delay_ticks: 2}``; without ``level``
+the fields change ``off``). The dotted overrides reach it as ``reality=nominal``,
+``reality.level=stress`` or ``reality.pose_delay_ticks=2``.
 
 :func:`resolve` picks the sections the algorithm uses and gives a :class:`RunConfig`, which is
 what a run writes next to its results (``config.yaml``) and stores in its checkpoints.
@@ -14,6 +20,7 @@ what a run writes next to its results (``config.yaml``) and stores in its checkp
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,10 +30,12 @@ from comat.models.comat import ComatConfig
 from comat.models.mappo import MappoConfig
 from comat.models.mat import MatConfig
 from comat.models.qmix import QmixNetConfig
+from comat.reality import RealityConfig, resolve_reality
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 
-__all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "apply_overrides", "load_preset", "preset_names", "resolve"]
+__all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "apply_overrides", "load_preset", "preset_names", "resolve",
+           "run_reality"]
 
 ALGOS = ("comat", "mat", "mappo", "qmix")
 TASKS = ("hmt", "pcp")
@@ -37,7 +46,7 @@ PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
              "env_workers", "torch_threads", "physics_threads")
-_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models", "base")
+_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models", "reality", "base")
 
 
 @dataclass(frozen=True)
@@ -71,6 +80,15 @@ class RunConfig:
     """Threads MuJoCo steps each environment process's teams on (:attr:`SimConfig.threads`;
     results do not depend on it). More than 1 pays with ``env_workers: 1`` on an otherwise
     idle machine: the learner's cores wait while the environments step."""
+    reality: RealityConfig = dataclasses.field(default_factory=RealityConfig)
+    """The reality layer of every environment the run builds, training and its periodic
+    evaluation (:mod:`comat.reality`): each episode draws its own delays, noise, motors and
+    start error from its seed (domain randomization). Default ``off``, the ideal world; a run
+    config stored before the layer existed loads as ``off``."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.reality, RealityConfig):
+            object.__setattr__(self, "reality", run_reality(self.reality))
 
     @property
     def env_id(self) -> str:
@@ -79,6 +97,7 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out["trainer"], out["model"] = dataclasses.asdict(self.trainer), dataclasses.asdict(self.model)
+        out["reality"] = dataclasses.asdict(self.reality)  # every field resolved: later level changes do not reach it
         return out
 
     @classmethod
@@ -88,7 +107,21 @@ class RunConfig:
         trainer_cls = QmixConfig if data["algo"] == "qmix" else PPOConfig
         data["trainer"] = load(trainer_cls, data.get("trainer"), prefix="trainer")
         data["model"] = load(MODEL_CONFIGS[data["algo"]], data.get("model"), prefix="model")
+        data["reality"] = run_reality(data.get("reality"))  # absent (a run from before the layer): off
         return cls(**data)
+
+
+def run_reality(value: Any) -> RealityConfig:
+    """A run's reality layer from what a preset, an override or a stored config holds (see
+    :func:`comat.reality.resolve_reality`); errors name the key as the overrides spell it
+    (``reality.pose_delay_ticks must be an integer >= 0 (ticks), got -1``)."""
+    try:
+        return resolve_reality(value, "reality")
+    except (TypeError, ValueError) as err:
+        text = str(err)
+        if text.startswith("RealityConfig."):
+            raise type(err)("reality." + text[len("RealityConfig."):]) from err
+        raise
 
 
 def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
@@ -130,6 +163,7 @@ def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, An
     if not isinstance(data, dict):
         raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
     _check_preset_keys(data, f"preset {str(path)!r}")
+    data = _reality_as_mapping(data)
     if "base" in data:
         base = data.pop("base")
         if str(path.resolve()) in _seen:
@@ -152,6 +186,16 @@ def _check_preset_keys(data: dict[str, Any], source: str) -> None:
         raise ValueError(f"unknown algo(s) {unknown} under models in {source}; valid: {list(ALGOS)}")
 
 
+def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with a level name under ``reality`` written as ``{level: name}``, so merging a
+    preset, its base and the overrides changes the layer field by field (OmegaConf would let a
+    later name replace earlier fields, or fields replace a name, without a word)."""
+    value = data.get("reality")
+    if value is None or isinstance(value, Mapping):
+        return data
+    return {**data, "reality": {"level": value}}
+
+
 def _merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
     """``base`` with ``changes`` applied, mappings merged key by key (OmegaConf's merge)."""
     from omegaconf import OmegaConf
@@ -171,11 +215,15 @@ def apply_overrides(preset: dict[str, Any], overrides: list[str] | tuple[str, ..
     if bad:
         raise ValueError(f"overrides must be key=value (e.g. ppo.lr=3e-4 models.comat.heads=8), got {bad}")
     try:
-        changes = OmegaConf.to_container(OmegaConf.from_dotlist(list(overrides)))
+        # One at a time: `reality=nominal reality.pose_delay_ticks=2` is the nominal level with one
+        # field changed, whatever the order (one dotlist would let the later replace the earlier).
+        changes = {}
+        for o in overrides:
+            changes = _merge(changes, _reality_as_mapping(OmegaConf.to_container(OmegaConf.from_dotlist([o]))))
     except OmegaConfBaseException as err:
         raise ValueError(f"overrides {list(overrides)} could not be parsed: {str(err).splitlines()[0]}") from err
     _check_preset_keys(changes, f"overrides {list(overrides)}")
-    return _merge(preset, changes)
+    return _merge(_reality_as_mapping(preset), changes)
 
 
 def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
@@ -209,4 +257,5 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
     return RunConfig.from_dict({
         "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
         "trainer": preset.get(section), "model": (preset.get("models") or {}).get(algo),
+        "reality": preset.get("reality"),
     })

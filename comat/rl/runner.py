@@ -48,9 +48,12 @@ _SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "inte
 
 
 def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
+    """The run's environments, training and evaluation alike, at the run's reality layer: each
+    episode (every reset and autoreset) draws its layer from its own generator, so a run at
+    ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
     return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
-                              sim=sim, coalitions=coalitions, **env_slots(config))
+                              sim=sim, coalitions=coalitions, reality=config.reality, **env_slots(config))
 
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = (),
@@ -70,7 +73,8 @@ def _write_config(out: Path, config: RunConfig, resumed_at: int | None, override
 
 
 def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions="train") -> dict:
-    """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition."""
+    """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition, at
+    the run's reality layer (what the run trains under; ``comat eval --reality`` for others)."""
     teams = resolve_coalitions(coalitions, config.task) * (episodes_per_team or config.eval_episodes_per_team)
     env = _make_env(config, min(len(teams), 32), config.seed + EVAL_SEED_OFFSET, coalitions)
     for m in modules.values():
@@ -106,7 +110,8 @@ def _next_multiple(steps: int, every: int) -> int:
 
 
 def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: int = 2) -> Path:
-    """Record ``episodes`` evaluation episodes (the first training coalitions) to ``out/rrd``."""
+    """Record ``episodes`` evaluation episodes (the first training coalitions) to ``out/rrd``
+    (in the ideal world: recordings do not take a reality layer yet)."""
     from comat.viz import record_episodes
 
     path = out / "rrd" / f"eval_{steps:012d}.rrd"
