@@ -284,8 +284,16 @@ class SafeTeams:
         (an actuator error is judged on this request); the layer's command path and motors give
         what the robots execute; then the world steps and the layer measures the true poses."""
         world, layer = self.world, self.reality
-        dxu = si_to_uni(safe, poses, self.safety_config.projection_distance_m, cos_sin)
-        clipped, overrun = threshold_wheels(dxu, world.profile)
+        d = self.safety_config.projection_distance_m
+        if kernels.enabled():  # both conversions in one call, as World._step_points does
+            p, R = world.profile, safe.shape[0]
+            dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
+            kernels.si_to_wheels(
+                safe, cos_sin[0], cos_sin[1], d, p.wheel_radius_m, p.base_length_m / 2.0, p.base_length_m,
+                p.max_wheel_velocity_radps, WHEEL_LIMIT_TOLERANCE, dxu, clipped, overrun,
+            )  # fmt: skip
+        else:
+            clipped, overrun = threshold_wheels(si_to_uni(safe, poses, d, cos_sin), world.profile)
         events = world._advance(layer.actuate(clipped), overrun)
         layer.observe(world._poses)
         return events

@@ -9,6 +9,10 @@ from comat.config import SafetyConfig, SimConfig
 from comat.control import waypoint_controller
 from comat.envs.vector import VectorEnv
 from comat.mjcf.scene import compiled_scene
+from comat.reality import RealityConfig
+from comat.reality import random as rr
+from comat.reality.motors import Motors
+from comat.reality.paths import CommandPath, PosePath
 from comat.safety.constraints import make_layout, row_values
 from comat.safety.filter import SafetyFilter
 from comat.safety.qp import BarrierQP
@@ -132,6 +136,59 @@ def test_filter_sub_problems(rng):
     (fast, fast_keys), (slow, slow_keys) = _both(run)
     assert fast_keys == slow_keys and all(len(k) == 4 for k in slow_keys)  # 3 teams padded to 4 of 20
     _equal(fast, slow)
+
+
+def test_reality_draws_twin(rng):
+    keys = rng.integers(0, 2**63, 300, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
+    ticks = rng.integers(0, 10**6, 300)
+    fast, slow = _both(lambda: rr.tick_draws(keys, ticks, 5, 5))
+    _equal(fast, slow)
+    words = rr.bits(keys, ticks, 10)  # the reference is the layer's general draw functions
+    _equal(slow, (rr.to_uniform(words[:, :5]), rr.to_normal(words[:, 5:])))
+
+
+_REALITY_CASES = [
+    RealityConfig(level="nominal"),
+    RealityConfig(level="stress"),
+    RealityConfig(level="stress", pose_delay_ticks=0, pose_delay_spread_ticks=0, command_delay_ticks=0,
+                  command_delay_spread_ticks=0, motor_accel_limit_radps2=0.0, wheel_disturbance_radps=0.0),
+    RealityConfig(level="nominal", pose_noise_xy_m=0.0, pose_noise_theta_rad=0.0, command_loss_prob=0.0,
+                  pose_freeze_prob=0.2, pose_hold_prob=0.0, fault_prob=1.0, fault_start_min_s=0.0,
+                  fault_start_max_s=0.1),
+]
+
+
+@pytest.mark.parametrize("cfg", _REALITY_CASES, ids=["nominal", "stress", "stress-no-delay", "freeze-fault"])
+def test_reality_paths_and_motors_twins(cfg, rng):
+    """Many ticks of the pose path, command path and motors, state included, with and without kernels."""
+    R = 200
+    true = np.column_stack([rng.uniform(-1, 1, (R, 2)), rng.uniform(-np.pi, np.pi, R)])
+    episode = (rng.uniform(size=(R, cfg.pose_delay_spread_ticks)), rng.normal(size=(R, 2)),
+               rng.uniform(size=(R, cfg.command_delay_spread_ticks)), rng.uniform(size=(R, 5)), rng.normal(size=(R, 2)),
+               rng.integers(0, 20, R))
+    ticks = [(true + rng.normal(0, 0.02, (R, 3)) * t, rng.normal(size=(R, 5)), rng.uniform(size=(R, 5)),
+              np.column_stack([rng.normal(0, 0.15, R), rng.normal(0, 3, R)]) * (1e-3 if t % 7 == 0 else 1.0))
+             for t in range(1, 60)]
+    ticks[4][0][:4, 2] = [np.pi, -np.pi, 3 * np.pi, 0.0]  # heading wrap edge cases
+
+    def run():
+        rows = np.arange(R)
+        pose, command, motors = PosePath(cfg, R), CommandPath(cfg, R), Motors(cfg, C.DEFAULT_PROFILE, R)
+        pose.begin(rows, true, episode[0], episode[1])
+        command.begin(rows, episode[2])
+        motors.begin(rows, episode[3], episode[4], episode[5])
+        out, froze, lost = [], False, False
+        for t, (p, normal, u, dxu) in enumerate(ticks, start=1):
+            pose.update(p, np.full(R, t), normal[:, 2:5] if pose.noisy else None, u[:, 2:5])
+            executed = motors.update_unicycle(command.update(dxu, np.full(R, t - 1), u[:, 0:2]), np.full(R, t - 1),
+                                              normal[:, 0:2])
+            out += [executed] + [getattr(part, a).copy() for part in (pose, command, motors) for a in part.ROW_STATE]
+            froze, lost = froze or pose.freeze_left.any(), lost or command.lost_run.any()
+        # freezes and losses happened (their lengths are drawn in numpy after the kernels)
+        assert froze == (cfg.pose_freeze_prob > 0) and lost == (cfg.command_loss_prob > 0)
+        return tuple(out)
+
+    _equal(*_both(run))
 
 
 def test_checks_and_counters(rng):

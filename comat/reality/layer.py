@@ -25,19 +25,18 @@ from comat.reality import random as rr
 from comat.reality.config import RealityConfig
 from comat.reality.motors import Motors
 from comat.reality.paths import CommandPath, PosePath
-from comat.sim.kinematics import diff_to_uni, projected_points, uni_to_diff
+from comat.sim.kinematics import projected_points
 from comat.sim.layout import TeamLayout
 
 __all__ = ["RealityLayer"]
 
-# Per-tick streams (one draw of _TICK_STREAMS uniforms per robot and tick).
+# Per-tick streams (one draw of 10 streams per robot and tick: 5 uniforms, then 5 normals).
 _UNIFORM = slice(0, 5)  # command: loss start, run length; pose: hold, freeze start, freeze length
 _CMD = slice(0, 2)
 _POSE_U = slice(2, 5)
 _NORMAL = slice(5, 10)  # motors: 2 (the wheels' disturbance); pose: 3 (x, y, θ of the next measurement)
 _MOTOR = slice(0, 2)
 _POSE_N = slice(2, 5)
-_TICK_STREAMS = 10
 # Per-episode stream offsets (tick = rr.EPISODE).
 _EP_POSE_DELAY, _EP_BIAS, _EP_POSE0, _EP_CMD_DELAY, _EP_MOTOR, _EP_MOTOR_N, _EP_FAULT, _EP_START = (
     100, 200, 250, 300, 400, 450, 500, 600)
@@ -197,13 +196,11 @@ class RealityLayer:
     def actuate(self, dxu: np.ndarray) -> np.ndarray:
         """Unicycle commands (R, 2) the robots execute this tick for those the script sent (R, 2)
         (within the wheel limits)."""
-        words = rr.bits(self.keys, self.ticks, _TICK_STREAMS)
-        u, normal = rr.to_uniform(words[:, _UNIFORM]), rr.to_normal(words[:, _NORMAL])
+        u, normal = rr.tick_draws(self.keys, self.ticks, _UNIFORM.stop, _NORMAL.stop - _NORMAL.start)
         self._u = (u, normal)
         out = self.command.update(dxu, self.ticks, u[:, _CMD]) if self.command_on else dxu
         if self.motors_on:
-            n = normal[:, _MOTOR]
-            out = diff_to_uni(self.motors.update(uni_to_diff(out, self.profile), self.ticks, n), self.profile)
+            out = self.motors.update_unicycle(out, self.ticks, normal[:, _MOTOR])
         return out
 
     def observe(self, true: np.ndarray) -> None:
@@ -214,8 +211,7 @@ class RealityLayer:
         if not self.pose_on:
             return
         if self._u is None:  # observed without actuate (tests, direct users): the same draws
-            words = rr.bits(self.keys, self.ticks - 1, _TICK_STREAMS)
-            self._u = (rr.to_uniform(words[:, _UNIFORM]), rr.to_normal(words[:, _NORMAL]))
+            self._u = rr.tick_draws(self.keys, self.ticks - 1, _UNIFORM.stop, _NORMAL.stop - _NORMAL.start)
         u, normal = self._u
         self._u = None
         self.pose.update(true, self.ticks, normal[:, _POSE_N] if self.pose.noisy else None, u[:, _POSE_U])

@@ -19,7 +19,10 @@ from __future__ import annotations
 import numpy as np
 
 from comat import constants as C
+from comat import kernels
+from comat.reality import kernels as rk
 from comat.reality.config import RealityConfig
+from comat.sim.kinematics import diff_to_uni, uni_to_diff
 
 __all__ = ["Motors"]
 
@@ -84,3 +87,19 @@ class Motors:
         bound = c.wheel_disturbance_bound_radps
         self.noise = np.clip(self.noise * self._rho + self._kick * noise_n, -bound, bound)
         return np.clip(new + np.where(target != 0.0, self.noise, 0.0), -cap, cap)
+
+    def update_unicycle(self, dxu: np.ndarray, ticks: np.ndarray, noise_n: np.ndarray) -> np.ndarray:
+        """Unicycle commands (R, 2) executed for requested ones (R, 2): :meth:`update` between
+        the wheel conversions (one compiled pass, no temporaries, when the kernels are on)."""
+        p = self.profile
+        if not kernels.enabled():
+            return diff_to_uni(self.update(uni_to_diff(dxu, p), ticks, noise_n), p)
+        c = self.c
+        fault = np.where(self.faulty(ticks), c.fault_speed_fraction, 1.0) if c.fault_prob > 0 else None
+        out = np.empty_like(dxu)
+        rk.motors_step(
+            dxu, p.wheel_radius_m, p.base_length_m / 2.0, p.base_length_m, c.motor_dead_zone_radps, self.gain, fault,
+            self.cap, self.alpha, self._step, self.speed, self.noise, self._rho, self._kick,
+            c.wheel_disturbance_bound_radps, noise_n if c.wheel_disturbance_radps > 0 else None, out,
+        )  # fmt: skip
+        return out

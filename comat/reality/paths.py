@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from comat import kernels
+from comat.reality import kernels as rk
 from comat.reality.config import RealityConfig
 
 __all__ = ["CommandPath", "PosePath", "binomial_half", "run_lengths"]
@@ -82,6 +84,14 @@ class PosePath:
         and measure; ``noise`` (R, >= 3) normals (None: no noise), ``u`` (R, 3) uniforms (hold,
         freeze start, length)."""
         c, L = self.c, self.length
+        if kernels.enabled():
+            starts = np.empty(true.shape[0], np.int64)
+            k = rk.pose_step(true, ticks, self.history, self.delay, self.bias, self._scale, noise, self.measured,
+                                  self.freeze_left, c.pose_freeze_prob, c.pose_hold_prob, u, starts)
+            if k:  # a started freeze repeats the pose it holds now, so its length is only needed from the next tick
+                rows = starts[:k]
+                self.freeze_left[rows] = run_lengths(u[rows, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
+            return
         if L > 1:
             slot = ticks % L
             self.history[self.rows, slot] = true
@@ -140,13 +150,21 @@ class CommandPath:
         """Commands (R, 2) the robots execute this tick, given those sent now (R, 2) at the robots'
         ticks (R,) and uniforms (R, 2) (loss start, run length)."""
         c, L = self.c, self.length
+        if kernels.enabled():
+            starts, out = np.empty(sent.shape[0], np.int64), np.empty_like(sent)
+            k = rk.command_step(sent, ticks, self.delay, self.sent, self.last, self.lost_run, self.lost_left,
+                                     c.command_loss_prob, self.brake_after, u, starts, out)
+            if k:  # a started run's length only matters from the next tick on
+                rows = starts[:k]
+                self.lost_left[rows] = run_lengths(u[rows, 1], c.command_loss_mean_ticks, np.iinfo(np.int32).max) - 1
+            return out
         if L > 1:
             self.sent[self.rows, ticks % L] = sent
             arrived = np.where((ticks >= self.delay)[:, None], self.sent[self.rows, (ticks - self.delay) % L], 0.0)
         else:
             arrived = sent
         if c.command_loss_prob <= 0:
-            self.last = arrived
+            np.copyto(self.last, arrived)  # a copy: ``arrived`` may be the caller's array
             return arrived
         lost = self.lost_left > 0
         self.lost_left -= lost

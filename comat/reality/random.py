@@ -15,8 +15,11 @@ import copy
 
 import numpy as np
 
-__all__ = ["EPISODE", "NORMAL_BOUND", "bits", "episode_key", "normal_table", "normals", "robot_keys", "to_normal",
-           "to_uniform", "uniforms"]
+from comat import kernels
+from comat.reality import kernels as rk
+
+__all__ = ["EPISODE", "NORMAL_BOUND", "bits", "episode_key", "normal_table", "normals", "robot_keys", "tick_draws",
+           "to_normal", "to_uniform", "uniforms"]
 
 _M0 = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -112,3 +115,15 @@ def uniforms(keys: np.ndarray, ticks: np.ndarray | int, streams: int, first: int
 def normals(keys: np.ndarray, ticks: np.ndarray | int, count: int, first: int = 0) -> np.ndarray:
     """(R, count) standard normals (see :func:`to_normal`)."""
     return to_normal(bits(keys, ticks, count, first))
+
+
+def tick_draws(keys: np.ndarray, ticks: np.ndarray, n_uniform: int, n_normal: int) -> tuple[np.ndarray, np.ndarray]:
+    """A tick's draws for robots' keys (R,) at their ticks (R,): uniforms (R, n_uniform) from
+    streams 0 … n_uniform-1 and normals (R, n_normal) from the next streams, as :func:`bits`
+    with :func:`to_uniform` and :func:`to_normal` (one compiled pass when the kernels are on)."""
+    if not kernels.enabled():
+        words = bits(keys, ticks, n_uniform + n_normal)
+        return to_uniform(words[:, :n_uniform]), to_normal(words[:, n_uniform:])
+    u, n = np.empty((keys.size, n_uniform)), np.empty((keys.size, n_normal))
+    rk.reality_draws(keys, ticks, _TICK_MUL, _M0, _M1, _M2, normal_table(), u, n)
+    return u, n
