@@ -176,7 +176,7 @@ class TaskCore:
         flat = self.safe.world._poses.copy()
         for b, p in starts.items():
             flat[self._flat[b, : p.shape[0]]] = p
-        self.safe.reset(flat, teams=envs) if keys is None else self.safe.reset(flat, teams=envs, reality_keys=keys)
+        self.safe.reset(flat, teams=envs, reality_keys=keys)
         if envs.size == self.B:  # every episode starts afresh: so does the solver (exact resume)
             self.safe.forget_solver_state()
         self.steps[envs] = 0
@@ -192,19 +192,14 @@ class TaskCore:
         step_len = task.step_lengths(self.caps)  # (B, N)
         steps = step_len[self.mask]
         points = safe.points
-        real = safe.reality is not None
-        goals = waypoint_goals(safe.measured_points if real else points, flat_actions, steps)
+        goals = waypoint_goals(points if safe.reality is None else safe.measured_points, flat_actions, steps)
         starts = lay.offsets[:-1]
         d = self.safety_config.projection_distance_m
         violations = np.zeros(self.B)
         s = self.stats.values
         last = self._last_contact
         for _ in range(self.ticks_per_step):
-            if real:
-                seen, cos_sin = safe.decision_poses()
-            else:
-                world = safe.world
-                seen, cos_sin = world._poses, world.cos_sin()
+            seen, cos_sin = safe.decision_poses()  # measured with a reality layer, else true
             events, info = safe._tick(waypoint_controller(None, goals, seen, WAYPOINT_GAIN, d, cos_sin))
             self._count_tick(starts, events, info, last, violations)
             last = events.robot_contact

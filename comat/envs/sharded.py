@@ -25,7 +25,6 @@ from typing import Any, Self
 
 import numpy as np
 
-from comat.envs.core import EPISODE_METRICS
 from comat.team import TeamSpec
 
 __all__ = ["ShardedVectorEnv", "WorkerError", "shard_slices"]
@@ -265,16 +264,17 @@ def _merge_infos(infos: list[dict], obs: list[np.ndarray], state_size: int) -> d
         return merged
     sizes = [len(o) for o in obs]
     merged["_episode"] = np.concatenate([i.get("_episode", np.zeros(n, bool)) for i, n in zip(infos, sizes)])
-    merged["episode"] = {name: np.concatenate([i["episode"][name] if "_episode" in i else np.zeros(n)
-                                               for i, n in zip(infos, sizes)]) for name in EPISODE_METRICS}
     merged["final_obs"] = np.concatenate([i.get("final_obs", o) for i, o in zip(infos, obs)])
-    # the episode record: zeros for workers with no finished episode, shaped like a finisher's
-    ref = next(i for i in infos if "_episode" in i)
-    merged["episode_curve"] = np.concatenate([i["episode_curve"] if "_episode" in i else
-                                              np.zeros((n, *ref["episode_curve"].shape[1:])) for i, n in zip(infos, sizes)])
-    for key in ("episode_robots", "episode_end"):
-        merged[key] = {name: np.concatenate([i[key][name] if "_episode" in i else np.zeros((n, *v.shape[1:]))
-                                             for i, n in zip(infos, sizes)]) for name, v in ref[key].items()}
+    ref = next(i for i in infos if "_episode" in i)  # a worker with a finished episode: the shapes
+
+    def filled(get) -> np.ndarray:
+        """One episode array over all workers: zeros, shaped like ``ref``'s, where none finished."""
+        return np.concatenate([get(i) if "_episode" in i else np.zeros((n, *get(ref).shape[1:]))
+                               for i, n in zip(infos, sizes)])
+
+    merged["episode_curve"] = filled(lambda i: i["episode_curve"])
+    for key in ("episode", "episode_robots", "episode_end"):
+        merged[key] = {name: filled(lambda i, k=key, m=name: i[k][m]) for name in ref[key]}
     if all("final_state" in i for i in infos if "_episode" in i):
         merged["final_state"] = np.concatenate([i.get("final_state", np.zeros((n, state_size)))
                                                 for i, n in zip(infos, sizes)])
