@@ -15,6 +15,7 @@ import time
 __all__ = ["main"]
 
 
+from comat.bench.safety_bench import add_safety_bench_parser
 from comat.cli_args import (
     ALGOS,
     TASKS,
@@ -582,6 +583,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="benchmarks/results/fidelity.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
     add_viz_bench_parser(bsub)
+    add_safety_bench_parser(bsub)
     return parser
 
 

@@ -103,6 +103,10 @@ class SafetyConfig:
     """A solution violating any row by more than this (m/s, or m²/s for pair rows) is rejected."""
     strict: bool = False
     """Raise :class:`comat.safety.InfeasibleError` instead of braking when a team's QP fails."""
+    robust: bool = True
+    """Under a reality layer (``reality=`` not ``off``), lower the gains to the loop delay's
+    bound, widen the distances by the measurement bound and dead-reckon repeated poses
+    (:mod:`comat.reality.margin`); False keeps these settings as given. No effect at ``off``."""
 
     def __post_init__(self) -> None:
         for name in ("safety_distance_m", "projection_distance_m", "barrier_gain", "boundary_gain", "eps"):

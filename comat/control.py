@@ -22,6 +22,7 @@ from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.reality import RealityConfig, RealityLayer
+from comat.reality.margin import robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.sim import BatchWorld, World
 from comat.sim.kinematics import (
@@ -129,11 +130,15 @@ class SafeTeams:
                 raise ValueError(f"batched=False takes exactly one team, got team_sizes={sizes}")
             self.world = World(sizes[0], self.sim_config)
         self._qp_cache: OrderedDict = OrderedDict()
-        self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile, self._qp_cache)
         self.reality: RealityLayer | None = None
         """The reality layer between the world and the decisions (None: the ideal world)."""
+        self.filter_config = self.safety_config
+        """The filter's settings: ``safety`` made robust to the reality layer's bounds
+        (:func:`comat.reality.margin.robust_safety`; ``safety`` itself without a layer)."""
         if reality is not None and not reality.is_off:
             self.reality = RealityLayer(reality, self.world.profile, self.world.layout, reality_seed)
+            self.filter_config = robust_safety(self.safety_config, reality, self.world.profile)
+        self.filter = SafetyFilter(sizes, self.filter_config, self.world.profile, self._qp_cache)
         self.timing = TickTiming()
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
@@ -172,6 +177,14 @@ class SafeTeams:
             return self.world._poses, self.world.cos_sin()
         return self.reality.measured, self.reality.cos_sin()
 
+    def filter_poses(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """The (R, 3) poses the filter and the wheel conversion read, with cosines and sines:
+        :meth:`decision_poses`, with repeated measurements dead-reckoned under a layer
+        (:class:`comat.reality.margin.StalePoses`)."""
+        if self.reality is None:
+            return self.world._poses, self.world.cos_sin()
+        return self.reality.estimated, self.reality.estimated_cos_sin()
+
     def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None, reality_keys: Sequence[int] | None = None) -> None:
         """Place robots at poses (R, 3) and zero their counters; only ``teams`` if given.
 
@@ -201,7 +214,7 @@ class SafeTeams:
         takes exactly the steps of the run that was not interrupted.
         """
         self._qp_cache.clear()
-        self.filter = SafetyFilter(self.filter.team_sizes, self.safety_config, self.world.profile, self._qp_cache)
+        self.filter = SafetyFilter(self.filter.team_sizes, self.filter_config, self.world.profile, self._qp_cache)
 
     def set_team_sizes(self, team_sizes: Sequence[int]) -> None:
         """New team sizes (batched world only): teams whose size changed must be reset next.
@@ -214,7 +227,7 @@ class SafeTeams:
         if sizes == self.world.team_sizes:
             return
         self.world.set_team_sizes(sizes)
-        self.filter = SafetyFilter(sizes, self.safety_config, self.world.profile, self._qp_cache)
+        self.filter = SafetyFilter(sizes, self.filter_config, self.world.profile, self._qp_cache)
         if self.reality is not None:
             self.reality.relayout(self.world.layout)
         self.interventions = np.zeros(len(sizes), np.int64)
@@ -231,7 +244,7 @@ class SafeTeams:
         for safety, and a huge command (1e150 m/s) is as well-posed as a full-speed one.
         Commands within the wheel limits pass on exactly as given."""
         dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
-        poses, (c, s) = self.decision_poses()
+        poses, (c, s) = self.filter_poses()
         d = self.safety_config.projection_distance_m
         k, v = wheel_rhombus(d, self.world.profile)
         along, across = c * dxi[:, 0] + s * dxi[:, 1], c * dxi[:, 1] - s * dxi[:, 0]
@@ -247,7 +260,7 @@ class SafeTeams:
     def _tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
         """:meth:`tick` without input checks, for velocities made inside comat (float64, (R, 2))."""
         t0 = time.perf_counter()
-        poses, cos_sin = self.decision_poses()  # read-only here; our own arrays skip the public checks
+        poses, cos_sin = self.filter_poses()  # read-only here; our own arrays skip the public checks
         nominal = dxi
         if self._detour.any():  # the deadlock tie-break (see HOLD_TICKS): keep right
             turn = self._detour > 0

@@ -37,6 +37,8 @@ EXCEPTIONS = {
     ("--episodes", "bench viz"): "episodes per timed rollout",
     ("--episodes", "demo"): "teams per row",
     ("--episodes", "bench soak"): "total episodes",
+    ("--episodes", "bench safety"): "episodes per scenario (issue 29: >= 50)",
+    ("--seed", "bench safety"): "the battery's own episodes",
     ("--tasks", "bench viz"): "default: a checkpoint's own task",
     ("--episodes", "sweep"): "not given: the recorded sweep's (see the sweep test below)",
     ("--tasks", "sweep"): "not given: the recorded sweep's",

@@ -2,7 +2,11 @@
 
 Each scenario draws ``episodes`` independent teams, all simulated as one batch: start poses
 (R, 3), goals for the projected points (R, 2), and a tick budget. The nominal controller is
-:func:`comat.control.go_to_goal`; every command passes the barrier filter.
+:func:`comat.control.go_to_goal` (``bangbang``: full speed in random directions that switch
+every 0.5–1.5 s); every command passes the barrier filter. Adversarial ones (issue 29): a ring
+of 20 driven through its centre, bang-bang in a packed arena, a robot pinned in a corner with
+three driven at it, and (:data:`UNSAFE_STARTS`) two robots started inside the safety distance.
+With ``reality=`` the controller reads measured points and the outcome is judged on true ones.
 """
 
 from __future__ import annotations
@@ -15,9 +19,10 @@ import numpy as np
 from comat import constants as C
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, go_to_goal
+from comat.reality import RealityConfig, resolve_reality
 from comat.sim.kinematics import si_to_uni
 
-__all__ = ["SCENARIOS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario", "swap_scenario"]
+__all__ = ["SCENARIOS", "UNSAFE_STARTS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario", "swap_scenario"]
 
 _X0, _X1, _Y0, _Y1 = C.ARENA_BOUNDS_M
 
@@ -31,6 +36,8 @@ class Scenario:
     poses: np.ndarray
     goals: np.ndarray
     ticks: int
+    bangbang: bool = False
+    """Full-speed random directions instead of go-to-goal (``goals`` unused)."""
 
 
 def _spread(rng: np.random.Generator, n: int, spacing: float, margin: float = 0.25) -> np.ndarray:
@@ -102,6 +109,56 @@ def _walls(rng, episodes):
     return (4,) * episodes, poses, goals, 150
 
 
+def _ring20(rng, episodes):
+    """20 robots equally spaced along an ellipse filling the arena (semi-axes 1.38 × 0.8 m,
+    ≈ 0.35 m apart), each driven through the centre to the opposite point."""
+    a, b = 1.38, 0.8
+    t = np.linspace(0, 2 * np.pi, 4001)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(a * np.cos(t)), np.diff(b * np.sin(t))))])
+    poses, goals = [], []
+    for _ in range(episodes):
+        at = np.interp((rng.uniform(0, 1) + np.arange(20) / 20) % 1.0 * arc[-1], arc, t)
+        pts = np.stack([a * np.cos(at), b * np.sin(at)], 1) + rng.uniform(-0.01, 0.01, (20, 2))
+        poses.append(np.column_stack([pts, np.arctan2(-pts[:, 1], -pts[:, 0]) + rng.uniform(-0.3, 0.3, 20)]))
+        goals.append(-pts)
+    return (20,) * episodes, poses, goals, 500
+
+
+def _packed(rng, episodes):
+    """16 robots 0.3 m apart across the arena, for bang-bang commands (goals unused)."""
+    poses = [np.column_stack([_spread(rng, 16, 0.3, margin=0.2), rng.uniform(-np.pi, np.pi, 16)])
+             for _ in range(episodes)]
+    return (16,) * episodes, poses, [np.zeros((16, 2))] * episodes, 300
+
+
+def _corner(rng, episodes):
+    """One robot in a random corner, driven into it; three more driven at the corner."""
+    poses, goals = [], []
+    for _ in range(episodes):
+        sx, sy = rng.choice([-1.0, 1.0], 2)
+        corner = np.array([sx * _X1, sy * _Y1])
+        pinned = corner - np.array([sx, sy]) * 0.25
+        others = pinned - np.array([sx, sy]) * rng.uniform(0.5, 0.9, (3, 1)) * np.array(
+            [[1.0, 0.2], [0.6, 0.6], [0.2, 1.0]])
+        start = np.vstack([pinned, others])
+        poses.append(np.column_stack([start, rng.uniform(-np.pi, np.pi, 4)]))
+        goals.append(np.repeat(corner[None], 4, axis=0))
+    return (4,) * episodes, poses, goals, 300
+
+
+def _inside(rng, episodes):
+    """Two robots 0.15 m apart (inside the 0.2 m safety distance), driven at each other."""
+    poses, goals = [], []
+    for _ in range(episodes):
+        c = rng.uniform([-0.8, -0.5], [0.8, 0.5])
+        a = rng.uniform(0, 2 * np.pi)
+        u = np.array([np.cos(a), np.sin(a)])
+        start = np.stack([c - 0.075 * u, c + 0.075 * u])
+        poses.append(np.column_stack([start - 0.025 * np.stack([u, -u]), [a, a + np.pi]]))
+        goals.append(start[::-1].copy())
+    return (2,) * episodes, poses, goals, 200
+
+
 SCENARIOS: dict[str, Callable] = {
     "head_on": _head_on,
     "swap4": _swap(4, 0.45),
@@ -109,7 +166,13 @@ SCENARIOS: dict[str, Callable] = {
     "converge16": _converge(16),
     "converge32": _converge(32),
     "walls": _walls,
+    "ring20": _ring20,
+    "bangbang16": _packed,
+    "corner": _corner,
 }
+"""Scenarios that start inside the safe set (every pair and wall margin respected)."""
+UNSAFE_STARTS: dict[str, Callable] = {"inside": _inside}
+"""Scenarios that start outside it: the filter must recover, not keep a promise it cannot."""
 
 
 def swap_scenario(robots: int, episodes: int, seed: int, ticks: int = 300, radius: float = 0.75) -> Scenario:
@@ -120,10 +183,12 @@ def swap_scenario(robots: int, episodes: int, seed: int, ticks: int = 300, radiu
 
 def make_scenario(name: str, episodes: int, seed: int) -> Scenario:
     """Draw ``episodes`` random episodes of scenario ``name`` (one of :data:`SCENARIOS`)."""
-    if name not in SCENARIOS:
-        raise ValueError(f"scenario must be one of {sorted(SCENARIOS)}, got {name!r}")
-    sizes, poses, goals, ticks = SCENARIOS[name](np.random.default_rng(seed), episodes)
-    return Scenario(name, tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks)
+    makers = {**SCENARIOS, **UNSAFE_STARTS}
+    if name not in makers:
+        raise ValueError(f"scenario must be one of {sorted(makers)}, got {name!r}")
+    sizes, poses, goals, ticks = makers[name](np.random.default_rng(seed), episodes)
+    return Scenario(name, tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks,
+                    bangbang=name.startswith("bangbang"))
 
 
 @dataclass
@@ -131,6 +196,12 @@ class ScenarioResult:
     """Outcome per episode (B,) after running a scenario."""
 
     min_centre_distance: np.ndarray
+    min_point_distance: np.ndarray
+    """(B,) closest true projected points (what the barrier keeps d_s apart)."""
+    safe_start: np.ndarray
+    """(B,) the team really started inside the filter's safe set: true projected points at
+    least the filter's safety distance apart and inside its boundary margin (with a reality
+    layer, the start error can put a team outside it although its requested poses were in it)."""
     robot_contacts: np.ndarray
     wall_contacts: np.ndarray
     robotarium_collisions: np.ndarray
@@ -143,21 +214,55 @@ class ScenarioResult:
     goal_error_robot: np.ndarray
 
 
+def _bangbang(rng: np.random.Generator, n: int):
+    """Nominal commands (n, 2) at full point speed in random directions, each robot switching
+    after its own 15-45 ticks."""
+    left = np.zeros(n, np.int64)
+    u = np.zeros((n, 2))
+
+    def step() -> np.ndarray:
+        switch = left <= 0
+        if switch.any():
+            a = rng.uniform(0, 2 * np.pi, int(switch.sum()))
+            u[switch] = 0.2 * np.stack([np.cos(a), np.sin(a)], 1)
+            left[switch] = rng.integers(15, 46, int(switch.sum()))
+        left[:] -= 1
+        return u
+
+    return step
+
+
+def _in_safe_set(teams: SafeTeams) -> np.ndarray:
+    """(B,) every true projected point of the team inside the filter's safe set."""
+    cfg, lay, q = teams.filter_config, teams.world.layout, teams.points
+    close = np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1) < cfg.safety_distance_m
+    m = cfg.boundary_margin_m
+    out = (q[:, 0] < _X0 + m) | (q[:, 0] > _X1 - m) | (q[:, 1] < _Y0 + m) | (q[:, 1] > _Y1 - m)
+    bad = np.bincount(lay.pair_team, weights=close, minlength=lay.n_teams)
+    bad += np.bincount(lay.robot_team, weights=out, minlength=lay.n_teams)
+    return bad == 0
+
+
 def run_scenario(
-    scn: Scenario, sim: SimConfig, safety: SafetyConfig | None = None, filtered: bool = True
+    scn: Scenario, sim: SimConfig, safety: SafetyConfig | None = None, filtered: bool = True,
+    reality: RealityConfig | str | None = None, seed: int = 0,
 ) -> ScenarioResult:
     """Run every episode of ``scn`` as one batch for ``scn.ticks`` ticks.
 
     With ``filtered=False`` the nominal commands go to the wheels unfiltered (only clipped to
-    the wheel limits), to show what the barrier prevents.
+    the wheel limits), to show what the barrier prevents. ``reality`` (a level or config) puts
+    the reality layer between the world and the controller, its draws keyed by ``seed``.
     """
-    teams = SafeTeams(scn.team_sizes, sim, safety)
+    teams = SafeTeams(scn.team_sizes, sim, safety, reality=resolve_reality(reality), reality_seed=seed)
     teams.reset(scn.poses)
     lay = teams.world.layout
+    safe_start = _in_safe_set(teams)
     min_d = np.full(lay.n_teams, np.inf)
+    min_p = np.full(lay.n_teams, np.inf)
     d_proj = teams.safety_config.projection_distance_m
+    bang = _bangbang(np.random.default_rng(seed), lay.n_robots) if scn.bangbang else None
     for _ in range(scn.ticks):
-        nominal = go_to_goal(teams.points, scn.goals)
+        nominal = bang() if bang is not None else go_to_goal(teams.measured_points, scn.goals)
         if filtered:
             teams.tick(nominal)
         else:
@@ -165,10 +270,14 @@ def run_scenario(
         p = teams.poses[:, :2]
         d = np.linalg.norm(p[lay.pair_i] - p[lay.pair_j], axis=1)
         np.minimum.at(min_d, lay.pair_team, d)
+        q = teams.points
+        np.minimum.at(min_p, lay.pair_team, np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1))
     v = teams.world.violations
     err = np.linalg.norm(teams.points - scn.goals, axis=1)
     return ScenarioResult(
         min_centre_distance=min_d,
+        min_point_distance=min_p,
+        safe_start=safe_start,
         robot_contacts=v.per_team("contact_ticks"),
         wall_contacts=v.per_team("wall_ticks"),
         robotarium_collisions=v.per_team("collision_pairs"),

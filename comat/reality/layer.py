@@ -23,6 +23,7 @@ import numpy as np
 from comat import constants as C
 from comat.reality import random as rr
 from comat.reality.config import RealityConfig
+from comat.reality.margin import StalePoses
 from comat.reality.motors import Motors
 from comat.reality.paths import CommandPath, PosePath
 from comat.sim.kinematics import projected_points
@@ -81,6 +82,10 @@ class RealityLayer:
         self.motors = Motors(self.config, self.profile, R)
         self._true = np.zeros((R, 3))
         self._cos_sin: tuple[np.ndarray, np.ndarray] | None = None
+        self.stale = StalePoses(R, self.pose.noisy)
+        """The filter's pose estimate: measured, dead-reckoned while a measurement repeats."""
+        self._sent = np.zeros((R, 2))
+        self._est_cos_sin: tuple[np.ndarray, np.ndarray] | None = None
         episodes = np.zeros(layout.n_teams, np.int64)
         episodes[: min(layout.n_teams, self._episodes.size)] = self._episodes[: layout.n_teams]
         self._episodes = episodes
@@ -97,6 +102,21 @@ class RealityLayer:
             th = self.measured[:, 2]
             self._cos_sin = (np.cos(th), np.sin(th))
         return self._cos_sin
+
+    @property
+    def estimated(self) -> np.ndarray:
+        """(R, 3) the filter's pose estimate (:class:`~comat.reality.margin.StalePoses`; the
+        measured poses when repeats cannot be detected)."""
+        return self.stale.estimate if self.stale.enabled else self.measured
+
+    def estimated_cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R,) cosines and sines of the estimated headings (computed once per tick)."""
+        if not self.stale.enabled:
+            return self.cos_sin()
+        if self._est_cos_sin is None:
+            th = self.stale.estimate[:, 2]
+            self._est_cos_sin = (np.cos(th), np.sin(th))
+        return self._est_cos_sin
 
     def points(self, distance: float) -> np.ndarray:
         """(R, 2) the measured poses' points ``distance`` ahead of the axles."""
@@ -190,7 +210,9 @@ class RealityLayer:
         if self.pose_on and rows.size:
             self.pose.history[rows] = true[rows][:, None, :]
             self.pose.first(rows, true[rows], rr.normals(self.keys[rows], rr.EPISODE, 3, _EP_POSE0))
-        self._cos_sin = None
+            self.stale.start(rows, self.pose.measured)
+            self._sent[rows] = 0.0
+        self._cos_sin = self._est_cos_sin = None
 
     # -- ticks ----------------------------------------------------------------------------------------
     def actuate(self, dxu: np.ndarray) -> np.ndarray:
@@ -198,6 +220,7 @@ class RealityLayer:
         (within the wheel limits)."""
         u, normal = rr.tick_draws(self.keys, self.ticks, _UNIFORM.stop, _NORMAL.stop - _NORMAL.start)
         self._u = (u, normal)
+        np.copyto(self._sent, dxu)
         out = self.command.update(dxu, self.ticks, u[:, _CMD]) if self.command_on else dxu
         if self.motors_on:
             out = self.motors.update_unicycle(out, self.ticks, normal[:, _MOTOR])
@@ -207,7 +230,7 @@ class RealityLayer:
         """After the tick's physics: advance the robots' clocks and measure true poses (R, 3)."""
         self.ticks += 1
         self._true = true
-        self._cos_sin = None
+        self._cos_sin = self._est_cos_sin = None
         if not self.pose_on:
             return
         if self._u is None:  # observed without actuate (tests, direct users): the same draws
@@ -215,12 +238,14 @@ class RealityLayer:
         u, normal = self._u
         self._u = None
         self.pose.update(true, self.ticks, normal[:, _POSE_N] if self.pose.noisy else None, u[:, _POSE_U])
+        self.stale.update(self.pose.measured, self._sent)
 
     # -- layout ---------------------------------------------------------------------------------------
     def relayout(self, layout: TeamLayout) -> None:
         """New team sizes: teams that kept their size keep their state (as the world keeps their
         poses); the others must be started again."""
         parts = {name: getattr(self, name) for name in ("pose", "command", "motors")}
+        old_stale, old_sent = self.stale, self._sent
         keys, ticks, true = self.keys, self.ticks, self._true
         old_layout = self.layout
         self._build(layout)
@@ -230,6 +255,8 @@ class RealityLayer:
             new_rows = slice(layout.offsets[b], layout.offsets[b + 1])
             old_rows = slice(old_layout.offsets[b], old_layout.offsets[b + 1])
             self.keys[new_rows], self.ticks[new_rows], self._true[new_rows] = keys[old_rows], ticks[old_rows], true[old_rows]
+            self.stale.remap(new_rows, old_stale, old_rows)
+            self._sent[new_rows] = old_sent[old_rows]
             for name, old_part in parts.items():
                 new_part = getattr(self, name)
                 for attr in old_part.ROW_STATE:

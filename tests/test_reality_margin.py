@@ -1,0 +1,111 @@
+"""The barrier filter under the reality layer (issue 29 part 2): gains, distances, dead reckoning,
+and the safety battery judged on true poses."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from comat import constants as C
+from comat.bench.safety_bench import SCENARIO_NAMES, run_safety_bench
+from comat.bench.scenarios import SCENARIOS, UNSAFE_STARTS, make_scenario, run_scenario
+from comat.config import SafetyConfig, SimConfig
+from comat.control import SafeTeams
+from comat.reality import RealityConfig
+from comat.reality.margin import StalePoses, loop_delay_s, measurement_bound_m, robust_safety
+
+P = C.GRITSBOT
+
+
+def test_off_and_robust_false_leave_the_filter_as_given():
+    s = SafetyConfig()
+    assert robust_safety(s, RealityConfig(), P) is s
+    plain = SafetyConfig(robust=False)
+    assert robust_safety(plain, RealityConfig(level="stress"), P) is plain
+    teams = SafeTeams([2])
+    assert teams.filter_config is teams.safety_config
+
+
+def test_nominal_gain_is_one_over_e_t_and_distances_grow_by_the_measurement_bound():
+    r = RealityConfig(level="nominal")
+    # pose delay <= 2, command delay <= 1, hold 1, one lost tick; tau 0.08 s; slew 25 rad/s at 200 rad/s^2, halved
+    T = (2 + 1 + 1 + 1) * C.CONTROL_DT_S + 0.08 + 12.5 / 200
+    assert loop_delay_s(r, P) == pytest.approx(T)
+    e = math.sqrt(2) * 4.33 * (0.001 + 0.0005) + 0.025 * 4.33 * 0.01
+    assert measurement_bound_m(r, 0.025) == pytest.approx(e)
+    cfg = robust_safety(SafetyConfig(), r, P)
+    assert cfg.barrier_gain == pytest.approx(1 / (math.e * T)) and cfg.boundary_gain == cfg.barrier_gain
+    assert cfg.safety_distance_m == pytest.approx(0.2 + 2 * e)
+    assert cfg.boundary_margin_m == pytest.approx(0.1 + e)
+    assert SafeTeams([2], reality=r).filter_config == cfg
+
+
+def test_each_tick_of_delay_adds_one_tick_to_the_loop():
+    base = loop_delay_s(RealityConfig(pose_delay_ticks=1), P)
+    assert loop_delay_s(RealityConfig(pose_delay_ticks=3), P) - base == pytest.approx(2 * C.CONTROL_DT_S)
+    assert loop_delay_s(RealityConfig(command_delay_ticks=2), P) - base == pytest.approx(C.CONTROL_DT_S)
+    # a short delay keeps the ideal world's gain: 1/(e * 0.066 s) = 5.6 < 10 lowers it, one tick (ZOH) does not
+    assert robust_safety(SafetyConfig(), RealityConfig(pose_noise_xy_m=1e-9), P).barrier_gain == 10.0
+
+
+def test_a_repeated_measurement_is_dead_reckoned_by_the_sent_command():
+    est = StalePoses(2, enabled=True)
+    meas = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, np.pi / 2]])
+    est.start(np.arange(2), meas)
+    sent = np.array([[0.1, 0.0], [0.2, 1.0]])
+    fresh = meas.copy()
+    fresh[0] += [0.0033, 0.0, 0.0]  # robot 0 measured anew, robot 1 repeats
+    est.update(fresh, sent)
+    np.testing.assert_array_equal(est.estimate[0], fresh[0])
+    np.testing.assert_allclose(est.estimate[1], [1.0, 0.2 * C.CONTROL_DT_S, np.pi / 2 + C.CONTROL_DT_S], atol=1e-12)
+    assert est.stale_ticks.tolist() == [0, 1]
+    est.update(fresh, sent)  # both repeat now
+    assert est.stale_ticks.tolist() == [1, 2]
+    assert est.estimate[0, 0] == pytest.approx(0.0033 + 0.1 * C.CONTROL_DT_S)
+    off = StalePoses(1, enabled=False)
+    off.start(np.arange(1), meas[:1])
+    off.update(meas[:1], sent[:1])
+    assert off.stale_ticks[0] == 0
+
+
+def test_the_filter_reads_the_estimate_of_a_frozen_robot():
+    """A frozen robot driven forward: the measurement repeats, the filter's pose moves with the
+    commands it sent, and the true pose moves too."""
+    teams = SafeTeams([1], SimConfig(tier="unicycle"), reality=RealityConfig(pose_noise_xy_m=1e-4, pose_freeze_prob=1.0,
+                                                                             pose_freeze_mean_ticks=50))
+    teams.reset(np.array([[0.0, 0.0, 0.0]]))
+    for _ in range(20):
+        teams.tick(np.array([[0.1, 0.0]]))
+    seen = teams.measured_poses[0, 0]
+    est = teams.filter_poses()[0][0, 0]
+    true = teams.poses[0, 0]
+    assert abs(seen) < 0.01 < est and abs(est - true) < 0.01
+
+
+def test_scenario_names_match_the_simulator():
+    assert set(SCENARIO_NAMES) == set(SCENARIOS) | set(UNSAFE_STARTS)
+
+
+def test_without_the_margin_nominal_collides_and_with_it_it_does_not():
+    """The same episodes at nominal: γ = 10 and d_s = 0.2 on measured poses let true projected
+    points come within the Robotarium's collision distance; the robust filter keeps d_s on true ones."""
+    scn = make_scenario("converge16", 10, seed=3)
+    plain = run_scenario(scn, SimConfig(tier="unicycle"), SafetyConfig(robust=False), reality="nominal", seed=3)
+    robust = run_scenario(scn, SimConfig(tier="unicycle"), SafetyConfig(), reality="nominal", seed=3)
+    assert plain.min_point_distance.min() < 0.18
+    s = robust.safe_start
+    assert s.sum() >= 8
+    assert robust.robot_contacts[s].sum() == 0 and robust.robotarium_collisions[s].sum() == 0
+    assert robust.min_point_distance[s].min() > 0.19
+
+
+def test_the_battery_passes_at_nominal_on_a_few_episodes(tmp_path):
+    out = tmp_path / "safety.json"
+    result = run_safety_bench(("nominal",), ("unicycle",), 4, 1, str(out),
+                              ("head_on", "swap8", "corner", "bangbang16", "walls", "inside"))
+    assert out.exists() and result["checks"]["safe_starts_clean_nominal"]["pass"]
+    rows = {r["scenario"]: r for r in result["rows"]}
+    assert rows["inside"]["safe_start_scenario"] is False and rows["inside"]["safe_starts"] == 0
+    assert result["filter"]["nominal"]["barrier_gain"] < 2.0
