@@ -24,6 +24,7 @@ from comat.cli_args import (
     add_force,
     add_policy,
     add_reality,
+    add_reality_sweep,
     add_seed,
     add_task,
     add_teams,
@@ -174,6 +175,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         refs = (pol.name,) if args.no_references else REFERENCES
     else:
         refs = () if args.no_references else REFERENCES
+    if args.reality_sweep:
+        from comat.eval.robustness import eval_sweep_command
+
+        return eval_sweep_command(args, pol, named, tier, out, refs if pol.checkpoint is None else
+                                  (() if args.no_references else ("heuristic",)), reality)
     with new_outputs(out, [f"{stem}.json", f"{stem}.csv"], force=args.force):
         print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} "
               f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}", file=sys.stderr)
@@ -207,9 +213,10 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from comat.eval.report import REPORT_FILES, SETS, make_report
+    from comat.eval.robustness import ROBUSTNESS_FILES
     from comat.files import new_outputs
 
-    with new_outputs(args.out, REPORT_FILES, force=args.force) as out:
+    with new_outputs(args.out, REPORT_FILES + ROBUSTNESS_FILES, force=args.force) as out:
         result = make_report(args.runs, out, args.tier)
     print(f"comat report: {result['runs']} runs ({', '.join(f'{k}: {v}' for k, v in result['groups'].items())})")
     print((out / "table1.md").read_text())
@@ -430,7 +437,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, evaluation_<tier>.json "
                        "and .csv in --out (default: the checkpoint's run folder); at --reality nominal or stress, "
                        "evaluation_<tier>_<level>.json and .csv. The reality layer defaults to off whatever level "
-                       "the policy trained at.")
+                       "the policy trained at. --reality-sweep COMPONENT plays at three or more values of one "
+                       "component instead (evaluation_<tier>_sweep_<component>.json/.csv; comat report draws them).")
     add_policy(p)
     add_task(p)
     add_teams(p)
@@ -438,6 +446,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_tier(p)
     add_seed(p, "evaluation seed")
     add_reality(p)
+    add_reality_sweep(p)
     p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
     p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
                    "folder)")

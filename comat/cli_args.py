@@ -51,6 +51,7 @@ __all__ = [
     "add_force",
     "add_policy",
     "add_reality",
+    "add_reality_sweep",
     "add_seed",
     "add_task",
     "add_team",
@@ -162,6 +163,16 @@ def add_reality(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reality", default="off", metavar="{" + ",".join(REALITY_LEVELS) + "}",
                    help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
                    "README, Reality layer); default: off, the ideal world, NOT the level the policy trained at")
+
+
+def add_reality_sweep(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--reality-sweep", default=None, metavar="COMPONENT",
+                   help="play at several values of one reality field (e.g. pose_delay_ticks, command_loss_prob, "
+                   "motor_tau_max_s), the others at --reality's level; the heuristic plays next to a trained policy "
+                   "unless --no-references")
+    p.add_argument("--sweep-values", type=float, nargs="+", default=None, metavar="V",
+                   help="the values (three or more; default: off, nominal, stress and beyond, "
+                   "comat.eval.robustness.SWEEP_VALUES)")
 
 
 def reality_arg(value: str) -> str:

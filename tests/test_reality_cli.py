@@ -3,6 +3,7 @@
 (recorded, trained under the layer, resumed exactly) and ``comat eval --reality`` (level-named
 files, rows that say their level, ``off`` unchanged)."""
 
+import csv
 import dataclasses
 import json
 
@@ -181,3 +182,46 @@ def test_evaluate_policies_names_a_custom_layer():
     assert result["reality_config"]["pose_delay_ticks"] == 1 and result["trained_reality"] is None
     with pytest.raises(ValueError, match=r"^reality must be one of \['off', 'nominal', 'stress'\].*got 'medium'$"):
         evaluate_policies(None, task="pcp", sets=[("one", own)], reality="medium")
+
+
+# -- sweeps of one component and the report's robustness curves -----------------------------------------
+def test_reality_sweep_writes_its_file_and_the_report_draws_it(tmp_path, capsys):
+    from comat.rl.runner import train
+
+    teams = tmp_path / "teams.yaml"
+    own = resolve_coalitions("train", "pcp")[:2]
+    teams.write_text(yaml.safe_dump({"coalitions": [{"robots": [r.to_dict() for r in t.robots]} for t in own]}))
+    runs = []
+    for seed in (1, 2):
+        run = tmp_path / f"comat_pcp_s{seed}"
+        train(dataclasses.replace(tiny("comat"), seed=seed), run, quiet=True)
+        ev = ["eval", "--policy", str(run), "--teams", str(teams)]
+        assert main([*ev]) == 0
+        assert main([*ev, "--reality-sweep", "command_delay_ticks", "--sweep-values", "0", "3", "6"]) == 0
+        runs.append(str(run))
+    out = capsys.readouterr()
+    assert "command_delay_ticks at [0, 3, 6] (others at off)" in out.err
+    sweep = json.loads((run / "evaluation_unicycle_sweep_command_delay_ticks.json").read_text())
+    assert sweep["values"] == [0, 3, 6] and sweep["base"] == "off"
+    assert [[r["policy"] for r in p["rows"]] for p in sweep["points"]] == [["comat", "heuristic"]] * 3
+    heur = [next(r for r in p["rows"] if r["policy"] == "heuristic") for p in sweep["points"]]
+    steps = [r["metrics"]["steps"]["mean"] for r in heur]
+    assert steps[2] > steps[0]  # six ticks of command delay slow the scripted policy down
+    # the value-0 point is the off evaluation's episodes (paired), in fewer fields
+    off = json.loads((run / "evaluation_unicycle.json").read_text())["rows"][0]["per_episode"]
+    assert [e["steps"] for e in sweep["points"][0]["rows"][0]["per_episode"]] == [e["steps"] for e in off]
+    assert main(["report", *runs, "--out", str(tmp_path / "report")]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "report" / "robustness.csv")))
+    prog = [r for r in rows if r["metric"] == "completion"]
+    assert [(r["value"], r["seeds"]) for r in prog] == [("0", "2"), ("3", "2"), ("6", "2")]
+    assert (tmp_path / "report" / "fig7_robustness.png").is_file()
+    # bad sweeps: one line, nothing written
+    capsys.readouterr()
+    bad = ["eval", "--policy", runs[0], "--teams", str(teams), "--out", str(tmp_path / "bad")]
+    assert main([*bad, "--reality-sweep", "delay"]) == 2
+    assert "--reality-sweep must be one of the reality layer's numeric fields" in capsys.readouterr().err
+    assert main([*bad, "--reality-sweep", "command_loss_prob", "--sweep-values", "0", "0.5", "2"]) == 2
+    assert capsys.readouterr().err == ("comat eval: error: --sweep-values: RealityConfig.command_loss_prob must be a "
+                                       "probability in [0, 1], got 2.0\n")
+    assert main([*bad, "--reality-sweep", "command_delay_ticks", "--sweep-values", "0", "1"]) == 2
+    assert not (tmp_path / "bad").exists()

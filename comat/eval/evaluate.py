@@ -73,7 +73,7 @@ def reality_name(config) -> str:
 
 def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, sets=SETS, episodes: int = 1,
                       tier: str | None = None, seed: int = EVAL_SEED, references: bool | tuple[str, ...] = True,
-                      progress=print, reality="off") -> dict:
+                      progress=print, reality="off", safety=None) -> dict:
     """Rows of (policy, set) results; see the module docstring.
 
     Args:
@@ -87,6 +87,8 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         reality: the reality layer every policy plays at: ``"off"`` (default, whatever the
             checkpoint trained at), ``"nominal"``, ``"stress"``, a RealityConfig or a mapping of
             its fields (:func:`comat.reality.resolve_reality`).
+        safety: the barrier filter's :class:`~comat.config.SafetyConfig` (default: the envs'),
+            e.g. ``SafetyConfig(robust=False)`` to measure what the reality margin costs.
     """
     import dataclasses
 
@@ -130,7 +132,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
         teams = coalitions * episodes
         # One process: the heuristic reads the env's task state directly.
         env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=coalitions,
-                           max_robots=slots, state_robots=slots or BASELINE_ROBOTS, reality=layer)
+                           max_robots=slots, state_robots=slots or BASELINE_ROBOTS, reality=layer, safety=safety)
         policies = _policies(config, act, env, seed)
         policies = {k: v for k, v in policies.items() if k not in REFERENCES or k in refs}
         for name, policy in policies.items():

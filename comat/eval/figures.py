@@ -60,6 +60,14 @@ def save(fig, stem: Path) -> list[str]:
     return names
 
 
+def empty_figure(text: str, stem: Path) -> list[str]:
+    """A figure that only says why it is empty (so a report's files are always the same set)."""
+    fig, ax = _plt().subplots(figsize=(6, 1.5))
+    ax.axis("off")
+    ax.text(0.5, 0.5, text, ha="center", va="center", fontsize=9)
+    return save(fig, stem)
+
+
 def _plt():
     import matplotlib
 
@@ -139,6 +147,8 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
     ``<set>_return_ci95``, ``<set>_progress``, ``<set>_progress_ci95``, ``<set>_retention``);
     ``k_text``: episodes per coalition, for the caption."""
     plt = _plt()
+    if not sets:  # runs evaluated on teams of their own only: nothing to compare across sets
+        return empty_figure("no composition set (U_train, U_val, ...) in these runs' evaluations", stem)
     fig, axes = plt.subplots(2, len(tasks), figsize=(len(tasks) * (1.5 + 0.35 * len(algos) * len(sets)) + 1, 6.4),
                              squeeze=False)
     width = 0.8 / len(sets)

@@ -32,6 +32,8 @@ Outputs in ``--out`` (:data:`REPORT_FILES`):
   hierarchical-bootstrap intervals (2,000 resamples, generator seed 0).
 * ``fig4_training_return``, ``fig5_generalization``, ``fig6_team_size`` (.png and .pdf):
   :mod:`comat.eval.figures`.
+* Only when runs hold reality sweeps (``comat eval --reality-sweep``): ``robustness.csv`` and
+  ``fig7_robustness`` (.png and .pdf), :mod:`comat.eval.robustness`.
 """
 
 from __future__ import annotations
@@ -341,6 +343,7 @@ def _by_team_size(groups: dict, sets: list[str]) -> dict:
 def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None = None) -> dict:
     """Write :data:`REPORT_FILES` for ``run_folders`` into the folder ``out`` (which must exist)."""
     from comat.eval.generalization import generalization_csv, generalization_md, generalization_rows
+    from comat.eval.robustness import robustness_csv, robustness_figure, robustness_rows
 
     if not run_folders:
         raise ValueError("make_report needs at least one run folder")
@@ -382,5 +385,9 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     names += figures.fig_team_size(_by_team_size(evaluated, size_sets), tasks, algos, budgets,
                                    out / "fig6_team_size", size_sets, k_text)
     assert set(names) == set(REPORT_FILES), names
+    robust = robustness_rows(runs)
+    if robust:  # runs with `comat eval --reality-sweep` files
+        write_atomic(out / "robustness.csv", robustness_csv(robust))
+        names += ["robustness.csv", *robustness_figure(robust, out / "fig7_robustness")]
     return {"runs": len(runs), "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()}, "sets": sets,
             "files": names, "generalization": rows}
