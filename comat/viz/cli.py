@@ -35,12 +35,13 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     import contextlib
     from pathlib import Path
 
-    from comat.cli_args import parse_team, parse_teams, resolve_policy_arg
+    from comat.cli_args import parse_team, parse_teams, reality_arg, resolve_policy_arg
     from comat.files import new_outputs
     from comat.viz.rollout import check_rrd_path, record_episodes
     from comat.viz.video import check_video_path
 
     # Every check first (policy and its task, teams, output paths), so nothing is announced in vain.
+    reality = reality_arg(args.reality)
     pol = resolve_policy_arg(args.policy, args.task)
     task = pol.task
     if args.team is not None:
@@ -58,7 +59,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     tier = args.tier or pol.tier
     print(
         f"comat rollout: {task}, policy {pol.name}, {args.episodes} episode(s) from {source}, {tier} tier, "
-        f"seed {args.seed} -> {', '.join(str(p) for p in (out, video) if p)}",
+        f"seed {args.seed}, reality {reality} -> {', '.join(str(p) for p in (out, video) if p)}",
         file=sys.stderr,
     )
     t0 = time.perf_counter()
@@ -81,6 +82,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             ticks_per_step=args.ticks_per_step,
             video=video,
             fps=args.fps,
+            reality=reality,
         )
     for k, e in enumerate(result.episodes):
         print(
@@ -102,7 +104,16 @@ def cmd_rollout(args: argparse.Namespace) -> int:
 
 def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``rollout`` on the top-level ``subparsers`` of the ``comat`` parser."""
-    from comat.cli_args import add_force, add_policy, add_seed, add_task, add_team, add_teams, add_tier
+    from comat.cli_args import (
+        add_force,
+        add_policy,
+        add_reality,
+        add_seed,
+        add_task,
+        add_team,
+        add_teams,
+        add_tier,
+    )
 
     p = subparsers.add_parser(
         "rollout",
@@ -122,6 +133,7 @@ def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
     )
     add_tier(p)
     add_seed(p, "episode k resets with seed + k")
+    add_reality(p)
     p.add_argument(
         "--ticks-per-step",
         type=_positive_int,

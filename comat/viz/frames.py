@@ -85,6 +85,8 @@ class FrameState:
         spawn_box, prey_box: PCP areas (x0, x1, y0, y1).
         step, horizon, ret: env steps so far, the horizon, return so far.
         title: first header line (e.g. the policy).
+        measured, faulty: the reality layer's measured poses (a dashed ghost and an error line
+            per robot) and faulty motors (a black ring and "fault"); None without a layer.
     """
 
     task: str
@@ -106,6 +108,10 @@ class FrameState:
     horizon: int = 0
     ret: float = 0.0
     title: str = ""
+    measured: np.ndarray | None = None
+    """(n, 3) the poses the robots' script saw (reality layer on), drawn as ghosts; None: off."""
+    faulty: np.ndarray | None = None
+    """(n,) the robot's motors run at a fault's fraction now (reality layer faults)."""
 
 
 def _figure():
@@ -136,6 +142,7 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
     else:
         _draw_hmt(ax, state)
     _draw_robots(ax, state)
+    _draw_reality(ax, state)
     _draw_safety(ax, state)
     fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
     fig.text(0.01, 1 - 26 / h, _status_line(state), ha="left", va="top", fontsize=8, family="monospace")
@@ -160,6 +167,15 @@ def _status_line(s: FrameState) -> str:
         body = f"left {st['left'][0]:.1f} + {st['left'][1]:.1f}, carried {float(st['load'].sum()):.1f}, " \
             f"delivered {float(st['delivered']):.1f}"
     return head + body + f"  filtered {int(s.intervened.sum())}"
+
+
+def reality_view(core, b: int, n: int) -> dict[str, np.ndarray | None]:
+    """``measured`` (n, 3) and ``faulty`` (n,) of env ``b``'s team under a reality layer, else None."""
+    layer = core.safe.reality
+    if layer is None:
+        return {"measured": None, "faulty": None}
+    return {"measured": core.measured_poses()[b, :n].copy(),
+            "faulty": core.padded(layer.speed_fraction)[b, :n] < 1.0}
 
 
 def _draw_arena(ax) -> None:
@@ -233,6 +249,23 @@ def _draw_robots(ax, s: FrameState) -> None:
         ax.add_patch(Circle((x, y), s.robot_radius_m, facecolor=color, edgecolor="k", lw=0.6, zorder=5))
         ax.plot([x, x + 0.08 * np.cos(th)], [y, y + 0.08 * np.sin(th)], color="k", lw=1.2, zorder=6)
         ax.text(x, y, str(i), ha="center", va="center", fontsize=6, color="white", zorder=7)
+
+
+def _draw_reality(ax, s: FrameState) -> None:
+    """Measured poses as dashed ghosts joined to the true ones; faulty robots ringed in black."""
+    from matplotlib.patches import Circle
+
+    if s.measured is not None:
+        for (x, y, _), (mx, my, mth) in zip(s.poses, s.measured):
+            ax.add_patch(Circle((mx, my), s.robot_radius_m, fill=False, edgecolor="#404040", lw=0.8, ls="--", zorder=6))
+            ax.plot([mx, mx + 0.08 * np.cos(mth)], [my, my + 0.08 * np.sin(mth)], color="#404040", lw=0.8, ls="--",
+                    zorder=6)
+            ax.plot([x, mx], [y, my], color="#d01010", lw=1.0, zorder=6)
+    if s.faulty is not None:
+        for i in np.flatnonzero(s.faulty):
+            x, y = s.poses[i, :2]
+            ax.add_patch(Circle((x, y), s.robot_radius_m * 1.35, fill=False, edgecolor="k", lw=1.6, zorder=7))
+            ax.text(x, y - 1.6 * s.robot_radius_m, "fault", ha="center", va="top", fontsize=6, zorder=7)
 
 
 def _draw_safety(ax, s: FrameState) -> None:
@@ -314,7 +347,7 @@ class EpisodeFrames:
             event_xy=zeros2 if last is None else last.event_xy, task_state=st,
             spawn_box=getattr(task, "spawn_box", None) if task.name == "pcp" else None,
             prey_box=getattr(task, "prey_box", None), step=int(core.steps[b]), horizon=int(task.horizon),
-            ret=self._return, title=self.title,
+            ret=self._return, title=self.title, **reality_view(core, b, n),
         )
         if self._fig is None:
             self._fig = _figure()  # one figure per follower: drawing reuses it

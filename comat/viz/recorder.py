@@ -32,6 +32,7 @@ import rerun as rr
 from comat import constants as C
 from comat.sim.kinematics import projected_points
 from comat.task_logic import waypoint_goals
+from comat.viz.frames import reality_view
 from comat.viz.scene import (
     LOAD_BAR_M_PER_UNIT,
     LOAD_BAR_OFFSET_M,
@@ -132,6 +133,7 @@ class EpisodeRecorder:
         core.safe.tick_observers.append(self._tap)
         log_static_scene(self.recording, self._prefix, core, b)
         self._poses = [core.poses()[b, : self._n].copy()]
+        self._reality = [reality_view(core, b, self._n)] if core.safe.reality is not None else None
         self._task = [_TASKS[core.task.name][0](core, b, self._n)]
         self._actions: list[np.ndarray] = []
         self._action_origin: list[np.ndarray] = []
@@ -157,6 +159,8 @@ class EpisodeRecorder:
         self._action_vec.append(goals - points)
         self._summaries.append(self._tap.summarize())
         self._poses.append(core.poses()[b, :n].copy())
+        if self._reality is not None:
+            self._reality.append(reality_view(core, b, n))
         self._task.append(_TASKS[core.task.name][0](core, b, n))
         self._rewards.append(float(reward))
         for name in self._terms:
@@ -219,6 +223,8 @@ class EpisodeRecorder:
         rec.send_columns(
             f"{w}/robots/heading", states, rr.Arrows2D.columns(origins=xy, vectors=heading).partition(every)
         )
+        if self._reality is not None:
+            self._send_reality(w, states, poses, every)
         if T:
             self._send_steps(after, chosen, poses)
         _TASKS[core.task.name][1](rec, p, core, self._b, self._task, states, poses)
@@ -226,6 +232,23 @@ class EpisodeRecorder:
             rewards = np.asarray(self._rewards)
             _series(rec, f"{p}/reward/total", after, {"reward": rewards, "return": np.cumsum(rewards)})
             _series(rec, f"{p}/reward/terms", after, {k: np.asarray(v) for k, v in self._terms.items()})
+
+    def _send_reality(self, w: str, states, poses: np.ndarray, every: list[int]) -> None:
+        """The reality layer's view: measured poses (grey ghosts), a red line from each true pose to
+        its measurement, and faulty robots (black rings), per step."""
+        rec = self.recording
+        seen = np.stack([v["measured"] for v in self._reality])  # (T+1, n, 3)
+        mxy = seen[..., :2].reshape(-1, 2)
+        rec.send_columns(f"{w}/robots/measured", states, rr.Points2D.columns(
+            positions=mxy, radii=[0.055] * len(mxy), colors=[(90, 90, 90, 110)] * len(mxy)).partition(every))
+        strips = np.stack([poses[..., :2], seen[..., :2]], axis=2).reshape(-1, 2, 2)
+        rec.send_columns(f"{w}/robots/pose_error", states, rr.LineStrips2D.columns(
+            strips=list(strips), colors=[(210, 20, 20, 255)] * len(strips)).partition(every))
+        faulty = [np.flatnonzero(v["faulty"]) for v in self._reality]
+        fxy = np.concatenate([poses[t, f, :2] for t, f in enumerate(faulty)]) if faulty else np.zeros((0, 2))
+        rec.send_columns(f"{w}/robots/fault", states, rr.Points2D.columns(
+            positions=fxy, radii=[0.075] * len(fxy), colors=[(0, 0, 0, 200)] * len(fxy),
+            labels=["fault"] * len(fxy)).partition([len(f) for f in faulty]))
 
     def _send_steps(self, after, chosen, poses: np.ndarray) -> None:
         rec, p, n = self.recording, self._prefix, self._n

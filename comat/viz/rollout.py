@@ -253,6 +253,7 @@ def record_episodes(
     policy_name: str | None = None,
     video: str | Path | None = None,
     fps: int = 10,
+    reality: Any = "off",
 ) -> RolloutResult:
     """Run and record episodes of ``task`` ("pcp" or "hmt") to the ``.rrd`` file ``path``.
 
@@ -270,6 +271,9 @@ def record_episodes(
         video: also (or, with ``path`` None, only) write the episodes as a ``.mp4`` or ``.gif``
             of ``env.render()`` frames (:mod:`comat.viz.video`), ``fps`` frames per second, one
             frame per env step and one at each start.
+        reality: the reality layer the episodes play at (:func:`comat.reality.resolve_reality`);
+            recordings and videos then show each robot's measured pose next to its true one
+            and mark faulty motors.
 
     Returns:
         A :class:`RolloutResult`; the file holds one recording, each episode under ``episode_<k>/``.
@@ -310,11 +314,14 @@ def record_episodes(
     env = comat.make_env(
         f"{task}_v0", coalitions=pool, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
         state_robots=slots or 8,  # a baseline's centralized state covers all its slots
-        render_mode=None if video is None else "rgb_array",
+        render_mode=None if video is None else "rgb_array", reality=reality,
     )
     act = spec.bind(env, seed)
+    from comat.eval.evaluate import reality_name
+
     meta = {
         "policy": policy_name or spec.name,
+        "reality": reality_name(env.core.reality_config),
         "coalition set": "given teams" if teams is not None else coalitions if isinstance(coalitions, str)
         else f"{len(coalitions)} teams given",
     }
