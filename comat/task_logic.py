@@ -103,6 +103,9 @@ class _Task:
     types: tuple[str, ...] = ()
     capabilities: tuple[str, ...] = ()
     capability_scale = np.ones(2)
+    speed_capability: int | None = None
+    """Index of the capability a motor fault scales (a known fault reports it), None: no speed
+    capability (PCP's are radii: a fault changes nothing a capability vector says)."""
     horizon = 0
     ticks_per_step = 0
     spawn_box = (0.0, 0.0, 0.0, 0.0)
@@ -349,6 +352,7 @@ class MaterialTransport(_Task):
     types = ("fast", "slow")
     capabilities = ("speed_m", "payload")
     capability_scale = np.array([0.5, 20.0])
+    speed_capability = 0
     horizon = 70
     ticks_per_step = 74
     spawn_box = (-1.45, -0.75, -0.85, 0.85)

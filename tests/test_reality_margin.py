@@ -109,3 +109,25 @@ def test_the_battery_passes_at_nominal_on_a_few_episodes(tmp_path):
     rows = {r["scenario"]: r for r in result["rows"]}
     assert rows["inside"]["safe_start_scenario"] is False and rows["inside"]["safe_starts"] == 0
     assert result["filter"]["nominal"]["barrier_gain"] < 2.0
+
+
+def test_a_known_fault_is_reported_in_the_speed_capability_and_a_hidden_one_is_not():
+    from comat.envs import make_vec_env
+
+    seen = {}
+    for known in (False, True):
+        env = make_vec_env("hmt_v0", 2, seed=0, tier="unicycle", ticks_per_step=4,
+                           reality={"fault_prob": 1.0, "fault_start_max_s": 0.1, "fault_known": known})
+        env.reset()
+        for _ in range(3):
+            env.step(np.zeros((2, env.max_robots), np.int64))
+        core = env.core
+        faulty = core.mask & (core.padded(core.safe.reality.speed_fraction) < 1)
+        assert faulty.sum() == 2  # one robot per team
+        seen[known] = (core.reported_caps().copy(), core.caps.copy(), faulty)
+    caps_hidden, team_caps, faulty = seen[False]
+    np.testing.assert_array_equal(caps_hidden, team_caps)
+    caps_known, team_caps, faulty = seen[True]
+    np.testing.assert_allclose(caps_known[faulty][:, 0], 0.25 * team_caps[faulty][:, 0])
+    np.testing.assert_array_equal(caps_known[~faulty], team_caps[~faulty])
+    np.testing.assert_array_equal(caps_known[..., 1], team_caps[..., 1])  # payload unchanged

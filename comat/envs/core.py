@@ -273,8 +273,22 @@ class TaskCore:
 
     # -- observations -------------------------------------------------------------------------------
     def observe(self) -> np.ndarray:
-        """(B, N, D) observations (padded slots 0), made of the measured poses."""
-        return self.task.observe(self.state, self.measured_poses(), self.type_ids, self.caps, self.mask)
+        """(B, N, D) observations (padded slots 0), made of the measured poses and the capability
+        vectors the robots report (:meth:`reported_caps`)."""
+        return self.task.observe(self.state, self.measured_poses(), self.type_ids, self.reported_caps(), self.mask)
+
+    def reported_caps(self) -> np.ndarray:
+        """(B, N, C) the capability vectors the policy sees: the team's, except that under the
+        reality layer with ``fault_known`` a faulty robot's speed capability (HMT's ``speed_m``)
+        is scaled by its fault's fraction from the fault on. Hidden faults (the default) and PCP
+        (no speed capability) report the team's vectors unchanged. Task logic and rewards always
+        use the team's own vectors."""
+        layer, k = self.safe.reality, self.task.speed_capability
+        if layer is None or k is None or not layer.config.fault_known or layer.config.fault_prob <= 0:
+            return self.caps
+        caps = self.caps.copy()
+        caps[..., k] *= np.where(self.mask, self.padded(layer.speed_fraction), 1.0)
+        return caps
 
     def graph(self) -> dict[str, np.ndarray]:
         """Dense team graphs of all environments.
