@@ -131,3 +131,14 @@ def test_a_known_fault_is_reported_in_the_speed_capability_and_a_hidden_one_is_n
     np.testing.assert_allclose(caps_known[faulty][:, 0], 0.25 * team_caps[faulty][:, 0])
     np.testing.assert_array_equal(caps_known[~faulty], team_caps[~faulty])
     np.testing.assert_array_equal(caps_known[..., 1], team_caps[..., 1])  # payload unchanged
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tier", ["unicycle", "wheels"])
+def test_the_battery_passes_at_nominal_over_50_episodes(tmp_path, tier):
+    """Issue 29's bar: every adversarial scenario, 50 episodes, zero contacts and Robotarium
+    collisions on true poses from safe starts (a few minutes per tier)."""
+    result = run_safety_bench(("nominal",), (tier,), 50, 0, str(tmp_path / "s.json"))
+    assert result["checks"]["safe_starts_clean_nominal"]["pass"]
+    safe = [r for r in result["rows"] if r["safe_start_scenario"]]
+    assert sum(r["safe_starts"] for r in safe) >= 400 and all(r["fallback_ticks"] == 0 for r in result["rows"])
