@@ -195,6 +195,11 @@ class SafeTeams:
             team_ids = np.arange(self.world.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
             poses = self.reality.start(as_float_array("poses", poses, (self.world.layout.n_robots, 3)), team_ids,
                                        reality_keys)
+            if self.reality.physics_on and self.sim_config.tier == "wheels":
+                if isinstance(self.world, BatchWorld):
+                    self.world.set_robot_physics(*self.reality.physics(), teams=team_ids)
+                else:
+                    self.world.set_robot_physics(*self.reality.physics())
         self.world.reset(poses, teams) if teams is not None else self.world.reset(poses)
         if self.reality is not None:
             self.reality.begin_measuring(self.world._poses, team_ids)

@@ -142,3 +142,48 @@ def test_the_battery_passes_at_nominal_over_50_episodes(tmp_path, tier):
     assert result["checks"]["safe_starts_clean_nominal"]["pass"]
     safe = [r for r in result["rows"] if r["safe_start_scenario"]]
     assert sum(r["safe_starts"] for r in safe) >= 400 and all(r["fallback_ticks"] == 0 for r in result["rows"])
+
+
+# -- physics randomization of the wheels tier ------------------------------------------------------------
+def _wheels(reality, batched=True, seed=3):
+    teams = SafeTeams((3,), SimConfig(tier="wheels"), batched=batched, reality=reality, reality_seed=seed)
+    teams.reset(np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    return teams
+
+
+def test_wheels_physics_is_drawn_per_robot_and_written_into_each_simulation():
+    r = RealityConfig(level="nominal")
+    teams = _wheels(r)
+    friction, mass, com = teams.reality.physics()
+    assert ((0.6 <= friction) & (friction <= 1.5)).all() and len(set(friction.round(6))) == 3
+    assert ((0.9 <= mass) & (mass <= 1.1)).all() and (np.abs(com) <= 0.005).all()
+    g = teams.world.groups[0]
+    np.testing.assert_array_equal(g.batch.expanded("geom_friction")[0, g.binding.wheel_geoms, 0],
+                                  np.repeat(friction[:, None], 2, axis=1))
+    np.testing.assert_allclose(g.batch.expanded("body_mass")[0, g.binding.body], 0.1 * mass, rtol=1e-6)
+    single = _wheels(r, batched=False)  # the single-team world: its own model copy, the same draws
+    np.testing.assert_array_equal(single.reality.physics()[0], friction)
+    for t in (teams, single):
+        for _ in range(20):
+            t.tick(np.full((3, 2), [0.15, 0.05]))
+    np.testing.assert_allclose(single.poses, teams.poses, atol=1e-9)
+    assert _wheels(r).reality.physics()[0].tolist() == friction.tolist()  # same seed, same draws
+    # off and the unicycle tier never touch the model
+    assert _wheels(None).world.groups[0].batch.expanded("geom_friction") is None
+    uni = SafeTeams((3,), SimConfig(tier="unicycle"), reality=r)
+    uni.reset(np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    assert uni.world.groups[0].batch.expanded("body_mass") is None
+
+
+def test_a_slippery_floor_makes_the_wheels_slip():
+    """Full speed forward, then a full reversal: on μ = 0.02 the wheels spin against the floor and the
+    robot ends elsewhere than on the model's μ = 1.5 (the floor-friction component alone)."""
+    ends = {}
+    for mu in (None, 0.02):
+        reality = RealityConfig(pose_noise_xy_m=1e-9) if mu is None else RealityConfig(floor_friction_min=mu,
+                                                                                      floor_friction_max=mu)
+        teams = _wheels(reality)
+        for k in range(40):
+            teams.world.step(np.tile([0.2 if k < 20 else -0.2, 0.0], (3, 1)))
+        ends[mu] = teams.poses[:, 0].copy()
+    assert np.abs(ends[0.02] - ends[None]).min() > 0.01

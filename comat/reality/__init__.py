@@ -11,14 +11,16 @@ Spec sheet (defaults and their provenance: :data:`SOURCES`, ``shared/reference/s
   per-wheel gain mismatch and a top-speed derate drawn per robot and episode, a bounded
   Ornstein–Uhlenbeck wheel disturbance, and faults: one robot per episode running at a fraction
   of its speed from a random tick (:class:`Motors`);
-* **start** — the initial-pose error of the Robotarium's initializer (0.05 m, 0.2 rad).
+* **start** — the initial-pose error of the Robotarium's initializer (0.05 m, 0.2 rad);
+* **physics** (wheels tier) — per-robot wheel–floor friction, chassis mass and centre of mass,
+  written into each simulation's own model fields (:meth:`comat.sim.BatchWorld.set_robot_physics`).
 
 Levels ``off`` (the ideal world, bit for bit: no layer runs), ``nominal`` and ``stress``
 (:data:`LEVELS`); every field overridable on its own (:class:`RealityConfig`). Everything that
 decides (policy observations, waypoint controller, safety filter) reads measured poses;
 everything that judges (contacts, Robotarium checks, task progress, rewards) reads true ones
-(:class:`comat.control.SafeTeams`, :class:`comat.envs.core.TaskCore`). Not modelled: tick
-stretch (§6 #11) and physics randomization of the wheels tier (§6 #13).
+(:class:`comat.control.SafeTeams`, :class:`comat.envs.core.TaskCore`); the filter is made robust
+to the layer's bounds (:mod:`comat.reality.margin`). Not modelled: tick stretch (§6 #11).
 """
 
 from comat.reality.config import LEVELS, REALITY_LEVELS, SOURCES, RealityConfig, resolve_reality

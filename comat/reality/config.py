@@ -139,6 +139,20 @@ class RealityConfig:
     start_theta_rad: float | None = None
     """Heading start error, uniform ± this (rad). 0.2 at both levels: measured (§1.3)."""
 
+    # -- physics (wheels tier only: the unicycle tier has no contacts or masses to vary) ----------
+    floor_friction_min: float | None = None
+    """Per robot and episode, the friction between its wheels and the floor ~ U(min, max) (the
+    model's own is 1.5); max 0 = unchanged. nominal 0.6–1.5, stress 0.4–1.5: assumed (§6 #13:
+    Playground, legged_gym and Isaac ranges scaled to a 0.1 kg robot)."""
+    floor_friction_max: float | None = None
+    """Upper end of the floor friction (see ``floor_friction_min``)."""
+    chassis_mass_spread: float | None = None
+    """Per robot and episode, the chassis mass × U(1 - spread, 1 + spread). 0.1 at both levels:
+    assumed (§6 #13)."""
+    com_offset_m: float | None = None
+    """Per robot and episode, the chassis centre of mass moves U(-c, c) along x and y (m). 0.005
+    at both levels: assumed (§6 #13)."""
+
     def __post_init__(self) -> None:
         if not isinstance(self.level, str) or self.level not in LEVELS:
             raise ValueError(f"RealityConfig.level must be one of {list(REALITY_LEVELS)}, got {self.level!r}")
@@ -182,7 +196,7 @@ _PROB_FIELDS = ("pose_hold_prob", "pose_freeze_prob", "command_loss_prob", "faul
 _NONNEG_FIELDS = ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_bias_xy_m", "motor_tau_min_s", "motor_tau_max_s",
                   "motor_accel_limit_radps2", "motor_dead_zone_radps", "wheel_disturbance_radps",
                   "wheel_disturbance_bound_radps", "fault_start_min_s", "fault_start_max_s", "start_xy_m",
-                  "start_theta_rad")
+                  "start_theta_rad", "floor_friction_min", "floor_friction_max", "com_offset_m")
 _POSITIVE_FIELDS = ("command_brake_after_s", "wheel_disturbance_corr_s")
 _INERT = ("fault_speed_fraction", "fault_start_min_s", "fault_start_max_s", "fault_known", "pose_freeze_mean_ticks",
           "pose_freeze_max_ticks", "command_loss_mean_ticks", "command_brake_after_s", "wheel_disturbance_corr_s",
@@ -202,7 +216,8 @@ def _check(c: RealityConfig) -> None:
         if isinstance(v, bool) or not isinstance(v, int) or v < 0:
             fail(name, "an integer >= 0 (ticks)")
     for name in _PROB_FIELDS + _NONNEG_FIELDS + _POSITIVE_FIELDS + ("pose_freeze_mean_ticks", "command_loss_mean_ticks",
-                                                                      "wheel_gain_spread", "top_speed_derate_min"):
+                                                                      "wheel_gain_spread", "top_speed_derate_min",
+                                                                      "chassis_mass_spread"):
         v = getattr(c, name)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             fail(name, "a finite number")
@@ -226,6 +241,10 @@ def _check(c: RealityConfig) -> None:
         fail("top_speed_derate_min", "a number in (0, 1]")
     if c.motor_tau_max_s < c.motor_tau_min_s:
         fail("motor_tau_max_s", f"a number >= motor_tau_min_s ({c.motor_tau_min_s})")
+    if not 0.0 <= c.chassis_mass_spread < 1.0:
+        fail("chassis_mass_spread", "a number in [0, 1)")
+    if c.floor_friction_max > 0 and not 0 < c.floor_friction_min <= c.floor_friction_max:
+        fail("floor_friction_min", f"a number in (0, floor_friction_max = {c.floor_friction_max}] (max 0: unchanged)")
     if c.fault_start_max_s < c.fault_start_min_s:
         fail("fault_start_max_s", f"a number >= fault_start_min_s ({c.fault_start_min_s})")
     if not isinstance(c.fault_known, bool):
@@ -240,6 +259,7 @@ _OFF = {
     "motor_dead_zone_radps": 0.0, "wheel_gain_spread": 0.0, "top_speed_derate_min": 1.0, "wheel_disturbance_radps": 0.0,
     "wheel_disturbance_corr_s": 0.2, "wheel_disturbance_bound_radps": 5.0, "fault_prob": 0.0, "fault_speed_fraction": 0.25,
     "fault_start_min_s": 0.0, "fault_start_max_s": 60.0, "fault_known": False, "start_xy_m": 0.0, "start_theta_rad": 0.0,
+    "floor_friction_min": 0.0, "floor_friction_max": 0.0, "chassis_mass_spread": 0.0, "com_offset_m": 0.0,
 }
 LEVELS: dict[str, dict[str, Any]] = {
     "off": _OFF,
@@ -249,7 +269,8 @@ LEVELS: dict[str, dict[str, Any]] = {
         "pose_freeze_max_ticks": 150, "command_delay_ticks": 0, "command_delay_spread_ticks": 1, "command_loss_prob": 0.01,
         "command_loss_mean_ticks": 1.0, "motor_tau_min_s": 0.04, "motor_tau_max_s": 0.08, "motor_accel_limit_radps2": 200.0,
         "motor_dead_zone_radps": 1.9, "wheel_gain_spread": 0.03, "top_speed_derate_min": 0.9, "wheel_disturbance_radps": 0.5,
-        "start_xy_m": 0.05, "start_theta_rad": 0.2
+        "start_xy_m": 0.05, "start_theta_rad": 0.2, "floor_friction_min": 0.6, "floor_friction_max": 1.5,
+        "chassis_mass_spread": 0.1, "com_offset_m": 0.005,
     },
     "stress": {**_OFF, 
         "pose_delay_ticks": 1, "pose_delay_spread_ticks": 2, "pose_hold_prob": 0.3, "pose_noise_xy_m": 0.005,
@@ -257,7 +278,8 @@ LEVELS: dict[str, dict[str, Any]] = {
         "pose_freeze_max_ticks": 30, "command_delay_ticks": 1, "command_delay_spread_ticks": 1, "command_loss_prob": 0.05,
         "command_loss_mean_ticks": 5.0, "motor_tau_min_s": 0.08, "motor_tau_max_s": 0.12, "motor_accel_limit_radps2": 200.0,
         "motor_dead_zone_radps": 3.0, "wheel_gain_spread": 0.07, "top_speed_derate_min": 0.75, "wheel_disturbance_radps": 2.0,
-        "start_xy_m": 0.05, "start_theta_rad": 0.2
+        "start_xy_m": 0.05, "start_theta_rad": 0.2, "floor_friction_min": 0.4, "floor_friction_max": 1.5,
+        "chassis_mass_spread": 0.1, "com_offset_m": 0.005,
     },
 }
 """Each level's value of every field (the ``off`` values switch every component off)."""
@@ -293,6 +315,10 @@ SOURCES: dict[str, tuple[str, str]] = {
     "fault_known": ("assumed", "—"),
     "start_xy_m": ("measured", "V2 initializer at_pose tolerance (§1.3, §6 #12)"),
     "start_theta_rad": ("measured", "V2 initializer at_pose tolerance (§1.3, §6 #12)"),
+    "floor_friction_min": ("assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"),
+    "floor_friction_max": ("assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"),
+    "chassis_mass_spread": ("assumed", "peers' ×U(0.9, 1.1) (§3.8, §6 #13)"),
+    "com_offset_m": ("assumed", "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)"),
 }
 """Per field: (mark, source) for the documentation and the README's levels table."""
 

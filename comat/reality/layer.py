@@ -39,8 +39,8 @@ _NORMAL = slice(5, 10)  # motors: 2 (the wheels' disturbance); pose: 3 (x, y, θ
 _MOTOR = slice(0, 2)
 _POSE_N = slice(2, 5)
 # Per-episode stream offsets (tick = rr.EPISODE).
-_EP_POSE_DELAY, _EP_BIAS, _EP_POSE0, _EP_CMD_DELAY, _EP_MOTOR, _EP_MOTOR_N, _EP_FAULT, _EP_START = (
-    100, 200, 250, 300, 400, 450, 500, 600)
+_EP_POSE_DELAY, _EP_BIAS, _EP_POSE0, _EP_CMD_DELAY, _EP_MOTOR, _EP_MOTOR_N, _EP_FAULT, _EP_START, _EP_PHYSICS = (
+    100, 200, 250, 300, 400, 450, 500, 600, 700)
 
 
 class RealityLayer:
@@ -66,6 +66,8 @@ class RealityLayer:
         self.motors_on = bool(config.motor_tau_max_s or config.motor_accel_limit_radps2 or config.motor_dead_zone_radps
                               or config.wheel_gain_spread or config.top_speed_derate_min < 1
                               or config.wheel_disturbance_radps or config.fault_prob)
+        self.physics_on = bool(config.floor_friction_max or config.chassis_mass_spread or config.com_offset_m)
+        """Per-robot physics to vary (wheels tier; :meth:`physics` gives the values)."""
         self._episodes = np.zeros(0, np.int64)  # per team: episodes begun (for seed-derived keys)
         self._build(layout)
         self._u: np.ndarray | None = None
@@ -85,6 +87,7 @@ class RealityLayer:
         self.stale = StalePoses(R, self.pose.noisy)
         """The filter's pose estimate: measured, dead-reckoned while a measurement repeats."""
         self._sent = np.zeros((R, 2))
+        self._physics = (np.full(R, C.WHEEL_FRICTION), np.ones(R), np.zeros((R, 2)))
         self._est_cos_sin: tuple[np.ndarray, np.ndarray] | None = None
         episodes = np.zeros(layout.n_teams, np.int64)
         episodes[: min(layout.n_teams, self._episodes.size)] = self._episodes[: layout.n_teams]
@@ -122,6 +125,11 @@ class RealityLayer:
         """(R, 2) the measured poses' points ``distance`` ahead of the axles."""
         return projected_points(self.measured, distance)
 
+    def physics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This episode's wheels-tier physics per robot: floor friction (R,), chassis mass scale
+        (R,), centre-of-mass offset (R, 2) m (the model's own values where the component is off)."""
+        return self._physics
+
     @property
     def speed_fraction(self) -> np.ndarray:
         """(R,) each robot's speed factor from its fault now (1: healthy): what a capability
@@ -156,6 +164,13 @@ class RealityLayer:
         self.command.begin(rows, rr.uniforms(k, rr.EPISODE, spread, _EP_CMD_DELAY)[:, : c.command_delay_spread_ticks])
         self.motors.begin(rows, rr.uniforms(k, rr.EPISODE, 5, _EP_MOTOR), rr.normals(k, rr.EPISODE, 2, _EP_MOTOR_N),
                           self._fault_ticks(rows_of))
+        if self.physics_on:
+            u = rr.uniforms(k, rr.EPISODE, 4, _EP_PHYSICS)
+            friction, mass, com = self._physics
+            if c.floor_friction_max > 0:
+                friction[rows] = c.floor_friction_min + (c.floor_friction_max - c.floor_friction_min) * u[:, 0]
+            mass[rows] = 1.0 + c.chassis_mass_spread * (2.0 * u[:, 1] - 1.0)
+            com[rows] = c.com_offset_m * (2.0 * u[:, 2:4] - 1.0)
         out = poses.copy()
         if c.start_xy_m > 0 or c.start_theta_rad > 0:
             for rows_b in rows_of:
@@ -245,7 +260,7 @@ class RealityLayer:
         """New team sizes: teams that kept their size keep their state (as the world keeps their
         poses); the others must be started again."""
         parts = {name: getattr(self, name) for name in ("pose", "command", "motors")}
-        old_stale, old_sent = self.stale, self._sent
+        old_stale, old_sent, old_physics = self.stale, self._sent, self._physics
         keys, ticks, true = self.keys, self.ticks, self._true
         old_layout = self.layout
         self._build(layout)
@@ -257,6 +272,8 @@ class RealityLayer:
             self.keys[new_rows], self.ticks[new_rows], self._true[new_rows] = keys[old_rows], ticks[old_rows], true[old_rows]
             self.stale.remap(new_rows, old_stale, old_rows)
             self._sent[new_rows] = old_sent[old_rows]
+            for new, old in zip(self._physics, old_physics):
+                new[new_rows] = old[old_rows]
             for name, old_part in parts.items():
                 new_part = getattr(self, name)
                 for attr in old_part.ROW_STATE:

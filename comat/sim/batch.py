@@ -172,6 +172,30 @@ class BatchWorld(_TickMixin):
         self.violations = Violations(self.layout.robot_team, self.layout.n_teams)
         self.ticks = 0
 
+    def set_robot_physics(self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray,
+                          teams: Sequence[int] | None = None) -> None:
+        """Wheels tier: per-robot floor friction (R,), chassis mass scale (R,) and centre-of-mass
+        offset (R, 2) m of ``teams`` (all if None; rows of the others are ignored), written into
+        their simulations' own model fields (``Batch.expand``; the first call makes those fields
+        per simulation, which no off run ever does). Call before :meth:`reset`."""
+        if self.config.tier != "wheels":
+            return
+        team_ids = np.arange(self.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
+        for g in self.groups:
+            sel = np.flatnonzero(np.isin(g.teams, team_ids))
+            if sel.size == 0:
+                continue
+            sims, rows = g.sims[sel], g.rows[sel]
+            base = compiled_scene(g.n, self.config.tier, self.config.profile, g.substeps)
+            for s_i, r in zip(sims, rows):
+                for name, (index, values) in g.binding.physics_fields(friction[r], mass_scale[r], com_xy[r], base).items():
+                    field = g.batch.expand(name)
+                    if name == "geom_friction":
+                        field[s_i, index, 0] = values
+                    else:
+                        field[s_i, index] = values
+            g.batch.set_const(sims.astype(np.int32))
+
     def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None) -> None:
         """Place robots at rest and zero their counters.
 

@@ -35,6 +35,12 @@ class Binding:
             else np.zeros(0, np.int64)
         )
         self.body = np.array([model.body(f"robot_{i}/chassis").id for i in range(n_robots)])
+        self.wheel_geoms = (
+            np.array([[model.geom(f"robot_{i}/{s}_wheel").id for s in ("left", "right")] for i in range(n_robots)])
+            if tier == "wheels"
+            else np.zeros((0, 2), np.int64)
+        )
+        """(N, 2) each robot's wheel geoms (wheels tier; their friction is the wheel-floor contact's)."""
         self.sensor_all = np.array(
             [model.sensor_adr[model.sensor(f"robot_{i}/contacts").id] for i in range(n_robots)]
         )
@@ -52,6 +58,17 @@ class Binding:
             self.lateral_gain = (2.0 * self._mass + self._h_kv) / self._h_kv
         self.z0 = profile.wheel_radius_m
         self._pose_cols = (self.qadr[:, None] + np.arange(7 if tier == "wheels" else 3)).ravel()
+
+    def physics_fields(self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray,
+                       base: mujoco.MjModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per-robot physics of the wheels tier as model-field writes: {field: (index, values)}
+        for wheel friction (N,) (wheel-floor μ: the wheel geoms have the contact's priority),
+        chassis mass scale (N,) and centre-of-mass offset (N, 2) (m), relative to ``base``."""
+        return {
+            "geom_friction": (self.wheel_geoms, np.repeat(friction[:, None], 2, axis=1)),
+            "body_mass": (self.body, base.body_mass[self.body] * mass_scale),
+            "body_ipos": (self.body, base.body_ipos[self.body] + np.column_stack([com_xy, np.zeros(len(com_xy))])),
+        }
 
     # -- poses ------------------------------------------------------------------------------------
     def poses(self, qpos: np.ndarray) -> np.ndarray:
