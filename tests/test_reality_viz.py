@@ -48,3 +48,15 @@ def test_video_frames_draw_the_ghost_only_under_the_layer():
         follower.close()
     a, b = frames.values()
     assert a.shape == b.shape and (a != b).any()  # a bias of 5 cm is a visible ghost
+
+
+def test_training_recordings_play_at_the_runs_level(tmp_path):
+    from test_rl import tiny
+
+    from comat.rl.runner import train
+
+    config = tiny("comat", steps=6, eval_every_steps=6, eval_episodes_per_team=1, reality="nominal")
+    train(config, tmp_path / "run", quiet=True, rrd_every=1)
+    (path,) = (tmp_path / "run" / "rrd").glob("*.rrd")
+    static, temporal = read(path)
+    assert "/episode_0/world/robots/measured" in temporal and "nominal" in str(static["/episode_0/meta"])

@@ -122,7 +122,7 @@ def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: i
         record_episodes(path, config.task, policy_act(config.algo, modules),
                         teams=resolve_coalitions("train", config.task)[:episodes],
                         seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier,
-                        max_robots=robot_slots(config),
+                        max_robots=robot_slots(config), reality=config.reality,
                         policy_name=f"{config.algo} after {steps:,} env steps")
     finally:
         for m in modules.values():
