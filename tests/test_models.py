@@ -300,3 +300,24 @@ def test_default_comat_keeps_each_robots_own_observation(task):
 
     assert min(ratio(ComatConfig())) > 50
     assert max(ratio(ComatConfig(**PAPER_FORM))) < 20
+
+
+@pytest.mark.parametrize("override, message", [
+    ("models.comat.heads=0", "models.comat.heads must be an integer >= 1, got 0"),
+    ("models.comat.embed=0", "models.comat.embed must be an integer >= 1, got 0"),
+    ("models.comat.heads=-2", "models.comat.heads must be an integer >= 1, got -2"),
+    ("models.comat.heat_blocks=0", "models.comat.heat_blocks must be an integer >= 1, got 0"),
+    ("models.mat.embed=6", "models.mat.embed must be divisible by models.mat.heads"),
+    ("models.mappo.hidden=0", "models.mappo.hidden must be an integer >= 1, got 0"),
+    ("models.qmix.mixing_embed=0", "models.qmix.mixing_embed must be an integer >= 1, got 0"),
+])
+def test_model_sizes_out_of_range_get_one_line_errors_and_leave_nothing(tmp_path, capsys, override, message):
+    from comat.cli import main
+
+    algo = override.split(".")[1]
+    extra = ["models.mat.heads=4"] if algo == "mat" else []
+    out = tmp_path / "run"
+    assert main(["train", "--algo", algo, "--task", "pcp", "--steps", "6", "--out", str(out), override, *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+    assert not out.exists()

@@ -45,6 +45,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from comat.config import check_numbers
 from comat.models.act_kernels import comat_decode, comat_encode
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
 from comat.models.features import ObsLayout, edge_features
@@ -104,6 +105,7 @@ class ComatConfig:
     a per-type output layer: still type-stratified, but both types train the trunk)."""
 
     def __post_init__(self) -> None:
+        check_numbers(self, "models.comat", at_least_one=("embed", "heads", "heat_blocks", "edge_embed"))
         for name, choices in (("heat_form", HEAT_FORMS), ("edge_frame", EDGE_FRAMES), ("decision", DECISIONS)):
             if getattr(self, name) not in choices:
                 raise ValueError(f"models.comat.{name} must be one of {list(choices)}, got {getattr(self, name)!r}")

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from comat.config import check_numbers
 from comat.models.features import ObsLayout
 from comat.models.layers import TypeHeads, mlp
 
@@ -31,6 +32,9 @@ class MappoConfig:
     max_robots: int = 8
     """Robot slots of the environments, which the critic's global state covers too: the paper
     trains fixed-size baselines with at most eight robots; 20 lets them play U_scale."""
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "models.mappo", at_least_one=("hidden", "max_robots"))
 
 
 class Mappo(nn.Module):

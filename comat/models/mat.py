@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from comat.config import check_numbers
 from comat.models.act_kernels import mat_decode
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
 from comat.models.features import ObsLayout
@@ -36,6 +37,12 @@ class MatConfig:
     blocks: int = 1
     max_robots: int = 8
     """Largest team (the paper trains fixed-size baselines with at most eight robots)."""
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "models.mat", at_least_one=("embed", "heads", "blocks", "max_robots"))
+        if self.embed % self.heads:
+            raise ValueError(f"models.mat.embed must be divisible by models.mat.heads, got embed {self.embed}, "
+                             f"heads {self.heads}")
 
 
 class _EncodeBlock(nn.Module):

@@ -18,6 +18,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from comat.config import check_numbers
 from comat.models.features import ObsLayout
 from comat.models.layers import TypeHeads, mlp
 
@@ -34,6 +35,9 @@ class QmixNetConfig:
     """Hypernetwork hidden width."""
     max_robots: int = 8
     """Mixer slots (the paper trains fixed-size baselines with at most eight robots)."""
+
+    def __post_init__(self) -> None:
+        check_numbers(self, "models.qmix", at_least_one=("hidden", "mixing_embed", "hypernet_embed", "max_robots"))
 
 
 class QmixAgents(nn.Module):
