@@ -150,7 +150,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
 
 TABLE_NAMES = {"return": "return", "steps": "steps", "completion": "progress", "success": "completion*",
                "progress_auc": "AUC", "time_to_90": "t90", "collisions": "collisions", "violations": "violations",
-               "interventions": "interv.", "fallbacks": "brakes", "recoveries": "recoveries"}
+               "interventions": "interv.", "fallbacks": "fallbacks", "recoveries": "recoveries"}
 """Column name of each metric of :data:`REPORTED` in :func:`print_table`."""
 
 
