@@ -31,6 +31,7 @@ from comat.cli_args import (
     add_tier,
     comat_version,  # noqa: F401  (comat.cli.comat_version, as before)
 )
+from comat.reality.calibrate_cli import add_calibrate_parser
 from comat.team import COALITION_SETS, COALITIONS_DIR
 from comat.viz.cli import add_rollout_parser, add_viz_bench_parser  # no Rerun import until used
 from sim2real.cli import add_export_parser
@@ -170,7 +171,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else pol.checkpoint.parent
     named = parse_teams(args.teams, pol.task)
     tier = args.tier or pol.tier
-    stem = f"evaluation_{tier}" + ("" if reality == "off" else f"_{reality}")  # never over an off evaluation
+    level = Path(reality).stem if reality.endswith((".yaml", ".yml")) else reality  # a profile: its file's name
+    stem = f"evaluation_{tier}" + ("" if level == "off" else f"_{level}")  # never over an off evaluation
     if pol.checkpoint is None:  # a reference policy: it, or with the other references next to it
         refs = (pol.name,) if args.no_references else REFERENCES
     else:
@@ -593,6 +595,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=_cmd_bench)
     add_viz_bench_parser(bsub)
     add_safety_bench_parser(bsub)
+    add_calibrate_parser(sub)
     return parser
 
 

@@ -160,7 +160,7 @@ def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> 
 
 
 def add_reality(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--reality", default="off", metavar="{" + ",".join(REALITY_LEVELS) + "}",
+    p.add_argument("--reality", default="off", metavar="{" + ",".join(REALITY_LEVELS) + ",PROFILE.yaml}",
                    help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
                    "README, Reality layer); default: off, the ideal world, NOT the level the policy trained at")
 
@@ -176,9 +176,15 @@ def add_reality_sweep(p: argparse.ArgumentParser) -> None:
 
 
 def reality_arg(value: str) -> str:
-    """``--reality`` checked in the command (a one-line error, not argparse's usage block)."""
+    """``--reality`` checked in the command (a one-line error, not argparse's usage block): a level,
+    or a profile file ``*.yaml`` from ``comat calibrate``."""
+    if value.endswith((".yaml", ".yml")):
+        from comat.reality.config import resolve_reality
+
+        resolve_reality(value, "--reality")  # the file's errors now, before anything runs
+        return value
     if value not in REALITY_LEVELS:
-        raise ValueError(f"--reality must be one of {list(REALITY_LEVELS)}, got {value!r}")
+        raise ValueError(f"--reality must be one of {list(REALITY_LEVELS)} or a profile file PROFILE.yaml, got {value!r}")
     return value
 
 

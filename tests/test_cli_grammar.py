@@ -39,6 +39,7 @@ EXCEPTIONS = {
     ("--episodes", "bench soak"): "total episodes",
     ("--episodes", "bench safety"): "episodes per scenario (issue 29: >= 50)",
     ("--seed", "bench safety"): "the battery's own episodes",
+    ("--seed", "calibrate"): "the simulated calibration run's layer",
     ("--tasks", "bench viz"): "default: a checkpoint's own task",
     ("--episodes", "sweep"): "not given: the recorded sweep's (see the sweep test below)",
     ("--tasks", "sweep"): "not given: the recorded sweep's",

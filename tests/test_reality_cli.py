@@ -168,7 +168,7 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     # a bad level: one line naming the flag, the choices and the value, nothing written
     assert main([*ev, "--reality", "foo", "--out", str(tmp_path / "bad")]) == 2
     err = capsys.readouterr().err
-    assert err == "comat eval: error: --reality must be one of ['off', 'nominal', 'stress'], got 'foo'\n"
+    assert err == "comat eval: error: --reality must be one of ['off', 'nominal', 'stress'] or a profile file PROFILE.yaml, got 'foo'\n"
     assert not (tmp_path / "bad").exists()
 
 

@@ -21,7 +21,7 @@ from typing import Any
 
 from comat import constants as C
 
-__all__ = ["LEVELS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "resolve_reality"]
+__all__ = ["LEVELS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "profile_fields", "resolve_reality"]
 
 REALITY_LEVELS = ("off", "nominal", "stress")
 """The named levels, in order of severity."""
@@ -323,8 +323,29 @@ SOURCES: dict[str, tuple[str, str]] = {
 """Per field: (mark, source) for the documentation and the README's levels table."""
 
 
+def profile_fields(path: str, name: str = "reality") -> dict[str, Any]:
+    """The RealityConfig fields of a profile file (``comat calibrate --out PROFILE.yaml``: a
+    mapping with a ``reality`` mapping of fields); one-line errors for a missing or foreign file."""
+    from pathlib import Path
+
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{name}: profile {path!r} does not exist (write one with comat calibrate)")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{name}: profile {path!r} is not YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("reality"), dict):
+        raise ValueError(  # noqa: TRY004 (a file of the wrong kind: a value error to the user)f"{name}: {path!r} is not a reality profile (a mapping with a 'reality' mapping of fields, "
+                         "as comat calibrate writes)")
+    return dict(data["reality"])
+
+
 def resolve_reality(value: Any, name: str = "reality") -> RealityConfig:
-    """A RealityConfig from ``"off" | "nominal" | "stress"``, a RealityConfig, None (off), or a
+    """A RealityConfig from ``"off" | "nominal" | "stress"``, a profile file (``*.yaml``, from
+    ``comat calibrate``), a RealityConfig, None (off), or a
     mapping of fields (``{"level": "nominal", "pose_delay_ticks": 2}``; without ``level`` the
     fields change the ``off`` level, so ``{"pose_delay_ticks": 2}`` is that one component alone)."""
     from comat.config import load
@@ -333,6 +354,8 @@ def resolve_reality(value: Any, name: str = "reality") -> RealityConfig:
         return RealityConfig()
     if isinstance(value, RealityConfig):
         return value
+    if isinstance(value, str) and value.endswith((".yaml", ".yml")):
+        return load(RealityConfig, profile_fields(value, name), prefix=name)
     if isinstance(value, str):
         if value not in LEVELS:
             raise ValueError(f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its "

@@ -6,7 +6,7 @@ A preset holds values only, for every algorithm at once::
     total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
     checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
     models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}},
-    reality: off | nominal | stress | {RealityConfig fields}
+    reality: off | nominal | stress | PROFILE.yaml | {RealityConfig fields}
 
 ``reality`` is the reality layer the run trains at (:mod:`comat.reality`; default ``off``): a
 level name, or a mapping of fields (``{level: nominal, pose_delay_ticks: 2}``; without ``level``
@@ -193,6 +193,10 @@ def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
     value = data.get("reality")
     if value is None or isinstance(value, Mapping):
         return data
+    if isinstance(value, str) and value.endswith((".yaml", ".yml")):  # a calibrated profile: its fields
+        from comat.reality.config import profile_fields
+
+        return {**data, "reality": profile_fields(value)}
     return {**data, "reality": {"level": value}}
 
 

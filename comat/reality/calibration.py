@@ -1,0 +1,165 @@
+"""Calibration experiments: short system-identification runs whose logs fit the reality layer.
+
+Each experiment is a command schedule for robots standing in lanes, well apart: every iteration
+a robot gets a unicycle command (v, ω) that depends only on the iteration and the robot. A run
+logs, per iteration, the time, the commanded (v, ω) and the pose the robot's script received, as
+one float64 array (K, N, 6) with the columns :data:`LOG_COLUMNS`, saved as
+``calib_<experiment>.npy`` — the same format whether the run happened on the Robotarium (its
+``main.py`` saves it, issue 31) or in comat's simulator with the reality layer at known values
+(:func:`simulate`), which is how the fit (:mod:`comat.reality.fit`) is proven on known truth.
+
+Experiments (:data:`EXPERIMENTS`):
+
+* ``steps`` — forward-speed steps 0 → ½ → full → 0, then the same backwards, four cycles
+  (26 s): the delay from command to observed motion (pose + command delay: the two shift the
+  response alike and are not told apart), the wheels' lag, the reachable speed, and from the
+  heading's drift over the distance the two wheels' gain difference;
+* ``still`` — the robots stand for 60 s: pose noise, and the share of repeated poses (holds).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from comat import constants as C
+
+__all__ = ["EXPERIMENTS", "LOG_COLUMNS", "lane_poses", "load_log", "run_under_rps", "schedule", "simulate"]
+
+LOG_COLUMNS = ("t_s", "v_cmd_mps", "w_cmd_radps", "x_m", "y_m", "theta_rad")
+"""Columns of a calibration log's last axis."""
+
+EXPERIMENTS = {"steps": 1600, "still": 1800}
+"""Experiment -> iterations (at 0.033 s: 26 s and 59 s)."""
+
+_STEP_PHASES = ((10, 0.0), (15, 0.5), (15, 1.0), (15, 0.0), (15, -0.5), (15, -1.0), (15, 0.0))
+"""(iterations, fraction of the top speed 0.2 m/s) of one ``steps`` cycle (200 iterations)."""
+
+
+def schedule(experiment: str, k: int, n: int) -> np.ndarray:
+    """(n, 2) unicycle commands (v m/s, ω rad/s) of iteration ``k`` of ``experiment``."""
+    out = np.zeros((n, 2))
+    if experiment == "steps":
+        k = k % sum(p for p, _ in _STEP_PHASES)
+        for length, fraction in _STEP_PHASES:
+            if k < length:
+                out[:, 0] = fraction * C.GRITSBOT.max_linear_velocity_mps
+                break
+            k -= length
+    elif experiment != "still":
+        raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
+    return out
+
+
+def lane_poses(n: int) -> np.ndarray:
+    """(n, 3) start poses: lanes 0.3 m apart across the arena, facing +x, at x = -0.4 m (a
+    ``steps`` cycle drives 0.23 m forward and back)."""
+    if not 1 <= n <= 6:
+        raise ValueError(f"a calibration run has 1 to 6 robots (lanes 0.3 m apart), got {n}")
+    y = 0.3 * (np.arange(n) - (n - 1) / 2)
+    return np.column_stack([np.full(n, -0.4), y, np.zeros(n)])
+
+
+def simulate(experiment: str, reality, n: int = 6, seed: int = 0, tier: str | None = None) -> np.ndarray:
+    """Run ``experiment`` with the reality layer ``reality`` (a level, a RealityConfig or a mapping
+    of fields) and return its log (K, n, 6), as the Robotarium's ``main.py`` records it: the
+    measured pose read first, then the command sent.
+
+    ``tier`` None: the robots move as the Robotarium simulator moves them (Euler steps of the
+    unicycle model, what ``rps`` does), so the log shows the layer and nothing else: the known
+    truth a fit must recover. ``"unicycle"`` or ``"wheels"``: comat's MuJoCo tiers, whose own
+    actuator response (the unicycle tier's ~12 ms servo) then adds to the layer's."""
+    from comat.reality import RealityLayer, resolve_reality
+    from comat.sim.layout import team_layout
+
+    if experiment not in EXPERIMENTS:
+        raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
+    config = resolve_reality(reality)
+    K = EXPERIMENTS[experiment]
+    log = np.zeros((K, n, 6))
+    if tier is not None:
+        return _simulate_tier(experiment, config, n, seed, tier, log)
+    layer = RealityLayer(config, C.GRITSBOT, team_layout((n,)), seed)
+    true = layer.start(lane_poses(n), np.array([0]), None)
+    layer.begin_measuring(true, np.array([0]))
+    for k in range(K):
+        dxu = schedule(experiment, k, n)
+        log[k, :, 0] = k * C.CONTROL_DT_S
+        log[k, :, 1:3] = dxu
+        log[k, :, 3:] = layer.measured
+        v, w = layer.actuate(dxu).T
+        true = true.copy()
+        true[:, 0] += v * np.cos(true[:, 2]) * C.CONTROL_DT_S
+        true[:, 1] += v * np.sin(true[:, 2]) * C.CONTROL_DT_S
+        true[:, 2] = np.pi - np.remainder(np.pi - (true[:, 2] + w * C.CONTROL_DT_S), 2.0 * np.pi)
+        layer.observe(true)
+    return log
+
+
+def _simulate_tier(experiment: str, config, n: int, seed: int, tier: str, log: np.ndarray) -> np.ndarray:
+    from comat.config import SimConfig
+    from comat.control import SafeTeams
+
+    teams = SafeTeams((n,), SimConfig(tier=tier), reality=config, reality_seed=seed)
+    teams.reset(lane_poses(n))
+    overrun = np.zeros(n, dtype=bool)
+    for k in range(log.shape[0]):
+        dxu = schedule(experiment, k, n)
+        log[k, :, 0] = k * C.CONTROL_DT_S
+        log[k, :, 1:3] = dxu
+        log[k, :, 3:] = teams.measured_poses
+        teams.world._advance(dxu if teams.reality is None else teams.reality.actuate(dxu), overrun)
+        if teams.reality is not None:
+            teams.reality.observe(teams.world._poses)
+    return log
+
+
+def load_log(path: str | Path) -> tuple[str, np.ndarray]:
+    """(experiment, log (K, N, 6)) of a ``calib_<experiment>.npy`` file; one-line errors for a file
+    that is not a calibration log or is cut short."""
+    path = Path(path)
+    name = path.stem
+    if not (path.suffix == ".npy" and name.startswith("calib_") and name[6:].split(".")[0] in EXPERIMENTS):
+        raise ValueError(f"LOGS must be calibration logs calib_<{'|'.join(sorted(EXPERIMENTS))}>[.<run>].npy, got "
+                         f"{str(path)!r}")
+    experiment = name[6:].split(".")[0]
+    if not path.is_file():
+        raise FileNotFoundError(f"LOGS: {str(path)!r} does not exist")
+    try:
+        log = np.load(path, allow_pickle=False)
+    except ValueError as exc:
+        raise ValueError(f"LOGS: {str(path)!r} is not a numeric .npy array ({exc})") from None
+    if log.ndim != 3 or log.shape[2] != len(LOG_COLUMNS) or not np.issubdtype(log.dtype, np.floating):
+        raise ValueError(f"LOGS: {str(path)!r} must be a float array (iterations, robots, {len(LOG_COLUMNS)}) with "
+                         f"columns {list(LOG_COLUMNS)}, got shape {log.shape} {log.dtype}")
+    need = EXPERIMENTS[experiment] // 2
+    if log.shape[0] < need:
+        raise ValueError(f"LOGS: {str(path)!r} holds {log.shape[0]} iterations of {experiment!r}, fewer than the "
+                         f"{need} a fit needs (a truncated run?)")
+    if not np.isfinite(log).all():
+        raise ValueError(f"LOGS: {str(path)!r} holds non-finite values")
+    return experiment, log
+
+
+def run_under_rps(experiment: str, n: int = 6) -> np.ndarray:
+    """Run ``experiment`` under the Robotarium simulator (the installed ``rps``: the legacy PyPI
+    package here) and return its log, as a Robotarium run's ``main.py`` records it. The
+    simulator has no delay, noise or motor model: a fit of this log must find none."""
+    from rps import robotarium
+
+    if experiment not in EXPERIMENTS:
+        raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
+    r = robotarium.Robotarium(number_of_robots=n, show_figure=False, sim_in_real_time=False,
+                              initial_conditions=lane_poses(n).T.copy())
+    K = EXPERIMENTS[experiment]
+    log = np.zeros((K, n, 6))
+    for k in range(K):
+        x = r.get_poses()  # (3, n)
+        dxu = schedule(experiment, k, n)
+        log[k, :, 0] = k * C.CONTROL_DT_S
+        log[k, :, 1:3] = dxu
+        log[k, :, 3:] = np.asarray(x).T
+        r.set_velocities(np.arange(n), dxu.T.copy())
+        r.step()
+    return log

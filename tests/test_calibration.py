@@ -1,0 +1,93 @@
+"""Calibration (issue 31, first part): experiments simulated at known truth and fitted back; no
+gap found under the Robotarium simulator; `comat calibrate` writes a profile that train and eval
+take and that round-trips through a run's config.yaml; bad logs get one-line errors."""
+
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from comat.cli import main
+from comat.reality import RealityConfig, resolve_reality
+from comat.reality.calibration import run_under_rps, simulate
+from comat.reality.fit import fit_steps, fit_still
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "results" / "calibration"))
+from recovery import check, recover, setting
+
+
+def test_known_truth_is_recovered_within_tolerance():
+    rng = np.random.default_rng(2026)
+    for k in range(2):  # the first two of results/calibration/recovery.md's six settings
+        truth = setting(rng)
+        ok = check(truth, recover(truth, seed=k))
+        assert all(ok.values()), (truth, ok)
+
+
+def test_the_robotarium_simulator_shows_no_gap():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        steps, still = fit_steps(run_under_rps("steps", 3)), fit_still(run_under_rps("still", 2))
+    assert all(r["delay_ticks"] == 0 and r["tau_own_s"] == 0 and r["accel_radps2"] == 0 for r in steps)
+    assert all(abs(r["gain"] * r["cap_fraction"] - 1) < 1e-6 and abs(r["half_gain_diff"]) < 1e-9 for r in steps)
+    assert all(r["noise_xy_m"] == 0 and r["noise_theta_rad"] == 0 for r in still)
+
+
+def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
+    truth = json.dumps({"pose_delay_ticks": 1, "motor_tau_min_s": 0.05, "motor_tau_max_s": 0.05,
+                        "motor_accel_limit_radps2": 200.0, "pose_noise_xy_m": 0.002, "pose_hold_prob": 0.2})
+    logs = tmp_path / "logs"
+    assert main(["calibrate", "--simulate", truth, "--robots", "3", "--out", str(logs)]) == 0
+    profile = tmp_path / "mine.yaml"
+    assert main(["calibrate", str(logs / "calib_steps.npy"), str(logs / "calib_still.npy"), "--out", str(profile)]) == 0
+    out = capsys.readouterr().out
+    assert "pose_bias_xy_m" in out and "not identified" in out
+    data = yaml.safe_load(profile.read_text())
+    fields = data["reality"]
+    assert fields["pose_delay_ticks"] == 1 and abs(fields["motor_tau_max_s"] - 0.05) <= 0.01
+    assert "pose_bias_xy_m" in data["not_identified"]
+    config = resolve_reality(str(profile))
+    assert config == RealityConfig(**fields)
+    # a run trained with reality=PROFILE.yaml stores the same parameters in its config.yaml
+    from test_rl import TINY_MODELS
+
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(yaml.safe_dump({"eval_every_steps": 10**9, "eval_episodes_per_team": 0,
+                                      "checkpoint_every_steps": 6, "ppo": {"num_envs": 2, "rollout_steps": 3,
+                                                                           "epochs": 1, "minibatches": 1},
+                                      "models": TINY_MODELS}))
+    run = tmp_path / "run"
+    assert main(["train", "--algo", "comat", "--task", "pcp", "--preset", str(preset), "--steps", "6", "--out", str(run),
+                 f"reality={profile}", "--quiet"]) == 0
+    stored = yaml.safe_load((run / "config.yaml").read_text())["config"]["reality"]
+    assert {k: stored[k] for k in fields} == fields
+    # and eval plays at it, writing a file named after the profile
+    assert main(["eval", "--policy", str(run), "--teams", "test", "--no-references", "--reality", str(profile)]) == 0
+    assert (run / "evaluation_unicycle_mine.json").is_file()
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda d: d / "steps.npy", "must be calibration logs calib_<steps|still>"),
+    (lambda d: d / "calib_steps.npy", "does not exist"),
+])
+def test_bad_logs_get_one_line_errors(tmp_path, capsys, make, message):
+    assert main(["calibrate", str(make(tmp_path)), "--out", str(tmp_path / "p.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and not (tmp_path / "p.yaml").exists()
+
+
+def test_truncated_and_foreign_logs_are_refused(tmp_path, capsys):
+    short = simulate("steps", "off", n=2)[:100]
+    np.save(tmp_path / "calib_steps.npy", short)
+    assert main(["calibrate", str(tmp_path / "calib_steps.npy"), "--out", str(tmp_path / "p.yaml")]) == 2
+    assert "fewer than the 800 a fit needs (a truncated run?)" in capsys.readouterr().err
+    np.save(tmp_path / "calib_still.npy", np.zeros((2000, 3)))
+    assert main(["calibrate", str(tmp_path / "calib_still.npy"), "--out", str(tmp_path / "p.yaml")]) == 2
+    assert "must be a float array (iterations, robots, 6)" in capsys.readouterr().err
+    (tmp_path / "x.yaml").write_text("a: 1\n")
+    with pytest.raises(ValueError, match="is not a reality profile"):
+        resolve_reality(str(tmp_path / "x.yaml"))
