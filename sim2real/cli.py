@@ -82,8 +82,30 @@ def _cmd_export(args: argparse.Namespace) -> int:
     import sys
     import time
 
+    from sim2real.calibration import check_calibration, export_calibration, is_calibration
     from sim2real.export import CheckError, check_submission, export_submission
 
+    if args.calibration:
+        folders = export_calibration(args.calibration, args.robots)
+        for f in folders:
+            print(f"wrote {f}: " + ", ".join(sorted(p.name for p in f.iterdir())))
+        print("upload each folder to the Robotarium, download the calib_<experiment>.npy it saves, then fit: "
+              "comat calibrate calib_steps.npy calib_still.npy --out my_robots.yaml")
+        return 0
+    if args.check and all(is_calibration(f) for f in args.check):
+        bad = 0
+        for folder in args.check:
+            try:
+                report = check_calibration(folder, args.timeout, args.rps)
+            except CheckError as err:
+                raise ValueError(str(err)) from err
+            rps, fit = report["rps"], report["fit"]
+            bad += rps["rps_errors"].get("boundary", 0) + rps["rps_errors"].get("collision", 0)
+            keys = [k for k in fit[0] if k not in ("rms_m",)]
+            shown = ", ".join(f"{k} {min(r[k] for r in fit):.4g}..{max(r[k] for r in fit):.4g}" for k in keys)
+            print(f"{folder}: {rps['experiment']} under rps ({rps['rps_generation']}), {rps['iterations']} iterations, "
+                  f"{rps['robots']} robots, rps errors {rps['rps_errors']}; log {rps['log']}; fit per robot: {shown}")
+        return 1 if bad else 0
     if args.check:
         if args.timeout <= 0:
             raise ValueError(f"--timeout must be > 0 seconds, got {args.timeout}")
@@ -141,6 +163,11 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                    "apart (what the Robotarium's start-up drive can reach)")
     p.add_argument("--timeout", type=float, default=1800.0,
                    help="--check: seconds main.py may run under rps per folder (default: %(default)s)")
+    p.add_argument("--calibration", metavar="OUT", default=None,
+                   help="instead: write the calibration experiments as Robotarium submission folders OUT/steps and "
+                   "OUT/still (each logs commands and poses to calib_<experiment>.npy for comat calibrate)")
+    p.add_argument("--robots", type=int, default=4, help="--calibration: robots per experiment, 1-4 (default: "
+                   "%(default)s)")
     p.add_argument("--check", metavar="DIR", nargs="+",
                    help="check exported folders instead of exporting (several: one line each, then the means)")
     p.add_argument("--tier", choices=TIERS, default="wheels",

@@ -33,7 +33,8 @@ def test_the_robotarium_simulator_shows_no_gap():
         warnings.simplefilter("ignore")
         steps, still = fit_steps(run_under_rps("steps", 3)), fit_still(run_under_rps("still", 2))
     assert all(r["delay_ticks"] == 0 and r["tau_own_s"] == 0 and r["accel_radps2"] == 0 for r in steps)
-    assert all(abs(r["gain"] * r["cap_fraction"] - 1) < 1e-6 and abs(r["half_gain_diff"]) < 1e-9 for r in steps)
+    # gain 1; the cap is not below the fastest commanded speed (95 % of the top: nothing above it is seen)
+    assert all(abs(r["gain"] - 1) < 1e-3 and r["cap_fraction"] >= 0.95 and abs(r["half_gain_diff"]) < 1e-9 for r in steps)
     assert all(r["noise_xy_m"] == 0 and r["noise_theta_rad"] == 0 for r in still)
 
 
@@ -91,3 +92,41 @@ def test_truncated_and_foreign_logs_are_refused(tmp_path, capsys):
     (tmp_path / "x.yaml").write_text("a: 1\n")
     with pytest.raises(ValueError, match="is not a reality profile"):
         resolve_reality(str(tmp_path / "x.yaml"))
+
+
+def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_path, capsys):
+    out = tmp_path / "cal"
+    assert main(["export", "--calibration", str(out), "--robots", "2"]) == 0
+    for experiment in ("steps", "still"):
+        files = sorted(p.name for p in (out / experiment).iterdir())
+        assert files == ["calibration_schedule.py", "main.py", "submission_config.py"]
+    capsys.readouterr()
+    assert main(["export", "--check", str(out / "steps"), str(out / "still")]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 2
+    assert "delay_ticks 0..0" in printed
+    from comat.reality.calibration import load_log
+
+    _, log = load_log(out / "steps" / "calib_steps.npy")
+    fit = fit_steps(log)
+    assert all(r["delay_ticks"] == 0 and r["tau_own_s"] <= 0.005 and r["accel_radps2"] == 0 for r in fit)
+    assert main(["export", "--calibration", str(out)]) == 2  # an existing folder is refused
+    assert main(["export", "--calibration", str(tmp_path / "x"), "--robots", "9"]) == 2
+    assert not (tmp_path / "x").exists()
+
+
+def test_calibration_folders_follow_the_export_rules(tmp_path):
+    import ast
+
+    from sim2real.export import ACCEPTED_EXTENSIONS, ALLOWED_IMPORTS
+
+    out = tmp_path / "cal"
+    assert main(["export", "--calibration", str(out)]) == 0
+    for folder in out.iterdir():
+        own = {p.stem for p in folder.iterdir()}
+        for path in folder.iterdir():
+            assert path.is_file() and path.suffix in ACCEPTED_EXTENSIONS
+            tree = ast.parse(path.read_text())
+            names = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+            names |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+            assert names <= ALLOWED_IMPORTS | own | set(sys.stdlib_module_names), (path, names)

@@ -93,7 +93,7 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--simulate", default=None, metavar="REALITY",
                    help="write the experiments' logs from comat's simulator at this layer (a level, a profile "
                    "PROFILE.yaml or a JSON mapping of fields) into the folder --out, instead of fitting")
-    p.add_argument("--robots", type=int, default=6, help="robots of a simulated run (default: %(default)s)")
+    p.add_argument("--robots", type=int, default=4, help="robots of a simulated run (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of a simulated run (default: %(default)s)")
     add_force(p)
     p.set_defaults(func=_cmd)

@@ -10,8 +10,8 @@ one float64 array (K, N, 6) with the columns :data:`LOG_COLUMNS`, saved as
 
 Experiments (:data:`EXPERIMENTS`):
 
-* ``steps`` — forward-speed steps 0 → ½ → full → 0, then the same backwards, four cycles
-  (26 s): the delay from command to observed motion (pose + command delay: the two shift the
+* ``steps`` — forward-speed steps 0 → ½ → full → 0, then the same backwards, 16 cycles
+  (53 s): the delay from command to observed motion (pose + command delay: the two shift the
   response alike and are not told apart), the wheels' lag, the reachable speed, and from the
   heading's drift over the distance the two wheels' gain difference;
 * ``still`` — the robots stand for 60 s: pose noise, and the share of repeated poses (holds).
@@ -24,44 +24,13 @@ from pathlib import Path
 import numpy as np
 
 from comat import constants as C
+from comat.reality.calibration_schedule import EXPERIMENTS, LOG_COLUMNS, lane_poses, schedule
 
 __all__ = ["EXPERIMENTS", "LOG_COLUMNS", "lane_poses", "load_log", "run_under_rps", "schedule", "simulate"]
 
-LOG_COLUMNS = ("t_s", "v_cmd_mps", "w_cmd_radps", "x_m", "y_m", "theta_rad")
-"""Columns of a calibration log's last axis."""
-
-EXPERIMENTS = {"steps": 1600, "still": 1800}
-"""Experiment -> iterations (at 0.033 s: 26 s and 59 s)."""
-
-_STEP_PHASES = ((10, 0.0), (15, 0.5), (15, 1.0), (15, 0.0), (15, -0.5), (15, -1.0), (15, 0.0))
-"""(iterations, fraction of the top speed 0.2 m/s) of one ``steps`` cycle (200 iterations)."""
 
 
-def schedule(experiment: str, k: int, n: int) -> np.ndarray:
-    """(n, 2) unicycle commands (v m/s, ω rad/s) of iteration ``k`` of ``experiment``."""
-    out = np.zeros((n, 2))
-    if experiment == "steps":
-        k = k % sum(p for p, _ in _STEP_PHASES)
-        for length, fraction in _STEP_PHASES:
-            if k < length:
-                out[:, 0] = fraction * C.GRITSBOT.max_linear_velocity_mps
-                break
-            k -= length
-    elif experiment != "still":
-        raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
-    return out
-
-
-def lane_poses(n: int) -> np.ndarray:
-    """(n, 3) start poses: lanes 0.3 m apart across the arena, facing +x, at x = -0.4 m (a
-    ``steps`` cycle drives 0.23 m forward and back)."""
-    if not 1 <= n <= 6:
-        raise ValueError(f"a calibration run has 1 to 6 robots (lanes 0.3 m apart), got {n}")
-    y = 0.3 * (np.arange(n) - (n - 1) / 2)
-    return np.column_stack([np.full(n, -0.4), y, np.zeros(n)])
-
-
-def simulate(experiment: str, reality, n: int = 6, seed: int = 0, tier: str | None = None) -> np.ndarray:
+def simulate(experiment: str, reality, n: int = 4, seed: int = 0, tier: str | None = None) -> np.ndarray:
     """Run ``experiment`` with the reality layer ``reality`` (a level, a RealityConfig or a mapping
     of fields) and return its log (K, n, 6), as the Robotarium's ``main.py`` records it: the
     measured pose read first, then the command sent.
@@ -142,7 +111,7 @@ def load_log(path: str | Path) -> tuple[str, np.ndarray]:
     return experiment, log
 
 
-def run_under_rps(experiment: str, n: int = 6) -> np.ndarray:
+def run_under_rps(experiment: str, n: int = 4) -> np.ndarray:
     """Run ``experiment`` under the Robotarium simulator (the installed ``rps``: the legacy PyPI
     package here) and return its log, as a Robotarium run's ``main.py`` records it. The
     simulator has no delay, noise or motor model: a fit of this log must find none."""

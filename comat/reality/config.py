@@ -338,8 +338,9 @@ def profile_fields(path: str, name: str = "reality") -> dict[str, Any]:
     except yaml.YAMLError as exc:
         raise ValueError(f"{name}: profile {path!r} is not YAML ({str(exc).splitlines()[0]})") from None
     if not isinstance(data, dict) or not isinstance(data.get("reality"), dict):
-        raise ValueError(  # noqa: TRY004 (a file of the wrong kind: a value error to the user)f"{name}: {path!r} is not a reality profile (a mapping with a 'reality' mapping of fields, "
-                         "as comat calibrate writes)")
+        raise ValueError(  # noqa: TRY004 (a file of the wrong kind: a value error to the user)
+            f"{name}: {path!r} is not a reality profile (a mapping with a 'reality' mapping of fields, "
+            "as comat calibrate writes)")
     return dict(data["reality"])
 
 

@@ -27,6 +27,10 @@ import numpy as np
 
 from comat import constants as C
 from comat.reality.calibration import load_log
+from comat.reality.calibration_schedule import FULL_FRACTION
+
+FULL_STEP = FULL_FRACTION
+"""The ``steps`` experiment's full speed, as a fraction of the top speed."""
 
 __all__ = ["FIT_RANGES", "fit_logs", "fit_steps", "fit_still", "profile_fields"]
 
@@ -86,9 +90,14 @@ def fit_steps(log: np.ndarray) -> list[dict]:
             travelled = np.vstack([np.zeros((1, taus.size)), np.cumsum(model_v, 0)[:-1] * C.CONTROL_DT_S])
             for di, d in enumerate(delays):
                 a = np.vstack([np.zeros((d, taus.size)), travelled[: K - d]])[m]  # pose at k: true pose at k-d
-                g = (a * b).sum(0) / np.maximum((a * a).sum(0), 1e-12)
+                # least squares b = g a + c: the offset c absorbs the noise of the first pose (the origin)
+                n, sa, sb = a.shape[0], a.sum(0), b.sum()
+                saa, sab = (a * a).sum(0), (a * b).sum(0)
+                det = np.maximum(n * saa - sa * sa, 1e-12)
+                g = (n * sab - sa * sb) / det
+                c = (sb - g * sa) / n
                 gains[i, ci, di] = g
-                res[i, ci, di] = ((b - g * a) ** 2).mean(0)
+                res[i, ci, di] = ((b - g * a - c) ** 2).mean(0)
     best_per_tau = res.min(axis=(1, 2))  # (N, T): each robot at its best cap and delay
     t_shared = int(np.argmin(best_per_tau.sum(0)))
     out = []
@@ -193,7 +202,9 @@ def profile_fields(fit: dict) -> dict:
         tau = steps[0]["tau_s"]  # the robots' shared lag; their own ones widen the range
         fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(tau, *own)), float(max(tau, *own))
         fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in steps]))
-        fields["top_speed_derate_min"] = float(min(1.0, min(r["cap_fraction"] * r["gain"] for r in steps)))
+        reach = min(r["cap_fraction"] * r["gain"] for r in steps)
+        # the steps command 95 % of the top speed: a cap at or above that is not seen (no derate)
+        fields["top_speed_derate_min"] = float(min(1.0, reach)) if reach < FULL_STEP - 0.01 else 1.0
     if "wheel_gain_spread" in est:
         fields["wheel_gain_spread"] = float(min(0.99, max(0.0, est["wheel_gain_spread"]["estimate"])))
     for name in ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_hold_prob"):

@@ -31,8 +31,8 @@ def setting(rng: np.random.Generator) -> dict:
 
 
 def recover(truth: dict, seed: int) -> dict:
-    steps = fit_steps(simulate("steps", truth, n=6, seed=seed))
-    still = fit_still(simulate("still", truth, n=6, seed=seed))
+    steps = fit_steps(simulate("steps", truth, n=4, seed=seed))
+    still = fit_still(simulate("still", truth, n=4, seed=seed))
     delays = [r["delay_ticks"] for r in steps]
     return {"delay_median": int(np.median(delays)), "delay_min": min(delays), "tau": steps[0]["tau_s"],
             "noise_xy": float(np.mean([r["noise_xy_m"] for r in still])),
@@ -69,8 +69,9 @@ def main() -> None:
     steps, still = fit_steps(run_under_rps("steps")), fit_still(run_under_rps("still"))
     print(f"| rps (no gap) | 0 → {max(r['delay_ticks'] for r in steps)} (max over robots) | 0 → "
           f"{max(r['tau_own_s'] for r in steps):.4f} | 0 → {1e3 * max(r['noise_xy_m'] for r in still):.2f} | 0 → "
-          f"{max(r['noise_theta_rad'] for r in still):.4f} | not identified (poses never change) | gain "
-          f"{min(r['gain'] * r['cap_fraction'] for r in steps):.3f}–{max(r['gain'] * r['cap_fraction'] for r in steps):.3f} |")
+          f"{max(r['noise_theta_rad'] for r in still):.4f} | not identified (poses never change) | speed gain "
+          f"{min(r['gain'] for r in steps):.3f}–{max(r['gain'] for r in steps):.3f}, no cap below the 95 % commanded "
+          f"({min(r['cap_fraction'] for r in steps):.2f}) |")
 
 
 if __name__ == "__main__":

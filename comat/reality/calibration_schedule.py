@@ -1,0 +1,52 @@
+"""The calibration experiments' command schedules (numpy only: shipped verbatim in every
+Robotarium calibration folder by ``comat export --calibration``, and used by comat's simulator
+runs, so both drive the robots alike). See :mod:`comat.reality.calibration`."""
+
+import numpy as np
+
+TOP_SPEED_MPS = 0.2
+"""The Robotarium's linear-speed limit (m/s), the schedules' full speed."""
+CONTROL_DT_S = 0.033
+"""One Robotarium iteration (s)."""
+LANE_SPACING_M = 0.4
+"""Lanes this far apart: the export's minimum start spacing (the Robotarium's start-up drive)."""
+MAX_ROBOTS = 4
+"""Four lanes 0.4 m apart (y within ±0.6 m): far enough from the walls that the Robotarium's boundary
+barrier never steers a robot (at ±0.8 m it turned the outer robots measurably)."""
+
+LOG_COLUMNS = ("t_s", "v_cmd_mps", "w_cmd_radps", "x_m", "y_m", "theta_rad")
+"""Columns of a calibration log's last axis."""
+
+EXPERIMENTS = {"steps": 1600, "still": 1800}
+"""Experiment -> iterations (at 0.033 s: 53 s and 59 s)."""
+
+FULL_FRACTION = 0.95
+_STEP_PHASES = ((10, 0.0), (15, 0.5), (15, FULL_FRACTION), (15, 0.0), (15, -0.5), (15, -FULL_FRACTION), (15, 0.0))
+"""(iterations, fraction of the top speed 0.2 m/s) of one ``steps`` cycle (100 iterations); "full" is 95 %
+of the top speed, so that the Robotarium's barrier never pushes a wheel past its limit (an actuator error)."""
+
+
+def schedule(experiment: str, k: int, n: int) -> np.ndarray:
+    """(n, 2) unicycle commands (v m/s, ω rad/s) of iteration ``k`` of ``experiment``."""
+    out = np.zeros((n, 2))
+    if experiment == "steps":
+        k = k % sum(p for p, _ in _STEP_PHASES)
+        for length, fraction in _STEP_PHASES:
+            if k < length:
+                out[:, 0] = fraction * TOP_SPEED_MPS
+                break
+            k -= length
+    elif experiment != "still":
+        raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
+    return out
+
+
+def lane_poses(n: int) -> np.ndarray:
+    """(n, 3) start poses: lanes 0.4 m apart across the arena, facing +x, at x = -0.4 m (a
+    ``steps`` cycle drives 0.23 m forward and back)."""
+    if not 1 <= n <= MAX_ROBOTS:
+        raise ValueError(f"a calibration run has 1 to {MAX_ROBOTS} robots (lanes {LANE_SPACING_M} m apart), got {n}")
+    y = LANE_SPACING_M * (np.arange(n) - (n - 1) / 2)
+    return np.column_stack([np.full(n, -0.4), y, np.zeros(n)])
+
+

@@ -1,0 +1,82 @@
+"""Robotarium calibration folders: ``export_calibration`` and ``check_calibration``.
+
+``comat export --calibration OUT`` writes one flat submission folder per experiment of
+:data:`comat.reality.calibration_schedule.EXPERIMENTS` (``OUT/steps``, ``OUT/still``): ``main.py``
+(``sim2real/templates/calibration_main.py``, verbatim), ``calibration_schedule.py``
+(``comat/reality/calibration_schedule.py``, verbatim: numpy only) and ``submission_config.py``
+(``CONFIG``: experiment, robots, iterations, what it measures, how long it runs). The same rules
+as every export: ``.py`` files only, numpy and rps imports, no folders, atomically written.
+Upload a folder, download the ``calib_<experiment>.npy`` the run saves, fit with ``comat
+calibrate``. ``comat export --check OUT/steps`` runs it under rps and fits the log it saves: the
+simulator has no delay, noise or motor model, so the fit must find none.
+"""
+
+from __future__ import annotations
+
+import pprint
+import shutil
+import tempfile
+from pathlib import Path
+
+from comat.reality import calibration_schedule as schedule_module
+from comat.reality.calibration_schedule import CONTROL_DT_S, EXPERIMENTS, MAX_ROBOTS
+
+__all__ = ["CALIBRATION_FILES", "MEASURES", "check_calibration", "export_calibration", "is_calibration"]
+
+CALIBRATION_FILES = ("main.py", "calibration_schedule.py", "submission_config.py")
+MEASURES = {
+    "steps": "forward-speed steps 0 -> 1/2 -> full -> 0 and back: delay from command to observed motion (pose + "
+             "command), wheel lag and slew, reachable speed, wheel gain difference (heading drift per metre)",
+    "still": "robots standing still: pose noise (x, y, theta) and the share of repeated poses (holds)",
+}
+_TEMPLATE = Path(__file__).parent / "templates" / "calibration_main.py"
+
+
+def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
+    """Write one folder per experiment under ``out_dir`` (which must not exist); their paths."""
+    out = Path(out_dir)
+    if out.exists():
+        raise FileExistsError(f"--calibration {str(out)!r} already exists; choose a new folder")
+    if isinstance(robots, bool) or not isinstance(robots, int) or not 1 <= robots <= MAX_ROBOTS:
+        raise ValueError(f"--robots must be an integer in [1, {MAX_ROBOTS}] (lanes 0.4 m apart), got {robots!r}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f"{out.name}.tmp-", dir=out.parent))
+    try:
+        for experiment, iterations in EXPERIMENTS.items():
+            folder = tmp / experiment
+            folder.mkdir()
+            shutil.copyfile(_TEMPLATE, folder / "main.py")
+            shutil.copyfile(schedule_module.__file__, folder / "calibration_schedule.py")
+            config = {"kind": "calibration", "experiment": experiment, "robots": robots, "iterations": iterations,
+                      "duration_s": round(iterations * CONTROL_DT_S, 1), "measures": MEASURES[experiment]}
+            (folder / "submission_config.py").write_text(
+                f'"""Calibration experiment {experiment!r} (comat export --calibration)."""\n\nCONFIG = '
+                + pprint.pformat(config, sort_dicts=False, width=100) + "\n")
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return [out / e for e in EXPERIMENTS]
+
+
+def is_calibration(folder) -> bool:
+    """Whether ``folder`` is a calibration folder (its CONFIG says ``kind: calibration``)."""
+    path = Path(folder) / "submission_config.py"
+    return path.is_file() and "'kind': 'calibration'" in path.read_text()
+
+
+def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
+    """Run the folder under rps (:func:`sim2real.export.run_rps`) and fit the log it saved:
+    ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``; the log is left in the folder."""
+    from comat.reality.calibration import load_log
+    from comat.reality.fit import fit_steps, fit_still
+    from sim2real.export import run_rps
+
+    folder = Path(folder)
+    missing = [f for f in CALIBRATION_FILES if not (folder / f).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{str(folder)!r} is not a calibration folder: missing {missing}")
+    result = run_rps(folder, timeout_s, rps_path)
+    experiment, log = load_log(folder / result["log"])
+    fit = fit_steps(log) if experiment == "steps" else fit_still(log)
+    return {"rps": result, "fit": fit}
