@@ -68,23 +68,6 @@ class _TickMixin:
     last_physics_s: float = 0.0
     """Wall time of the last tick's MuJoCo stepping calls alone (no Python around them)."""
 
-    def set_robot_physics(self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray) -> None:
-        """Wheels tier: each robot's floor friction (N,), chassis mass scale (N,) and centre-of-mass
-        offset (N, 2) m (:meth:`Binding.physics_fields`); this world gets its own model copy first
-        (the compiled one is shared). Call before :meth:`reset`."""
-        if self.config.tier != "wheels":
-            return
-        base = compiled_scene(self.n_robots, self.config.tier, self.config.profile, self.substeps)
-        if self.model is base:
-            self.model = copy.copy(base)
-        for name, (index, values) in self.binding.physics_fields(friction, mass_scale, com_xy, base).items():
-            field = getattr(self.model, name)
-            if name == "geom_friction":
-                field[index, 0] = values
-            else:
-                field[index] = values
-        mujoco.mj_setConst(self.model, self.data)
-
     def _run_physics(self, dxu_clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise NotImplementedError
 
