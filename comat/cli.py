@@ -604,6 +604,8 @@ def main(argv: list[str] | None = None) -> int:
     _single_thread()
     args = build_parser().parse_args(argv)
     try:
+        if getattr(args, "out", None) == "":  # an empty path would write into the current folder
+            raise ValueError("--out must be a file or folder path, got '' (empty)")
         return int(args.func(args) or 0)
     except (ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
         print(f"comat {args.command}: error: {exc}", file=sys.stderr)

@@ -321,3 +321,28 @@ def test_model_sizes_out_of_range_get_one_line_errors_and_leave_nothing(tmp_path
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("override, message", [
+    ("ppo.lr=abc", "ppo.lr must be float, got 'abc'"),
+    ("ppo.clip=-1", "ppo.clip must be"),
+])
+def test_trainer_errors_name_the_key_as_overrides_spell_it(tmp_path, capsys, override, message):
+    """``ppo.lr=abc`` was reported as ``trainer.lr`` (issue 32 item 9)."""
+    from comat.cli import main
+
+    out = tmp_path / "run"
+    assert main(["train", "--algo", "mappo", "--task", "pcp", "--steps", "6", "--out", str(out), override]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and "trainer." not in err
+    assert not out.exists()
+
+
+def test_an_empty_out_is_refused_before_anything_is_written(tmp_path, monkeypatch, capsys):
+    """``rollout --out ''`` wrote into the current folder (issue 32 item 9)."""
+    from comat.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["rollout", "--policy", "heuristic", "--task", "pcp", "--out", ""]) == 2
+    assert "--out must be a file or folder path, got '' (empty)" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

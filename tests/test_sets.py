@@ -109,3 +109,19 @@ def test_the_new_sets_are_accepted_wherever_a_set_name_is(task):
     assert parse_team("size:19", task) == generate_coalitions(task, "size")[19]
     assert [name for name, _ in parse_teams("all", task)] == list(COALITION_SETS)
     assert [name for name, _ in parse_teams("both", task)] == ["train", "test"]
+
+
+@pytest.mark.parametrize("task", ["hmt", "pcp"])
+def test_every_set_gives_a_state_by_default(task):
+    """U_scale and U_size teams have up to 20 robots: the default state covers them (issue 32)."""
+    from comat.envs import make_env
+
+    sizes = {}
+    for split in ("train", "scale"):
+        env = make_env(f"{task}_v0", coalitions=split, tier="unicycle")
+        env.reset(seed=1)
+        state = env.state()
+        assert state.shape == env.state_space.shape
+        sizes[split] = state.shape[0]
+    obs = 15 if task == "hmt" else 13
+    assert sizes["scale"] - sizes["train"] >= 12 * obs     # 20 robot slots instead of 8

@@ -113,7 +113,8 @@ class TaskEnv(ParallelEnv):
         safety: SafetyConfig of the barrier filter.
         ticks_per_step: control ticks per env step (PCP 29, HMT 74 by default).
         max_robots: size of ``possible_agents`` (default: the largest team it may get).
-        state_robots: robots covered by ``state()`` (default 8).
+        state_robots: robots covered by ``state()`` (default: 8, or the env's robot slots when its
+            teams are larger, e.g. 20 for "scale" and "size", so every set has a ``state()``).
         reality: the reality layer between the world and the robots' decisions: "off" (default,
             the ideal world), "nominal", "stress", a :class:`comat.reality.RealityConfig`, or a
             mapping of its fields (``{"level": "nominal", "pose_delay_ticks": 2}``). Observations,
@@ -138,7 +139,7 @@ class TaskEnv(ParallelEnv):
         safety: SafetyConfig | None = None,
         ticks_per_step: int | None = None,
         max_robots: int | None = None,
-        state_robots: int = 8,
+        state_robots: int | None = None,
         reality: Any = "off",
         render_mode: str | None = None,
         **task_options: Any,
@@ -149,6 +150,8 @@ class TaskEnv(ParallelEnv):
         self.task = self.task_cls(**task_options)
         self.coalitions, self.fixed_team, slots = team_source(self.task, coalitions, team, max_robots)
         sim = sim or SimConfig(tier=tier)
+        if state_robots is None:
+            state_robots = max(8, slots)
         self.core = TaskCore(self.task, 1, slots, sim, safety, ticks_per_step, state_robots, reality)
         self.possible_agents = [f"robot_{i}" for i in range(self.core.N)]
         self.agents: list[str] = []

@@ -258,8 +258,15 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         _check_choice("device", device, ("cpu", "cuda"))
         run["device"] = device
     section = "qmix" if algo == "qmix" else "ppo"
-    return RunConfig.from_dict({
-        "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
-        "trainer": preset.get(section), "model": (preset.get("models") or {}).get(algo),
-        "reality": preset.get("reality"),
-    })
+    try:
+        return RunConfig.from_dict({
+            "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
+            "trainer": preset.get(section), "model": (preset.get("models") or {}).get(algo),
+            "reality": preset.get("reality"),
+        })
+    except (TypeError, ValueError) as err:  # name the key as presets and overrides spell it
+        text = str(err)
+        for stored, spelled in (("trainer.", f"{section}."), ("model.", f"models.{algo}.")):
+            if text.startswith(stored):
+                raise type(err)(spelled + text[len(stored):]) from err
+        raise
