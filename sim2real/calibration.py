@@ -23,7 +23,7 @@ from comat.reality.calibration_schedule import CONTROL_DT_S, EXPERIMENTS, MAX_RO
 
 __all__ = ["CALIBRATION_FILES", "MEASURES", "check_calibration", "export_calibration", "is_calibration"]
 
-CALIBRATION_FILES = ("main.py", "calibration_schedule.py", "submission_config.py")
+CALIBRATION_FILES = ("main.py", "calibration_schedule.py", "rps_compat.py", "submission_config.py")
 MEASURES = {
     "steps": "forward-speed steps 0 -> 1/2 -> full -> 0 and back: delay from command to observed motion (pose + "
              "command), wheel lag and slew, reachable speed, wheel gain difference (heading drift per metre)",
@@ -47,6 +47,7 @@ def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
             folder.mkdir()
             shutil.copyfile(_TEMPLATE, folder / "main.py")
             shutil.copyfile(schedule_module.__file__, folder / "calibration_schedule.py")
+            shutil.copyfile(_TEMPLATE.parent / "rps_compat.py", folder / "rps_compat.py")
             config = {"kind": "calibration", "experiment": experiment, "robots": robots, "iterations": iterations,
                       "duration_s": round(iterations * CONTROL_DT_S, 1), "measures": MEASURES[experiment]}
             (folder / "submission_config.py").write_text(

@@ -2,7 +2,8 @@
 and ``check_submission``.
 
 =====================  ========================================================================
-Folder (flat)          ``main.py`` (``sim2real/templates/main.py``, verbatim), ``runtime.py``
+Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/``, verbatim: the
+                       second lets legacy ``rps`` draw under matplotlib >= 3.10), ``runtime.py``
                        (``sim2real/runtime.py``, verbatim), ``task_logic.py``
                        (``comat/task_logic.py``, verbatim: numpy only, so the very file the
                        MuJoCo envs run is shipped), ``weights.npy`` (pickle-free weights),
@@ -70,9 +71,9 @@ ACCEPTED_EXTENSIONS = (".m", ".jpg", ".jpeg", ".png", ".gif", ".tiff", ".bmp", "
 ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps"})
 """Third-party top-level packages shipped code may import (besides the standard library and the
 folder's own modules)."""
-SHIPPED_FILES = ("main.py", "runtime.py", "task_logic.py", "submission_config.py", "weights.npy")
+SHIPPED_FILES = ("main.py", "rps_compat.py", "runtime.py", "task_logic.py", "submission_config.py", "weights.npy")
 """The folder of a COMAT policy."""
-HEURISTIC_FILES = ("main.py", "task_logic.py", "submission_config.py")
+HEURISTIC_FILES = ("main.py", "rps_compat.py", "task_logic.py", "submission_config.py")
 """The folder of the scripted policy."""
 
 
@@ -263,7 +264,8 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
-        shutil.copyfile(HERE / "templates" / "main.py", tmp / "main.py")
+        for name in ("main.py", "rps_compat.py"):
+            shutil.copyfile(HERE / "templates" / name, tmp / name)
         shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
         if model is not None:
             shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")

@@ -99,7 +99,7 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
     assert main(["export", "--calibration", str(out), "--robots", "2"]) == 0
     for experiment in ("steps", "still"):
         files = sorted(p.name for p in (out / experiment).iterdir())
-        assert files == ["calibration_schedule.py", "main.py", "submission_config.py"]
+        assert files == ["calibration_schedule.py", "main.py", "rps_compat.py", "submission_config.py"]
     capsys.readouterr()
     assert main(["export", "--check", str(out / "steps"), str(out / "still")]) == 0
     printed = capsys.readouterr().out

@@ -257,6 +257,13 @@ def test_scripted_policy_under_rps_v2(scripted, task):
     assert rps["success"] == 1.0 and abs(report["gap"]["completion_points"]) <= 10.0
 
 
+def test_figure_under_legacy_rps_with_this_matplotlib(scripted):
+    """The PyPI rps calls RegularPolygon with a positional radius, which matplotlib >= 3.10
+    refuses; the shipped rps_compat.py adapts the call, so main.py runs with its figure (issue 32)."""
+    result = run_rps(scripted["pcp"][0], show_figure=True, max_steps=2)
+    assert result["rps"] == "legacy" and result["steps"] == 2 and result["figure_artists"] > 0
+
+
 @needs_v2
 def test_figure_under_rps_v2(scripted, tmp_path):
     folder = scripted["hmt"][0]

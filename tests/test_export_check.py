@@ -13,7 +13,7 @@ def _folder(tmp_path, kind):
     elif kind != "missing":
         path.mkdir()
         if kind in ("syntax", "not-a-dict", "no-config"):
-            for name in ("main.py", "task_logic.py", "runtime.py", "weights.npy"):
+            for name in ("main.py", "rps_compat.py", "task_logic.py", "runtime.py", "weights.npy"):
                 (path / name).write_text("")
             text = {"syntax": "CONFIG = {'task': (", "not-a-dict": "CONFIG = [1, 2]", "no-config": "X = 1"}[kind]
             (path / "submission_config.py").write_text(text)

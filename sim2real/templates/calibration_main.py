@@ -21,6 +21,7 @@ import sys
 import time
 
 import numpy as np
+import rps_compat
 from calibration_schedule import lane_poses, schedule
 from rps import robotarium
 from rps.utilities import barrier_certificates as rps_barriers
@@ -52,6 +53,8 @@ def main(argv):
     show = "--no-figure" not in argv and os.environ.get("COMAT_SHOW_FIGURE", "1") not in ("0", "false", "no")
     n, experiment, iterations = int(CONFIG["robots"]), CONFIG["experiment"], int(CONFIG["iterations"])
     barrier, generation = make_barrier()
+    if show and rps_compat.fix_legacy_drawing():
+        print("rps_compat: the legacy rps's robot drawing adapted to this matplotlib (keyword-only radius)")
     r = robotarium.Robotarium(number_of_robots=n, show_figure=show, sim_in_real_time=show,
                               initial_conditions=lane_poses(n).T.copy())
     log = np.zeros((iterations, n, 6))
