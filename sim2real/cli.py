@@ -64,6 +64,24 @@ def _print_checks(folders: list[str], reports: list[dict], tier: str) -> None:
           f"{mean['mujoco', 'steps']:.1f}")
 
 
+def _print_repeats(folders: list[str], reports: list[dict], repeats: int) -> None:
+    """What the rps figures above rest on: one run (and whether that is one sample), or K runs'
+    spread per folder."""
+    generation = reports[0]["rps"]["rps"]
+    if repeats == 1:
+        if generation == "v2":
+            print("rps figures: one run per folder. V2 starts each run from random charger places, so it is one "
+                  "random sample; --repeats K gives the mean and spread of K runs")
+        return
+    for folder, report in zip(folders, reports):
+        runs = report["rps"]["runs"]
+        comp = [100 * r["completion"] for r in runs]
+        errors = [sum(r["rps_errors"].values()) for r in runs]
+        print(f"{Path(folder).name}: {len(runs)} rps runs ({generation}): completion mean {sum(comp) / len(comp):.1f} %, "
+              f"min {min(comp):.1f}, max {max(comp):.1f}; steps {min(r['steps'] for r in runs):.0f}-"
+              f"{max(r['steps'] for r in runs):.0f}; runs with rps errors {sum(e > 0 for e in errors)}/{len(runs)}")
+
+
 def load_start_poses(path: str):
     """(3, N) start poses from a ``.npy`` file or a text file of 3 rows (x, y, θ; numpy.loadtxt)."""
     import numpy as np
@@ -115,7 +133,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
             print(f"[{k}/{len(args.check)}] {folder}: running main.py under rps, then the MuJoCo episode ...",
                   file=sys.stderr, flush=True)
             try:
-                reports.append(check_submission(folder, tier=args.tier, timeout_s=args.timeout, rps_path=args.rps))
+                reports.append(check_submission(folder, tier=args.tier, timeout_s=args.timeout, rps_path=args.rps,
+                                                repeats=args.repeats))
             except CheckError as err:
                 raise ValueError(str(err)) from err
             print(f"[{k}/{len(args.check)}] {folder}: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
@@ -123,6 +142,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
             _print_check(reports[0], args.tier)
         else:
             _print_checks(args.check, reports, args.tier)
+        _print_repeats(args.check, reports, args.repeats)
         bad = sum(r["rps"]["rps_errors"].get("boundary", 0) + r["rps"]["rps_errors"].get("collision", 0)
                   for r in reports)
         return 1 if bad else 0
@@ -175,5 +195,9 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                    "Robotarium's own simulator)")
     p.add_argument("--rps", metavar="PATH", help="--check against the rps package in PATH (e.g. a checkout of "
                    "robotarium/robotarium_python_simulator, the 2026 V2) instead of the installed one")
+    p.add_argument("--repeats", type=int, default=1, metavar="K",
+                   help="--check: run main.py under rps K times and report the means and the spread (V2 drives the "
+                   "robots from random charger places first, so one V2 run is one random sample; default: "
+                   "%(default)s)")
     p.set_defaults(func=_cmd_export)
     return p

@@ -388,16 +388,29 @@ def run_mujoco(folder, tier: str = "wheels") -> dict:
             return core.episode_metrics(0)
 
 
-def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None) -> dict:
+def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None, repeats: int = 1) -> dict:
     """{"rps": ..., "mujoco": ..., "gap": {completion, return}} for an exported folder (``rps_path``:
-    see :func:`run_rps`)."""
+    see :func:`run_rps`).
+
+    ``repeats`` runs main.py under rps that many times: V2 drives the robots from randomly placed
+    chargers to the start poses first, so one V2 run is one random sample (the legacy simulator
+    starts at the poses and repeats itself). ``rps`` then holds the means of return, steps,
+    completion and success, the worst error counts, and ``runs`` (each run's figures)."""
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
     folder = Path(folder)
     missing = [f for f in HEURISTIC_FILES if not (folder / f).is_file()]  # what every folder has
     if not missing:
         missing = [f for f in _files(_load_config(folder).get("policy", "comat")) if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
-    rps = run_rps(folder, timeout_s, rps_path)
+    runs = [run_rps(folder, timeout_s, rps_path) for _ in range(repeats)]
+    rps = dict(runs[0])
+    keys = ("return", "steps", "completion", "success")
+    for key in keys:
+        rps[key] = float(np.mean([r[key] for r in runs]))
+    rps["rps_errors"] = {k: max(r["rps_errors"].get(k, 0) for r in runs) for k in runs[0]["rps_errors"]}
+    rps["runs"] = [{**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"]} for r in runs]
     mj = run_mujoco(folder, tier)
     gap = {"completion_points": 100.0 * (rps["completion"] - mj["completion"]), "return": rps["return"] - mj["return"]}
     return {"rps": rps, "mujoco": mj, "gap": gap}

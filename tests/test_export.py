@@ -386,3 +386,24 @@ def test_export_killed_at_random_moments_leaves_no_folder(tmp_path):
     (tmp_path / "subs" / ".again.tmp-left").mkdir()
     export_submission(ckpt, "pcp", parse_team("test:3", "pcp"), shutil_out)
     assert [p.name for p in (tmp_path / "subs").iterdir() if p.name.startswith(".")] == []
+
+
+def test_check_repeats_reports_each_runs_figures(scripted, capsys):
+    """``--repeats K`` runs main.py K times under rps and prints the spread (issue 32 item 10)."""
+    from comat.cli import main
+
+    report = check_submission(scripted["pcp"][0], tier="unicycle", repeats=2)
+    runs = report["rps"]["runs"]
+    assert len(runs) == 2 and report["rps"]["completion"] == pytest.approx(np.mean([r["completion"] for r in runs]))
+    assert main(["export", "--check", str(scripted["pcp"][0]), "--tier", "unicycle", "--repeats", "2"]) == 0
+    assert "2 rps runs (legacy): completion mean" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="--repeats must be an integer >= 1, got 0"):
+        check_submission(scripted["pcp"][0], repeats=0)
+
+
+@needs_v2
+def test_check_under_v2_says_one_run_is_one_sample(scripted, capsys):
+    from comat.cli import main
+
+    assert main(["export", "--check", str(scripted["pcp"][0]), "--tier", "unicycle", "--rps", V2]) == 0
+    assert "it is one random sample; --repeats K" in capsys.readouterr().out
