@@ -2,7 +2,9 @@
 
 ``comat.make_env(env_id, **options)`` gives a PettingZoo parallel environment (``"pcp_v0"``,
 ``"hmt_v0"``; see :data:`ENV_IDS`) and ``comat.make_vec_env(env_id, num_envs, **options)`` the
-batched one. Subpackages: :mod:`comat.mjcf` (MJCF generation), :mod:`comat.sim` (MuJoCo
+batched one; ``comat.load_policy(path_or_name)`` a trained policy that acts on their observation
+dicts (:mod:`comat.policy_api`; ``"pretrained:comat-pcp"`` and the others of
+:data:`comat.policy_api.PRETRAINED` ship with the package). Subpackages: :mod:`comat.mjcf` (MJCF generation), :mod:`comat.sim` (MuJoCo
 worlds), :mod:`comat.safety` (barrier filter), :mod:`comat.envs` (tasks). Importing ``comat``
 itself is light: the envs load on first use, and nothing here imports torch or rerun.
 """
@@ -11,7 +13,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-__all__ = ["ENV_IDS", "__version__", "make_env", "make_vec_env"]
+__all__ = ["ENV_IDS", "__version__", "load_policy", "make_env", "make_vec_env"]
 
 ENV_IDS = ("hmt_v0", "pcp_v0")
 
@@ -21,4 +23,8 @@ def __getattr__(name: str) -> Any:
         from comat import envs
 
         return getattr(envs, name)
+    if name == "load_policy":
+        from comat.policy_api import load_policy
+
+        return load_policy
     raise AttributeError(f"module 'comat' has no attribute {name!r}")

@@ -234,7 +234,7 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
             raise ValueError(f"--task is needed with --policy {policy} (a reference policy has no task of its own)")
         return PolicyArg(policy, task)
     path = Path(policy)
-    if not path.exists():
+    if not path.exists() and not policy.startswith("pretrained:"):  # comat.policy_api.PRETRAINED: policy_file_of
         refs = f", or one of {', '.join(references)}" if references else ""
         raise ValueError(f"--policy must be {what}{refs}, got {policy!r} (no such file)")
     path = policy_file_of(path, need_checkpoint)

@@ -90,14 +90,18 @@ def ensure_policy(run: str | Path) -> Path | None:
 
 
 def policy_file_of(path: str | Path, need_checkpoint: str | None = None, flag: str = "--policy") -> Path:
-    """The file ``--policy PATH`` names: the file itself, or in a run folder its ``checkpoint.pt``,
-    else its ``policy.pt`` (a folder of committed small files has only that). ``need_checkpoint``:
+    """The file ``--policy PATH`` names: the file itself, a shipped policy's (``pretrained:NAME``,
+    :data:`comat.policy_api.PRETRAINED`), or in a run folder its ``checkpoint.pt``, else its ``policy.pt`` (a folder of committed small files has only that). ``need_checkpoint``:
     why the caller needs the checkpoint (then a folder's ``policy.pt`` is not taken); ``flag``: the
     argument named in errors.
 
     Raises:
         ValueError: a folder with neither file, or a path that does not exist.
     """
+    if str(path).startswith("pretrained:"):  # a policy that ships with comat
+        from comat.policy_api import pretrained_path
+
+        return pretrained_path(str(path), flag)
     path = Path(path)
     if path.is_dir():
         if (path / CHECKPOINT_FILE).is_file():
