@@ -45,7 +45,7 @@ PREFIX = "pretrained:"
 
 def pretrained_path(name: str, flag: str = "--policy") -> Path:
     """The file of ``pretrained:NAME`` (or ``NAME``); ValueError naming ``flag`` and the known names."""
-    key = name[len(PREFIX):] if name.startswith(PREFIX) else name
+    key = name.removeprefix(PREFIX)
     if key not in PRETRAINED:
         raise ValueError(f"{flag} must be one of {[PREFIX + k for k in PRETRAINED]}, got {name!r}")
     return PRETRAINED_DIR / PRETRAINED[key]["file"]
