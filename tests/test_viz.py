@@ -17,7 +17,7 @@ from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.team import random_team
 from comat.viz import EpisodeRecorder, check_rrd_path, record_episodes
 from comat.viz.bench import run_viz_bench
-from comat.viz.cli import add_rollout_parser, add_viz_bench_parser
+from comat.viz.cli import WEB_VIEWER_URL, add_rollout_parser, add_viz_bench_parser, viewer_hint
 from comat.viz.recorder import SAFETY_ARROW_S
 from comat.viz.tap import MIN_CHANGE_MPS
 
@@ -409,7 +409,7 @@ def test_rollout_command_writes_the_file_and_says_how_to_open_it(tmp_path, capsy
     )
     assert args.func(args) == 0
     printed = capsys.readouterr().out
-    assert f"open it with: rerun {out}" in printed and "episode 0:" in printed
+    assert viewer_hint(out) in printed and "episode 0:" in printed
     assert out.exists()
     with pytest.raises(SystemExit):
         _parser().parse_args(["rollout", "--task", "pcp", "--episodes", "0"])
@@ -499,3 +499,12 @@ def test_each_episode_records_its_own_team(tmp_path):
         assert meta["robot_types"].to_pylist()[0] == [r.type for r in team.robots]
         np.testing.assert_allclose(meta["capabilities"].to_pylist()[0], team.capability_array().ravel())
         assert float(meta["outcome_steps"].to_pylist()[0][0]) == result.episodes[k]["steps"]
+
+
+def test_the_viewer_hint_works_on_the_machine_it_is_printed_on():
+    """Without a display the native viewer cannot start: the hint serves the web viewer (issue 32)."""
+    assert viewer_hint("a b.rrd", {"DISPLAY": ":0"}) == "open it with: rerun 'a b.rrd'"
+    assert viewer_hint("x.rrd", {"WAYLAND_DISPLAY": "wayland-0"}).startswith("open it with: rerun")
+    headless = viewer_hint("x.rrd", {})
+    if sys.platform not in ("darwin", "win32"):
+        assert "rerun --serve-web x.rrd" in headless and WEB_VIEWER_URL in headless and "ssh -L 9090" in headless

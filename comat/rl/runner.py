@@ -245,7 +245,9 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                 if rrd_every and (evals % rrd_every == 0 or finished):
                     rrd = _record(config, learner.modules, out, steps)
                     if not quiet:
-                        print(f"\nrecorded {rrd} (open with: rerun {rrd})", file=sys.stderr)
+                        from comat.viz.cli import viewer_hint
+
+                        print(f"\nrecorded {rrd}; {viewer_hint(rrd)}", file=sys.stderr)
                 if not quiet:
                     print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, completion "
                           f"{last_eval['success']:.0%} (progress {last_eval['completion']:.0%}), steps {last_eval['steps']:.1f}, collisions "

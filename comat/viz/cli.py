@@ -17,7 +17,25 @@ import shlex
 import sys
 import time
 
-__all__ = ["add_rollout_parser", "add_viz_bench_parser", "cmd_rollout", "cmd_viz_bench"]
+__all__ = ["add_rollout_parser", "add_viz_bench_parser", "cmd_rollout", "cmd_viz_bench", "viewer_hint"]
+
+WEB_VIEWER_URL = "http://localhost:9090/?url=rerun%2Bhttp%3A%2F%2Flocalhost%3A9876%2Fproxy"
+"""Where ``rerun --serve-web FILE.rrd`` (rerun 0.41) serves a recording: the web viewer on port 9090,
+the recording over gRPC on 9876."""
+
+
+def viewer_hint(path, environ=None) -> str:
+    """How to open a recording on this machine: the native viewer where there is a display, else
+    the web viewer served over HTTP (with the ssh port forward for a remote machine)."""
+    import os
+
+    env = os.environ if environ is None else environ
+    quoted = shlex.quote(str(path))
+    if env.get("DISPLAY") or env.get("WAYLAND_DISPLAY") or sys.platform in ("darwin", "win32"):
+        return f"open it with: rerun {quoted}"
+    return (f"no display here (DISPLAY and WAYLAND_DISPLAY unset): serve it with  rerun --serve-web {quoted}  and open "
+            f"{WEB_VIEWER_URL} in a browser (from another machine: ssh -L 9090:localhost:9090 -L 9876:localhost:9876 "
+            "HOST first)")
 
 
 def _positive_int(text: str) -> int:
@@ -98,7 +116,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
             f"wrote {result.path} ({result.bytes / 1024:.0f} KiB, {result.bytes_per_robot_step:.0f} B per "
             f"robot-step, {time.perf_counter() - t0:.1f} s)"
         )
-        print(f"open it with: rerun {shlex.quote(str(result.path))}")
+        print(viewer_hint(result.path))
     return 0
 
 
