@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-demo: $(STAMP)  ## safety filter, the tasks, then a quick COMAT trained on PCP (about 10 minutes)
+demo: $(STAMP)  ## safety filter, the tasks, then the shipped COMAT policy: .rrd, video, checked export in runs/demo (about 2 minutes)
 	$(BIN)/comat demo
 
 test: $(STAMP)  ## the fast suite (about 7 minutes on 2 cores)

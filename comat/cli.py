@@ -74,7 +74,8 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.demo import run_demo
 
-    return run_demo(tier=args.tier, robots=args.robots, episodes=args.episodes, seed=args.seed, out=args.out, part=args.part)
+    return run_demo(tier=args.tier, robots=args.robots, episodes=args.episodes, seed=args.seed, out=args.out, part=args.part,
+                    folder=args.folder)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -372,17 +373,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder (default: the package's copies, train/coalitions/ in a checkout)")
     p.set_defaults(func=_cmd_coalitions)
 
-    p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks; a quick COMAT training",
+    p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks; a trained policy",
                        description="1) Teams of robots swap places through the arena centre, every command passing "
                        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
-                       "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) A quick COMAT trains on "
-                       "PCP (about 5 minutes) and plays the training and unseen coalitions next to a random policy.")
+                       "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) The COMAT "
+                       "policy that ships with comat plays unseen PCP teams: a Rerun recording, a video and a checked "
+                       "Robotarium export in --folder. --part train: a quick COMAT trains on PCP (5-10 minutes) and plays "
+                       "the training and unseen coalitions next to a random policy.")
     p.add_argument("--tier", choices=TIERS, default="wheels", help="dynamics tier (default: %(default)s)")
     p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
     p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--part", choices=["all", "physics", "tasks", "train"], default="all",
-                   help="which part to run (default: all)")
+    p.add_argument("--part", choices=["all", "physics", "tasks", "pretrained", "train"], default="all",
+                   help="which part to run (default: all = physics, tasks, pretrained)")
+    p.add_argument("--folder", default="runs/demo", help="where the pretrained part writes its recording, video and "
+                   "export (default: %(default)s)")
     p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
     p.set_defaults(func=_cmd_demo)
 

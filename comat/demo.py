@@ -5,8 +5,12 @@
    episodes run once more unfiltered, to show what it prevents.
 2. Tasks: the scripted heuristic and a random policy play PCP and HMT on training (U_train) and
    unseen (U_test) coalitions; the paper's metrics per row.
-3. Learning: a quick COMAT (``--preset quick``, 51,200 env steps) trains on PCP's training
-   coalitions, then plays every training and unseen coalition next to a random policy.
+3. A trained policy: the COMAT policy that ships with comat (``pretrained:comat-pcp``) plays
+   unseen (U_test) PCP teams: a Rerun recording, a video, and a Robotarium export checked under
+   the installed ``rps``, written to ``--folder`` (default ``runs/demo``).
+4. Learning (``--part train`` only, about 5-10 minutes): a quick COMAT (``--preset quick``) trains
+   on PCP's training coalitions, then plays every training and unseen coalition next to a random
+   policy.
 """
 
 from __future__ import annotations
@@ -24,12 +28,18 @@ from comat.config import SimConfig
 __all__ = ["run_demo"]
 
 
+PARTS = ("all", "physics", "tasks", "pretrained", "train")
+"""``--part`` choices; ``all`` runs every part but ``train``."""
+
+
 def run_demo(
-    tier: str = "wheels", robots: int = 8, episodes: int = 4, seed: int = 0, out: str | None = None, part: str = "all"
+    tier: str = "wheels", robots: int = 8, episodes: int = 4, seed: int = 0, out: str | None = None, part: str = "all",
+    folder: str = "runs/demo",
 ) -> int:
-    """Run the demo and print its summary; returns a process exit code (0 = all safe)."""
-    if part not in ("all", "physics", "tasks", "train"):
-        raise ValueError(f"--part must be 'all', 'physics', 'tasks' or 'train', got {part!r}")
+    """Run the demo and print its summary; returns a process exit code (0 = all safe, and the
+    pretrained policy's files written and checked)."""
+    if part not in PARTS:
+        raise ValueError(f"--part must be one of {list(PARTS)}, got {part!r}")
     summary: dict = {"tier": tier, "seed": seed}
     ok = True
     if part in ("all", "physics"):
@@ -38,8 +48,14 @@ def run_demo(
     if part in ("all", "tasks"):
         tasks_ok, summary["tasks"] = _tasks(tier, episodes, seed)
         ok &= tasks_ok
-    if part in ("all", "train"):
+    if part in ("all", "pretrained"):
+        pre_ok, summary["pretrained"] = _pretrained(tier, episodes, seed, Path(folder))
+        ok &= pre_ok
+    if part == "train":
         summary["train"] = _train(seed)
+    elif part == "all":
+        print("\ntrain your own: comat demo --part train (a quick COMAT on PCP, about 5-10 minutes), or "
+              "comat train --algo comat --task pcp --preset quick")
     if out:
         Path(out).parent.mkdir(parents=True, exist_ok=True)
         Path(out).write_text(json.dumps(summary, indent=2))
@@ -128,6 +144,30 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
                 )
                 rows.append({"task": task, "set": split, "policy": name, **mean})
     return ok, {"episodes": episodes, "rows": rows}
+
+
+def _pretrained(tier: str, episodes: int, seed: int, folder: Path) -> tuple[bool, dict]:
+    """The shipped COMAT PCP policy on unseen teams: .rrd, video and a checked Robotarium export."""
+    import shutil
+
+    from comat.cli import main as comat
+    from comat.policy_api import PRETRAINED
+
+    print(f"\npretrained policy: {PRETRAINED['comat-pcp']['what']}\n"
+          f"{episodes} unseen U_test team(s), {tier} tier; files in {folder}/")
+    folder.mkdir(parents=True, exist_ok=True)
+    rrd, video, export = folder / "comat_pcp.rrd", folder / "comat_pcp.mp4", folder / "robotarium_pcp"
+    rc = comat(["rollout", "--policy", "pretrained:comat-pcp", "--teams", "test", "--episodes", str(episodes),
+                "--tier", tier, "--seed", str(seed), "--out", str(rrd), "--video", str(video), "--force"])
+    shutil.rmtree(export, ignore_errors=True)  # the demo's own folder: a new export each time
+    rc = rc or comat(["export", "--policy", "pretrained:comat-pcp", "--team", "test:3", "--seed", str(seed),
+                      "--out", str(export)])
+    print(f"\nchecking {export} under the installed rps (the Robotarium's simulator) and in MuJoCo:")
+    check = comat(["export", "--check", str(export), "--tier", tier]) if rc == 0 else 1
+    ok = rc == 0 and check == 0
+    print(f"\npretrained policy files: {rrd} (Rerun), {video} (video), {export}/ (upload to the Robotarium); "
+          + ("all written and the export checked" if ok else "NOT all written or checked: see the errors above"))
+    return ok, {"rrd": str(rrd), "video": str(video), "export": str(export), "ok": ok}
 
 
 def _train(seed: int) -> dict:

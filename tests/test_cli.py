@@ -35,6 +35,19 @@ def test_demo_runs_safely_and_writes_a_summary(tmp_path, capsys):
     assert "safety filter" in capsys.readouterr().out
 
 
+def test_demo_shows_the_pretrained_policy_finishing_with_its_files(tmp_path, capsys):
+    """make demo's last part, in a fast form (one unicycle episode): the shipped policy finishes
+    an unseen team and leaves a recording, a video and an export that passes --check (issue 32)."""
+    out, folder = tmp_path / "demo.json", tmp_path / "demo"
+    assert main(["demo", "--tier", "unicycle", "--episodes", "1", "--part", "pretrained", "--folder", str(folder),
+                 "--out", str(out)]) == 0
+    summary = json.loads(out.read_text())["pretrained"]
+    assert summary["ok"] and (folder / "comat_pcp.rrd").stat().st_size > 0 and (folder / "comat_pcp.mp4").stat().st_size > 0
+    assert (folder / "robotarium_pcp" / "main.py").is_file()
+    printed = capsys.readouterr().out
+    assert "completion 100%" in printed and "all written and the export checked" in printed
+
+
 @pytest.mark.slow
 def test_demo_tasks_part(tmp_path):
     out = tmp_path / "demo.json"
