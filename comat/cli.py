@@ -117,8 +117,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
                     overrides=tuple(args.overrides))
     ev = summary["eval_train"]
     result = "" if ev is None else (
-        f"; on the training coalitions (deterministic): return {ev['return']:.2f}, completion "
-        f"{ev['success']:.0%} (progress {ev['completion']:.0%}), steps {ev['steps']:.1f}, collisions {ev['collisions']:.2f}")
+        f"; on the training coalitions (deterministic): return {ev['return']:.2f}, finished "
+        f"{ev['finished']:.0%} of episodes (progress {ev['progress']:.0%}), steps {ev['steps']:.1f}, collisions {ev['collisions']:.2f}")
     print(f"done: {summary['env_steps']:,} env steps in {summary['wall_s'] / 60:.1f} min{result}; run folder {out}")
     _print_policy_file(out / "policy.pt")
     return 0

@@ -88,7 +88,7 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
             "boundary exits (robot-ticks)": int(r.boundary_exits.sum()),
             "actuator errors (ticks)": int(r.actuator_errors.sum()),
             "filter interventions (team-ticks)": int(r.interventions.sum()) if filtered else 0,
-            "filter fallbacks (brakes)": int(r.fallbacks.sum()) if filtered else 0,
+            "filter fallbacks": int(r.fallbacks.sum()) if filtered else 0,
             "filter recoveries (outside the safe set)": int(r.recoveries.sum()) if filtered else 0,
             "robots within 5 cm of goal": f"{int((r.goal_error_robot < 0.05).sum())}/{robots * episodes}",
             "wall time (s)": round(time.perf_counter() - t0, 1),
@@ -122,9 +122,9 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     policies = {"heuristic": lambda env: (lambda obs, mask, state: heuristic_actions(env.core)),
                 "random": lambda env: (lambda obs, mask, state: random_actions(rng, mask))}
     print(f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task "
-          "state; completion = share of episodes finished (all prey captured / all material delivered), progress = "
-          "fraction captured / delivered")
-    head = f"{'task':<5}{'set':<7}{'policy':<11}{'completion':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
+          "state; finished = share of episodes finished (all prey captured / all material delivered; the paper's "
+          "completion), progress = fraction captured / delivered")
+    head = f"{'task':<5}{'set':<7}{'policy':<11}{'finished':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
     print(head + "\n" + "-" * len(head))
     rows, ok = [], True
     for task in ("pcp", "hmt"):
@@ -138,7 +138,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
                 viol = mean["robotarium_collisions"] + mean["boundary_exits"]
                 ok &= mean["collisions"] == 0 and viol == 0
                 print(
-                    f"{task:<5}{split:<7}{name:<11}{mean['success']:>11.2f}{mean['completion']:>9.2f}{mean['steps']:>7.1f}"
+                    f"{task:<5}{split:<7}{name:<11}{mean['finished']:>11.2f}{mean['progress']:>9.2f}{mean['steps']:>7.1f}"
                     f"{mean['return']:>8.2f}{mean['collisions']:>11.1f}{viol:>11.1f}{mean['interventions']:>9.0f}"
                     f"{time.perf_counter() - t0:>8.1f}"
                 )
@@ -187,7 +187,7 @@ def _train(seed: int) -> dict:
     act, _ = load_policy(out / "checkpoint.pt")
     rng = np.random.default_rng(seed)
     rows = []
-    head = f"{'policy':<16}{'set':<7}{'completion':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}"
+    head = f"{'policy':<16}{'set':<7}{'finished':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}"
     print(f"trained in {minutes:.1f} min; one deterministic episode per coalition:\n{head}\n{'-' * len(head)}")
     for split in ("train", "test"):
         teams = resolve_coalitions(split, "pcp")
@@ -196,7 +196,7 @@ def _train(seed: int) -> dict:
         random = summarize(run_episodes(env, lambda obs, mask, state: random_actions(rng, mask), teams,
                                         seed + EVAL_SEED_OFFSET))
         for name, r in (("COMAT (quick)", trained), ("random", random)):
-            print(f"{name:<16}{split:<7}{r['success']:>11.2f}{r['completion']:>9.2f}{r['steps']:>7.1f}"
+            print(f"{name:<16}{split:<7}{r['finished']:>11.2f}{r['progress']:>9.2f}{r['steps']:>7.1f}"
                   f"{r['return']:>8.2f}{r['collisions']:>11.1f}")
             rows.append({"policy": name, "set": split, **r})
     print(f"continue training with: comat train --resume --out {out} --steps 1000000")

@@ -176,7 +176,7 @@ class PredatorCapturePrey(_Task):
     6). Teams of one batch may differ in K: the arrays hold K_max prey slots (the count
     of the largest team the environment may get, :meth:`fit_teams`), and a slot past a team's K
     is *inactive*: ``active`` False, sensed and captured from the start, parked outside the arena
-    (:attr:`parked`). Rewards, observations, the scripted policy, ``done`` and ``completion`` see
+    (:attr:`parked`). Rewards, observations, the scripted policy, ``done`` and ``progress`` see
     active prey only; :meth:`global_features` keeps all K_max slots (a fixed length).
     """
 
@@ -282,7 +282,7 @@ class PredatorCapturePrey(_Task):
     def done(self, state: dict) -> np.ndarray:
         return state["captured"].all(axis=1)
 
-    def completion(self, state: dict) -> np.ndarray:
+    def progress(self, state: dict) -> np.ndarray:
         """Fraction of the active prey captured (B,)."""
         return self._fraction(state["captured"], state)
 
@@ -404,7 +404,7 @@ class MaterialTransport(_Task):
     def done(self, state: dict) -> np.ndarray:
         return state["delivered"] >= state["initial"].sum(axis=1) * (1.0 - 1e-12)
 
-    def completion(self, state: dict) -> np.ndarray:
+    def progress(self, state: dict) -> np.ndarray:
         """Fraction of the material delivered (B,)."""
         return state["delivered"] / state["initial"].sum(axis=1)
 

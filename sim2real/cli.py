@@ -34,32 +34,32 @@ def _print_check(report: dict, tier: str) -> None:
     rps, mj = report["rps"], report["mujoco"]
     print(rps.pop("stdout").rstrip())
     print(f"\n{'metric':<22}{'rps (' + rps['rps'] + ')':>16}{'MuJoCo (' + tier + ')':>18}")
-    for key in ("return", "steps", "completion", "success"):
+    for key in ("return", "steps", "progress", "finished"):
         print(f"{key:<22}{rps[key]:>16.3f}{mj[key]:>18.3f}")
     errors = rps["rps_errors"]
     print(f"{'boundary errors':<22}{errors.get('boundary', float('nan')):>16}{mj['boundary_exits']:>18.0f}")
     print(f"{'collision errors':<22}{errors.get('collision', float('nan')):>16}{mj['robotarium_collisions']:>18.0f}")
     print(f"{'actuator errors':<22}{errors.get('actuator', float('nan')):>16}{mj['actuator_errors']:>18.0f}")
     gap = report["gap"]
-    print(f"gap rps - MuJoCo: completion {gap['completion_points']:+.1f} points, return {gap['return']:+.3f}")
+    print(f"gap rps - MuJoCo: progress {gap['progress_points']:+.1f} points, return {gap['return']:+.3f}")
 
 
 def _print_checks(folders: list[str], reports: list[dict], tier: str) -> None:
     """One line per folder, then the means: the sim-to-sim gap over several teams."""
-    print(f"{'folder':<28}{'robots':>7}{'rps errors b/c/a':>18}{'completion rps / MuJoCo':>26}"
+    print(f"{'folder':<28}{'robots':>7}{'rps errors b/c/a':>18}{'progress rps / MuJoCo':>26}"
           f"{'return rps / MuJoCo':>24}{'steps':>12}")
     for folder, r in zip(folders, reports):
         rps, mj, e = r["rps"], r["mujoco"], r["rps"]["rps_errors"]
         errors = f"{e.get('boundary', '-')}/{e.get('collision', '-')}/{e.get('actuator', '-')}"
-        print(f"{Path(folder).name[:27]:<28}{rps['robots']:>7}{errors:>18}{rps['completion']:>15.3f} / {mj['completion']:<8.3f}"
+        print(f"{Path(folder).name[:27]:<28}{rps['robots']:>7}{errors:>18}{rps['progress']:>15.3f} / {mj['progress']:<8.3f}"
               f"{rps['return']:>13.2f} / {mj['return']:<8.2f}{rps['steps']:>5.0f} / {mj['steps']:<4.0f}")
     mean = {}
     for side in ("rps", "mujoco"):
-        for k in ("completion", "return", "steps"):
+        for k in ("progress", "return", "steps"):
             mean[side, k] = sum(r[side][k] for r in reports) / len(reports)
-    print(f"mean over {len(reports)} folders (rps {reports[0]['rps']['rps']}, MuJoCo {tier}): completion "
-          f"{100 * mean['rps', 'completion']:.1f} % vs {100 * mean['mujoco', 'completion']:.1f} % "
-          f"(gap {100 * (mean['rps', 'completion'] - mean['mujoco', 'completion']):+.1f} points), return "
+    print(f"mean over {len(reports)} folders (rps {reports[0]['rps']['rps']}, MuJoCo {tier}): progress "
+          f"{100 * mean['rps', 'progress']:.1f} % vs {100 * mean['mujoco', 'progress']:.1f} % "
+          f"(gap {100 * (mean['rps', 'progress'] - mean['mujoco', 'progress']):+.1f} points), return "
           f"{mean['rps', 'return']:.2f} vs {mean['mujoco', 'return']:.2f}, steps {mean['rps', 'steps']:.1f} vs "
           f"{mean['mujoco', 'steps']:.1f}")
 
@@ -75,9 +75,9 @@ def _print_repeats(folders: list[str], reports: list[dict], repeats: int) -> Non
         return
     for folder, report in zip(folders, reports):
         runs = report["rps"]["runs"]
-        comp = [100 * r["completion"] for r in runs]
+        comp = [100 * r["progress"] for r in runs]
         errors = [sum(r["rps_errors"].values()) for r in runs]
-        print(f"{Path(folder).name}: {len(runs)} rps runs ({generation}): completion mean {sum(comp) / len(comp):.1f} %, "
+        print(f"{Path(folder).name}: {len(runs)} rps runs ({generation}): progress mean {sum(comp) / len(comp):.1f} %, "
               f"min {min(comp):.1f}, max {max(comp):.1f}; steps {min(r['steps'] for r in runs):.0f}-"
               f"{max(r['steps'] for r in runs):.0f}; runs with rps errors {sum(e > 0 for e in errors)}/{len(runs)}")
 

@@ -50,6 +50,7 @@ import numpy as np
 import comat.task_logic as task_logic_module
 from comat import constants as C
 from comat.envs.core import WAYPOINT_GAIN
+from comat.eval.metrics import current_names
 from comat.team import TeamSpec
 
 __all__ = [
@@ -348,7 +349,7 @@ def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool 
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_RESULT ")]
     if not lines:
         raise CheckError(f"{folder / 'main.py'} printed no COMAT_RESULT line" + _tail(proc.stdout))
-    result = json.loads(lines[-1][len("COMAT_RESULT "):])
+    result = current_names(json.loads(lines[-1][len("COMAT_RESULT "):]))  # folders exported before issue 32
     result["stdout"] = proc.stdout
     return result
 
@@ -389,13 +390,13 @@ def run_mujoco(folder, tier: str = "wheels") -> dict:
 
 
 def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None, repeats: int = 1) -> dict:
-    """{"rps": ..., "mujoco": ..., "gap": {completion, return}} for an exported folder (``rps_path``:
+    """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
     see :func:`run_rps`).
 
     ``repeats`` runs main.py under rps that many times: V2 drives the robots from randomly placed
     chargers to the start poses first, so one V2 run is one random sample (the legacy simulator
     starts at the poses and repeats itself). ``rps`` then holds the means of return, steps,
-    completion and success, the worst error counts, and ``runs`` (each run's figures)."""
+    progress and finished, the worst error counts, and ``runs`` (each run's figures)."""
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
     folder = Path(folder)
@@ -406,11 +407,11 @@ def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rp
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
     runs = [run_rps(folder, timeout_s, rps_path) for _ in range(repeats)]
     rps = dict(runs[0])
-    keys = ("return", "steps", "completion", "success")
+    keys = ("return", "steps", "progress", "finished")
     for key in keys:
         rps[key] = float(np.mean([r[key] for r in runs]))
     rps["rps_errors"] = {k: max(r["rps_errors"].get(k, 0) for r in runs) for k in runs[0]["rps_errors"]}
     rps["runs"] = [{**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"]} for r in runs]
     mj = run_mujoco(folder, tier)
-    gap = {"completion_points": 100.0 * (rps["completion"] - mj["completion"]), "return": rps["return"] - mj["return"]}
+    gap = {"progress_points": 100.0 * (rps["progress"] - mj["progress"]), "return": rps["return"] - mj["return"]}
     return {"rps": rps, "mujoco": mj, "gap": gap}

@@ -45,7 +45,7 @@ def test_demo_shows_the_pretrained_policy_finishing_with_its_files(tmp_path, cap
     assert summary["ok"] and (folder / "comat_pcp.rrd").stat().st_size > 0 and (folder / "comat_pcp.mp4").stat().st_size > 0
     assert (folder / "robotarium_pcp" / "main.py").is_file()
     printed = capsys.readouterr().out
-    assert "completion 100%" in printed and "all written and the export checked" in printed
+    assert "progress 100%" in printed and "all written and the export checked" in printed
 
 
 @pytest.mark.slow
@@ -53,7 +53,7 @@ def test_demo_tasks_part(tmp_path):
     out = tmp_path / "demo.json"
     assert main(["demo", "--tier", "unicycle", "--episodes", "1", "--part", "tasks", "--out", str(out)]) == 0
     heuristic = [r for r in json.loads(out.read_text())["tasks"]["rows"] if r["policy"] == "heuristic"]
-    assert len(heuristic) == 4 and all(r["success"] == 1.0 for r in heuristic)
+    assert len(heuristic) == 4 and all(r["finished"] == 1.0 for r in heuristic)
 
 
 def test_bad_arguments_get_a_clear_error(capsys):

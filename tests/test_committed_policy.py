@@ -39,5 +39,5 @@ def test_a_committed_policy_evaluates_on_the_capability_set_with_one_command(tmp
     # The policy does the task on robots it never saw: its committed 5-episode evaluation captured
     # 99 % of the prey on U_cap; a random policy captures under 10 % (results/sets/references.md).
     # Not an exact match: another CPU may order the network's sums differently (README).
-    assert row["metrics"]["completion"]["mean"] > 0.8
+    assert row["metrics"]["progress"]["mean"] > 0.8
     assert "comat" in capsys.readouterr().out

@@ -123,7 +123,7 @@ def _loaded_run(task: str, teams, policy, steps_cap=None):
         for b in np.flatnonzero(info.get("_episode", np.zeros(len(teams), bool))):
             if out[b] is None:
                 steps = int(info["episode"]["steps"][b])
-                out[b] = {"steps": steps, "completion": info["episode"]["completion"][b], "loaded": loaded[b],
+                out[b] = {"steps": steps, "progress": info["episode"]["progress"][b], "loaded": loaded[b],
                           "stays": stays[b, : teams[b].size],
                           "curve": info["episode_curve"][b, :steps],
                           "robots": {k: v[b, : teams[b].size] for k, v in info["episode_robots"].items()},
@@ -141,13 +141,13 @@ def test_hmt_delivered_and_on_board_add_up():
     for team, o in zip(teams, out):
         total = sum(HMT.zone_factors) * sum(r.capabilities[1] for r in team.robots)
         delivered = o["robots"]["delivered"].sum()
-        assert delivered / total == pytest.approx(o["completion"], abs=1e-12)
+        assert delivered / total == pytest.approx(o["progress"], abs=1e-12)
         assert o["end"]["on_board_end"] == pytest.approx((o["loaded"] - delivered) / total, abs=1e-12)
-        assert o["steps"] == HMT.horizon and o["curve"][-1] == o["completion"]
+        assert o["steps"] == HMT.horizon and o["curve"][-1] == o["progress"]
         assert o["robots"]["still_idle"].tolist() == o["stays"].tolist()  # every stay chosen, no other step
         assert (o["stays"] >= HMT.horizon - 25).all()
         assert (o["robots"]["carrying"] <= HMT.horizon).all()
-    assert any(o["end"]["on_board_end"] > 0 for o in out) and all(o["completion"] > 0 for o in out)
+    assert any(o["end"]["on_board_end"] > 0 for o in out) and all(o["progress"] > 0 for o in out)
     assert set(out[0]["robots"]) == set(ROBOT_COUNTS["hmt"])
 
 
@@ -158,9 +158,9 @@ def test_hmt_heuristic_rows_with_known_answers():
     for team, row in zip(teams, rows):
         total = sum(HMT.zone_factors) * sum(r.capabilities[1] for r in team.robots)
         assert len(row["progress_curve"]) == row["steps"] and row["progress_curve"][-1] == pytest.approx(
-            row["completion"], abs=5e-5)
-        assert sum(r["delivered"] for r in row["robots"]) / total == pytest.approx(row["completion"], abs=1e-6)
-        assert row["success"] == 1.0 and row["on_board_end"] == 0.0  # all delivered, nothing left on board
+            row["progress"], abs=5e-5)
+        assert sum(r["delivered"] for r in row["robots"]) / total == pytest.approx(row["progress"], abs=1e-6)
+        assert row["finished"] == 1.0 and row["on_board_end"] == 0.0  # all delivered, nothing left on board
         auc, t90, reached = _hand_endpoints(row["progress_curve"], HMT.horizon)
         assert row["progress_auc"] == pytest.approx(auc, abs=1e-4)
         assert (row["time_to_90"], row["reached_90"]) == (t90, reached)
@@ -187,8 +187,8 @@ def test_pcp_rows_deterministic_and_episodes_per_coalition():
     assert [(r["coalition"], r["episode_in_coalition"]) for r in first] == [(0, 0), (1, 0), (0, 1), (1, 1)]
     for row in first:
         assert 0 <= row["sensed_not_captured"] <= 6
-        assert row["progress_curve"][-1] == pytest.approx(row["completion"], abs=5e-5)
-        assert sum(r["captured"] for r in row["robots"]) >= round(row["completion"] * 6)
+        assert row["progress_curve"][-1] == pytest.approx(row["progress"], abs=5e-5)
+        assert sum(r["captured"] for r in row["robots"]) >= round(row["progress"] * 6)
         assert sum(r["still_idle"] + r["still_held"] for r in row["robots"]) <= row["steps"] * row["team_size"]
         assert set(row["by_type"]) == {"sensing", "capture"}
         json.dumps(row)  # plain Python numbers only

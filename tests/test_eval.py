@@ -15,7 +15,7 @@ T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
 
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
-    return {"return": ret, "steps": steps, "completion": completion, "success": success, "collisions": collisions,
+    return {"return": ret, "steps": steps, "progress": completion, "finished": success, "collisions": collisions,
             "robotarium_collisions": rc, "boundary_exits": be, "actuator_errors": ae, "interventions": 3.0,
             "fallbacks": 0.0, "recoveries": 1.0}
 
@@ -46,7 +46,7 @@ def test_summarize_ci_by_hand():
     assert list(full) == list(REPORTED) and full["time_to_90"] == {"mean": 70.0, "ci95": 0.0, "n": 4}
     assert table["return"]["mean"] == 25.0 and table["return"]["n"] == 4
     assert table["return"]["ci95"] == pytest.approx(T_975_3 * np.std([10, 20, 30, 40], ddof=1) / 2)
-    assert table["success"]["mean"] == 0.5
+    assert table["finished"]["mean"] == 0.5
     assert table["violations"]["mean"] == 1.0
     assert table["collisions"]["mean"] == 0.75
     assert table["interventions"] == {"mean": 3.0, "ci95": 0.0, "n": 4}
@@ -60,7 +60,7 @@ def test_summarize_ci_averages_within_coalitions_first():
     once = [_episode(float(r), completion=float(c)) for r, c in zip(rng.normal(10, 3, 20), rng.uniform(0, 1, 20))]
     five = [{**once[i % 20], "coalition": i % 20, "episode_in_coalition": i // 20} for i in range(100)]
     a, b = summarize_ci(once), summarize_ci(five)
-    for m in ("return", "completion"):
+    for m in ("return", "progress"):
         assert b[m]["mean"] == pytest.approx(a[m]["mean"]) and b[m]["ci95"] == pytest.approx(a[m]["ci95"])
         assert b[m]["n"] == 20 and a[m]["ci95"] > 0
         pooled = mean_ci([e[m] for e in five])[1]  # the old rule: every episode a unit
@@ -96,7 +96,7 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     lines = []
     print_table(result, out=lines.append)
     head = lines[0].split()
-    assert head[head.index("completion*") + 1 : head.index("completion*") + 3] == ["AUC", "t90"]
+    assert head[head.index("finished") + 1 : head.index("finished") + 3] == ["AUC", "t90"]
     assert "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first)" in lines[-1]
     json_path, csv_path = write_results(result, tmp_path)
     assert json.loads(json_path.read_text()) == result
@@ -122,7 +122,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     # the table's numbers are the per-episode metrics' means
     for r in rows.values():
         assert r["metrics"]["return"]["mean"] == pytest.approx(np.mean([e["return"] for e in r["per_episode"]]))
-    assert rows["heuristic"]["metrics"]["success"]["mean"] > rows["random"]["metrics"]["success"]["mean"]
+    assert rows["heuristic"]["metrics"]["finished"]["mean"] > rows["random"]["metrics"]["finished"]["mean"]
     csv_text = (tmp_path / "run" / "evaluation_unicycle.csv").read_text().splitlines()
     assert csv_text[0] == "policy,task,set,tier,episodes,metric,mean,ci95" and len(csv_text) == 1 + 4 * len(REPORTED)
     # the constant row is every robot always taking the task's best constant action (+x on PCP)
@@ -133,7 +133,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     env = make_vec_env("pcp_v0", 20, seed=2_000_003, tier="unicycle", coalitions="test")
     direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), resolve_coalitions("test", "pcp"), seed=2_000_003)
     assert [e["return"] for e in rows["constant"]["per_episode"]] == pytest.approx([e["return"] for e in direct])
-    assert rows["constant"]["metrics"]["completion"]["mean"] > rows["random"]["metrics"]["completion"]["mean"]
+    assert rows["constant"]["metrics"]["progress"]["mean"] > rows["random"]["metrics"]["progress"]["mean"]
     # --out: never overwritten without --force (the old spellings still work, with a note)
     assert main(["eval", "--checkpoint", str(ckpt), "--set", "test", "--no-references"]) == 2
     err = capsys.readouterr().err.splitlines()

@@ -65,10 +65,10 @@ def test_runs_under_rps_without_errors(exported, task):
     assert rps["offset_collision_pair_iterations"] == 0 and rps["boundary_iterations"] == 0
     assert "DEBUG OUTPUT" in rps["stdout"]
     assert 1 <= rps["steps"] <= (80 if task == "pcp" else 70)
-    for key in ("return", "completion", "steps"):
+    for key in ("return", "progress", "steps"):
         assert np.isfinite(rps[key]) and np.isfinite(mj[key])
     # Same policy, team, start and prey: the episodes stay close (untrained policy, so loosely).
-    assert abs(report["gap"]["completion_points"]) <= 10.0 + 1e-9, report["gap"]
+    assert abs(report["gap"]["progress_points"]) <= 10.0 + 1e-9, report["gap"]
 
 
 @pytest.mark.parametrize("task", ["pcp", "hmt"])
@@ -177,9 +177,9 @@ def test_scripted_policy_completes_the_task_under_rps(scripted, task):
     assert rps["policy"] == "heuristic" and rps["rps"] == "legacy"
     assert rps["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, rps["rps_errors"]
     assert rps["offset_collision_pair_iterations"] == 0 and rps["boundary_iterations"] == 0
-    assert rps["success"] == 1.0 and rps["completion"] == pytest.approx(1.0), rps
-    assert mj["success"] == 1.0
-    assert abs(report["gap"]["completion_points"]) <= 10.0
+    assert rps["finished"] == 1.0 and rps["progress"] == pytest.approx(1.0), rps
+    assert mj["finished"] == 1.0
+    assert abs(report["gap"]["progress_points"]) <= 10.0
     # MuJoCo's filter breaks barrier deadlocks (comat.control.HOLD_TICKS); the Robotarium's barrier
     # has no tie-break, so the MuJoCo episode may be shorter, never much longer.
     assert mj["steps"] <= rps["steps"] + 5, (rps["steps"], mj["steps"])
@@ -254,7 +254,7 @@ def test_scripted_policy_under_rps_v2(scripted, task):
     rps = report["rps"]
     assert rps["rps"] == "v2" and "Initializing" in rps["stdout"]
     assert rps["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, rps["rps_errors"]
-    assert rps["success"] == 1.0 and abs(report["gap"]["completion_points"]) <= 10.0
+    assert rps["finished"] == 1.0 and abs(report["gap"]["progress_points"]) <= 10.0
 
 
 def test_figure_under_legacy_rps_with_this_matplotlib(scripted):
@@ -281,7 +281,7 @@ def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tm
     assert main(["export", "--check", str(tmp_path / "cli_pcp"), str(scripted["pcp"][0]), "--tier", "unicycle"]) == 0
     out = capsys.readouterr().out
     assert "cli_pcp" in out and "sub_pcp" in out
-    assert "mean over 2 folders (rps legacy, MuJoCo unicycle): completion 100.0 % vs 100.0 %" in out
+    assert "mean over 2 folders (rps legacy, MuJoCo unicycle): progress 100.0 % vs 100.0 %" in out
     # the old spelling --checkpoint still names the policy (with a note); a missing file is refused
     assert main(["export", "--policy", "heuristic", "--checkpoint", "x.pt", "--task", "pcp", "--team", "test:3",
                  "--out", str(tmp_path / "new" / "y")]) == 2
@@ -394,9 +394,9 @@ def test_check_repeats_reports_each_runs_figures(scripted, capsys):
 
     report = check_submission(scripted["pcp"][0], tier="unicycle", repeats=2)
     runs = report["rps"]["runs"]
-    assert len(runs) == 2 and report["rps"]["completion"] == pytest.approx(np.mean([r["completion"] for r in runs]))
+    assert len(runs) == 2 and report["rps"]["progress"] == pytest.approx(np.mean([r["progress"] for r in runs]))
     assert main(["export", "--check", str(scripted["pcp"][0]), "--tier", "unicycle", "--repeats", "2"]) == 0
-    assert "2 rps runs (legacy): completion mean" in capsys.readouterr().out
+    assert "2 rps runs (legacy): progress mean" in capsys.readouterr().out
     with pytest.raises(ValueError, match="--repeats must be an integer >= 1, got 0"):
         check_submission(scripted["pcp"][0], repeats=0)
 

@@ -8,12 +8,14 @@ import numpy as np
 import comat
 from comat.envs import make_env
 from comat.envs.heuristics import heuristic_actions
+from comat.eval.metrics import RETIRED_NAMES
 from comat.task_logic import PCP
 from comat.team import generate_coalitions, random_team
 
 OLD_METRICS = ("return", "steps", "completion", "success", "collisions", "robotarium_collisions", "boundary_exits",
                "actuator_errors", "interventions", "fallbacks", "recoveries")
-"""The episode metrics when the digests below were recorded (later metrics are not hashed)."""
+"""The episode metrics when the digests below were recorded, by their names then (later metrics are
+not hashed; issue 32 renamed completion/success to progress/finished: :data:`RETIRED_NAMES`)."""
 
 
 def _vector_digest(split, max_robots=None, state_robots=8, steps=150):
@@ -39,7 +41,7 @@ def _vector_digest(split, max_robots=None, state_robots=8, steps=150):
             h.update(info[k].tobytes())
         if "episode" in info:
             for k in sorted(OLD_METRICS):
-                h.update(info["episode"][k].tobytes())
+                h.update(info["episode"][RETIRED_NAMES.get(k, k)].tobytes())
             h.update(info["final_obs"].tobytes())
             if "final_state" in info:
                 h.update(info["final_state"].tobytes())
@@ -51,6 +53,7 @@ def _parallel_digest(split, episodes=3):
     """Digest of three scripted PettingZoo episodes (observations, states, reward and metric infos)."""
     env = make_env("pcp_v0", coalitions=split, tier="unicycle", ticks_per_step=10)
     keys = {f"reward/{t}" for t in env.task.reward_terms} | {f"episode/{m}" for m in OLD_METRICS}
+    old = {f"episode/{RETIRED_NAMES[retired]}": f"episode/{retired}" for retired in ("completion", "success")}
     h = hashlib.sha256()
     total = 0.0
     for ep in range(episodes):
@@ -63,7 +66,7 @@ def _parallel_digest(split, episodes=3):
             a0 = next(iter(rew))
             h.update(np.stack([obs[a] for a in obs]).tobytes())
             h.update(env.state().tobytes())
-            h.update(repr(sorted((k, v) for k, v in info[a0].items() if k in keys)).encode())
+            h.update(repr(sorted((old.get(k, k), v) for k, v in info[a0].items() if old.get(k, k) in keys)).encode())
             total += rew[a0]
     return h.hexdigest()[:16], round(total, 6)
 
@@ -109,7 +112,7 @@ def test_padded_prey_are_parked_sensed_and_captured_and_count_nowhere():
     x0, x1, y0, y1 = task.prey_box
     real = state["prey"][state["active"]]
     assert ((real[:, 0] >= x0) & (real[:, 0] <= x1) & (real[:, 1] >= y0) & (real[:, 1] <= y1)).all()
-    np.testing.assert_array_equal(task.completion(state), [0.0, 0.0])
+    np.testing.assert_array_equal(task.progress(state), [0.0, 0.0])
     assert not task.done(state).any()
     assert task.global_features(state).shape == (2, 4 * 24)
 
@@ -134,7 +137,7 @@ def test_padded_prey_are_parked_sensed_and_captured_and_count_nowhere():
 
     # Capture the small team's own 6: done, completion 1.
     state["sensed"][0] = state["captured"][0] = True
-    assert task.done(state)[0] and task.completion(state)[0] == 1.0
+    assert task.done(state)[0] and task.progress(state)[0] == 1.0
 
 
 def test_the_scripted_policy_never_targets_a_parked_slot():
@@ -189,7 +192,7 @@ def test_the_scripted_policy_clears_a_20_robot_team_s_24_prey():
         *_, term, trunc, info = env.step(heuristic_actions(env.core))
         if term[0] or trunc[0]:
             break
-    assert term[0] and info["episode"]["completion"][0] == 1.0
+    assert term[0] and info["episode"]["progress"][0] == 1.0
 
 
 def _small_and_big():

@@ -212,7 +212,7 @@ def test_reality_sweep_writes_its_file_and_the_report_draws_it(tmp_path, capsys)
     assert [e["steps"] for e in sweep["points"][0]["rows"][0]["per_episode"]] == [e["steps"] for e in off]
     assert main(["report", *runs, "--out", str(tmp_path / "report")]) == 0
     rows = list(csv.DictReader((tmp_path / "report" / "robustness.csv").read_text().splitlines()))
-    prog = [r for r in rows if r["metric"] == "completion"]
+    prog = [r for r in rows if r["metric"] == "progress"]
     assert [(r["value"], r["seeds"]) for r in prog] == [("0", "2"), ("3", "2"), ("6", "2")]
     assert (tmp_path / "report" / "fig7_robustness.png").is_file()
     # bad sweeps: one line, nothing written

@@ -19,7 +19,7 @@ from comat.eval.report import PAPER_TABLE1, REPORT_FILES, SET_NAMES, SETS, make_
 
 
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
-    return {"return": ret, "steps": steps, "completion": completion, "success": success, "collisions": collisions,
+    return {"return": ret, "steps": steps, "progress": completion, "finished": success, "collisions": collisions,
             "robotarium_collisions": rc, "boundary_exits": be, "actuator_errors": ae, "interventions": 3.0,
             "fallbacks": 0.0, "recoveries": 1.0}
 
@@ -97,7 +97,7 @@ def test_report_on_fake_runs(tmp_path, capsys):
     md = (out / "table1.md").read_text()
     # mean over the two seeds ± t(0.975, 1) · sd/√2 = 12.706 · 14.142 / 1.414
     assert "| PCP | Mean return | 50.00 ± 127.06 | 82.47 |" in md
-    assert "| PCP | Completion | 75.0% ± 317.7 | 92.8% |" in md
+    assert "| PCP | Finished (paper: completion) | 75.0% ± 317.7 | 92.8% |" in md
     assert "| PCP | Env-step budget per run | 25,600 | 4,000,000 |" in md
     # every caption states the interval method
     method = "mean over seeds ± 95 % t-interval over per-seed means"
@@ -186,9 +186,9 @@ def test_team_size_counts_per_algorithm_where_they_differ(tmp_path, monkeypatch)
 
     drawn = {}
     monkeypatch.setattr(figures, "save", lambda fig, stem: drawn.setdefault(stem.name, fig) and [])
-    by_size = {("comat", "pcp"): {2: [{"return": 1.0, "completion": 0.5, "coalitions": 2}] * 3,
-                                  4: [{"return": 1.0, "completion": 0.5, "coalitions": 1}] * 2},
-               ("mat", "pcp"): {2: [{"return": 1.0, "completion": 0.5, "coalitions": 1}] * 3}}
+    by_size = {("comat", "pcp"): {2: [{"return": 1.0, "progress": 0.5, "coalitions": 2}] * 3,
+                                  4: [{"return": 1.0, "progress": 0.5, "coalitions": 1}] * 2},
+               ("mat", "pcp"): {2: [{"return": 1.0, "progress": 0.5, "coalitions": 1}] * 3}}
     figures.fig_team_size(by_size, ["pcp"], ["mat", "comat"], {"pcp": {"mat": [1], "comat": [1]}}, tmp_path / "f")
     labels = {(t.get_text(), t.get_color()) for t in drawn["f"].axes[1].texts}
     assert labels == {("1", figures.ALGO_COLORS["mat"]), ("2", figures.ALGO_COLORS["comat"]),
@@ -265,7 +265,7 @@ def test_k_episodes_never_count_as_k_seeds_and_the_coalition_index_is_used(tmp_p
     """Two seeds, 5 episodes per coalition: every interval is over 2 seeds (df 1), not 20 episodes;
     rows with "coalition" are grouped by it, older rows (no index) as coalition i % C."""
     def spread(i):  # episodes of a coalition differ, so cell means differ from single episodes
-        return {"completion": 0.1 * i}
+        return {"progress": 0.1 * i}
 
     for name, keyed in (("new", True), ("old", False)):
         for seed in range(2):
@@ -283,7 +283,7 @@ def test_k_episodes_never_count_as_k_seeds_and_the_coalition_index_is_used(tmp_p
     half = sst.t.ppf(0.975, 1) * np.std(per_seed, ddof=1) / math.sqrt(2)
     assert float(ret["mean_over_seeds"]) == 12.0 and float(ret["t_ci95_hi_over_seeds"]) == pytest.approx(12.0 + half)
     # the cells (coalition 0 = episodes 0, 2, 4, 6, 8): progress 0.4 and 0.5 in each seed
-    assert float(agg["completion"]["iqm_of_cells"]) == pytest.approx(0.45)
+    assert float(agg["progress"]["iqm_of_cells"]) == pytest.approx(0.45)
     assert (outs["old"] / "aggregates.csv").read_text() == (outs["new"] / "aggregates.csv").read_text()
     md = (outs["new"] / "table1.md").read_text()
     assert f"| PCP | Mean return | 12.00 ± {half:.2f} |" in md
@@ -326,7 +326,7 @@ def test_new_sets_and_endpoints_in_table_order(tmp_path):
     assert "| HMT | U_cap | progress AUC | MAT |" in md
     gen = {r["algo"]: r for r in _csv(out / "generalization.csv")}["comat"]
     assert float(gen["size_progress_auc"]) == pytest.approx(0.605) and gen["size_time_to_90_seeds"] == "2"
-    assert {r["metric"] for r in _csv(out / "aggregates.csv")} == {"return", "completion", "success", "progress_auc",
+    assert {r["metric"] for r in _csv(out / "aggregates.csv")} == {"return", "progress", "finished", "progress_auc",
                                                                     "time_to_90"}
     assert not any(f"{name} progress (%)" in md or f"| {name} |" in md for name in ("U_test", "U_scale"))
 

@@ -316,10 +316,10 @@ def test_unknown_algo_task_and_preset_keys(tmp_path):
     with pytest.raises(ValueError, match=r"unknown key\(s\) \['learning_rate'\]"):
         load_preset(bad)
     bad.write_text("ppo: {lr: 0.1, epoch: 3}\n")
-    with pytest.raises(ValueError, match=r"unknown key\(s\) \['epoch'\] for trainer"):
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['epoch'\] for ppo"):
         resolve(load_preset(bad), "comat", "pcp")
     bad.write_text("models: {comat: {embed: 'big'}}\n")
-    with pytest.raises(TypeError, match="model.embed must be"):
+    with pytest.raises(TypeError, match="models.comat.embed must be"):
         resolve(load_preset(bad), "comat", "pcp")
     bad.write_text("total_env_steps: -5\n")
     with pytest.raises(ValueError, match="total_env_steps must be an integer >= 1, got -5"):
@@ -495,7 +495,7 @@ def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, caps
         "preset_negative": (["train", "--algo", "mat", "--task", "hmt", "--preset", str(path), "--out",
                              str(tmp_path / "out")], "total_env_steps must be an integer >= 1, got -5"),
         "preset_wrong_type": (["train", "--algo", "mappo", "--task", "pcp", "--preset", str(path), "--out",
-                               str(tmp_path / "out")], "trainer.lr must be float, got 'fast' (str)"),
+                               str(tmp_path / "out")], "ppo.lr must be float, got 'fast' (str)"),
         "report_not_a_run": (["report", str(path), "--out", str(tmp_path)], "is not a run folder (no config.yaml)"),
         "check_not_a_submission": (["export", "--check", str(path)], "is not an exported submission"),
         "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "is a file; expected a folder"),
@@ -581,7 +581,7 @@ def test_overrides_and_base_presets(tmp_path, capsys):
     doc = yaml.safe_load((run / "config.yaml").read_text())
     assert doc["overrides"][0] == "ppo.num_envs=2" and doc["config"]["model"]["embed"] == 16
     assert doc["config"]["trainer"]["lr"] == 0.001 and doc["config"]["trainer"]["num_envs"] == 2
-    for bad, message in ((["ppo.lrr=3"], "unknown key(s) ['lrr']"), (["ppo.lr=fast"], "trainer.lr must be float"),
+    for bad, message in ((["ppo.lrr=3"], "unknown key(s) ['lrr']"), (["ppo.lr=fast"], "ppo.lr must be float"),
                          (["lr"], "overrides must be key=value"), (["zzz=1"], "unknown key(s) ['zzz'] in overrides")):
         assert main([*argv[:-1], str(tmp_path / "other"), *bad]) == 2
         assert message in capsys.readouterr().err

@@ -250,8 +250,8 @@ def test_head_on_deadlock_is_broken_by_keeping_right(tie_break):
                 break
     metrics = env.core.episode_metrics(0)
     assert metrics["collisions"] == 0 and metrics["fallbacks"] == 0
-    assert metrics["success"] == (1.0 if tie_break else 0.0)
-    assert metrics["completion"] == (1.0 if tie_break else pytest.approx(4 / 6))
+    assert metrics["finished"] == (1.0 if tie_break else 0.0)
+    assert metrics["progress"] == (1.0 if tie_break else pytest.approx(4 / 6))
 
 
 @pytest.mark.slow
@@ -262,7 +262,7 @@ def test_soak_bench_one_round_is_clean(tmp_path):
 
     result = run_soak(160, wheels_share=0.5, seed=1, out=str(tmp_path / "soak.json"), progress=lambda m: None)
     assert result["episodes"] == 160 and all(c["pass"] for c in result["checks"].values()), result["checks"]
-    assert (tmp_path / "soak.json").is_file() and result["scripted_success_share"] > 0.8
+    assert (tmp_path / "soak.json").is_file() and result["scripted_finished_share"] > 0.8
     # one sample per batch of 20 coalitions after it, one of its peak; a batch peaks above where it ends
     assert [d for d, _ in result["rss_bytes_per_batch"]] == list(range(20, 161, 20))
     peaks = result["rss_peak_bytes_per_batch"]

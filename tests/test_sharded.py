@@ -20,7 +20,7 @@ def _run(env, steps: int, seed: int = 0) -> dict:
                            ("done", terminated | truncated), ("state", env.state())):
             out[key].append(value)
         if "_episode" in info:
-            out["final"].append((info["_episode"], info["episode"]["completion"], info["final_obs"], info["final_state"]))
+            out["final"].append((info["_episode"], info["episode"]["progress"], info["final_obs"], info["final_state"]))
             out.setdefault("record", []).append((info["episode_curve"], info["episode_robots"], info["episode_end"]))
     return out
 

@@ -59,7 +59,7 @@ def test_autoreset_same_step():
     assert "final_obs" in info and info["final_obs"].shape == obs.shape
     # the finished episode's record: progress after each of its 80 steps, per-robot counts, end counts
     assert info["episode_curve"].shape == (2, 80)
-    np.testing.assert_array_equal(info["episode_curve"][:, -1], info["episode"]["completion"])
+    np.testing.assert_array_equal(info["episode_curve"][:, -1], info["episode"]["progress"])
     assert set(info["episode_robots"]) == {"still_held", "still_idle", "sensed", "captured"}
     held_or_idle = info["episode_robots"]["still_held"] + info["episode_robots"]["still_idle"]
     assert held_or_idle.shape == (2, env.max_robots) and (held_or_idle <= 80).all() and held_or_idle.sum() > 0
@@ -90,7 +90,7 @@ def _heuristic_episodes(task: str, tier: str):
 
 
 def _check_heuristic(results):
-    success = np.mean([r["success"] for r in results])
+    success = np.mean([r["finished"] for r in results])
     assert success >= 0.9, success
     assert sum(r["collisions"] + r["robotarium_collisions"] + r["boundary_exits"] for r in results) == 0
 

@@ -112,7 +112,7 @@ def add_safety_bench_parser(bsub) -> None:
                         "bang-bang at full speed among 16 robots, a robot pinned in a corner; and two robots started "
                         "inside the safety distance), in each tier and at each reality level, judged on true poses: "
                         "contacts, Robotarium collisions, boundary exits, the closest projected points, recoveries, "
-                        "brakes and the distance left to the goals, for the episodes that really started in the "
+                        "fallbacks and the distance left to the goals, for the episodes that really started in the "
                         "filter's safe set and for all. Exit 1 if a safe start saw a contact or a collision.")
     b.add_argument("--reality", nargs="+", choices=REALITY_LEVELS, default=["nominal"],
                    help="reality levels (default: %(default)s)")

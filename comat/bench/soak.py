@@ -122,7 +122,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
             _, _, _, _, info = env.step(random_actions(rng, info["agent_mask"]))
         env.release_solvers()
     totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
-                               "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "success")}
+                               "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "finished")}
     by_tier = {"unicycle": 0, "wheels": 0}
     memory: list[tuple[int, int]] = []
     batches: list[tuple[int, int]] = []
@@ -148,7 +148,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                 for key in ("collisions", "robotarium_collisions", "boundary_exits", "actuator_errors", "recoveries",
                             "fallbacks", "interventions"):
                     totals[key] += e[key]
-                totals["success"] += e["success"] if policy == "heuristic" else 0.0
+                totals["finished"] += e["finished"] if policy == "heuristic" else 0.0
             if done >= next_mark:
                 memory.append(batches[-1])
                 next_mark += mark_every
@@ -176,7 +176,7 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                         "pass": growth[stat] < MEMORY_GROWTH_TARGET}
     result = {"benchmark": "soak", "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
               "sets": list(sets), "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
-              "scripted_success_share": totals["success"] / max(1.0, totals["episodes"] / 2),
+              "scripted_finished_share": totals["finished"] / max(1.0, totals["episodes"] / 2),
               "rss_windows": {"first": windows[0], "last": windows[1]},
               "batch_peak_rss_windows": {"first": peak_windows[0], "last": peak_windows[1]},
               "rss_peak_bytes_per_batch": batch_peaks,

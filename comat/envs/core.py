@@ -38,8 +38,8 @@ WAYPOINT_GAIN = 4.0
 EPISODE_METRICS = (
     "return",
     "steps",
-    "completion",
-    "success",
+    "progress",
+    "finished",
     "collisions",
     "robotarium_collisions",
     "boundary_exits",
@@ -218,11 +218,11 @@ class TaskCore:
         truncated = (self.steps >= task.horizon) & ~terminated
         s["return"] += rewards
         s["steps"] = self.steps.astype(float)
-        s["completion"] = task.completion(self.state)
-        s["success"] = terminated.astype(float)
+        s["progress"] = task.progress(self.state)
+        s["finished"] = terminated.astype(float)
         moved = self.padded(np.hypot(*(safe.points - points).T))
         self.record.add(before, raw, self.state, actions, moved, step_len, poses, self.type_ids, self.caps, self.mask,
-                        self.steps, s["completion"])
+                        self.steps, s["progress"])
         return StepResult(rewards, terms, terminated, truncated)
 
     def _count_tick(self, starts: np.ndarray, events, info, last: np.ndarray, violations: np.ndarray) -> None:
@@ -251,7 +251,7 @@ class TaskCore:
     def episode_metrics(self, b: int) -> dict[str, float]:
         """The paper's metrics for env b's episode so far.
 
-        return; steps; completion (fraction of prey captured / material delivered); success
+        return; steps; progress (fraction of prey captured / material delivered); finished
         (task finished before the horizon); collisions (MuJoCo robot–robot contact onsets,
         summed over robots); robotarium_collisions (pair-ticks with offset centres <= 0.135 m);
         boundary_exits (robot-ticks outside the arena); actuator_errors (ticks with a wheel

@@ -91,7 +91,7 @@ class EpisodeRecorder:
                 in the env step (m); step (B, N): each robot's waypoint step (m).
             poses (B, N, 3), type_ids (B, N), caps (B, N, C), mask (B, N): the team after the step.
             steps (B,): env steps taken so far in each episode, this one included.
-            progress (B,): the task's completion after the step.
+            progress (B,): the task's progress after the step.
         """
         r = self.robots
         moving = mask & (actions != 0)

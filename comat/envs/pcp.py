@@ -29,7 +29,7 @@ Observation layout (per robot, fixed length whatever the team size):
 
 Capture robots never see prey themselves: they learn where prey are from teammates (through
 the model's communication; ``env.graph()`` gives the team graph). Fractions (11–12) and the
-``completion`` metric count the team's own K(N) prey.
+``progress`` metric count the team's own K(N) prey.
 
 Composition sets (``coalitions=``; :mod:`comat.team`), 20 teams each, at least one robot of each type:
 

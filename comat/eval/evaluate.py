@@ -148,7 +148,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
             "reality_config": dataclasses.asdict(layer), "rows": rows}
 
 
-TABLE_NAMES = {"return": "return", "steps": "steps", "completion": "progress", "success": "completion*",
+TABLE_NAMES = {"return": "return", "steps": "steps", "progress": "progress", "finished": "finished",
                "progress_auc": "AUC", "time_to_90": "t90", "collisions": "collisions", "violations": "violations",
                "interventions": "interv.", "fallbacks": "fallbacks", "recoveries": "recoveries"}
 """Column name of each metric of :data:`REPORTED` in :func:`print_table`."""
@@ -169,8 +169,8 @@ def print_table(result: dict, out=print) -> None:
     k = result.get("episodes_per_coalition", 1)
     # Old result files predate the layer (their episodes were all in the ideal world).
     level = f"reality layer {result['reality']} (comat eval --reality); " if "reality" in result else ""
-    out(f"{level}completion* = share of episodes with every prey captured / all material delivered (the paper's "
-        "completion); progress = fraction captured / delivered; AUC = mean progress over the horizon's env steps "
+    out(f"{level}finished = share of episodes with every prey captured / all material delivered (the paper's "
+        "\"completion\"); progress = fraction captured / delivered; AUC = mean progress over the horizon's env steps "
         "(the final value held after an early finish); t90 = env steps to 90 % progress (the horizon when never "
         f"reached); n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each "
         f"coalition's {k} episode(s) averaged first), one policy: seed-to-seed spread is not in it")

@@ -40,7 +40,7 @@ and U_cap varies capability at the training sizes, so neither belongs on a size 
 TRAIN_SIZES = (3, 5, 7)
 """Team sizes of U_train (paper §III-D)."""
 METRIC_AXES = {"return": "episode return (team reward, sum over steps)",
-               "completion": "progress (% of prey captured / material delivered)"}
+               "progress": "progress (% of prey captured / material delivered)"}
 FORMATS = ("png", "pdf")
 
 
@@ -155,7 +155,7 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
     for col, task in enumerate(tasks):
         sel = [r for r in rows if r["task"] == task and r["seeds"]]
         x = np.arange(len(sel))
-        for row_i, (metric, key) in enumerate((("return", "return"), ("completion", "progress"))):
+        for row_i, (metric, key) in enumerate((("return", "return"), ("progress", "progress"))):
             ax = axes[row_i, col]
             for k, split in enumerate(sets):
                 scale = 100.0 if key == "progress" else 1.0
@@ -216,7 +216,7 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
                   sets: Sequence[str] = ("train", "test", "scale"), k_text: str = "1") -> list[str]:
     """Return and progress against team size, a line per algorithm.
 
-    ``by_size[(algo, task)][n]``: per seed ``{"return": mean, "completion": mean, "coalitions":
+    ``by_size[(algo, task)][n]``: per seed ``{"return": mean, "progress": mean, "coalitions":
     count}``, the mean over that seed's coalitions with n robots in ``sets`` (each coalition its
     episodes' mean). Line: mean over seeds; band: 95 % Student-t interval over seeds; the
     coalitions each point averages per seed, along the bottom (next to each point where the
@@ -225,9 +225,9 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
     plt = _plt()
     fig, axes = plt.subplots(2, len(tasks), figsize=(5.2 * len(tasks), 6.4), squeeze=False)
     for col, task in enumerate(tasks):
-        for row_i, metric in enumerate(("return", "completion")):
+        for row_i, metric in enumerate(("return", "progress")):
             ax = axes[row_i, col]
-            scale = 100.0 if metric == "completion" else 1.0
+            scale = 100.0 if metric == "progress" else 1.0
             for n in TRAIN_SIZES:
                 ax.axvspan(n - 0.35, n + 0.35, color="#dddddd", lw=0, zorder=0)
             counts: dict[str, dict[int, tuple[str, float]]] = {}  # algo -> size -> (count text, y)
@@ -254,7 +254,7 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
             _count_labels(ax, counts)
             ax.set_xlabel("team size (robots); grey: U_train's sizes 3, 5, 7")
             ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
-            if metric == "completion":
+            if metric == "progress":
                 ax.set_ylim(0, 105)  # a share: from 0, so a drop reads at its true size
             ax.grid(alpha=0.3)
             if row_i == 0:

@@ -65,7 +65,7 @@ def generalization_rows(groups: dict, tasks: list[str], algos: list[str], sets: 
 
 
 def _one(run: dict, split: str) -> float | None:
-    vals = seed_means([run], split, "completion")
+    vals = seed_means([run], split, "progress")
     return vals[0] if vals else None
 
 
@@ -114,7 +114,7 @@ def generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets
     head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} finished (%)" for s in sets)]
     lines += _table(rows, head, lambda row: [_cell(row, f"{s}_finished") for s in sets])
     lines += ["", ("Finished: share of episodes in which every prey was captured / all material delivered (the paper's "
-              f"completion); {method}. A binary endpoint: it needs many more seeds than progress to separate "
+              f"\"completion\"); {method}. A binary endpoint: it needs many more seeds than progress to separate "
               "anything, read it as descriptive."), ""]
     if "progress_auc" in keys:
         head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} progress AUC (%)" for s in sets)]

@@ -1,8 +1,8 @@
 """The paper's evaluation metrics over episodes, each with a 95 % confidence interval.
 
-Per episode (``EPISODE_METRICS`` of the env): return, steps, completion (1 if every prey was
-captured / all material delivered within the horizon, as in the paper's Table I; partial
-progress in between), success, MuJoCo robot–robot collisions, Robotarium-style violations
+Per episode (``EPISODE_METRICS`` of the env): return, steps, progress (the fraction of prey
+captured / material delivered, 1 when the task is done), finished (1 if every prey was captured /
+all material delivered within the horizon: the paper's Table I "completion"), MuJoCo robot–robot collisions, Robotarium-style violations
 (``robotarium_collisions`` + ``boundary_exits`` + ``actuator_errors``: what the real testbed
 would flag) and safety-filter interventions; from the progress curve (:func:`curve_endpoints`)
 the area under it (``progress_auc``) and the env steps to 90 % progress (``time_to_90``),
@@ -21,9 +21,28 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["PROGRESS_MARK", "REPORTED", "curve_endpoints", "mean_ci", "summarize_ci", "violations"]
+__all__ = ["PROGRESS_MARK", "REPORTED", "RETIRED_NAMES", "current_names", "curve_endpoints", "mean_ci", "summarize_ci",
+           "violations"]
 
-REPORTED = ("return", "steps", "completion", "success", "progress_auc", "time_to_90", "collisions", "violations",
+RETIRED_NAMES = {"completion": "progress", "success": "finished", "episode_completion": "episode_progress",
+                 "episode_success": "episode_finished", "completion_points": "progress_points", "brakes": "fallbacks"}
+"""Metric names of files written before the vocabulary was made one (issue 32): ``completion``
+meant progress (fraction done) in the evaluation files and the finished share in some tables;
+``success`` the finished share. Readers of stored files rename them with :func:`current_names`."""
+
+
+def current_names(data):
+    """``data`` (a JSON value, a CSV row or header) with the retired metric names replaced, at every
+    depth; values are kept. Files written now pass through unchanged."""
+    if isinstance(data, dict):
+        return {RETIRED_NAMES.get(k, k): current_names(v) for k, v in data.items()}
+    if isinstance(data, list):
+        return [current_names(v) for v in data]
+    if isinstance(data, str):
+        return RETIRED_NAMES.get(data, data)
+    return data
+
+REPORTED = ("return", "steps", "progress", "finished", "progress_auc", "time_to_90", "collisions", "violations",
             "interventions", "fallbacks", "recoveries")
 """Metrics in evaluation tables, in order."""
 

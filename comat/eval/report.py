@@ -19,7 +19,7 @@ files lack it and are coalition ``i % C`` (C = episodes / ``episodes_per_coaliti
 Outputs in ``--out`` (:data:`REPORT_FILES`):
 
 * ``table1.md`` / ``table1.csv``: per task and metric, each algorithm's U_train result next to
-  the paper's Table I (completion = share of episodes finished, the paper's meaning), with the
+  the paper's Table I (the finished share is the paper's "completion"), with the
   env-step budget next to the paper's 4 M; the reference policies' rows below.
 * ``generalization.csv``: per algorithm and task and per composition set present (:data:`SETS`
   order), return, progress, the finished share and, where the evaluations carry them,
@@ -49,7 +49,7 @@ import numpy as np
 
 from comat.eval import figures
 from comat.eval.figures import ALGO_LABELS
-from comat.eval.metrics import mean_ci, violations
+from comat.eval.metrics import current_names, mean_ci, violations
 from comat.eval.stats import cell_means, hierarchical_bootstrap
 from comat.files import write_atomic
 
@@ -62,7 +62,7 @@ SETS = ("train", "val", "test", "scale", "size", "capability")
 SET_NAMES = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
              "capability": "U_cap"}
 """The composition sets as the reports name them."""
-ENDPOINTS = (("return", "return"), ("completion", "progress"), ("success", "finished"),
+ENDPOINTS = (("return", "return"), ("progress", "progress"), ("finished", "finished"),
              ("progress_auc", "progress_auc"), ("time_to_90", "time_to_90"))
 """(evaluation metric, report key): the per-set endpoints of the generalization table. The last two
 appear only where the evaluation rows carry them (files written before issue 28 do not)."""
@@ -82,19 +82,19 @@ PAPER_TABLE1 = {
     # Paper Table I ("Detailed metrics for train team compositions"): MAPPO, QMIX, MAT, COMAT.
     ("pcp", "return"): (45.43, 24.10, 70.12, 82.47),
     ("pcp", "steps"): (79.00, 79.70, 70.95, 65.61),
-    ("pcp", "success"): (0.879, 0.856, 0.916, 0.928),
+    ("pcp", "finished"): (0.879, 0.856, 0.916, 0.928),
     ("pcp", "collisions"): (0.00, 0.00, 0.00, 0.00),
     ("hmt", "return"): (11.70, 11.70, 8.32, 12.41),
     ("hmt", "steps"): (70.00, 70.60, 72.30, 68.75),
-    ("hmt", "success"): (0.977, 0.972, 0.911, 0.977),
+    ("hmt", "finished"): (0.977, 0.972, 0.911, 0.977),
     ("hmt", "collisions"): (0.00, 0.00, 1.00, 0.00),
 }
 """The paper's Table I, keyed by (task, our metric name); values in ``ALGO_ORDER``."""
 PAPER_RETENTION = {("pcp", "comat"): 0.88, ("hmt", "comat"): 0.95}
 """COMAT's retention of training return on unseen compositions reported in the paper (§IV-B; a
 ratio of returns — ours is of progress, see the module docstring)."""
-TABLE_METRICS = (("return", "Mean return"), ("steps", "Episode steps"), ("success", "Completion"),
-                 ("collisions", "Collisions"), ("completion", "Progress (fraction done)"),
+TABLE_METRICS = (("return", "Mean return"), ("steps", "Episode steps"), ("finished", "Finished (paper: completion)"),
+                 ("collisions", "Collisions"), ("progress", "Progress (fraction done)"),
                  ("violations", "Robotarium violations"), ("interventions", "Filter interventions"))
 
 
@@ -117,7 +117,8 @@ def load_run(folder: str | Path, tier: str | None = None) -> dict:
                     curve["return"].append(float(row["episode_return"]))
     tier = tier or config["tier"]
     eval_path = folder / f"evaluation_{tier}.json"
-    evaluation = json.loads(eval_path.read_text()) if eval_path.is_file() else None
+    # Files written before issue 32 name the metrics the old way: read them under today's names.
+    evaluation = current_names(json.loads(eval_path.read_text())) if eval_path.is_file() else None
     return {"folder": str(folder), "algo": config["algo"], "task": config["task"], "seed": config["seed"],
             "tier": tier, "env_steps": curve["env_steps"][-1] if curve["env_steps"] else 0, "curve": curve,
             "budget": int(config.get("total_env_steps") or 0), "evaluation": evaluation}
@@ -194,7 +195,7 @@ def _k_text(runs: list[dict]) -> str:
 def _fmt(mean: float, half: float, metric: str) -> str:
     if math.isnan(mean):
         return "—"
-    if metric == "success":
+    if metric == "finished":
         return f"{100 * mean:.1f}%" + ("" if math.isnan(half) else f" ± {100 * half:.1f}")
     return f"{mean:.2f}" + ("" if math.isnan(half) else f" ± {half:.2f}")
 
@@ -238,8 +239,8 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
     every = [r for rs in groups.values() for r in rs]
     lines += ["", "Training coalitions (U_train), deterministic actions; ours: "
               + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), _k_text(every))
-              + ". Completion = share of episodes in which every prey was captured / all material delivered (the "
-              "paper's definition). The paper trains 4 M env steps per run."]
+              + ". Finished = share of episodes in which every prey was captured / all material delivered (the "
+              "paper's \"completion\"). The paper trains 4 M env steps per run."]
     lines += _reference_lines(groups, tasks)
     return "\n".join(lines) + "\n", buf.getvalue()
 
@@ -258,13 +259,13 @@ def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
             if not out:
                 out += ["", ("Reference policies on the same episodes (one policy each: mean ± 95 % t-interval over "
                         "the set's coalitions, each coalition's episodes averaged first; no seed spread):"), "",
-                        "| Task | Set | Policy | Return | Progress | Completion |", "|---|---|---|---|---|---|"]
+                        "| Task | Set | Policy | Return | Progress | Finished |", "|---|---|---|---|---|---|"]
             run, rows = found
             for policy, row in rows.items():
                 if row is None:
                     continue
                 cells = []
-                for metric, kind in (("return", "return"), ("completion", "return"), ("success", "success")):
+                for metric, kind in (("return", "return"), ("progress", "return"), ("finished", "finished")):
                     got = run_cells(run, split, metric, policy)
                     cells.append("—" if got is None else _fmt(*mean_ci(got[1]), kind))
                 out.append(f"| {task.upper()} | {SET_NAMES[split]} | {policy} | " + " | ".join(cells) + " |")
@@ -316,7 +317,7 @@ def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str
 
 
 def _by_team_size(groups: dict, sets: list[str]) -> dict:
-    """(algo, task) -> team size -> per seed ``{"return", "completion", "coalitions"}``: the mean
+    """(algo, task) -> team size -> per seed ``{"return", "progress", "coalitions"}``: the mean
     over that seed's coalitions of that size (each its episodes' mean) in ``sets``, and how many."""
     out: dict = {}
     for key, runs in groups.items():
@@ -327,9 +328,9 @@ def _by_team_size(groups: dict, sets: list[str]) -> dict:
                 size = run_cells(r, split, "team_size")
                 if size is None:
                     continue
-                metrics = {m: run_cells(r, split, m)[1] for m in ("return", "completion")}
+                metrics = {m: run_cells(r, split, m)[1] for m in ("return", "progress")}
                 for c, n in enumerate(size[1]):
-                    mine = cells.setdefault(int(n), {"return": [], "completion": []})
+                    mine = cells.setdefault(int(n), {"return": [], "progress": []})
                     for m, v in metrics.items():
                         mine[m].append(float(v[c]))
             for n in sorted(cells):

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from comat.eval.metrics import current_names
 from comat.reality.config import LEVELS, RealityConfig
 
 __all__ = ["ROBUSTNESS_ENDPOINTS", "ROBUSTNESS_FILES", "SWEEP_VALUES", "load_sweeps", "print_sweep", "robustness_csv",
@@ -56,7 +57,7 @@ SWEEP_VALUES: dict[str, tuple] = {
 """Default values of each component's sweep: off, nominal, stress and beyond (for the motors'
 acceleration limit, 0 means none, so the sweep runs from no limit to a tighter one)."""
 
-ROBUSTNESS_ENDPOINTS = (("completion", "progress (%)"), ("success", "finished share (%)"),
+ROBUSTNESS_ENDPOINTS = (("progress", "progress (%)"), ("finished", "finished share (%)"),
                         ("steps", "episode length (env steps)"), ("collisions", "contact steps per episode"))
 """(metric, axis label) drawn against the component's value."""
 
@@ -116,7 +117,8 @@ def run_reality_sweep(checkpoint, task: str, sets, episodes: int, tier: str, see
 
 def load_sweeps(folder: str | Path, tier: str) -> list[dict]:
     """The sweep files of a run folder in ``tier`` (none: [])."""
-    return [json.loads(p.read_text()) for p in sorted(Path(folder).glob(f"evaluation_{tier}_sweep_*.json"))]
+    return [current_names(json.loads(p.read_text()))  # old files: today's metric names
+            for p in sorted(Path(folder).glob(f"evaluation_{tier}_sweep_*.json"))]
 
 
 def _run_value(row: dict, metric: str) -> float | None:
@@ -182,7 +184,7 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
             sel = [r for r in rows if (r["task"], r["component"], r["set"], r["metric"]) == (task, comp, split, metric)]
             for algo in sorted({r["algo"] for r in sel}):
                 pts = sorted((r for r in sel if r["algo"] == algo), key=lambda r: r["value"])
-                scale = 100.0 if metric in ("completion", "success") else 1.0
+                scale = 100.0 if metric in ("progress", "finished") else 1.0
                 x = [r["value"] for r in pts]
                 y = np.array([r["mean"] for r in pts]) * scale
                 err = np.nan_to_num(np.array([r["ci95"] for r in pts]) * scale)
@@ -191,7 +193,7 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
                             label=f"{ALGO_LABELS.get(algo, algo)} ({seeds} seed{'s' if seeds > 1 else ''})")
             ax.set_xlabel(comp)
             ax.set_ylabel(label)
-            if metric in ("completion", "success"):
+            if metric in ("progress", "finished"):
                 ax.set_ylim(0, 105)
             else:
                 ax.set_ylim(bottom=0)
@@ -203,7 +205,7 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
     return save(fig, stem)
 
 
-_EPISODE_KEYS = ("coalition", "team_size", "return", "completion", "success", "steps", "collisions",
+_EPISODE_KEYS = ("coalition", "team_size", "return", "progress", "finished", "steps", "collisions",
                  "robotarium_collisions", "interventions", "recoveries", "fallbacks")
 """What a sweep file keeps of each episode (not the progress curve or the per-robot tables)."""
 
@@ -237,8 +239,8 @@ def print_sweep(sweep: dict, out=print) -> None:
     for point in sweep["points"]:
         for row in point["rows"]:
             m = row["metrics"]
-            out(f"{point['value']!s:>24} {row['policy']:<10} {row['set']:<11} {100 * m['completion']['mean']:>8.1f}% "
-                f"{100 * m['success']['mean']:>8.1f}% {m['steps']['mean']:>7.1f} {m['collisions']['mean']:>9.2f}")
+            out(f"{point['value']!s:>24} {row['policy']:<10} {row['set']:<11} {100 * m['progress']['mean']:>8.1f}% "
+                f"{100 * m['finished']['mean']:>8.1f}% {m['steps']['mean']:>7.1f} {m['collisions']['mean']:>9.2f}")
 
 
 def eval_sweep_command(args, pol, named, tier: str, out: Path, refs: tuple, base: str) -> int:

@@ -266,7 +266,10 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         })
     except (TypeError, ValueError) as err:  # name the key as presets and overrides spell it
         text = str(err)
-        for stored, spelled in (("trainer.", f"{section}."), ("model.", f"models.{algo}.")):
-            if text.startswith(stored):
+        for stored, spelled in (("trainer", section), ("model", f"models.{algo}")):
+            if text.startswith(stored + "."):
                 raise type(err)(spelled + text[len(stored):]) from err
+            if f" for {stored};" in text or text.startswith(f"{stored} must be"):
+                raise type(err)(text.replace(f" for {stored};", f" for {spelled};").replace(
+                    f"{stored} must be", f"{spelled} must be", 1)) from err
         raise

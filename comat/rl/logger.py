@@ -14,6 +14,8 @@ import sys
 import time
 from pathlib import Path
 
+from comat.eval.metrics import RETIRED_NAMES
+
 __all__ = ["ProgressLine", "RunLogger"]
 
 
@@ -50,7 +52,12 @@ class RunLogger:
             path = self.out / f"{table}.csv"
             if path.exists() and path.stat().st_size:
                 with open(path, newline="") as fh:
-                    self._headers[table] = next(csv.reader(fh))
+                    rows = list(csv.reader(fh))
+                header = [RETIRED_NAMES.get(name, name) for name in rows[0]]
+                if header != rows[0]:  # a run started before issue 32's names: resume under today's
+                    with open(path, "w", newline="") as fh:
+                        csv.writer(fh).writerows([header, *rows[1:]])
+                self._headers[table] = header
         self._tb = None
         if tensorboard:
             from torch.utils.tensorboard import SummaryWriter
@@ -87,7 +94,7 @@ def _clock(seconds: float) -> str:
 
 
 class ProgressLine:
-    """``[####------] 12,800/100,000 steps | 410 steps/s | return 12.3 | completion 21% (progress 41%) | ETA 0:03:57``.
+    """``[####------] 12,800/100,000 steps | 410 steps/s | return 12.3 | finished 21% (progress 41%) | ETA 0:03:57``.
 
     Redrawn in place on a terminal; elsewhere (logs, CI) printed at most every ``every_s``.
     """
@@ -100,16 +107,16 @@ class ProgressLine:
         self._t0 = time.perf_counter()
         self._last_print = -math.inf
 
-    def update(self, steps: int, ret: float, completion: float, progress: float, final: bool = False) -> None:
-        """``completion``: share of recent episodes that finished the task (the paper's
-        completion); ``progress``: their mean fraction of prey captured / material delivered."""
+    def update(self, steps: int, ret: float, finished: float, progress: float, final: bool = False) -> None:
+        """``finished``: share of recent episodes that finished the task (the paper's
+        "completion"); ``progress``: their mean fraction of prey captured / material delivered."""
         elapsed = time.perf_counter() - self._t0
         rate = (steps - self.start) / elapsed if elapsed > 0 else 0.0
         eta = max(self.total - steps, 0) / rate if rate > 0 else math.inf  # the last rollout may overshoot
         frac = min(1.0, steps / self.total)
         bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
         line = (f"[{bar}] {steps:,}/{self.total:,} steps | {rate:,.0f} steps/s | return {ret:.2f} | "
-                f"completion {completion:.0%} (progress {progress:.0%}) | ETA {_clock(eta)}")
+                f"finished {finished:.0%} (progress {progress:.0%}) | ETA {_clock(eta)}")
         if self.tty:
             self.stream.write("\r" + line + ("\n" if final else ""))
             self.stream.flush()

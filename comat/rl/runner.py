@@ -44,7 +44,7 @@ __all__ = ["EVAL_SEED_OFFSET", "load_policy", "train"]
 
 EVAL_SEED_OFFSET = 1_000_003
 """Evaluation episodes use seed ``run seed + EVAL_SEED_OFFSET`` (never a training seed)."""
-_SUMMARY_KEYS = ("return", "steps", "completion", "success", "collisions", "interventions", "fallbacks")
+_SUMMARY_KEYS = ("return", "steps", "progress", "finished", "collisions", "interventions", "fallbacks")
 
 
 def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
@@ -236,7 +236,7 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
             finished = steps >= config.total_env_steps
             if bar is not None and recent:
                 tail = summarize(recent[-64:])
-                bar.update(steps, tail["return"], tail["success"], tail["completion"], final=finished)
+                bar.update(steps, tail["return"], tail["finished"], tail["progress"], final=finished)
             if config.eval_episodes_per_team and (steps >= next_eval or finished):
                 last_eval = evaluate(config, learner.modules)
                 logger.log("eval", steps, last_eval)
@@ -249,8 +249,8 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
 
                         print(f"\nrecorded {rrd}; {viewer_hint(rrd)}", file=sys.stderr)
                 if not quiet:
-                    print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, completion "
-                          f"{last_eval['success']:.0%} (progress {last_eval['completion']:.0%}), steps {last_eval['steps']:.1f}, collisions "
+                    print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, finished "
+                          f"{last_eval['finished']:.0%} (progress {last_eval['progress']:.0%}), steps {last_eval['steps']:.1f}, collisions "
                           f"{last_eval['collisions']:.2f}", file=sys.stderr)
             if steps >= next_ckpt or finished:
                 checkpoint()

@@ -105,7 +105,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     for k, e in enumerate(result.episodes):
         print(
             f"  episode {k}: {int(e['team_size'])} robots, {int(e['steps'])} steps, return {e['return']:.2f}, "
-            f"completion {e['completion']:.0%}, collisions {int(e['collisions'])}, "
+            f"progress {e['progress']:.0%}, collisions {int(e['collisions'])}, "
             f"filter interventions {int(e['interventions'])}"
         )
     if result.video is not None:

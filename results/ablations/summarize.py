@@ -31,7 +31,10 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from comat.eval.metrics import mean_ci
+from comat.eval.metrics import (
+    current_names,  # files written before issue 32: today's names
+    mean_ci,
+)
 
 HERE = ROOT / "results" / "ablations"
 SWEEP = ROOT / "results" / "sweep"
@@ -48,23 +51,23 @@ LABELS = {
 
 def _curve(folder: Path) -> dict[str, np.ndarray]:
     with open(folder / "progress.csv") as fh:
-        rows = list(csv.DictReader(fh))
+        rows = current_names(list(csv.DictReader(fh)))
     return {k: np.array([float(r[c]) for r in rows]) for k, c in
-            (("steps", "env_steps"), ("progress", "episode_completion"), ("finished", "episode_success"),
+            (("steps", "env_steps"), ("progress", "episode_progress"), ("finished", "episode_finished"),
              ("return", "episode_return"))}
 
 
 def _evals(folder: Path) -> list[dict[str, float]]:
     with open(folder / "eval.csv") as fh:
-        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+        return [{k: float(v) for k, v in r.items()} for r in current_names(list(csv.DictReader(fh)))]
 
 
 def _final_eval(folder: Path, algo: str) -> dict[str, dict[str, float]] | None:
     path = folder / "evaluation_unicycle.json"
     if not path.is_file():
         return None
-    rows = json.loads(path.read_text())["rows"]
-    return {r["set"]: {m: r["metrics"][m]["mean"] for m in ("success", "completion", "return")}
+    rows = current_names(json.loads(path.read_text()))["rows"]
+    return {r["set"]: {m: r["metrics"][m]["mean"] for m in ("finished", "progress", "return")}
             for r in rows if r["policy"] == algo}
 
 
@@ -125,7 +128,7 @@ def screen_table(runs: list[dict]) -> str:
             rs = sorted((r for r in sel if r["variant"] == v), key=lambda r: r["seed"])
             cells = [_cell([_at(r["curve"], "progress", s) for r in rs]) for s in (25_000, 50_000, 100_000)]
             cells.append(_cell([_at(r["curve"], "finished", 100_000) for r in rs]))
-            cells += [_cell([_eval_at(r["evals"], 100_000, k) for r in rs]) for k in ("completion", "success")]
+            cells += [_cell([_eval_at(r["evals"], 100_000, k) for r in rs]) for k in ("progress", "finished")]
             lines.append(f"| {LABELS.get(v, v)} | {len(rs)} | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
@@ -149,7 +152,7 @@ def confirm_table(runs: list[dict]) -> tuple[str, str]:
                 continue
             cells = []
             for split in ("train", "test"):
-                for metric in ("success", "completion"):
+                for metric in ("finished", "progress"):
                     vals = [r["final"][split][metric] for r in rs]
                     mean, half = mean_ci(vals)
                     writer.writerow([task, v, split, metric, len(vals), f"{mean:.4f}", f"{half:.4f}",

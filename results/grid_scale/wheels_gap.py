@@ -16,14 +16,17 @@ import json
 import sys
 from pathlib import Path
 
-from comat.eval.metrics import mean_ci
+from comat.eval.metrics import (
+    current_names,  # files written before issue 32: today's names
+    mean_ci,
+)
 
 HERE = Path(__file__).resolve().parent
 SETS = ("train", "test", "scale")
 
 
 def _rows(run: Path, tier: str) -> dict[str, dict]:
-    data = json.loads((run / f"evaluation_{tier}.json").read_text())
+    data = current_names(json.loads((run / f"evaluation_{tier}.json").read_text()))
     return {r["set"]: r["metrics"] for r in data["rows"] if r["policy"] == data["algo"]}
 
 
@@ -34,13 +37,13 @@ def main(runs: list[Path]) -> str:
     gaps: dict[tuple[str, str], list[float]] = {}
     for run in runs:
         uni, whe = _rows(run, "unicycle"), _rows(run, "wheels")
-        task = json.loads((run / "summary.json").read_text())["task"]
+        task = current_names(json.loads((run / "summary.json").read_text()))["task"]
         for split in SETS:
             if split not in uni or split not in whe:
                 continue
-            u, w = 100 * uni[split]["completion"]["mean"], 100 * whe[split]["completion"]["mean"]
+            u, w = 100 * uni[split]["progress"]["mean"], 100 * whe[split]["progress"]["mean"]
             gaps.setdefault((task, split), []).append(w - u)
-            done = f"{100 * uni[split]['success']['mean']:.0f} / {100 * whe[split]['success']['mean']:.0f}"
+            done = f"{100 * uni[split]['finished']['mean']:.0f} / {100 * whe[split]['finished']['mean']:.0f}"
             hits = f"{uni[split]['collisions']['mean']:g} / {whe[split]['collisions']['mean']:g}"
             lines.append(f"| {run.name} | U_{split} | {u:.1f} | {w:.1f} | {w - u:+.1f} | {done} | {hits} |")
     lines += ["", "| task | set | seeds | gap over seeds (points, 95 % interval) |", "|---|---|---|---|"]

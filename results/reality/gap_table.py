@@ -21,6 +21,8 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+from comat.eval.metrics import current_names  # files written before issue 32: today's names
+
 LEVELS = ("off", "nominal", "stress")
 SETS = {"train": "U_train", "test": "U_test"}
 
@@ -31,7 +33,7 @@ def rows(folder: Path) -> dict:
         path = folder / ("evaluation_unicycle.json" if level == "off" else f"evaluation_unicycle_{level}.json")
         if not path.is_file():
             continue
-        data = json.loads(path.read_text())
+        data = current_names(json.loads(path.read_text()))
         for r in data["rows"]:
             if r["set"] in SETS and r["policy"] not in ("heuristic", "constant", "random"):
                 out[(r["policy"], r["task"], r["set"], level)] = r["metrics"]
@@ -47,13 +49,13 @@ def main(folders: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for folder in map(Path, folders):
         got = rows(folder)
-        trained = json.loads((folder / "evaluation_unicycle.json").read_text()).get("trained_reality", "off") or "off"
+        trained = current_names(json.loads((folder / "evaluation_unicycle.json").read_text())).get("trained_reality", "off") or "off"
         for (policy, task, split, level), m in sorted(got.items(), key=lambda kv: (kv[0][1], kv[0][2], LEVELS.index(kv[0][3]))):
             off = got.get((policy, task, split, "off"))
             delta = "" if off is None or level == "off" else \
                 f"{100 * (m['steps']['mean'] / off['steps']['mean'] - 1):+.1f} %"
-            print(f"| {folder.name} | {task.upper()} | {SETS[split]} | {level} | {fmt(m, 'completion', 100)} | "
-                  f"{fmt(m, 'success', 100)} | {fmt(m, 'steps')} | {delta} | {fmt(m, 'collisions', 1, 2)} | "
+            print(f"| {folder.name} | {task.upper()} | {SETS[split]} | {level} | {fmt(m, 'progress', 100)} | "
+                  f"{fmt(m, 'finished', 100)} | {fmt(m, 'steps')} | {delta} | {fmt(m, 'collisions', 1, 2)} | "
                   f"{fmt(m, 'violations', 1, 2)} | {trained} |")
 
 
@@ -77,8 +79,8 @@ def by_arm(folders: list[str]) -> None:
             mean = sum(values) / len(values)
             return f"{mean:+.{digits}f}{unit} ({each})" if unit else f"{mean:.{digits}f} ({each})"
 
-        prog = [100 * m["completion"]["mean"] for _, m, _ in got]
-        fin = [100 * m["success"]["mean"] for _, m, _ in got]
+        prog = [100 * m["progress"]["mean"] for _, m, _ in got]
+        fin = [100 * m["finished"]["mean"] for _, m, _ in got]
         delta = ([100 * (m["steps"]["mean"] / off["steps"]["mean"] - 1) for _, m, off in got]
                  if level != "off" and all(off is not None for *_, off in got) else None)
         coll = sum(m["collisions"]["mean"] for _, m, _ in got) / len(got)

@@ -13,8 +13,8 @@ from pathlib import Path
 from comat.config import SafetyConfig
 from comat.eval.evaluate import evaluate_policies
 
-# "completion" is the metrics' progress (share of the task done), "success" the finished share.
-ENDPOINTS = ("completion", "success", "steps", "interventions", "collisions", "violations", "recoveries")
+# progress: share of the task done; finished: share of episodes that finished it.
+ENDPOINTS = ("progress", "finished", "steps", "interventions", "collisions", "violations", "recoveries")
 rows = []
 for task in ("pcp", "hmt"):
     for label, reality, safety in (("off", "off", None), ("nominal", "nominal", None),
@@ -28,7 +28,7 @@ for task in ("pcp", "hmt"):
                    "robotarium_collisions_total": sum(e["robotarium_collisions"] for e in r["per_episode"]),
                    "contacts_total": sum(e["collisions"] for e in r["per_episode"])}
             rows.append(row)
-            print(f"{task} {r['set']:6s} {label:19s} progress {row['completion']:.3f} finished {row['success']:.2f} "
+            print(f"{task} {r['set']:6s} {label:19s} progress {row['progress']:.3f} finished {row['finished']:.2f} "
                   f"steps {row['steps']:.1f} interventions {row['interventions']:.0f} contacts "
                   f"{row['contacts_total']:.0f} robotarium collisions {row['robotarium_collisions_total']:.0f}", flush=True)
 Path(__file__).with_name("margin_cost.json").write_text(json.dumps(rows, indent=1) + "\n")

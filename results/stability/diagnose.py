@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from comat.envs.base import resolve_coalitions
+from comat.eval.metrics import current_names  # files written before issue 32: today's names
 
 SETS = ("train", "val", "test", "scale", "size", "capability")
 
@@ -60,20 +61,20 @@ def main(folders: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     slopes = []
     for folder in map(Path, folders):
-        data = json.loads((folder / "evaluation_unicycle.json").read_text())
+        data = current_names(json.loads((folder / "evaluation_unicycle.json").read_text()))
         for row in data["rows"]:
             if row["task"] != "hmt" or row["policy"] in ("heuristic", "constant", "random"):
                 continue
             eps = row["per_episode"]
             if not eps or "robots" not in eps[0]:
                 continue
-            allv, fail = shares(eps), shares([e for e in eps if e["success"] < 1])
+            allv, fail = shares(eps), shares([e for e in eps if e["finished"] < 1])
             for t in sorted(allv):
                 f = fail.get(t, [float("nan")] * 5)
                 print(f"| {folder.name} | {row['set']} | {len(eps)} | {t} | " + " | ".join(f"{v:.1f}" for v in allv[t])
                       + " | " + " | ".join(f"{v:.1f}" for v in f[:4]) + " |")
             x = np.array([_team_slow_payload("hmt", row["set"], e["coalition"]) for e in eps])
-            y = np.array([100 * e["completion"] for e in eps])
+            y = np.array([100 * e["progress"] for e in eps])
             if x.std() > 0:
                 slope = np.polyfit((x - x.mean()) / x.std(), y, 1)[0]
                 slopes.append((folder.name, row["set"], slope, float(y.mean())))

@@ -263,7 +263,7 @@ def main(argv):
         violation = violation or bool(out or pairs)
 
     result = {"task": CONFIG["task"], "policy": CONFIG["policy"], "robots": n, "rps": adapter.generation,
-              "return": ret, "steps": env_steps, "completion": float(task.completion(state)[0]), "success": float(done),
+              "return": ret, "steps": env_steps, "progress": float(task.progress(state)[0]), "finished": float(done),
               "terms": terms, "rps_errors": adapter.errors(r), "figure_artists": 0 if figure is None else len(figure.artists),
               **own}
     if figure is not None and os.environ.get("COMAT_SAVE_FIGURE"):

@@ -14,13 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
+from comat.eval.metrics import current_names  # files written before issue 32: today's names
 from comat.eval.stats import t_interval
 
 ROOT = Path(__file__).resolve().parents[3]
 
 
 def per_coalition(path: Path, split: str, policy: str, metric: str) -> np.ndarray:
-    rows = json.loads(path.read_text())["rows"]
+    rows = current_names(json.loads(path.read_text()))["rows"]
     row = next(r for r in rows if r["set"] == split and r["policy"] == policy)
     by: dict[int, list[float]] = {}
     for e in row["per_episode"]:
@@ -35,14 +36,14 @@ def main() -> None:
         algo = pol.split("_")[0]
         for split in ("train", "capability"):
             base = {m: per_coalition(ROOT / "results/policies" / pol / "evaluation_unicycle.json", split, algo, m)
-                    for m in ("completion", "success")}
-            print(f"| {pol} | {split} | own | {100 * base['completion'].mean():.1f} | | {100 * base['success'].mean():.1f} | |")
+                    for m in ("progress", "finished")}
+            print(f"| {pol} | {split} | own | {100 * base['progress'].mean():.1f} | | {100 * base['finished'].mean():.1f} | |")
             for order in ("reversed", "slow_first"):
                 name = f"hmt_{split}_{order}"
                 path = ROOT / "results/stability/orders" / pol / name / "evaluation_unicycle.json"
                 got = {m: per_coalition(path, f"results/stability/orders/{name}.yaml", algo, m) for m in base}
                 cells = []
-                for m in ("completion", "success"):
+                for m in ("progress", "finished"):
                     t = t_interval(100 * (got[m] - base[m]))
                     cells += [f"{100 * got[m].mean():.1f}", f"{t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}]"]
                 print(f"| {pol} | {split} | {order} | " + " | ".join(cells) + " |")
