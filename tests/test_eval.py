@@ -97,7 +97,8 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     print_table(result, out=lines.append)
     head = lines[0].split()
     assert head[head.index("finished") + 1 : head.index("finished") + 3] == ["AUC", "t90"]
-    assert "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first)" in lines[-1]
+    assert "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first" in lines[-2]
+    assert lines[-1].startswith(f"start states: drawn from seed {result['seed']}")
     json_path, csv_path = write_results(result, tmp_path)
     assert json.loads(json_path.read_text()) == result
     assert len(json_path.read_text().splitlines()) < 200  # each episode row on one line
@@ -238,3 +239,17 @@ def test_best_constant_action_is_the_best_of_the_five(task):
     returns = [np.mean([e["return"] for e in run_episodes(env, lambda o, m, s, a=a: np.where(m, a, 0), teams, EVAL_SEED)])
                for a in range(5)]
     assert int(np.argmax(returns)) == BEST_CONSTANT_ACTION[task], returns
+
+
+def test_share_intervals_stay_inside_0_1_and_one_unit_says_it_has_none():
+    """Two episodes printed ``progress 0.33 ± 4.24`` (issue 32): a share's interval is cut to its
+    range; one seed prints no interval, in words; other metrics keep their symmetric interval."""
+    from comat.eval.metrics import interval_text, mean_ci
+
+    mean, half = mean_ci([0.0, 0.66])
+    assert half > 1 and interval_text(mean, half, share=True) == "0.33 [0.00, 1.00]"
+    assert interval_text(0.5, 0.1, share=True) == "0.50 ± 0.10"
+    assert interval_text(0.75, 3.177, share=True, scale=100, digits=1) == "75.0 [0.0, 100.0]"
+    assert interval_text(-3.0, 5.0) == "-3.00 ± 5.00"
+    assert interval_text(0.9, float("nan")) == "0.90 (1 seed, no interval)"
+    assert interval_text(0.9, float("nan"), unit=None) == "0.90"

@@ -96,8 +96,8 @@ def test_report_on_fake_runs(tmp_path, capsys):
             assert (out / name).read_bytes()[: len(magic)] == magic
     md = (out / "table1.md").read_text()
     # mean over the two seeds ± t(0.975, 1) · sd/√2 = 12.706 · 14.142 / 1.414
-    assert "| PCP | Mean return | 50.00 ± 127.06 | 82.47 |" in md
-    assert "| PCP | Finished (paper: completion) | 75.0% ± 317.7 | 92.8% |" in md
+    assert "| PCP | Mean return | 50.00 ± 127.06 | — |" in md
+    assert "| PCP | Finished (paper: completion) | 75.0% [0.0, 100.0] | 92.8% |" in md
     assert "| PCP | Env-step budget per run | 25,600 | 4,000,000 |" in md
     # every caption states the interval method
     method = "mean over seeds ± 95 % t-interval over per-seed means"
@@ -217,9 +217,10 @@ def test_generalization_compares_with_welch_tests(tmp_path):
     make_report(runs, out)
     md = (out / "generalization.md").read_text()
     assert "| PCP | COMAT | 3 | 82.0 ± 5.0 | 41.0 ± 2.5 | 20.5 ± 1.2 | 50.0 ± 0.0 | 25.0 ± 0.0 |" in md
-    assert "| PCP | MAT | 1 | 50.0 | 25.0 | — | 50.0 | — |" in md
+    one = "(1 seed, no interval)"
+    assert f"| PCP | MAT | 1 | 50.0 {one} | 25.0 {one} | — | 50.0 {one} | — |" in md
     assert "| PCP | MAPPO | 3 | 50.0 ± 0.0 | 50.0 ± 0.0 | 50.0 ± 0.0 |" in md  # the finished share per set
-    assert "| PCP | QMIX | 3 | 50.0 ± 124.2 | 50.0 ± 124.2 | 50.0 ± 124.2 |" in md
+    assert "| PCP | QMIX | 3 | 50.0 [0.0, 100.0] | 50.0 [0.0, 100.0] | 50.0 [0.0, 100.0] |" in md
 
     def line(*parts):
         return next(ln for ln in md.splitlines() if ln.startswith("| PCP | " + " | ".join(parts) + " |"))
@@ -366,3 +367,11 @@ def test_a_report_written_twice_is_the_same_bytes(tmp_path):
     lo, mean, hi = (float(boot[k]) for k in ("hier_boot_mean_ci95_lo", "mean_over_seeds", "hier_boot_mean_ci95_hi"))
     assert lo < mean < hi
     assert written[0] == written[1]
+
+
+def test_share_error_bars_stay_inside_0_100():
+    from comat.eval.figures import clipped_err
+
+    err = clipped_err([95.0, 50.0, 3.0, np.nan], [10.0, 10.0, 10.0, np.nan])
+    np.testing.assert_allclose(err[:, :3], [[10.0, 10.0, 3.0], [5.0, 10.0, 10.0]])
+    assert np.isnan(err[:, 3]).all()

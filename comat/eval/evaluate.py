@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from comat.eval.episodes import run_episodes
-from comat.eval.metrics import REPORTED, summarize_ci
+from comat.eval.metrics import REPORTED, SHARES, interval_text, summarize_ci
 from comat.files import write_atomic
 from comat.team import COALITION_SETS
 
@@ -164,7 +164,7 @@ def print_table(result: dict, out=print) -> None:
         cells = []
         for m in REPORTED:
             v = r["metrics"].get(m)
-            cells.append(("n/a" if v is None else f"{v['mean']:.2f} ± {v['ci95']:.2f}").rjust(17))
+            cells.append(("n/a" if v is None else interval_text(v["mean"], v["ci95"], share=m in SHARES, unit=None)).rjust(17))
         out(f"{r['policy']:<10}{r['set']:<{width}}{r['episodes']:>4}" + "".join(cells))
     k = result.get("episodes_per_coalition", 1)
     # Old result files predate the layer (their episodes were all in the ideal world).
@@ -173,7 +173,12 @@ def print_table(result: dict, out=print) -> None:
         "\"completion\"); progress = fraction captured / delivered; AUC = mean progress over the horizon's env steps "
         "(the final value held after an early finish); t90 = env steps to 90 % progress (the horizon when never "
         f"reached); n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each "
-        f"coalition's {k} episode(s) averaged first), one policy: seed-to-seed spread is not in it")
+        f"coalition's {k} episode(s) averaged first; [low, high] where a share's interval is cut to [0, 1]; none with "
+        "one coalition), one policy: seed-to-seed spread is not in it")
+    if "seed" in result:
+        out(f"start states: drawn from seed {result['seed']} (comat eval --seed; the same teams and starts for every "
+            "policy here). The evaluations during training draw theirs from the run's seed + 1,000,003: other start "
+            "states, so other numbers for the same policy.")
 
 
 def result_json(result: dict) -> str:

@@ -60,6 +60,13 @@ def save(fig, stem: Path) -> list[str]:
     return names
 
 
+def clipped_err(values, halves, top: float = 100.0) -> np.ndarray:
+    """(2, n) lower and upper error-bar lengths of ``values ± halves`` cut to [0, top]: a share's
+    interval stays inside its range, as the tables print it (nan: no bar)."""
+    v, h = np.asarray(values, float), np.asarray(halves, float)
+    return np.stack([np.minimum(h, np.maximum(v, 0.0)), np.minimum(h, np.maximum(top - v, 0.0))])
+
+
 def empty_figure(text: str, stem: Path) -> list[str]:
     """A figure that only says why it is empty (so a report's files are always the same set)."""
     fig, ax = _plt().subplots(figsize=(6, 1.5))
@@ -161,6 +168,8 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
                 scale = 100.0 if key == "progress" else 1.0
                 vals = [scale * r.get(f"{split}_{key}", math.nan) for r in sel]
                 errs = [scale * r.get(f"{split}_{key}_ci95", math.nan) for r in sel]  # nan: no bar (one seed)
+                if key == "progress":
+                    errs = clipped_err(vals, errs)
                 ax.bar(x + (k - (len(sets) - 1) / 2) * width, vals, width, yerr=errs, capsize=2,
                        color=[ALGO_COLORS[r["algo"]] for r in sel], hatch=SET_HATCHES[split], edgecolor="white",
                        alpha=1.0 if split == "train" else 0.75, label=SET_LABELS[split])
@@ -246,7 +255,10 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
                 seeds = max(len(v) for v in by_size[(algo, task)].values())
                 ax.plot(sizes, mean, "o-", color=color, ms=3, label=f"{ALGO_LABELS[algo]} ({seeds} seed"
                         f"{'s' * (seeds > 1)})")
-                ax.fill_between(sizes, mean - half, mean + half, color=color, alpha=0.2, lw=0)
+                low, high = mean - half, mean + half
+                if metric == "progress":
+                    low, high = np.clip(low, 0.0, 100.0), np.clip(high, 0.0, 100.0)
+                ax.fill_between(sizes, low, high, color=color, alpha=0.2, lw=0)
                 for n, m in zip(sizes, mean):  # the count behind each point: coalitions (per seed)
                     per = by_size[(algo, task)][n]
                     text = "/".join(map(str, sorted({int(s["coalitions"]) for s in per})))

@@ -18,7 +18,7 @@ import io
 import math
 
 from comat.eval.figures import ALGO_LABELS
-from comat.eval.metrics import mean_ci
+from comat.eval.metrics import interval_text, mean_ci
 from comat.eval.report import ALPHA, COMPARED, PAPER_RETENTION, SET_NAMES, method_text, seed_means
 from comat.eval.stats import welch
 
@@ -83,7 +83,8 @@ def _cell(row: dict, key: str, scale: float = 100.0, digits: int = 1) -> str:
     mean, half = row.get(key, math.nan), row.get(f"{key}_ci95", math.nan)
     if math.isnan(mean):
         return "—"
-    cell = f"{scale * mean:.{digits}f}" + ("" if math.isnan(half) else f" ± {scale * half:.{digits}f}")
+    share = key.endswith(("_progress", "_finished", "_progress_auc"))  # cut to [0, 1]; not retention or t90
+    cell = interval_text(mean, half, share=share, scale=scale, digits=digits)
     n = row.get(f"{key}_seeds", row["seeds"])
     return cell if n in (0, row["seeds"]) else f"{cell} ({n} of {row['seeds']} seeds)"
 

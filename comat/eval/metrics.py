@@ -21,8 +21,28 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["PROGRESS_MARK", "REPORTED", "RETIRED_NAMES", "current_names", "curve_endpoints", "mean_ci", "summarize_ci",
-           "violations"]
+__all__ = ["PROGRESS_MARK", "REPORTED", "RETIRED_NAMES", "SHARES", "current_names", "curve_endpoints", "interval_text",
+           "mean_ci", "summarize_ci", "violations"]
+
+SHARES = ("progress", "finished", "progress_auc")
+"""Metrics that are shares in [0, 1]: their intervals are cut to that range (the true value lies
+in it, so the cut loses no coverage) instead of printing ``0.33 ± 4.24``."""
+
+
+def interval_text(mean: float, half: float, share: bool = False, scale: float = 1.0, digits: int = 2,
+                  unit: str | None = "seed") -> str:
+    """``mean ± half`` as a table shows it: a share's interval cut to [0, 1] and then written
+    ``mean [lo, hi]``; no interval (one ``unit``: nothing to estimate a spread from) said in words
+    (``unit=None``: a value that has none, e.g. a published figure)."""
+    if math.isnan(mean):
+        return "—"
+    text = f"{scale * mean:.{digits}f}"
+    if math.isnan(half):
+        return text if unit is None else f"{text} (1 {unit}, no interval)"
+    if share and (mean - half < 0 or mean + half > 1):
+        lo, hi = max(0.0, mean - half), min(1.0, mean + half)
+        return f"{text} [{scale * lo:.{digits}f}, {scale * hi:.{digits}f}]"
+    return f"{text} ± {scale * half:.{digits}f}"
 
 RETIRED_NAMES = {"completion": "progress", "success": "finished", "episode_completion": "episode_progress",
                  "episode_success": "episode_finished", "completion_points": "progress_points", "brakes": "fallbacks"}

@@ -49,7 +49,7 @@ import numpy as np
 
 from comat.eval import figures
 from comat.eval.figures import ALGO_LABELS
-from comat.eval.metrics import current_names, mean_ci, violations
+from comat.eval.metrics import SHARES, current_names, interval_text, mean_ci, violations
 from comat.eval.stats import cell_means, hierarchical_bootstrap
 from comat.files import write_atomic
 
@@ -192,12 +192,12 @@ def _k_text(runs: list[dict]) -> str:
     return "/".join(map(str, ks)) if ks else "1"
 
 
-def _fmt(mean: float, half: float, metric: str) -> str:
-    if math.isnan(mean):
-        return "—"
+def _fmt(mean: float, half: float, metric: str, unit: str | None = "seed") -> str:
+    """A table cell: shares in % with their interval cut to [0, 100] %, one ``unit`` said in words."""
     if metric == "finished":
-        return f"{100 * mean:.1f}%" + ("" if math.isnan(half) else f" ± {100 * half:.1f}")
-    return f"{mean:.2f}" + ("" if math.isnan(half) else f" ± {half:.2f}")
+        head, _, rest = interval_text(mean, half, share=True, scale=100.0, digits=1, unit=unit).partition(" ")
+        return head if head == "—" else f"{head}%" + (f" {rest}" if rest else "")
+    return interval_text(mean, half, share=metric in SHARES, unit=unit)
 
 
 def _budgets(groups: dict, task: str, algos: list[str]) -> dict[str, list[int]]:
@@ -229,9 +229,10 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
             cells = []
             for algo in algos:
                 mean, half, n = _over_seeds(groups.get((algo, task), []), "train", metric)
-                paper = PAPER_TABLE1.get((task, metric))
+                # Returns are not comparable: the paper's reward scale is not ours (see the caption).
+                paper = None if metric == "return" else PAPER_TABLE1.get((task, metric))
                 paper_v = None if paper is None else paper[ALGO_ORDER.index(algo)]
-                cells += [_fmt(mean, half, metric), "—" if paper_v is None else _fmt(paper_v, math.nan, metric)]
+                cells += [_fmt(mean, half, metric), "—" if paper_v is None else _fmt(paper_v, math.nan, metric, unit=None)]
                 writer.writerow([task, metric, algo, n, mean, half, "" if paper_v is None else paper_v])
             lines.append(f"| {task.upper()} | {label} | " + " | ".join(cells) + " |")
     seeds = {f"{ALGO_LABELS[a]}/{t.upper()}": len(seed_means(groups.get((a, t), []), "train", "return"))
@@ -240,7 +241,11 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
     lines += ["", "Training coalitions (U_train), deterministic actions; ours: "
               + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), _k_text(every))
               + ". Finished = share of episodes in which every prey was captured / all material delivered (the "
-              "paper's \"completion\"). The paper trains 4 M env steps per run."]
+              "paper's \"completion\"). The paper trains 4 M env steps per run. The paper's "
+              "columns hold only what compares: the finished share, episode steps and collisions. Its returns are "
+              "left out: they are on another reward scale (our scripted policy, which finishes every episode, scores "
+              "35 on PCP; the paper's COMAT 82.5), so a return next to a return would mislead. Shares' intervals are "
+              "cut to [0, 100] % (written [low, high] where cut); one seed has no interval and says so."]
     lines += _reference_lines(groups, tasks)
     return "\n".join(lines) + "\n", buf.getvalue()
 
@@ -267,7 +272,7 @@ def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
                 cells = []
                 for metric, kind in (("return", "return"), ("progress", "return"), ("finished", "finished")):
                     got = run_cells(run, split, metric, policy)
-                    cells.append("—" if got is None else _fmt(*mean_ci(got[1]), kind))
+                    cells.append("—" if got is None else _fmt(*mean_ci(got[1]), kind, unit="coalition"))
                 out.append(f"| {task.upper()} | {SET_NAMES[split]} | {policy} | " + " | ".join(cells) + " |")
     return out
 

@@ -170,7 +170,7 @@ def robustness_csv(rows: list[dict]) -> str:
 def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
     """One panel row per (task, component, set), one column per endpoint; lines per algorithm with
     t-intervals over seeds (bars; none with one seed, said in the title)."""
-    from comat.eval.figures import ALGO_LABELS, _plt, empty_figure, save
+    from comat.eval.figures import ALGO_LABELS, _plt, clipped_err, empty_figure, save
 
     plt = _plt()
     keys = sorted({(r["task"], r["component"], r["set"]) for r in rows})
@@ -188,6 +188,8 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
                 x = [r["value"] for r in pts]
                 y = np.array([r["mean"] for r in pts]) * scale
                 err = np.nan_to_num(np.array([r["ci95"] for r in pts]) * scale)
+                if metric in ("progress", "finished"):
+                    err = clipped_err(y, err)
                 seeds = min(r["seeds"] for r in pts)
                 ax.errorbar(x, y, yerr=err, marker="o", capsize=3,
                             label=f"{ALGO_LABELS.get(algo, algo)} ({seeds} seed{'s' if seeds > 1 else ''})")
