@@ -3,7 +3,8 @@
 # evaluated right after training (off: all sets; nominal-trained: U_train/U_test) and at nominal
 # and stress (U_train/U_test), 5 episodes per coalition; small files copied to results/policies/.
 # Usage: results/reality/run_seed1.sh pcp|hmt [off|nominal]
-# Runs from a snapshot of the code (COMAT_CODE, default: this checkout) with one thread per run,
+# Runs from a snapshot of the code (COMAT_CODE, default: this checkout; python -P, so the current folder
+# does not shadow it) with one thread per run,
 # so two runs side by side each keep a core.
 set -e
 task=$1; level=${2:-off}
@@ -11,7 +12,7 @@ root="$(cd "$(dirname "$0")/../.." && pwd)"
 code=${COMAT_CODE:-$root}
 if [ "$level" = off ]; then name=comat_${task}_s1; teams=all; extra=""
 else name=comat_${task}_${level}_s1; teams=both; extra="reality=$level"; fi
-comat() { PYTHONPATH=$code OMP_NUM_THREADS=1 "$root/.venv/bin/python" -c \
+comat() { PYTHONPATH=$code OMP_NUM_THREADS=1 "$root/.venv/bin/python" -P -c \
   "import sys; from comat.cli import main; sys.argv=['comat']+sys.argv[1:]; sys.exit(main())" "$@"; }
 run=$root/runs/gap2/$name
 cd "$root"
