@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test test-slow test-all test-cluster test-wheel bench mjcf clean
+.PHONY: setup demo test test-slow test-all test-cluster test-wheel bench mjcf clean docs
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,10 @@ test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario 
 	$(BIN)/python -m pytest -q -m slow
 
 test-all: test test-slow test-cluster
+
+docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warnings and broken links fail)
+	$(BIN)/pip install --disable-pip-version-check -q -e ".[docs]"
+	$(BIN)/mkdocs build --strict
 
 test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, two nodes on loopback, ray job submit (about 7 minutes)
 	$(BIN)/python -m pytest -q -m cluster

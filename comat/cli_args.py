@@ -162,7 +162,7 @@ def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> 
 def add_reality(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reality", default="off", metavar="{" + ",".join(REALITY_LEVELS) + ",PROFILE.yaml}",
                    help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
-                   "README, Reality layer); default: off, the ideal world, NOT the level the policy trained at")
+                   "docs/reality.md); default: off, the ideal world, NOT the level the policy trained at")
 
 
 def add_reality_sweep(p: argparse.ArgumentParser) -> None:

@@ -29,7 +29,7 @@ class SimConfig:
     tier: str = "wheels"
     """``"wheels"`` (free chassis on friction-driven wheels) or ``"unicycle"`` (planar joints)."""
     substeps: int | None = None
-    """Physics steps per 0.033 s control tick; None = the tier's default (README, "Physics")."""
+    """Physics steps per 0.033 s control tick; None = the tier's default (docs/physics.md)."""
     timestep_s: float | None = None
     """Alternative to ``substeps``: the physics timestep, which must divide the 0.033 s tick."""
     profile: str = C.DEFAULT_PROFILE.name
@@ -77,7 +77,7 @@ class SimConfig:
 
 @dataclass(frozen=True)
 class SafetyConfig:
-    """Control-barrier-function filter settings (DESIGN §4, README "Safety filter")."""
+    """Control-barrier-function filter settings (DESIGN §4, docs/safety.md)."""
 
     safety_distance_m: float = C.SAFETY_DISTANCE_M
     """Minimum distance d_s kept between the robots' projected points."""

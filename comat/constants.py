@@ -12,7 +12,7 @@ Provenance (see ``shared/reference/robotarium-marbler.md`` §1):
   robots) differs only in the axle length, kept as the :data:`GTERNAL` profile.
 * Values marked *model choice* are ours: the Robotarium publishes no mass, motor torque or
   chassis height, so these are plausible figures for a ~0.1 kg, 11 cm micro robot, chosen so
-  that the MuJoCo robot tracks the Robotarium's unicycle model (README, "Physics").
+  that the MuJoCo robot tracks the Robotarium's unicycle model (docs/physics.md).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ process) it rose 336 -> 353 MiB over the first 2,400 episodes in steps at single
 fixed mmap threshold or a single malloc arena exactly as much, while trimming after every round
 kept it at 285-318 MiB. (With a trim at every env reset the 10,080-episode soak still rose
 301 -> 338 MiB while idle envs held their last batch's OSQP problems; with those dropped after
-every batch, :meth:`comat.envs.VectorEnv.release_solvers`, 264 -> 271 MiB: README "Reliability".)
+every batch, :meth:`comat.envs.VectorEnv.release_solvers`, 264 -> 271 MiB: docs/safety.md, "Reliability".)
 :class:`comat.envs.vector.VectorEnv` calls
 :func:`release_free_heap` on every full reset (the start of each evaluation batch); it costs a
 few milliseconds.

@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 DEFAULT_SUBSTEPS = {"wheels": 4, "unicycle": 3}
-"""Physics substeps per 0.033 s control tick, per tier (README, "Physics", says why)."""
+"""Physics substeps per 0.033 s control tick, per tier (docs/physics.md, says why)."""
 GOLDEN_TEAM_SIZES = (2, 4, 8)
 
 

@@ -320,7 +320,7 @@ SOURCES: dict[str, tuple[str, str]] = {
     "chassis_mass_spread": ("assumed", "peers' ×U(0.9, 1.1) (§3.8, §6 #13)"),
     "com_offset_m": ("assumed", "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)"),
 }
-"""Per field: (mark, source) for the documentation and the README's levels table."""
+"""Per field: (mark, source) for the documentation and the levels table of docs/reality.md."""
 
 
 def profile_fields(path: str, name: str = "reality") -> dict[str, Any]:

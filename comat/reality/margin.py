@@ -2,7 +2,7 @@
 
 With the layer on, the filter decides on *measured* poses (late, noisy, sometimes repeated) and
 its commands reach the ground late, through lagging motors. Three changes keep it safe on the
-*true* poses (README, "Safety under the reality layer", derives them):
+*true* poses (docs/safety.md and docs/reality.md derive them):
 
 * **Gain from the loop delay.** Near the barrier's edge the filtered closing motion obeys
   ``ḣ(t) = -γ h(t - T)``: the filter sees ``h`` late by the loop delay T (pose delay, command

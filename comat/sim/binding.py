@@ -101,7 +101,7 @@ class Binding:
 
         Wheeled tier: wheel speeds [left, right] per robot. Unicycle tier: body-frame servo
         targets [forward, lateral, yaw rate], corrected so that in steady state the integrated
-        motion is the exact unicycle arc (README, "Physics"): the lateral target supplies the
+        motion is the exact unicycle arc (docs/physics.md): the lateral target supplies the
         centripetal force and both undo the semi-implicit integrator's lag of one substep.
         """
         v, w = dxu[..., 0], dxu[..., 1]
