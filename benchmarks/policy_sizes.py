@@ -3,8 +3,8 @@ preset: the models' defaults, the baselines with 20 robot slots).
 
     python benchmarks/policy_sizes.py [--preset sweep] [--out benchmarks/results/policy_sizes.json]
 
-Writes the rows as JSON and prints the markdown table the README shows (tests/test_policy_file.py
-checks the README's table against a fresh measurement).
+Writes the rows as JSON and prints the markdown table docs/policies.md shows (tests/test_policy_file.py
+checks that table against a fresh measurement).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from comat.rl.policy import format_size, policy_weights
 
 
 def table(rows: list[dict]) -> str:
-    """The README's table: one row per algorithm; per task the file's size and the parameters it
+    """The docs' table (docs/policies.md): one row per algorithm; per task the file's size and the parameters it
     keeps (in brackets: all of the learner's, critic or mixer included)."""
     tasks = list(dict.fromkeys(r["task"] for r in rows))
     by = {(r["algo"], r["task"]): r for r in rows}
