@@ -43,6 +43,26 @@ def _single_thread() -> None:
         os.environ.setdefault(var, "1")
 
 
+MEASURED_ENV_STEPS_PER_S = {("comat", "pcp"): (190, 350), ("comat", "hmt"): (144, 144), ("mat", "pcp"): (280, 280),
+                            ("mat", "hmt"): (179, 179)}
+"""Env steps per second of whole 300 k runs on this project's 2-core machine, one thread, other work
+beside them (``wall_s`` of the kept policies' ``progress.csv``, results/policies/): what the first
+line's time estimate for the paper's budget rests on."""
+
+
+def _paper_budget_note(config) -> str:
+    """The first line of ``comat train`` without ``--preset``: the paper's budget and what it costs."""
+    low, high = MEASURED_ENV_STEPS_PER_S.get((config.algo, config.task), (150, 350))
+
+    def span(a: float, b: float, unit: str) -> str:
+        return f"{a:.0f} {unit}" if round(a) == round(b) else f"{a:.0f}-{b:.0f} {unit}"
+
+    hours = span(config.total_env_steps / high / 3600, config.total_env_steps / low / 3600, "h")
+    return (f"no --preset: the paper's budget, {config.total_env_steps:,} env steps (about {hours} on a laptop-class "
+            f"CPU: {config.algo.upper()} on {config.task.upper()} ran {span(low, high, 'env-steps/s')} here); for a first "
+            "look use --preset quick (minutes) or --preset sweep (300 k steps, 15-35 min)")
+
+
 def _cmd_mjcf(args: argparse.Namespace) -> int:
     from comat.mjcf import write_assets
 
@@ -107,8 +127,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
     else:
         if args.algo is None or args.task is None:
             raise ValueError("--algo and --task are required for a new run")
-        config = resolve(apply_overrides(load_preset(args.preset), args.overrides), args.algo, args.task, args.seed,
-                         args.tier, args.steps, args.env_workers, resolve_device(args.device or "auto"))
+        config = resolve(apply_overrides(load_preset(args.preset or "paper"), args.overrides), args.algo, args.task,
+                         args.seed, args.tier, args.steps, args.env_workers, resolve_device(args.device or "auto"))
+        if args.preset is None and args.steps is None:
+            print(_paper_budget_note(config), file=sys.stderr)
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
     print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {reality_name(config.reality)}, "
           f"updates on {config.device}), seed {config.seed}, "
@@ -397,8 +419,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "preset (train/configs/ in a checkout, comat/data/presets/ when installed; values only); the resolved config is written to the run folder.")
     p.add_argument("--algo", choices=ALGOS, help="algorithm (required for a new run)")
     p.add_argument("--task", choices=TASKS, help="task (required for a new run)")
-    p.add_argument("--preset", default="paper",
-                   help="preset name (paper, quick, learning, sweep; train/configs/) or a YAML path (default: %(default)s)")
+    p.add_argument("--preset", default=None,
+                   help="preset name (paper, quick, learning, sweep; train/configs/) or a YAML path (default: paper, the "
+                   "paper's 4 M env steps: hours; the first line says how many)")
     p.add_argument("--seed", type=int, default=None, help="run seed (default: the preset's first seed)")
     p.add_argument("--tier", choices=TIERS, default=None, help="dynamics tier (default: the preset's)")
     p.add_argument("--steps", type=int, default=None, help="total env steps (default: the preset's)")

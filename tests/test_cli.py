@@ -138,3 +138,15 @@ def test_version_and_help_percent(capsys):
         main(["eval", "--help"])
     out = capsys.readouterr().out
     assert "95% confidence" in out and "%%" not in out
+
+
+def test_train_without_a_preset_says_its_budget_and_time_first(tmp_path, capsys, monkeypatch):
+    """Issue 32: ``comat train`` without --preset starts the paper's 4 M-step run; its first line
+    says so, with the time it takes here, before anything else is printed."""
+    # Stop where training would start: the line is printed before; the run itself is not the test.
+    monkeypatch.setattr("comat.rl.runner.train", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    with pytest.raises(KeyboardInterrupt):
+        main(["train", "--algo", "comat", "--task", "pcp", "--out", str(tmp_path / "run")])
+    first = capsys.readouterr().err.splitlines()[0]
+    assert first.startswith("no --preset: the paper's budget, 4,000,000 env steps (about 3-6 h")
+    assert "--preset quick" in first
