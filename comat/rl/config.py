@@ -46,7 +46,9 @@ PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
              "env_workers", "torch_threads", "physics_threads")
-_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models", "reality", "base")
+_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models", "reality", "base", "by_task")
+_TASK_KEYS = tuple(k for k in _PRESET_KEYS if k not in ("base", "by_task", "seeds"))
+"""What ``by_task: {hmt: {...}}`` may change for one task (the budget, the trainer, the models ...)."""
 
 
 @dataclass(frozen=True)
@@ -184,6 +186,13 @@ def _check_preset_keys(data: dict[str, Any], source: str) -> None:
     unknown = sorted(set(models) - set(ALGOS))
     if unknown:
         raise ValueError(f"unknown algo(s) {unknown} under models in {source}; valid: {list(ALGOS)}")
+    by_task = data.get("by_task")
+    if by_task is not None:
+        if not isinstance(by_task, Mapping) or not set(by_task) <= set(TASKS):
+            raise ValueError(f"by_task in {source} must map task names {list(TASKS)} to settings, got {by_task!r}")
+        for task, entry in by_task.items():
+            if not isinstance(entry, Mapping) or not set(entry) <= set(_TASK_KEYS):
+                raise ValueError(f"by_task.{task} in {source} must be a mapping of {sorted(_TASK_KEYS)}, got {entry!r}")
 
 
 def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
@@ -227,7 +236,29 @@ def apply_overrides(preset: dict[str, Any], overrides: list[str] | tuple[str, ..
     except OmegaConfBaseException as err:
         raise ValueError(f"overrides {list(overrides)} could not be parsed: {str(err).splitlines()[0]}") from err
     _check_preset_keys(changes, f"overrides {list(overrides)}")
-    return _merge(_reality_as_mapping(preset), changes)
+    merged = _merge(_reality_as_mapping(preset), changes)
+    if merged.get("by_task"):  # an override beats the preset's per-task value of the same key
+        for entry in merged["by_task"].values():
+            _drop_keys(entry, changes)
+    return merged
+
+
+def _drop_keys(entry: dict[str, Any], changes: dict[str, Any]) -> None:
+    """Remove from ``entry`` every leaf that ``changes`` sets (nested mappings walked together)."""
+    for key, value in changes.items():
+        if key not in entry:
+            continue
+        if isinstance(value, Mapping) and isinstance(entry[key], Mapping):
+            _drop_keys(entry[key], value)
+        else:
+            del entry[key]
+
+
+def for_task(preset: dict[str, Any], task: str) -> dict[str, Any]:
+    """The preset as ``task`` runs it: its ``by_task[task]`` settings merged in (key by key)."""
+    by_task = preset.get("by_task") or {}
+    rest = {k: v for k, v in preset.items() if k != "by_task"}
+    return _merge(rest, by_task[task]) if by_task.get(task) else rest
 
 
 def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
@@ -236,6 +267,7 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
     (``device``: "cpu" or "cuda", as :func:`comat.rl.device.resolve_device` gives)."""
     _check_choice("algo", algo, ALGOS)
     _check_choice("task", task, TASKS)
+    preset = for_task(preset, task)
     tier = tier or preset.get("tier", "unicycle")
     _check_choice("tier", tier, TIERS)
     if seed is None:
