@@ -236,8 +236,12 @@ def test_recording_matches_the_env(tmp_path, task, policy):
         prey = np.stack(column(temporal["/episode_0/task/prey"], "Scalars:scalars"))
         np.testing.assert_array_equal(prey[:, 1], [s["captured"].sum() for s in kept["state"]])
         sensing = team.type_ids() == 0
-        radii = static[f"{w}/capabilities/sensing"]["Points2D:radii"].to_pylist()[0]
-        np.testing.assert_allclose(radii, team.capability_array()[sensing, 0], rtol=1e-6)
+        # The sensing radii as outlines around each sensing robot: every point of the last step's circles
+        # lies at its robot's radius from the robot.
+        rings = np.stack(column(temporal[f"{w}/capabilities/sensing"], "LineStrips2D:strips")[-1])  # (m, S+1, 2)
+        centre = np.asarray(kept["poses"][-1])[sensing, :2]
+        np.testing.assert_allclose(np.hypot(*(rings - centre[:, None]).transpose(2, 0, 1)),
+                                   np.repeat(team.capability_array()[sensing, 0][:, None], rings.shape[1], 1), rtol=1e-5)
     else:
         material = np.stack(column(temporal["/episode_0/task/material"], "Scalars:scalars"))
         np.testing.assert_allclose(material[:, :2], [s["left"] for s in kept["state"]])

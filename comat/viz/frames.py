@@ -146,18 +146,39 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
     _draw_safety(ax, state)
     fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
     fig.text(0.01, 1 - 26 / h, _status_line(state), ha="left", va="top", fontsize=8, family="monospace")
-    # Legend: the types present, in order of appearance, at the header's right.
-    for k, kind in enumerate(reversed(list(dict.fromkeys(state.types)))):
-        fig.text(0.99 - 0.11 * k, 1 - 6 / h, f"● {kind}", ha="right", va="top", fontsize=8,
-                 color=_rgb(TYPE_COLORS.get(kind, (200, 200, 200))))
+    _draw_legend(ax, state)
     fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     assert rgba.shape[:2] == FRAME_SIZE, rgba.shape  # fixed figure size and dpi
     return np.ascontiguousarray(rgba[..., :3])
 
 
+def _draw_legend(ax, s: FrameState) -> None:
+    """What the marks mean, in a strip along the arena's bottom wall: the robot types present, then
+    the task's marks (PCP prey states and radii; HMT load bars and step rings), the filter's ring and,
+    under the reality layer, the measured-pose ghost."""
+    from matplotlib.lines import Line2D
+
+    def dot(color, label, marker="o", size=7, fill=True, ls="none"):
+        return Line2D([], [], marker=marker, ms=size, ls=ls, color=color, markerfacecolor=color if fill else "none",
+                      markeredgecolor="k" if fill else color, label=label)
+
+    items = [dot(_rgb(TYPE_COLORS.get(kind, (200, 200, 200))), kind) for kind in dict.fromkeys(s.types)]
+    if s.task == "pcp":
+        items += [dot(PREY_COLORS[k, :3] / 255, f"prey {name}", size=5) for k, name in enumerate(("free", "sensed", "captured"))]
+        items.append(dot((0.4, 0.4, 0.4), "shaded disk: sensing / capture radius", size=9, fill=False))
+    else:
+        items += [dot("#e6aa14", "bar: load / payload", marker="s", size=6),
+                  dot((0.4, 0.4, 0.4), "dotted ring: step length", size=9, fill=False)]
+    items.append(dot("red", "red ring: filter changed the command", size=9, fill=False))
+    if s.measured is not None:
+        items.append(Line2D([], [], color="#404040", ls="--", label="dashed: measured pose"))
+    ax.legend(handles=items, loc="lower center", ncol=min(len(items), 4), fontsize=6.5, framealpha=0.85,
+              handletextpad=0.3, columnspacing=0.9, borderpad=0.3, labelspacing=0.25)
+
+
 def _status_line(s: FrameState) -> str:
-    head = f"{s.task.upper()}  step {s.step}/{s.horizon}  return {s.ret:7.2f}  "
+    head = f"{s.task.upper()} step {s.step}/{s.horizon} · return {s.ret:.2f} · "
     if s.task == "pcp":
         st = s.task_state
         k = len(st["sensed"])
@@ -166,7 +187,7 @@ def _status_line(s: FrameState) -> str:
         st = s.task_state
         body = f"left {st['left'][0]:.1f} + {st['left'][1]:.1f}, carried {float(st['load'].sum()):.1f}, " \
             f"delivered {float(st['delivered']):.1f}"
-    return head + body + f"  filtered {int(s.intervened.sum())}"
+    return head + body + f" · filtered {int(s.intervened.sum())}"
 
 
 def reality_view(core, b: int, n: int) -> dict[str, np.ndarray | None]:
@@ -248,7 +269,7 @@ def _draw_robots(ax, s: FrameState) -> None:
             ax.add_patch(Rectangle((bx, by), fill, 0.025, facecolor="#e6aa14", edgecolor="none", zorder=4))
         ax.add_patch(Circle((x, y), s.robot_radius_m, facecolor=color, edgecolor="k", lw=0.6, zorder=5))
         ax.plot([x, x + 0.08 * np.cos(th)], [y, y + 0.08 * np.sin(th)], color="k", lw=1.2, zorder=6)
-        ax.text(x, y, str(i), ha="center", va="center", fontsize=6, color="white", zorder=7)
+        ax.text(x, y, str(i), ha="center", va="center", fontsize=7.5, fontweight="bold", color="white", zorder=7)
 
 
 def _draw_reality(ax, s: FrameState) -> None:

@@ -43,10 +43,12 @@ from comat.viz.scene import (
 )
 from comat.viz.tap import EVENT_KINDS, StepSummary, TickTap
 
-__all__ = ["HEADING_ARROW_M", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP", "EpisodeRecorder"]
+__all__ = ["CAPABILITY_RING_SEGMENTS", "HEADING_ARROW_M", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP", "EpisodeRecorder"]
 
 TRAIL_POINTS_PER_STEP = 8
 """Path points kept per robot and env step (evenly spaced ticks, the last one always)."""
+CAPABILITY_RING_SEGMENTS = 24
+"""Segments of a PCP robot's sensing / capture circle (an outline per robot and step)."""
 HEADING_ARROW_M = 0.09
 """Length of the heading arrows."""
 SAFETY_ARROW_S = 0.6
@@ -355,12 +357,16 @@ def _send_pcp(rec, p: str, core, b: int, snaps: list[dict], states, poses: np.nd
     )
     _series(rec, f"{p}/task/prey", states, {"sensed": sensed.sum(1), "captured": captured.sum(1)})
     types = core.type_ids[b, :n]
+    caps = core.caps[b, :n]
+    ring = np.linspace(0.0, 2.0 * np.pi, CAPABILITY_RING_SEGMENTS + 1)
+    unit = np.stack([np.cos(ring), np.sin(ring)], -1)  # (S+1, 2)
     for k, name in enumerate(("sensing", "capture")):
-        mine = poses[:, types == k, :2]
+        mine = poses[:, types == k, :2]  # (T+1, m, 2)
+        strips = mine[:, :, None, :] + caps[types == k, k][None, :, None, None] * unit  # (T+1, m, S+1, 2)
         rec.send_columns(
             f"{w}/capabilities/{name}",
             states,
-            rr.Points2D.columns(positions=mine.reshape(-1, 2)).partition([mine.shape[1]] * T1),
+            rr.LineStrips2D.columns(strips=strips.reshape(-1, *strips.shape[2:])).partition([mine.shape[1]] * T1),
         )
 
 

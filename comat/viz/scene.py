@@ -12,7 +12,7 @@ time. Entity tree of one episode (``E`` = ``episode_<k>``; arena metres, x right
 | ``E/world/robots`` | Points2D | positions per step; radius, colour by type, label with capabilities static |
 | ``E/world/robots/heading`` | Arrows2D | per step |
 | ``E/world/trails`` | LineStrips2D | per step: the step's new piece of every path (appended) |
-| ``E/world/capabilities/sensing``, ``…/capture`` | Points2D | PCP: discs of the radii, per step |
+| ``E/world/capabilities/sensing``, ``…/capture`` | LineStrips2D | PCP: the radii as circle outlines (the robots stay visible), per step |
 | ``E/world/capabilities/payload``, ``…/load`` | Boxes2D, LineStrips2D | HMT: capacity bar, load fill, per step |
 | ``E/world/actions`` | Arrows2D + class ids | per step: the chosen waypoint (AnnotationContext names it) |
 | ``E/world/safety/nominal``, ``…/filtered`` | Arrows2D | per step, robots the barrier changed |
@@ -169,10 +169,10 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
         )
     colors = np.array([TYPE_COLORS.get(r.type, (200, 200, 200)) for r in team.robots], dtype=np.uint8)
     radius = C.PROFILES[core.sim_config.profile].radius_m
-    rec.log(
+    rec.log(  # the full label (type, capabilities) shows on hover; always shown they overlap
         f"{w}/robots",
         rr.Points2D.from_fields(
-            radii=np.full(team.size, radius), colors=colors, labels=robot_labels(team), show_labels=True
+            radii=np.full(team.size, radius), colors=colors, labels=robot_labels(team), show_labels=False
         ),
         static=True,
     )
@@ -183,9 +183,11 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     if task.name == "pcp":
         for k, name in enumerate(("sensing", "capture")):
             rgb = TYPE_COLORS[name]
-            rec.log(
+            rec.log(  # outlines, not discs: a filled disc hides the robots in the web viewer
                 f"{w}/capabilities/{name}",
-                rr.Points2D.from_fields(radii=caps[types == k, k], colors=[(*rgb, 40)]),
+                rr.LineStrips2D.from_fields(radii=[0.004], colors=[(*rgb, 170)],
+                                            labels=[f"robot_{i}: {name} radius {caps[i, k]:.2f} m"
+                                                    for i in np.flatnonzero(types == k)], show_labels=False),
                 static=True,
             )
     else:
