@@ -41,6 +41,9 @@ def _single_thread() -> None:
     # Benchmarks and rollouts are measured on one core unless the user says otherwise.
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ.setdefault(var, "1")
+    # Idle torch threads sleep instead of spinning: two runs' spinning threads steal each other's
+    # cores on a shared machine (comat/machine.py; benchmarks/side_by_side.py measures it).
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
 MEASURED_ENV_STEPS_PER_S = {("comat", "pcp"): (190, 350), ("comat", "hmt"): (144, 144), ("mat", "pcp"): (280, 280),
@@ -102,6 +105,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.eval.evaluate import reality_name
+    from comat.machine import usable_cpus
     from comat.rl.checkpoint import load_checkpoint
     from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
     from comat.rl.device import resolve_device
@@ -132,9 +136,17 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if args.preset is None and args.steps is None:
             print(_paper_budget_note(config), file=sys.stderr)
     out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
+    cpus = usable_cpus()
+    if config.torch_threads > cpus and not args.resume:  # more threads than usable CPUs only contend (a resumed
+        # run keeps its recorded count: the reductions, hence the results, depend on it)
+        print(f"note: torch_threads {config.torch_threads} > the {cpus} CPU(s) this run may use (affinity): "
+              f"using {cpus}", file=sys.stderr)
+        config = RunConfig.from_dict({**config.to_dict(), "torch_threads": cpus})
     print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {reality_name(config.reality)}, "
           f"updates on {config.device}), seed {config.seed}, "
-          f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}", file=sys.stderr)
+          f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}; "
+          f"CPUs: {cpus} usable (affinity), torch threads {config.torch_threads}, env workers {config.env_workers}",
+          file=sys.stderr)
     summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every,
                     overrides=tuple(args.overrides))
     ev = summary["eval_train"]

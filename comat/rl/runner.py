@@ -34,6 +34,7 @@ from comat.config import SimConfig
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
+from comat.machine import RunRegistry, busy_warning, usable_cpus
 from comat.rl.algos import Dims, env_slots, make_learner, policy_act, robot_slots
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, load_trained, save_checkpoint, versions
 from comat.rl.config import RunConfig
@@ -186,6 +187,16 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
     out.mkdir(parents=True, exist_ok=True)
     for stale in out.glob(f".{ckpt_path.name}.*.tmp"):  # left by a kill during a checkpoint write
         stale.unlink()
+    with RunRegistry(out, config.torch_threads) as others:  # who else trains here, for the warning
+        warning = busy_warning(others, usable_cpus())
+        if warning and not quiet:
+            print(warning, file=sys.stderr)
+        return _train_registered(config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update)
+
+
+def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bool, rrd_every: int,
+                      overrides: tuple[str, ...], command: list[str] | None, ckpt_path: Path, on_update) -> dict:
+    """The training loop of :func:`train`, once the run is checked and registered."""
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
     env = _make_env(config, config.trainer.num_envs, config.seed)

@@ -1,0 +1,96 @@
+"""What a training run may use of this machine, and who else is training on it.
+
+A run reads the CPUs it may use from its affinity (``taskset``, a container's cpuset, a Ray
+worker's assignment where Ray pins it) and says so in ``comat train``'s first line. Every running
+``comat train`` leaves a small file in a per-user folder of the temporary directory while it runs
+(:class:`RunRegistry`); a run that finds others there, or a machine whose load is above its CPU
+count, warns and names the cause: side-by-side runs share the CPUs, and each gets about its share.
+Threads of waiting torch workers sleep rather than spin (``OMP_WAIT_POLICY=PASSIVE``, set before torch
+loads unless the user set it): spinning threads of two runs on one machine steal each other's cores
+(benchmarks/side_by_side.py measures it).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+__all__ = ["RunRegistry", "busy_warning", "usable_cpus"]
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity; the CPU count where the OS has no affinity)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # macOS, Windows
+        return os.cpu_count() or 1
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process: alive
+        return True
+    return True
+
+
+class RunRegistry:
+    """The comat trainings running on this machine: ``with RunRegistry(out) as others:`` registers
+    this one for the block's duration and gives the others (their pid, run folder, threads, start)."""
+
+    def __init__(self, out, threads: int, root: Path | None = None) -> None:
+        uid = os.getuid() if hasattr(os, "getuid") else "user"
+        self.root = Path(root) if root is not None else Path(tempfile.gettempdir()) / f"comat-runs-{uid}"
+        self.entry = {"pid": os.getpid(), "out": str(out), "threads": int(threads), "started": time.time()}
+        self.path = self.root / f"{os.getpid()}.json"
+
+    def others(self) -> list[dict]:
+        """Live runs other than this one (files of ended runs are removed)."""
+        found = []
+        for path in sorted(self.root.glob("*.json")) if self.root.is_dir() else []:
+            try:
+                entry = json.loads(path.read_text())
+                pid = int(entry["pid"])
+            except (OSError, ValueError, KeyError, TypeError):
+                continue
+            if pid == os.getpid():
+                continue
+            if _alive(pid):
+                found.append(entry)
+            else:
+                path.unlink(missing_ok=True)  # a run that was killed
+        return found
+
+    def __enter__(self) -> list[dict]:
+        others = self.others()
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            self.path.write_text(json.dumps(self.entry))
+        except OSError:  # a read-only temporary directory: the run goes on unregistered
+            pass
+        return others
+
+    def __exit__(self, *exc) -> None:
+        self.path.unlink(missing_ok=True)
+
+
+def busy_warning(others: list[dict], cpus: int) -> str | None:
+    """A warning naming why this run will be slower than alone, or None."""
+    parts = []
+    if others:
+        who = ", ".join(f"pid {o['pid']} ({o['out']})" for o in others[:3]) + (" ..." if len(others) > 3 else "")
+        parts.append(f"{len(others)} other comat training(s) on this machine: {who}; the {cpus} CPU(s) are shared, "
+                     f"so expect about 1/{len(others) + 1} of this run's speed alone (run grids with comat sweep "
+                     "--jobs, which gives each run its own cores)")
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        load = 0.0
+    if load > cpus + 0.5 and not others:
+        parts.append(f"the machine is busy (load average {load:.1f} on {cpus} CPU(s)): this run will be slower")
+    return "warning: " + "; ".join(parts) if parts else None
