@@ -42,13 +42,19 @@ def _vec_digest(env_id: str, tier: str, reality=None, seed: int = 11) -> str:
             h.update(np.ascontiguousarray(x).tobytes())
         h.update(env.core.safe.world._poses.tobytes())
         if "_episode" in info:
-            for k in sorted(info["episode"]):
+            for k in sorted(info["episode"], key=_recorded_name):
                 h.update(info["episode"][k].tobytes())
     for b in range(3):
-        for _, v in sorted(env.core.episode_metrics(b).items()):
+        for _, v in sorted(env.core.episode_metrics(b).items(), key=lambda kv: _recorded_name(kv[0])):
             h.update(np.float64(v).tobytes())
     env.close()
     return h.hexdigest()[:16]
+
+
+def _recorded_name(metric: str) -> str:
+    """The metric's name when the digests were recorded (issue 32 renamed completion/success): the
+    digests hash the metrics in the sorted order of those names."""
+    return {"progress": "completion", "finished": "success"}.get(metric, metric)
 
 
 def _pz_digest(env_id: str, tier: str, reality=None) -> str:
@@ -384,3 +390,22 @@ def test_teams_that_keep_their_size_keep_their_layer_state_across_a_relayout():
         np.testing.assert_array_equal(a, b)
     assert (layer.ticks[3:] == 0).all() and layer.keys.shape == (8,)
     teams.tick(np.zeros((8, 2)))
+
+
+@pytest.mark.parametrize("field, value", [("motor_tau_max_s", 0.2), ("pose_delay_spread_ticks", 3),
+                                          ("command_delay_spread_ticks", 3)])
+def test_a_range_from_zero_switches_its_component_on(field, value):
+    """A lag drawn from [0, motor_tau_max_s] (or a delay from [0, spread] ticks) is on: with only
+    that field set the layer runs and moves the robots differently (it once counted as off: the
+    motor-lag sweep of 2026-12-03/04 measured the ideal world)."""
+    config = resolve_reality({"level": "off", field: value})
+    assert not config.is_off
+
+    def poses(reality):
+        env = make_env("pcp_v0", coalitions="test", tier="unicycle", reality=reality)
+        env.reset(seed=3)
+        for _ in range(4):
+            env.step({a: 1 for a in env.agents})
+        return env.core.poses()[0]
+
+    assert np.abs(poses(config) - poses("off")).max() > 1e-3

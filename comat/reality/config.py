@@ -200,9 +200,11 @@ _NONNEG_FIELDS = ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_bias_xy_m", "
 _POSITIVE_FIELDS = ("command_brake_after_s", "wheel_disturbance_corr_s")
 _INERT = ("fault_speed_fraction", "fault_start_min_s", "fault_start_max_s", "fault_known", "pose_freeze_mean_ticks",
           "pose_freeze_max_ticks", "command_loss_mean_ticks", "command_brake_after_s", "wheel_disturbance_corr_s",
-          "wheel_disturbance_bound_radps", "motor_tau_max_s", "pose_delay_spread_ticks", "command_delay_spread_ticks")
+          "wheel_disturbance_bound_radps")
 """Fields that shape a component without switching it on (a component is on through its
-probability, SD, delay or range)."""
+probability, SD, delay or range). The upper ends of ranges are not among them: a lag drawn from
+[0, motor_tau_max_s] or a delay from [0, spread] ticks is on with its lower end at 0 (they were,
+until 2026-12-04, and such a setting ran the ideal world: the layer's own switches disagreed)."""
 
 
 def _check(c: RealityConfig) -> None:
