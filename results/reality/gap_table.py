@@ -2,7 +2,7 @@
 U_train and U_test (paired episodes: the same teams and requested starts at every level).
 
     python results/reality/gap_table.py results/policies/*_s0 [runs/gap2/*_s1 ...] > results/reality/gap.md
-    python results/reality/gap_table.py --by-arm results/policies/{comat,mat}_*_s[01] > results/reality/gap_arms.md
+    python results/reality/gap_table.py --by-arm results/policies/{comat,mat}_{pcp,hmt}{,_nominal}_s[01] > results/reality/gap_arms.md
 
 Per policy, task and set: progress, finished share, episode length (env steps), contact steps per
 episode and Robotarium violations per episode at each level, then the change from off (points,

@@ -3,7 +3,8 @@
 # alone at SWEEP_VALUES, every other one off), U_test, 1 episode per coalition (20 per value, the
 # same episodes at every value); then one report per task draws the robustness curves with
 # intervals over seeds (fig7_robustness, robustness.csv).
-# Usage: results/reality/sweeps_all.sh [POLICY_FOLDER ...]   (default: every comat/mat gap policy)
+# Usage: results/reality/sweeps_all.sh [POLICY_FOLDER ...]   (default: every comat/mat gap policy;
+# FORCE=1 redoes sweeps whose files exist)
 set -e
 cd "$(dirname "$0")/../.."
 components="pose_delay_ticks pose_noise_xy_m command_delay_ticks command_loss_prob motor_tau_max_s wheel_disturbance_radps fault_prob"
