@@ -28,6 +28,8 @@ MEASURES = {
     "steps": "forward-speed steps 0 -> 1/2 -> full -> 0 and back: delay from command to observed motion (pose + "
              "command), wheel lag and slew, reachable speed, wheel gain difference (heading drift per metre)",
     "still": "robots standing still: pose noise (x, y, theta) and the share of repeated poses (holds)",
+    "ramp": "forward speed ramped slowly from standstill to 40 % of the top speed and back: the dead zone (the "
+            "wheel speed below which a robot does not move)",
 }
 _TEMPLATE = Path(__file__).parent / "templates" / "calibration_main.py"
 
@@ -70,7 +72,7 @@ def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
     """Run the folder under rps (:func:`sim2real.export.run_rps`) and fit the log it saved:
     ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``; the log is left in the folder."""
     from comat.reality.calibration import load_log
-    from comat.reality.fit import fit_steps, fit_still
+    from comat.reality.fit import fit_ramp, fit_steps, fit_still
     from sim2real.export import run_rps
 
     folder = Path(folder)
@@ -79,5 +81,5 @@ def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
         raise FileNotFoundError(f"{str(folder)!r} is not a calibration folder: missing {missing}")
     result = run_rps(folder, timeout_s, rps_path)
     experiment, log = load_log(folder / result["log"])
-    fit = fit_steps(log) if experiment == "steps" else fit_still(log)
+    fit = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp}[experiment](log)
     return {"rps": result, "fit": fit}

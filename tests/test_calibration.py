@@ -14,7 +14,7 @@ import yaml
 from comat.cli import main
 from comat.reality import RealityConfig, resolve_reality
 from comat.reality.calibration import run_under_rps, simulate
-from comat.reality.fit import fit_steps, fit_still
+from comat.reality.fit import fit_ramp, fit_steps, fit_still
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "results" / "calibration"))
 from recovery import check, recover, setting
@@ -36,20 +36,36 @@ def test_the_robotarium_simulator_shows_no_gap():
     # gain 1; the cap is not below the fastest commanded speed (95 % of the top: nothing above it is seen)
     assert all(abs(r["gain"] - 1) < 1e-3 and r["cap_fraction"] >= 0.95 and abs(r["half_gain_diff"]) < 1e-9 for r in steps)
     assert all(r["noise_xy_m"] == 0 and r["noise_theta_rad"] == 0 for r in still)
+    ramp = fit_ramp(run_under_rps("ramp", 2))
+    assert all(r["dead_zone_radps"] == 0 and r["delay_ticks"] == 0 and abs(r["gain"] - 1) < 1e-6 for r in ramp)
+
+
+@pytest.mark.parametrize("dead_zone", [0.0, 1.9, 3.0])
+def test_the_ramp_recovers_the_dead_zone(dead_zone):
+    """Known truth: the layer's dead zone with the nominal lag, delay and noise around it (kinematic
+    robots); the estimate is within 0.4 rad/s for the median robot (the lag reads as up to ~0.35 when
+    there is none)."""
+    truth = {"level": "off", "motor_dead_zone_radps": dead_zone, "pose_noise_xy_m": 0.001, "pose_delay_ticks": 3,
+             "motor_tau_min_s": 0.04, "motor_tau_max_s": 0.08}
+    got = np.median([r["dead_zone_radps"] for r in fit_ramp(simulate("ramp", truth, n=4, seed=1))])
+    assert abs(got - dead_zone) <= 0.4, got
 
 
 def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
     truth = json.dumps({"pose_delay_ticks": 1, "motor_tau_min_s": 0.05, "motor_tau_max_s": 0.05,
-                        "motor_accel_limit_radps2": 200.0, "pose_noise_xy_m": 0.002, "pose_hold_prob": 0.2})
+                        "motor_accel_limit_radps2": 200.0, "pose_noise_xy_m": 0.002, "pose_hold_prob": 0.2,
+                        "motor_dead_zone_radps": 1.9})
     logs = tmp_path / "logs"
     assert main(["calibrate", "--simulate", truth, "--robots", "3", "--out", str(logs)]) == 0
     profile = tmp_path / "mine.yaml"
-    assert main(["calibrate", str(logs / "calib_steps.npy"), str(logs / "calib_still.npy"), "--out", str(profile)]) == 0
+    assert main(["calibrate", str(logs / "calib_steps.npy"), str(logs / "calib_still.npy"), str(logs / "calib_ramp.npy"),
+                 "--out", str(profile)]) == 0
     out = capsys.readouterr().out
     assert "pose_bias_xy_m" in out and "not identified" in out
     data = yaml.safe_load(profile.read_text())
     fields = data["reality"]
     assert fields["pose_delay_ticks"] == 1 and abs(fields["motor_tau_max_s"] - 0.05) <= 0.01
+    assert abs(fields["motor_dead_zone_radps"] - 1.9) <= 0.4 and "motor_dead_zone_radps" not in data["not_identified"]
     assert "pose_bias_xy_m" in data["not_identified"]
     config = resolve_reality(str(profile))
     assert config == RealityConfig(**fields)
@@ -72,7 +88,7 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("make, message", [
-    (lambda d: d / "steps.npy", "must be calibration logs calib_<steps|still>"),
+    (lambda d: d / "steps.npy", "must be calibration logs calib_<ramp|steps|still>"),
     (lambda d: d / "calib_steps.npy", "does not exist"),
 ])
 def test_bad_logs_get_one_line_errors(tmp_path, capsys, make, message):
@@ -97,13 +113,14 @@ def test_truncated_and_foreign_logs_are_refused(tmp_path, capsys):
 def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_path, capsys):
     out = tmp_path / "cal"
     assert main(["export", "--calibration", str(out), "--robots", "2"]) == 0
-    for experiment in ("steps", "still"):
+    for experiment in ("steps", "still", "ramp"):
         files = sorted(p.name for p in (out / experiment).iterdir())
         assert files == ["calibration_schedule.py", "main.py", "rps_compat.py", "submission_config.py"]
     capsys.readouterr()
-    assert main(["export", "--check", str(out / "steps"), str(out / "still")]) == 0
+    assert main(["export", "--check", str(out / "steps"), str(out / "still"), str(out / "ramp")]) == 0
     printed = capsys.readouterr().out
-    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 2
+    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 3
+    assert "dead_zone_radps 0..0" in printed
     assert "delay_ticks 0..0" in printed
     from comat.reality.calibration import load_log
 

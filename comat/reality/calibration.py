@@ -14,7 +14,10 @@ Experiments (:data:`EXPERIMENTS`):
   (53 s): the delay from command to observed motion (pose + command delay: the two shift the
   response alike and are not told apart), the wheels' lag, the reachable speed, and from the
   heading's drift over the distance the two wheels' gain difference;
-* ``still`` — the robots stand for 60 s: pose noise, and the share of repeated poses (holds).
+* ``still`` — the robots stand for 60 s: pose noise, and the share of repeated poses (holds);
+* ``ramp`` — the forward speed rises slowly from standstill to 40 % of the top speed, stops, then
+  the same backwards, 4 cycles (46 s): the dead zone, the wheel speed below which a robot does
+  not move (the GTernal's 0.03 m/s minimum would be 1.9 rad/s).
 """
 
 from __future__ import annotations

@@ -17,13 +17,20 @@ barrier never steers a robot (at ±0.8 m it turned the outer robots measurably).
 LOG_COLUMNS = ("t_s", "v_cmd_mps", "w_cmd_radps", "x_m", "y_m", "theta_rad")
 """Columns of a calibration log's last axis."""
 
-EXPERIMENTS = {"steps": 1600, "still": 1800}
-"""Experiment -> iterations (at 0.033 s: 53 s and 59 s)."""
+EXPERIMENTS = {"steps": 1600, "still": 1800, "ramp": 1400}
+"""Experiment -> iterations (at 0.033 s: 53 s, 59 s and 46 s)."""
 
 FULL_FRACTION = 0.95
 _STEP_PHASES = ((10, 0.0), (15, 0.5), (15, FULL_FRACTION), (15, 0.0), (15, -0.5), (15, -FULL_FRACTION), (15, 0.0))
 """(iterations, fraction of the top speed 0.2 m/s) of one ``steps`` cycle (100 iterations); "full" is 95 %
 of the top speed, so that the Robotarium's barrier never pushes a wheel past its limit (an actuator error)."""
+
+
+RAMP_TOP_FRACTION = 0.4
+_RAMP_PHASES = ((150, 1.0), (25, 0.0), (150, -1.0), (25, 0.0))
+"""(iterations, direction) of one ``ramp`` cycle (350 iterations): the forward speed rises linearly
+from standstill to 40 % of the top speed (5 s; 0 -> 5 rad/s at the wheels, past any dead zone the
+GTernal's 0.03 m/s minimum implies), stops, then the same backwards, so a cycle ends where it began."""
 
 
 def schedule(experiment: str, k: int, n: int) -> np.ndarray:
@@ -34,6 +41,13 @@ def schedule(experiment: str, k: int, n: int) -> np.ndarray:
         for length, fraction in _STEP_PHASES:
             if k < length:
                 out[:, 0] = fraction * TOP_SPEED_MPS
+                break
+            k -= length
+    elif experiment == "ramp":
+        k = k % sum(p for p, _ in _RAMP_PHASES)
+        for length, direction in _RAMP_PHASES:
+            if k < length:
+                out[:, 0] = direction * RAMP_TOP_FRACTION * TOP_SPEED_MPS * (k + 1) / length if direction else 0.0
                 break
             k -= length
     elif experiment != "still":

@@ -12,10 +12,14 @@ Student-t interval over the per-robot estimates; with one robot it is nan):
   ``pose_delay_ticks``). The heading's drift per metre driven gives the wheels' gain difference.
 * ``still`` logs — the pose noise SD (x, y, θ) over the fresh measurements, and the share of
   repeated measurements (``pose_hold_prob``).
+* ``ramp`` logs — the dead zone δ: the forward distance is modelled as the integral of the
+  commanded wheel speed with every speed below δ set to 0 (the layer's own dead zone), shifted by
+  d whole ticks, with a gain and an offset by least squares; δ on a 0.05 rad/s grid and d on a grid.
+  The ramp is slow (1 rad/s per second at the wheels), so the lag (τ ≲ 0.1 s) moves δ by ≲ 0.1 rad/s.
 
 What the logs cannot show is reported as not identified, never guessed: the pose bias (no
 ground truth on the Robotarium), the split of the delay between poses and commands, command
-loss, the dead zone and faults (no ramp or fault experiment yet), the wheel disturbance.
+loss, faults (no fault experiment), the wheel disturbance; the dead zone without a ``ramp`` log.
 """
 
 from __future__ import annotations
@@ -32,11 +36,13 @@ from comat.reality.calibration_schedule import FULL_FRACTION
 FULL_STEP = FULL_FRACTION
 """The ``steps`` experiment's full speed, as a fraction of the top speed."""
 
-__all__ = ["FIT_RANGES", "fit_logs", "fit_steps", "fit_still", "profile_fields"]
+__all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_steps", "fit_still", "profile_fields"]
 
 FIT_RANGES = {"delay_ticks": range(9), "tau_s": np.round(np.arange(0.0, 0.2001, 0.0025), 6),
               "cap_fraction": np.round(np.arange(0.70, 1.0001, 0.01), 4), "accel_radps2": (0.0, 200.0)}
 """The grids of the ``steps`` fit; the slew limit is either none (0) or the firmware's 200 rad/s²."""
+DEAD_ZONE_GRID = np.round(np.arange(0.0, 4.5001, 0.05), 4)
+"""Dead zones (rad/s) the ``ramp`` fit tries: up to 4.5 of the ramp's 5 rad/s."""
 
 
 def _observed_distance(log: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -115,6 +121,35 @@ def fit_steps(log: np.ndarray) -> list[dict]:
     return out
 
 
+def fit_ramp(log: np.ndarray) -> list[dict]:
+    """Per robot of a ``ramp`` log (K, N, 6): the dead zone (rad/s of wheel speed), the delay d
+    (ticks), the speed gain and the RMS residual (m) of the best fit (see the module docstring)."""
+    dist, _, fresh = _observed_distance(log)
+    K, N = dist.shape
+    wheel = log[:, :, 1] / C.GRITSBOT.wheel_radius_m  # (K, N) commanded wheel speed, rad/s
+    out = []
+    for i in range(N):
+        m = fresh[:, i]
+        b = dist[m, i][:, None]
+        w = wheel[:, i][:, None]
+        moving = np.where(np.abs(w) < DEAD_ZONE_GRID[None, :], 0.0, w) * C.GRITSBOT.wheel_radius_m  # (K, D) m/s
+        travelled = np.vstack([np.zeros((1, DEAD_ZONE_GRID.size)), np.cumsum(moving, 0)[:-1] * C.CONTROL_DT_S])
+        best = None
+        for d in FIT_RANGES["delay_ticks"]:
+            a = np.vstack([np.zeros((d, DEAD_ZONE_GRID.size)), travelled[: K - d]])[m]
+            n, sa, sb = a.shape[0], a.sum(0), b.sum()
+            saa, sab = (a * a).sum(0), (a * b).sum(0)
+            g = (n * sab - sa * sb) / np.maximum(n * saa - sa * sa, 1e-12)
+            c = (sb - g * sa) / n
+            res = ((b - g * a - c) ** 2).mean(0)
+            j = int(np.argmin(res))
+            if best is None or res[j] < best[0]:
+                best = (float(res[j]), j, d, float(g[j]))
+        res, j, d, g = best
+        out.append({"dead_zone_radps": float(DEAD_ZONE_GRID[j]), "delay_ticks": d, "gain": g, "rms_m": math.sqrt(res)})
+    return out
+
+
 def fit_still(log: np.ndarray) -> list[dict]:
     """Per robot of a ``still`` log: pose noise SD (x, y in m, θ in rad) over fresh samples and the
     share of repeated samples."""
@@ -147,11 +182,12 @@ def fit_logs(paths: Sequence[str]) -> dict:
     ``{"parameters": [{name, estimate, lo, hi, robots, runs, note}], "per_robot": {...}}``."""
     if not paths:
         raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy)")
-    per: dict[str, list[dict]] = {"steps": [], "still": []}
-    runs: dict[str, int] = {"steps": 0, "still": 0}
+    fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp}
+    per: dict[str, list[dict]] = {e: [] for e in fits}
+    runs: dict[str, int] = {e: 0 for e in fits}
     for p in paths:
         experiment, log = load_log(p)
-        per[experiment] += fit_steps(log) if experiment == "steps" else fit_still(log)
+        per[experiment] += fits[experiment](log)
         runs[experiment] += 1
     params = []
 
@@ -181,8 +217,12 @@ def fit_logs(paths: Sequence[str]) -> dict:
         add("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], "still")
         add("pose_hold_prob", [r["repeat_share"] for r in still], "still",
             "share of repeated poses (nan: the poses never changed, no noise to tell a hold by)")
-    for name in ("pose_bias_xy_m", "command_delay_ticks", "command_loss_prob", "motor_dead_zone_radps",
-                 "wheel_disturbance_radps", "fault_prob"):
+    if per["ramp"]:
+        add("motor_dead_zone_radps", [r["dead_zone_radps"] for r in per["ramp"]], "ramp",
+            "wheel speed below which a robot does not move (0.05 rad/s grid)")
+    unknown = ("pose_bias_xy_m", "command_delay_ticks", "command_loss_prob",
+               *(() if per["ramp"] else ("motor_dead_zone_radps",)), "wheel_disturbance_radps", "fault_prob")
+    for name in unknown:
         params.append({"name": name, "estimate": None, "lo": None, "hi": None, "robots": 0, "runs": 0,
                        "note": "not identified by these experiments"})
     return {"parameters": params, "per_robot": per}
@@ -207,7 +247,7 @@ def profile_fields(fit: dict) -> dict:
         fields["top_speed_derate_min"] = float(min(1.0, reach)) if reach < FULL_STEP - 0.01 else 1.0
     if "wheel_gain_spread" in est:
         fields["wheel_gain_spread"] = float(min(0.99, max(0.0, est["wheel_gain_spread"]["estimate"])))
-    for name in ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_hold_prob"):
+    for name in ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_hold_prob", "motor_dead_zone_radps"):
         if name in est:
             fields[name] = float(max(0.0, est[name]["estimate"]))
     return fields
