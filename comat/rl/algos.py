@@ -114,6 +114,11 @@ class Learner:
     def __init__(self, algo: str, modules: dict, trainer) -> None:
         self.algo, self.modules, self.trainer = algo, modules, trainer
 
+    def set_progress(self, done: float) -> None:
+        """The share of the run done before the next update (the PPO learning-rate schedule)."""
+        if self.algo != "qmix":
+            self.trainer.set_progress(done)
+
     def iterate(self) -> tuple[list[dict], dict[str, float], int]:
         """Collect and learn once: finished episodes' metrics, training statistics, env steps."""
         if self.algo == "qmix":

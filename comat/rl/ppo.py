@@ -50,6 +50,10 @@ class PPOConfig:
     minibatches: int = 4
     """Minibatches per epoch (samples are whole teams at one step)."""
     lr: float = 5e-4
+    lr_schedule: str = "constant"
+    """``constant``: ``lr`` throughout. ``linear``: ``lr`` × (1 − the run's share of its env steps
+    done), falling to 0 at ``total_env_steps`` (MAPPO's linear decay): a run extended with
+    ``--resume --steps`` decays over its new length from then on."""
     clip: float = 0.2
     """PPO ratio clip ε."""
     entropy_coef: float = 0.01
@@ -72,9 +76,12 @@ class PPOConfig:
                       at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"))
         if self.value_target not in VALUE_TARGETS:
             raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"ppo.lr_schedule must be one of {list(LR_SCHEDULES)}, got {self.lr_schedule!r}")
 
 
 VALUE_TARGETS = ("td", "gae")
+LR_SCHEDULES = ("constant", "linear")
 
 
 @dataclass
@@ -156,6 +163,13 @@ class PPOTrainer:
         self.value_norm = ValueNorm().to(device or "cpu")
         self.generator = torch.Generator().manual_seed(seed)
         self.rng = np.random.default_rng(seed)
+
+    def set_progress(self, done: float) -> None:
+        """The share (0–1) of the run's env steps done before the next update: sets the learning
+        rate of ``lr_schedule`` (a no-op for ``constant``)."""
+        if self.config.lr_schedule == "linear":
+            for group in self.optimizer.param_groups:
+                group["lr"] = self.config.lr * max(0.0, 1.0 - done)
 
     # -- helpers --------------------------------------------------------------------------------
     def _state(self) -> torch.Tensor | None:

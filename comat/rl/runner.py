@@ -232,6 +232,7 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
     try:
         while progress["env_steps"] < config.total_env_steps:
             t0 = time.perf_counter()
+            learner.set_progress(progress["env_steps"] / config.total_env_steps)
             episodes, stats, n = learner.iterate()
             dt = time.perf_counter() - t0
             progress["env_steps"] += n

@@ -3,14 +3,15 @@
 # evaluation on U_val (5 episodes per coalition), the set the screen selects on; the small files
 # and the policy are copied to results/stability/screen/runs/ right away. Idempotent: a kept run
 # is skipped, an interrupted one resumed exactly.
-#   results/stability/screen/run.sh VARIANT TASK SEED STEPS
+#   results/stability/screen/run.sh VARIANT TASK SEED STEPS [ALGO]   (ALGO: comat, the default, or mat)
 # Runs the code of COMAT_CODE (default: this checkout) with python -P (the current folder does not
 # shadow it) and one thread, so two runs side by side (xargs -P 2) each keep a core.
 set -euo pipefail
-variant=$1 task=$2 seed=$3 steps=$4
+variant=$1 task=$2 seed=$3 steps=$4 algo=${5:-comat}
 root="$(cd "$(dirname "$0")/../../.." && pwd)"
 code=${COMAT_CODE:-$root}
 name="${variant}_${task}_s${seed}_${steps}"
+[[ $algo == comat ]] || name="${algo}_$name"
 run="$root/runs/screen/$name"
 keep="$root/results/stability/screen/runs/$name"
 comat() { PYTHONPATH=$code OMP_NUM_THREADS=1 "$root/.venv/bin/python" -P -c \
@@ -21,7 +22,7 @@ mkdir -p runs/screen
 echo "start: $name $(date -u +%FT%TZ)"
 if [[ ! -f "$run/policy.pt" ]]; then
   resume=(); [[ -f "$run/checkpoint.pt" ]] && resume=(--resume)
-  comat train --algo comat --task "$task" --preset "results/stability/screen/configs/$variant.yaml" \
+  comat train --algo "$algo" --task "$task" --preset "results/stability/screen/configs/$variant.yaml" \
     --seed "$seed" --steps "$steps" --out "$run" --quiet "${resume[@]}" > "runs/screen/$name.log" 2>&1
 fi
 comat eval --policy "$run" --teams val --episodes 5 --no-references --out "$run" --force >> "runs/screen/$name.log" 2>&1
