@@ -1,7 +1,7 @@
 """Robotarium calibration folders: ``export_calibration`` and ``check_calibration``.
 
 ``comat export --calibration OUT`` writes one flat submission folder per experiment of
-:data:`comat.reality.calibration_schedule.EXPERIMENTS` (``OUT/steps``, ``OUT/still``): ``main.py``
+:data:`comat.reality.calibration_schedule.EXPERIMENTS` (``OUT/steps``, ``OUT/still``, ``OUT/ramp``, ``OUT/spin``): ``main.py``
 (``sim2real/templates/calibration_main.py``, verbatim), ``calibration_schedule.py``
 (``comat/reality/calibration_schedule.py``, verbatim: numpy only) and ``submission_config.py``
 (``CONFIG``: experiment, robots, iterations, what it measures, how long it runs). The same rules
@@ -30,6 +30,8 @@ MEASURES = {
     "still": "robots standing still: pose noise (x, y, theta) and the share of repeated poses (holds)",
     "ramp": "forward speed ramped slowly from standstill to 40 % of the top speed and back: the dead zone (the "
             "wheel speed below which a robot does not move)",
+    "spin": "turn-rate steps 0 -> 1/2 -> 95 % of 3.64 rad/s -> 0 and back, turning in place: delay, lag, turn-rate "
+            "gain, reachable wheel speed, wheel gain difference (the circle the robot's centre draws)",
 }
 _TEMPLATE = Path(__file__).parent / "templates" / "calibration_main.py"
 
@@ -72,7 +74,7 @@ def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
     """Run the folder under rps (:func:`sim2real.export.run_rps`) and fit the log it saved:
     ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``; the log is left in the folder."""
     from comat.reality.calibration import load_log
-    from comat.reality.fit import fit_ramp, fit_steps, fit_still
+    from comat.reality.fit import fit_ramp, fit_spin, fit_steps, fit_still
     from sim2real.export import run_rps
 
     folder = Path(folder)
@@ -81,5 +83,5 @@ def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
         raise FileNotFoundError(f"{str(folder)!r} is not a calibration folder: missing {missing}")
     result = run_rps(folder, timeout_s, rps_path)
     experiment, log = load_log(folder / result["log"])
-    fit = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp}[experiment](log)
+    fit = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}[experiment](log)
     return {"rps": result, "fit": fit}

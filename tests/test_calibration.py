@@ -14,7 +14,7 @@ import yaml
 from comat.cli import main
 from comat.reality import RealityConfig, resolve_reality
 from comat.reality.calibration import run_under_rps, simulate
-from comat.reality.fit import fit_ramp, fit_steps, fit_still
+from comat.reality.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "results" / "calibration"))
 from recovery import check, recover, setting
@@ -38,6 +38,28 @@ def test_the_robotarium_simulator_shows_no_gap():
     assert all(r["noise_xy_m"] == 0 and r["noise_theta_rad"] == 0 for r in still)
     ramp = fit_ramp(run_under_rps("ramp", 2))
     assert all(r["dead_zone_radps"] == 0 and r["delay_ticks"] == 0 and abs(r["gain"] - 1) < 1e-6 for r in ramp)
+    spin = fit_spin(run_under_rps("spin", 2))  # turning in place: turn gain 1, no circle, no cap seen
+    assert all(r["delay_ticks"] == 0 and r["tau_own_s"] == 0 and abs(r["gain"] - 1) < 1e-6 for r in spin)
+    assert all(abs(r["half_gain_diff"]) < 1e-9 and abs(r["tracked_ahead_m"]) < 1e-9 for r in spin)
+    assert all(r["cap_fraction"] * r["gain"] >= r["full_fraction"] - 0.01 for r in spin)
+
+
+def test_the_spin_sees_the_wheels_gain_difference_and_its_fit_joins_the_profile(tmp_path):
+    """Known per-wheel gains (spread 0.05) with lag, delay and 1 mm noise: each robot's (g_r - g_l)/2
+    from the circle its centre draws within 0.005 of the layer's draw; a spin log alone gives the
+    delay, the lag and the spread; every log's loop tick is reported (0.033 s in comat)."""
+    from recovery import true_half_gain_diff
+
+    truth = {"wheel_gain_spread": 0.05, "pose_noise_xy_m": 0.001, "pose_delay_ticks": 2, "motor_tau_min_s": 0.05,
+             "motor_tau_max_s": 0.05}
+    log = simulate("spin", truth, n=4, seed=3)
+    got = np.array([r["half_gain_diff"] for r in fit_spin(log)])
+    assert np.abs(got - true_half_gain_diff(truth, 3)).max() <= 0.005, got
+    np.save(tmp_path / "calib_spin.npy", log)
+    fit = fit_logs([str(tmp_path / "calib_spin.npy")])
+    est = {p["name"]: p["estimate"] for p in fit["parameters"]}
+    assert est["pose_delay_ticks"] == 2 and abs(est["motor_tau_s"] - 0.05) < 0.01 and est["wheel_gain_spread"] > 0.01
+    assert abs(est["turn_gain"] - 1) < 0.03 and est["loop_tick_s"] == pytest.approx(0.033)
 
 
 @pytest.mark.parametrize("dead_zone", [0.0, 1.9, 3.0])
@@ -88,7 +110,7 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("make, message", [
-    (lambda d: d / "steps.npy", "must be calibration logs calib_<ramp|steps|still>"),
+    (lambda d: d / "steps.npy", "must be calibration logs calib_<ramp|spin|steps|still>"),
     (lambda d: d / "calib_steps.npy", "does not exist"),
 ])
 def test_bad_logs_get_one_line_errors(tmp_path, capsys, make, message):
@@ -113,13 +135,13 @@ def test_truncated_and_foreign_logs_are_refused(tmp_path, capsys):
 def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_path, capsys):
     out = tmp_path / "cal"
     assert main(["export", "--calibration", str(out), "--robots", "2"]) == 0
-    for experiment in ("steps", "still", "ramp"):
+    for experiment in ("steps", "still", "ramp", "spin"):
         files = sorted(p.name for p in (out / experiment).iterdir())
         assert files == ["calibration_schedule.py", "main.py", "rps_compat.py", "submission_config.py"]
     capsys.readouterr()
-    assert main(["export", "--check", str(out / "steps"), str(out / "still"), str(out / "ramp")]) == 0
+    assert main(["export", "--check", *(str(out / e) for e in ("steps", "still", "ramp", "spin"))]) == 0
     printed = capsys.readouterr().out
-    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 3
+    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4
     assert "dead_zone_radps 0..0" in printed
     assert "delay_ticks 0..0" in printed
     from comat.reality.calibration import load_log

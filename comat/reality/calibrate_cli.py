@@ -56,7 +56,7 @@ def _cmd(args: argparse.Namespace) -> int:
     from comat.reality.fit import fit_logs, profile_fields
 
     if not args.logs:
-        raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy)")
+        raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
     fit = fit_logs(args.logs)
     fields = profile_fields(fit)
     config = RealityConfig(**fields)  # the profile is a valid layer before anything is written
@@ -86,7 +86,7 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     from comat.cli_args import add_force
 
     p = subparsers.add_parser(
-        "calibrate", help="fit the reality layer to calibration logs (calib_steps.npy, calib_still.npy, calib_ramp.npy)",
+        "calibrate", help="fit the reality layer to calibration logs (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)",
         description=__doc__.split("\n\n")[1].replace("``", "'").replace(":mod:", ""))
     p.add_argument("logs", nargs="*", metavar="LOGS", help="calibration logs calib_<experiment>[.<run>].npy")
     p.add_argument("--out", required=True, help="the profile to write (PROFILE.yaml); with --simulate, a folder")

@@ -17,7 +17,14 @@ Experiments (:data:`EXPERIMENTS`):
 * ``still`` — the robots stand for 60 s: pose noise, and the share of repeated poses (holds);
 * ``ramp`` — the forward speed rises slowly from standstill to 40 % of the top speed, stops, then
   the same backwards, 4 cycles (46 s): the dead zone, the wheel speed below which a robot does
-  not move (the GTernal's 0.03 m/s minimum would be 1.9 rad/s).
+  not move (the GTernal's 0.03 m/s minimum would be 1.9 rad/s);
+* ``spin`` — turn-rate steps 0 → ½ → 95 % of the Robotarium's 3.64 rad/s → 0 and back, the robots
+  turning in place more than once round each way, 5 cycles (33 s): the delay and the lag again, the turn-rate gain and the
+  reachable turn rate, and from the circle the robot's centre draws while it turns the wheels' gain
+  difference (and how far ahead of the wheel axle the tracked point sits).
+
+Every log also times the loop (``time.time()`` each iteration on the Robotarium): the fit reports
+the tick's length. There is no timing experiment of its own: every run measures it.
 """
 
 from __future__ import annotations

@@ -16,6 +16,10 @@ Student-t interval over the per-robot estimates; with one robot it is nan):
   commanded wheel speed with every speed below δ set to 0 (the layer's own dead zone), shifted by
   d whole ticks, with a gain and an offset by least squares; δ on a 0.05 rad/s grid and d on a grid.
   The ramp is slow (1 rad/s per second at the wheels), so the lag (τ ≲ 0.1 s) moves δ by ≲ 0.1 rad/s.
+* ``spin`` logs — the ``steps`` fit on the heading (the wheels' rim distance l/2 · Δθ against the
+  commanded l/2 · ω): delay, lag, turn-rate gain, reachable wheel speed; the circle the robot's
+  centre draws while turning gives the wheels' gain difference (:func:`fit_spin`).
+* every log — the loop's tick (median, 95th percentile, share late) from its clock column.
 
 What the logs cannot show is reported as not identified, never guessed: the pose bias (no
 ground truth on the Robotarium), the split of the delay between poses and commands, command
@@ -31,12 +35,12 @@ import numpy as np
 
 from comat import constants as C
 from comat.reality.calibration import load_log
-from comat.reality.calibration_schedule import FULL_FRACTION
+from comat.reality.calibration_schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
 
 FULL_STEP = FULL_FRACTION
 """The ``steps`` experiment's full speed, as a fraction of the top speed."""
 
-__all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_steps", "fit_still", "profile_fields"]
+__all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_spin", "fit_steps", "fit_still", "loop_timing", "profile_fields"]
 
 FIT_RANGES = {"delay_ticks": range(9), "tau_s": np.round(np.arange(0.0, 0.2001, 0.0025), 6),
               "cap_fraction": np.round(np.arange(0.70, 1.0001, 0.01), 4), "accel_radps2": (0.0, 200.0)}
@@ -73,15 +77,9 @@ def _model_speed(v_cmd: np.ndarray, taus: np.ndarray, cap: float, accel: float) 
     return out * r
 
 
-def fit_steps(log: np.ndarray) -> list[dict]:
-    """Per robot of a ``steps`` log (K, N, 6): delay d (ticks), lag τ (s), speed gain, cap
-    fraction of the top speed, the wheels' half gain difference, and the fit's RMS residual (m).
-
-    A lag and one more tick of delay look alike in a noisy step response (a first-order lag
-    delays slow signals by τ); the robots share the lag's scale, so τ is chosen first by the
-    residual summed over robots (each at its own best d and cap), then each robot's d, cap
-    and gain at that τ, and finally each robot's own τ at its d (reported as its spread)."""
-    dist, dth, fresh = _observed_distance(log)
+def _fit_response(dist: np.ndarray, fresh: np.ndarray, v_cmd: np.ndarray) -> list[dict]:
+    """Per robot: the delay, lag, gain and cap that best turn the commanded speed v_cmd (K, N) into
+    the observed distance dist (K, N) (fresh samples only); see :func:`fit_steps`."""
     K, N = dist.shape
     taus = FIT_RANGES["tau_s"]
     delays = list(FIT_RANGES["delay_ticks"])
@@ -92,7 +90,7 @@ def fit_steps(log: np.ndarray) -> list[dict]:
         m = fresh[:, i]
         b = dist[m, i][:, None]
         for ci, (cap, accel) in enumerate(shapes):
-            model_v = _model_speed(log[:, i, 1], taus, cap, accel)  # (K, T)
+            model_v = _model_speed(v_cmd[:, i], taus, cap, accel)  # (K, T)
             travelled = np.vstack([np.zeros((1, taus.size)), np.cumsum(model_v, 0)[:-1] * C.CONTROL_DT_S])
             for di, d in enumerate(delays):
                 a = np.vstack([np.zeros((d, taus.size)), travelled[: K - d]])[m]  # pose at k: true pose at k-d
@@ -110,15 +108,86 @@ def fit_steps(log: np.ndarray) -> list[dict]:
     for i in range(N):
         ci, di = np.unravel_index(np.argmin(res[i, :, :, t_shared]), res[i, :, :, 0].shape)
         own_t = int(np.argmin(res[i, ci, di]))
+        out.append({"delay_ticks": delays[di], "tau_s": float(taus[t_shared]), "tau_own_s": float(taus[own_t]),
+                    "gain": float(gains[i, ci, di, t_shared]), "cap_fraction": float(shapes[ci][0]),
+                    "accel_radps2": float(shapes[ci][1]), "rms_m": math.sqrt(float(res[i, ci, di, t_shared]))})
+    return out
+
+
+def fit_steps(log: np.ndarray) -> list[dict]:
+    """Per robot of a ``steps`` log (K, N, 6): delay d (ticks), lag τ (s), speed gain, cap
+    fraction of the top speed, the wheels' half gain difference, and the fit's RMS residual (m).
+
+    A lag and one more tick of delay look alike in a noisy step response (a first-order lag
+    delays slow signals by τ); the robots share the lag's scale, so τ is chosen first by the
+    residual summed over robots (each at its own best d and cap), then each robot's d, cap
+    and gain at that τ, and finally each robot's own τ at its d (reported as its spread)."""
+    dist, dth, fresh = _observed_distance(log)
+    out = _fit_response(dist, fresh, log[:, :, 1])
+    for i, row in enumerate(out):
         m = fresh[:, i]
         ds = dist[m, i]
         kappa = float(np.polyfit(ds, dth[m, i], 1)[0]) if np.ptp(ds) > 0.05 else float("nan")
-        out.append({"delay_ticks": delays[di], "tau_s": float(taus[t_shared]), "tau_own_s": float(taus[own_t]),
-                    "gain": float(gains[i, ci, di, t_shared]), "cap_fraction": float(shapes[ci][0]),
-                    "accel_radps2": float(shapes[ci][1]),
-                    "half_gain_diff": kappa * C.GRITSBOT.base_length_m / 2.0,  # kappa = (g_r - g_l) / l
-                    "rms_m": math.sqrt(float(res[i, ci, di, t_shared]))})
+        row["half_gain_diff"] = kappa * C.GRITSBOT.base_length_m / 2.0  # kappa = (g_r - g_l) / l
+        row["full_fraction"] = FULL_STEP
     return out
+
+
+def fit_spin(log: np.ndarray) -> list[dict]:
+    """Per robot of a ``spin`` log (K, N, 6): the fit of :func:`fit_steps` on the wheels' rim
+    distance l/2 · Δθ against the commanded rim speed l/2 · ω (a turn in place drives the wheels
+    at ∓ω l/2), so ``gain`` is the turn-rate gain and ``cap_fraction`` the reachable wheel speed;
+    then the circle the tracked point draws: x = c_x + R sin θ + e cos θ, y = c_y − R cos θ + e sin θ
+    by least squares, where R = v/ω = l (g_r − g_l) / (2 (g_r + g_l)) gives the half gain difference
+    and e is how far ahead of the wheel axle the tracked point sits (a point beside the axle line
+    would add to R: the ``steps`` heading drift is the estimate that cannot see it)."""
+    _, dth, fresh = _observed_distance(log)
+    half = C.GRITSBOT.base_length_m / 2.0
+    out = _fit_response(dth * half, fresh, log[:, :, 2] * half)
+    full = float(np.abs(log[:, :, 2]).max()) * half / C.GRITSBOT.max_linear_velocity_mps
+    for i, row in enumerate(out):
+        coef = _spin_circle(log[:, i], fresh[:, i], row["delay_ticks"])
+        row["half_gain_diff"] = float(2.0 * coef[0] * row["gain"] / C.GRITSBOT.base_length_m)
+        row["tracked_ahead_m"] = float(coef[1])
+        row["full_fraction"] = full
+    return out
+
+
+def _spin_circle(log: np.ndarray, fresh: np.ndarray, delay: int, settle: int = 6) -> np.ndarray:
+    """(R, e) of one robot's ``spin`` log (K, 6) by least squares over the poses of the half-rate
+    phases (the command steady for ``settle`` ticks, ``delay`` ticks earlier), each phase with a
+    centre of its own; nan where the heading does not turn more than half round in them."""
+    w = log[:, 2]
+    level = 0.5 * TOP_TURN_RATE_RADPS
+    steady = np.abs(np.abs(w) - level) < 0.02 * level
+    for j in range(1, settle):
+        steady[j:] &= steady[:-j].copy()
+        steady[:j] = False
+    use = np.zeros_like(steady)
+    use[delay:] = steady[: len(steady) - delay]
+    segment = np.cumsum(np.r_[True, np.diff(use.astype(int)) != 0])  # one id per phase
+    use &= fresh  # (a held pose is left out, not a new phase)
+    segment = segment[use]
+    ids = np.unique(segment)
+    th, x, y = log[use, 5], log[use, 3], log[use, 4]
+    if ids.size == 0 or max(np.ptp(np.unwrap(th[segment == s])) for s in ids) < np.pi / 2:
+        return np.full(2, np.nan)
+    n, S = th.size, ids.size
+    design = np.zeros((2 * n, 2 * S + 2))
+    col = np.searchsorted(ids, segment)
+    design[np.arange(n), 2 * col] = 1.0  # each phase's centre x
+    design[n + np.arange(n), 2 * col + 1] = 1.0  # and y
+    design[:n, -2], design[n:, -2] = np.sin(th), -np.cos(th)
+    design[:n, -1], design[n:, -1] = np.cos(th), np.sin(th)
+    return np.linalg.lstsq(design, np.concatenate([x, y]), rcond=None)[0][-2:]
+
+
+def loop_timing(log: np.ndarray) -> dict:
+    """The loop's own timing from a log's clock column: median and 95th percentile of the tick (s),
+    and the share of ticks longer than 1.5 × 0.033 s."""
+    dt = np.diff(log[:, 0, 0])
+    return {"tick_s": float(np.median(dt)), "tick_p95_s": float(np.percentile(dt, 95)),
+            "late_share": float((dt > 1.5 * C.CONTROL_DT_S).mean())}
 
 
 def fit_ramp(log: np.ndarray) -> list[dict]:
@@ -179,53 +248,67 @@ def _interval(values: Sequence[float]) -> tuple[float, float, float]:
 
 def fit_logs(paths: Sequence[str]) -> dict:
     """Fit every log (one or many runs of each experiment) and return
-    ``{"parameters": [{name, estimate, lo, hi, robots, runs, note}], "per_robot": {...}}``."""
+    ``{"parameters": [{name, estimate, lo, hi, robots, runs, note}], "per_robot": {...}, "timing": [...]}``.
+    ``steps`` and ``spin`` measure the same wheels: their robots are pooled for the delay, the lag,
+    the reachable speed and the gain difference."""
     if not paths:
-        raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy)")
-    fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp}
+        raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
+    fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}
     per: dict[str, list[dict]] = {e: [] for e in fits}
     runs: dict[str, int] = {e: 0 for e in fits}
+    timing = []
     for p in paths:
         experiment, log = load_log(p)
         per[experiment] += fits[experiment](log)
         runs[experiment] += 1
+        timing.append(loop_timing(log))
     params = []
 
-    def add(name, values, experiment, note="", integer=False):
+    def add(name, values, n_runs, note=""):
         est, lo, hi = _interval(values)
-        if integer and np.isfinite(est):
-            est = round(est)
-        params.append({"name": name, "estimate": est, "lo": lo, "hi": hi, "robots": len(values),
-                       "runs": runs[experiment], "note": note})
+        params.append({"name": name, "estimate": est, "lo": lo, "hi": hi, "robots": len(values), "runs": n_runs,
+                       "note": note})
 
-    steps, still = per["steps"], per["still"]
-    if steps:
-        delays = [r["delay_ticks"] for r in steps]
+    moving = per["steps"] + per["spin"]
+    n_moving = runs["steps"] + runs["spin"]
+    if moving:
+        delays = [r["delay_ticks"] for r in moving]
         params.append({"name": "pose_delay_ticks", "estimate": int(min(delays)), "lo": int(min(delays)),
-                       "hi": int(max(delays)), "robots": len(delays), "runs": runs["steps"],
+                       "hi": int(max(delays)), "robots": len(delays), "runs": n_moving,
                        "note": "pose + command delay (not separable); lo-hi: per-robot range"})
-        add("motor_tau_s", [r["tau_s"] for r in steps], "steps", "per-robot mean")
-        add("speed_gain", [r["gain"] for r in steps], "steps", "forward speed gain (mean of the wheels)")
-        add("top_speed_fraction", [r["cap_fraction"] * r["gain"] for r in steps], "steps", "reachable / 12.5 rad/s")
-        diffs = [r["half_gain_diff"] for r in steps]
+        add("motor_tau_s", [r["tau_s"] for r in moving], n_moving, "per-robot mean")
+        if per["steps"]:
+            add("speed_gain", [r["gain"] for r in per["steps"]], runs["steps"], "forward speed gain (mean of the wheels)")
+        if per["spin"]:
+            add("turn_gain", [r["gain"] for r in per["spin"]], runs["spin"],
+                "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)")
+            add("tracked_ahead_m", [r["tracked_ahead_m"] for r in per["spin"]], runs["spin"],
+                "tracked point ahead of the wheel axle (reported, not in the layer)")
+        add("top_speed_fraction", [r["cap_fraction"] * r["gain"] for r in moving], n_moving, "reachable / 12.5 rad/s")
+        diffs = [r["half_gain_diff"] for r in moving if np.isfinite(r["half_gain_diff"])]
         spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
         params.append({"name": "wheel_gain_spread", "estimate": spread, "lo": float("nan"), "hi": float("nan"),
-                       "robots": len(diffs), "runs": runs["steps"],
+                       "robots": len(diffs), "runs": n_moving,
                        "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"})
-    if still:
-        add("pose_noise_xy_m", [r["noise_xy_m"] for r in still], "still")
-        add("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], "still")
-        add("pose_hold_prob", [r["repeat_share"] for r in still], "still",
+    if per["still"]:
+        still = per["still"]
+        add("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"])
+        add("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], runs["still"])
+        add("pose_hold_prob", [r["repeat_share"] for r in still], runs["still"],
             "share of repeated poses (nan: the poses never changed, no noise to tell a hold by)")
     if per["ramp"]:
-        add("motor_dead_zone_radps", [r["dead_zone_radps"] for r in per["ramp"]], "ramp",
+        add("motor_dead_zone_radps", [r["dead_zone_radps"] for r in per["ramp"]], runs["ramp"],
             "wheel speed below which a robot does not move (0.05 rad/s grid)")
+    add("loop_tick_s", [t["tick_s"] for t in timing], len(paths),
+        "median iteration (s), over runs; not in the layer: a longer tick moves the robots further per tick, "
+        "which the gains hold")
+    params[-1]["robots"] = 0
     unknown = ("pose_bias_xy_m", "command_delay_ticks", "command_loss_prob",
                *(() if per["ramp"] else ("motor_dead_zone_radps",)), "wheel_disturbance_radps", "fault_prob")
     for name in unknown:
         params.append({"name": name, "estimate": None, "lo": None, "hi": None, "robots": 0, "runs": 0,
                        "note": "not identified by these experiments"})
-    return {"parameters": params, "per_robot": per}
+    return {"parameters": params, "per_robot": per, "timing": timing}
 
 
 def profile_fields(fit: dict) -> dict:
@@ -236,15 +319,15 @@ def profile_fields(fit: dict) -> dict:
         p = est["pose_delay_ticks"]
         fields["pose_delay_ticks"] = int(p["lo"])
         fields["pose_delay_spread_ticks"] = int(p["hi"] - p["lo"])
-    steps = fit["per_robot"]["steps"]
-    if steps:
-        own = [r["tau_own_s"] for r in steps]
-        tau = steps[0]["tau_s"]  # the robots' shared lag; their own ones widen the range
-        fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(tau, *own)), float(max(tau, *own))
-        fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in steps]))
-        reach = min(r["cap_fraction"] * r["gain"] for r in steps)
-        # the steps command 95 % of the top speed: a cap at or above that is not seen (no derate)
-        fields["top_speed_derate_min"] = float(min(1.0, reach)) if reach < FULL_STEP - 0.01 else 1.0
+    moving = fit["per_robot"]["steps"] + fit["per_robot"].get("spin", [])
+    if moving:
+        own = [r["tau_own_s"] for r in moving]
+        shared = [r["tau_s"] for r in moving]  # each log's shared lag; the robots' own ones widen the range
+        fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(*shared, *own)), float(max(*shared, *own))
+        fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in moving]))
+        # a cap at or above the fastest commanded wheel speed (steps: 95 % of the top; spin: 91 %) is not seen
+        seen = [r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - 0.01]
+        fields["top_speed_derate_min"] = float(min(1.0, min(seen))) if seen else 1.0
     if "wheel_gain_spread" in est:
         fields["wheel_gain_spread"] = float(min(0.99, max(0.0, est["wheel_gain_spread"]["estimate"])))
     for name in ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_hold_prob", "motor_dead_zone_radps"):

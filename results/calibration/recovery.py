@@ -6,16 +6,28 @@ experiments under the Robotarium simulator (PyPI `rps`), where the fit must find
     python results/calibration/recovery.py > results/calibration/recovery.md
 
 Tolerances (the test in tests/test_calibration.py checks two settings and rps): the total
-delay (pose + command) exactly for the median robot and the profile's minimum; the lag τ, the
-pose noise (x, y and θ) and the hold probability within 20 %.
+delay (pose + command) exactly for the median robot and the profile's minimum, from ``steps`` and
+from ``spin``; the lag τ, the pose noise (x, y and θ) and the hold probability within 20 %; the dead
+zone within 0.4 rad/s (median robot; the lag reads as up to ~0.35 rad/s); each robot's half gain
+difference (g_r − g_l)/2 from ``spin`` within 0.01 of the layer's own draw (about two standard
+errors at 3 mm of pose noise; the layer's spreads reach 0.05).
+
+A second table fits the same experiments run in comat's MuJoCo tiers at reality ``off``: what the
+tiers' own actuators add to the layer (the tier's servo lag, gain, slew). A third runs the six
+settings in both tiers: the fit then sees the layer and the tier's own actuator together, so its
+tolerance is the delay exact (median robot) from ``spin`` or ``steps``, τ between the layer's τ and
+the layer's plus the tier's own (each ± 20 %), noise and holds within 20 %.
 """
 
 import warnings
 
 import numpy as np
 
-from comat.reality.calibration import run_under_rps, simulate
-from comat.reality.fit import fit_steps, fit_still
+from comat import constants as C
+from comat.reality import RealityLayer, resolve_reality
+from comat.reality.calibration import lane_poses, run_under_rps, simulate
+from comat.reality.fit import fit_ramp, fit_spin, fit_steps, fit_still
+from comat.sim.layout import team_layout
 
 warnings.simplefilter("ignore")  # rps's own warnings
 
@@ -27,14 +39,30 @@ def setting(rng: np.random.Generator) -> dict:
             "pose_noise_xy_m": float(np.round(rng.uniform(0.0005, 0.003), 4)),
             "pose_noise_theta_rad": float(np.round(rng.uniform(0.005, 0.03), 3)),
             "pose_hold_prob": float(np.round(rng.uniform(0.05, 0.4), 2)),
-            "top_speed_derate_min": float(np.round(rng.uniform(0.8, 1.0), 2))}
+            "top_speed_derate_min": float(np.round(rng.uniform(0.8, 1.0), 2)),
+            "wheel_gain_spread": float(np.round(rng.uniform(0.0, 0.05), 3)),
+            "motor_dead_zone_radps": float(np.round(rng.uniform(0.0, 3.0), 1))}
+
+
+def true_half_gain_diff(truth: dict, seed: int, n: int = 4) -> np.ndarray:
+    """(n,) (g_r - g_l) / 2 the layer drew for a simulated run's robots (the same draw simulate makes)."""
+    layer = RealityLayer(resolve_reality(truth), C.GRITSBOT, team_layout((n,)), seed)
+    layer.start(lane_poses(n), np.array([0]), None)
+    return (layer.motors.gain[:, 1] - layer.motors.gain[:, 0]) / 2
 
 
 def recover(truth: dict, seed: int) -> dict:
     steps = fit_steps(simulate("steps", truth, n=4, seed=seed))
     still = fit_still(simulate("still", truth, n=4, seed=seed))
+    spin = fit_spin(simulate("spin", truth, n=4, seed=seed))
+    ramp = fit_ramp(simulate("ramp", truth, n=4, seed=seed))
     delays = [r["delay_ticks"] for r in steps]
+    spin_delays = [r["delay_ticks"] for r in spin]
     return {"delay_median": int(np.median(delays)), "delay_min": min(delays), "tau": steps[0]["tau_s"],
+            "spin_delay_median": int(np.median(spin_delays)), "spin_delay_min": min(spin_delays),
+            "gain_diff_error": float(np.abs(np.array([r["half_gain_diff"] for r in spin])
+                                            - true_half_gain_diff(truth, seed)).max()),
+            "dead_zone": float(np.median([r["dead_zone_radps"] for r in ramp])),
             "noise_xy": float(np.mean([r["noise_xy_m"] for r in still])),
             "noise_theta": float(np.mean([r["noise_theta_rad"] for r in still])),
             "hold": float(np.mean([r["repeat_share"] for r in still]))}
@@ -46,7 +74,11 @@ def check(truth: dict, got: dict) -> dict:
     def close(a, b):
         return abs(a - b) <= 0.2 * b
 
-    return {"delay": got["delay_median"] == total and got["delay_min"] == total, "tau": close(got["tau"], truth["motor_tau_min_s"]),
+    return {"delay": got["delay_median"] == total and got["delay_min"] == total,
+            "spin delay": got["spin_delay_median"] == total and got["spin_delay_min"] == total,
+            "tau": close(got["tau"], truth["motor_tau_min_s"]),
+            "gain diff": got["gain_diff_error"] <= 0.01,
+            "dead zone": abs(got["dead_zone"] - truth["motor_dead_zone_radps"]) <= 0.4,
             "noise_xy": close(got["noise_xy"], truth["pose_noise_xy_m"]),
             "noise_theta": close(got["noise_theta"], truth["pose_noise_theta_rad"]),
             "hold": close(got["hold"], truth["pose_hold_prob"])}
@@ -54,24 +86,77 @@ def check(truth: dict, got: dict) -> dict:
 
 def main() -> None:
     rng = np.random.default_rng(2026)
-    print("| setting | delay (ticks) truth → fit | τ (s) truth → fit | noise x,y (mm) truth → fit | "
-          "noise θ (rad) truth → fit | hold truth → fit | within tolerance |")
-    print("|---|---|---|---|---|---|---|")
+    print("| setting | delay (ticks) truth → fit: steps, spin | τ (s) truth → fit | noise x,y (mm) truth → fit | "
+          "noise θ (rad) truth → fit | hold truth → fit | dead zone (rad/s) truth → fit | gain spread: largest "
+          "error of (g_r − g_l)/2 | within tolerance |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for k in range(6):
         t = setting(rng)
         g = recover(t, seed=k)
         ok = check(t, g)
         total = t["pose_delay_ticks"] + t["command_delay_ticks"]
-        print(f"| {k} | {total} ({t['pose_delay_ticks']}+{t['command_delay_ticks']}) → {g['delay_median']} | "
-              f"{t['motor_tau_min_s']:.3f} → {g['tau']:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → {1e3 * g['noise_xy']:.2f} | "
-              f"{t['pose_noise_theta_rad']:.3f} → {g['noise_theta']:.4f} | {t['pose_hold_prob']:.2f} → {g['hold']:.3f} | "
+        print(f"| {k} | {total} ({t['pose_delay_ticks']}+{t['command_delay_ticks']}) → {g['delay_median']}, "
+              f"{g['spin_delay_median']} | {t['motor_tau_min_s']:.3f} → {g['tau']:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → "
+              f"{1e3 * g['noise_xy']:.2f} | {t['pose_noise_theta_rad']:.3f} → {g['noise_theta']:.4f} | "
+              f"{t['pose_hold_prob']:.2f} → {g['hold']:.3f} | {t['motor_dead_zone_radps']:.1f} → {g['dead_zone']:.2f} | "
+              f"{t['wheel_gain_spread']:.3f}: {g['gain_diff_error']:.4f} | "
               f"{'all' if all(ok.values()) else 'not: ' + ', '.join(k for k, v in ok.items() if not v)} |")
     steps, still = fit_steps(run_under_rps("steps")), fit_still(run_under_rps("still"))
-    print(f"| rps (no gap) | 0 → {max(r['delay_ticks'] for r in steps)} (max over robots) | 0 → "
-          f"{max(r['tau_own_s'] for r in steps):.4f} | 0 → {1e3 * max(r['noise_xy_m'] for r in still):.2f} | 0 → "
-          f"{max(r['noise_theta_rad'] for r in still):.4f} | not identified (poses never change) | speed gain "
-          f"{min(r['gain'] for r in steps):.3f}–{max(r['gain'] for r in steps):.3f}, no cap below the 95 % commanded "
-          f"({min(r['cap_fraction'] for r in steps):.2f}) |")
+    spin, ramp = fit_spin(run_under_rps("spin")), fit_ramp(run_under_rps("ramp"))
+    moving = steps + spin
+    print(f"| rps (no gap) | 0 → {max(r['delay_ticks'] for r in moving)} (max over robots, both) | 0 → "
+          f"{max(r['tau_own_s'] for r in moving):.4f} | 0 → {1e3 * max(r['noise_xy_m'] for r in still):.2f} | 0 → "
+          f"{max(r['noise_theta_rad'] for r in still):.4f} | not identified (poses never change) | 0 → "
+          f"{max(r['dead_zone_radps'] for r in ramp):.2f} | 0: {max(abs(r['half_gain_diff']) for r in moving):.1e} | "
+          f"speed gain {min(r['gain'] for r in steps):.3f}–{max(r['gain'] for r in steps):.3f}, turn gain "
+          f"{min(r['gain'] for r in spin):.3f}–{max(r['gain'] for r in spin):.3f}; no cap below the fastest commanded |")
+    print()
+    print("What comat's MuJoCo tiers add at reality `off` (the same experiments, four robots; all robots alike):")
+    print()
+    print("| tier | delay (ticks) | τ (s) | speed gain | turn gain | slew (rad/s²) | reachable / commanded full | "
+          "(g_r − g_l)/2 | dead zone (rad/s) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    own_tau = {}
+    for tier in ("unicycle", "wheels"):
+        st = fit_steps(simulate("steps", "off", n=4, seed=0, tier=tier))
+        sp = fit_spin(simulate("spin", "off", n=4, seed=0, tier=tier))
+        ra = fit_ramp(simulate("ramp", "off", n=4, seed=0, tier=tier))
+        a, b = st[0], sp[0]
+        own_tau[tier] = a["tau_s"]
+        print(f"| {tier} | {a['delay_ticks']}, {b['delay_ticks']} | {a['tau_s']:.4f}, {b['tau_s']:.4f} | {a['gain']:.3f} | "
+              f"{b['gain']:.3f} | {a['accel_radps2']:.0f} | {a['cap_fraction'] * a['gain'] / a['full_fraction']:.2f}, "
+              f"{b['cap_fraction'] * b['gain'] / b['full_fraction']:.2f} | {max(abs(r['half_gain_diff']) for r in st + sp):.1e} | "
+              f"{np.median([r['dead_zone_radps'] for r in ra]):.2f} |")
+
+    tiers_table(own_tau)
+
+
+def tiers_table(own_tau: dict) -> None:
+    """The six settings again, in both MuJoCo tiers (the layer on top of the tier's own actuator)."""
+    rng = np.random.default_rng(2026)
+    print()
+    print("The six settings in comat's MuJoCo tiers (the layer plus the tier's own actuator):")
+    print()
+    print("| setting | tier | delay truth → steps, spin (median robot) | τ layer (+ tier's own) → steps, spin | "
+          "noise x,y (mm) truth → fit | hold truth → fit | within tolerance |")
+    print("|---|---|---|---|---|---|---|")
+    for k in range(6):
+        t = setting(rng)
+        total, tau = t["pose_delay_ticks"] + t["command_delay_ticks"], t["motor_tau_min_s"]
+        for tier in ("unicycle", "wheels"):
+            st = fit_steps(simulate("steps", t, n=4, seed=k, tier=tier))
+            sp = fit_spin(simulate("spin", t, n=4, seed=k, tier=tier))
+            sl = fit_still(simulate("still", t, n=4, seed=k, tier=tier))
+            d = [int(np.median([r["delay_ticks"] for r in f])) for f in (st, sp)]
+            taus = [st[0]["tau_s"], sp[0]["tau_s"]]
+            noise, hold = np.mean([r["noise_xy_m"] for r in sl]), np.mean([r["repeat_share"] for r in sl])
+            ok = {"delay": total in d,
+                  "tau": any(0.8 * tau <= x <= 1.2 * (tau + own_tau[tier]) for x, dd in zip(taus, d) if dd == total),
+                  "noise": abs(noise - t["pose_noise_xy_m"]) <= 0.2 * t["pose_noise_xy_m"],
+                  "hold": abs(hold - t["pose_hold_prob"]) <= 0.2 * t["pose_hold_prob"]}
+            print(f"| {k} | {tier} | {total} → {d[0]}, {d[1]} | {tau:.3f} (+{own_tau[tier]:.4f}) → {taus[0]:.4f}, "
+                  f"{taus[1]:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → {1e3 * noise:.2f} | {t['pose_hold_prob']:.2f} → "
+                  f"{hold:.3f} | {'all' if all(ok.values()) else 'not: ' + ', '.join(n for n, v in ok.items() if not v)} |")
 
 
 if __name__ == "__main__":
