@@ -2,7 +2,8 @@
 
 ``comat export --calibration OUT`` writes one flat submission folder per experiment of
 :data:`comat.reality.calibration_schedule.EXPERIMENTS` (``OUT/steps``, ``OUT/still``, ``OUT/ramp``, ``OUT/spin``): ``main.py``
-(``sim2real/templates/calibration_main.py``, verbatim), ``calibration_schedule.py``
+(``sim2real/templates/calibration_main.py``, its first line naming the experiment, what it measures
+and how long it runs), ``calibration_schedule.py``
 (``comat/reality/calibration_schedule.py``, verbatim: numpy only) and ``submission_config.py``
 (``CONFIG``: experiment, robots, iterations, what it measures, how long it runs). The same rules
 as every export: ``.py`` files only, numpy and rps imports, no folders, atomically written.
@@ -49,11 +50,16 @@ def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
         for experiment, iterations in EXPERIMENTS.items():
             folder = tmp / experiment
             folder.mkdir()
-            shutil.copyfile(_TEMPLATE, folder / "main.py")
+            duration = round(iterations * CONTROL_DT_S, 1)
+            # The template with its first line naming this experiment, what it measures and its length.
+            body = _TEMPLATE.read_text().split("\n", 1)[1]
+            (folder / "main.py").write_text(
+                f'"""Calibration run on the Robotarium, experiment {experiment!r}: {iterations} iterations, {duration} s.\n'
+                f"Measures: {MEASURES[experiment]}.\n" + body)
             shutil.copyfile(schedule_module.__file__, folder / "calibration_schedule.py")
             shutil.copyfile(_TEMPLATE.parent / "rps_compat.py", folder / "rps_compat.py")
             config = {"kind": "calibration", "experiment": experiment, "robots": robots, "iterations": iterations,
-                      "duration_s": round(iterations * CONTROL_DT_S, 1), "measures": MEASURES[experiment]}
+                      "duration_s": duration, "measures": MEASURES[experiment]}
             (folder / "submission_config.py").write_text(
                 f'"""Calibration experiment {experiment!r} (comat export --calibration)."""\n\nCONFIG = '
                 + pprint.pformat(config, sort_dicts=False, width=100) + "\n")

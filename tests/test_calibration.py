@@ -3,6 +3,7 @@ gap found under the Robotarium simulator; `comat calibrate` writes a profile tha
 take and that round-trips through a run's config.yaml; bad logs get one-line errors."""
 
 import json
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -152,6 +153,27 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
     assert main(["export", "--calibration", str(out)]) == 2  # an existing folder is refused
     assert main(["export", "--calibration", str(tmp_path / "x"), "--robots", "9"]) == 2
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.skipif(not os.environ.get("COMAT_RPS_V2"), reason="set COMAT_RPS_V2 to a robotarium_python_simulator (V2) checkout")
+def test_calibration_folders_under_rps_v2_show_no_gap(tmp_path, capsys):
+    """All four experiments under V2: 0 simulator errors; no delay, lag, noise or dead zone; gains 1
+    (V2's barrier steers a little: gain differences <= 0.01 in steps)."""
+    from comat.reality.calibration import load_log
+
+    out = tmp_path / "cal"
+    assert main(["export", "--calibration", str(out)]) == 0
+    folders = [str(out / e) for e in ("steps", "still", "ramp", "spin")]
+    assert main(["export", "--check", *folders, "--rps", os.environ["COMAT_RPS_V2"]]) == 0
+    assert capsys.readouterr().out.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4
+    fit = fit_logs([str(next((out / e).glob("calib_*.npy"))) for e in ("steps", "still", "ramp", "spin")])
+    est = {p["name"]: p for p in fit["parameters"]}
+    assert est["pose_delay_ticks"]["hi"] == 0 and est["motor_tau_s"]["estimate"] <= 0.005
+    assert est["pose_noise_xy_m"]["estimate"] < 1e-7 and est["motor_dead_zone_radps"]["estimate"] == 0
+    assert abs(est["turn_gain"]["estimate"] - 1) < 1e-3 and abs(est["speed_gain"]["estimate"] - 1) < 0.01
+    assert all(abs(r["half_gain_diff"]) < 1e-3 for r in fit["per_robot"]["spin"])
+    assert all(abs(r["half_gain_diff"]) < 0.01 for r in fit["per_robot"]["steps"])
+    assert load_log(next((out / "spin").glob("calib_*.npy")))[1].shape == (1000, 4, 6)
 
 
 def test_calibration_folders_follow_the_export_rules(tmp_path):
