@@ -1,0 +1,89 @@
+"""Issue 30 screen: the table of PLAN.md's endpoints from the kept runs (``runs/``), and the
+selection rule applied. Reads only U_val (the final evaluation) and U_train (the periodic ones):
+
+    python results/stability/screen/summarize.py > results/stability/screen/screen.md
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+from diagnose import _team_slow_payload  # noqa: E402
+
+from comat.eval.metrics import current_names  # noqa: E402
+
+NAME = re.compile(r"^(?:(?P<algo>mat)_)?(?P<variant>[a-z_]+?)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
+
+
+def first_at(path: Path, level: float = 0.95) -> str:
+    """The first periodic U_train evaluation (deterministic) at >= ``level`` progress, in k env steps."""
+    with open(path) as fh:
+        for row in csv.DictReader(fh):
+            if float(row["progress"]) >= level:
+                return f"{int(row['env_steps']) / 1000:.0f} k"
+    return "never"
+
+
+def one_run(folder: Path) -> dict:
+    m = NAME.match(folder.name)
+    data = current_names(json.loads((folder / "evaluation_unicycle.json").read_text()))
+    row = next(r for r in data["rows"] if r["set"] == "val" and r["policy"] not in ("heuristic", "constant", "random"))
+    eps = row["per_episode"]
+    y = np.array([100 * e["progress"] for e in eps])
+    slope = float("nan")
+    if m["task"] == "hmt":
+        x = np.array([_team_slow_payload("hmt", "val", e["coalition"]) for e in eps])
+        slope = float(np.polyfit((x - x.mean()) / x.std(), y, 1)[0])
+    return {"algo": m["algo"] or "comat", "variant": m["variant"], "task": m["task"], "seed": int(m["seed"]),
+            "progress": float(y.mean()), "finished": 100 * float(np.mean([e["finished"] for e in eps])),
+            "slope": slope, "t95": first_at(folder / "eval.csv")}
+
+
+def main() -> None:
+    runs = [one_run(f) for f in sorted((HERE / "runs").iterdir()) if (f / "summary.json").is_file()]
+    groups: dict[tuple, list[dict]] = {}
+    for r in runs:
+        groups.setdefault((r["task"], r["algo"], r["variant"]), []).append(r)
+    print("# Issue 30 screen: U_val at 150 k env steps (deterministic, 5 episodes per coalition)\n")
+    print("Per seed s0 / s1 / s2; SD over seeds. *first ≥ 95 %*: the first periodic U_train evaluation")
+    print("(every 25 k, 1 episode per coalition) at ≥ 95 % progress. *slope*: HMT progress points per SD")
+    print("of the slow robots' payload share over U_val's episodes, mean over seeds.\n")
+    print("| task | learner | variant | seeds | progress % per seed | mean | SD | worst | finished % (mean) "
+          "| first ≥ 95 % per seed | slope |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for (task, algo, variant), rs in sorted(groups.items()):
+        rs = sorted(rs, key=lambda r: r["seed"])
+        p = np.array([r["progress"] for r in rs])
+        sd = float(p.std(ddof=1)) if p.size > 1 else float("nan")
+        slope = np.nanmean([r["slope"] for r in rs]) if task == "hmt" else float("nan")
+        print(f"| {task} | {algo} | {variant} | {len(rs)} | {' / '.join(f'{v:.1f}' for v in p)} | {p.mean():.1f} | "
+              f"{sd:.1f} | {p.min():.1f} | {np.mean([r['finished'] for r in rs]):.1f} | "
+              f"{' / '.join(r['t95'] for r in rs)} | {'' if np.isnan(slope) else f'{slope:+.1f}'} |")
+    print("\n## The selection rule (PLAN.md)\n")
+    worst = {k: min(r["progress"] for r in rs) for k, rs in groups.items()}
+    mean = {k: float(np.mean([r["progress"] for r in rs])) for k, rs in groups.items()}
+    control = ("hmt", "comat", "control")
+    if control not in worst:
+        print("No control runs yet.")
+        return
+    for (task, algo, variant), w in sorted(worst.items()):
+        if task != "hmt" or algo != "comat" or variant == "control":
+            continue
+        pcp = ("pcp", "comat", variant)
+        pcp_ok = pcp in mean and ("pcp", "comat", "control") in mean and mean[pcp] >= mean[("pcp", "comat", "control")] - 2
+        print(f"* {variant}: worst HMT seed {w:.1f} vs control {worst[control]:.1f} "
+              f"({w - worst[control]:+.1f} points); PCP mean "
+              + (f"{mean[pcp]:.1f} vs control {mean[('pcp', 'comat', 'control')]:.1f} ({'within' if pcp_ok else 'more than'} 2 points below)"
+                 if pcp in mean and ("pcp", "comat", "control") in mean else "not run yet"))
+
+
+if __name__ == "__main__":
+    main()
