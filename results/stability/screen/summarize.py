@@ -16,9 +16,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-from diagnose import _team_slow_payload  # noqa: E402
+from diagnose import _team_slow_payload
 
-from comat.eval.metrics import current_names  # noqa: E402
+from comat.eval.metrics import current_names
 
 NAME = re.compile(r"^(?:(?P<algo>mat)_)?(?P<variant>[a-z_]+?)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
 
