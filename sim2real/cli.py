@@ -108,7 +108,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
         for f in folders:
             print(f"wrote {f}: " + ", ".join(sorted(p.name for p in f.iterdir())))
         print("upload each folder to the Robotarium, download the calib_<experiment>.npy it saves, then fit: "
-              "comat calibrate calib_steps.npy calib_still.npy --out my_robots.yaml")
+              "comat calibrate calib_steps.npy calib_still.npy calib_ramp.npy calib_spin.npy --out my_robots.yaml")
         return 0
     if args.check and all(is_calibration(f) for f in args.check):
         bad = 0

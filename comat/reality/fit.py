@@ -249,8 +249,9 @@ def _interval(values: Sequence[float]) -> tuple[float, float, float]:
 def fit_logs(paths: Sequence[str]) -> dict:
     """Fit every log (one or many runs of each experiment) and return
     ``{"parameters": [{name, estimate, lo, hi, robots, runs, note}], "per_robot": {...}, "timing": [...]}``.
-    ``steps`` and ``spin`` measure the same wheels: their robots are pooled for the delay, the lag,
-    the reachable speed and the gain difference."""
+    ``steps`` and ``spin`` measure the same wheels: the delay and the lag come from ``steps`` (from
+    ``spin`` without it), the gain difference from ``spin`` (from ``steps`` without it), the reachable
+    speed from both."""
     if not paths:
         raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
     fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}
@@ -269,14 +270,19 @@ def fit_logs(paths: Sequence[str]) -> dict:
         params.append({"name": name, "estimate": est, "lo": lo, "hi": hi, "robots": len(values), "runs": n_runs,
                        "note": note})
 
+    # The delay and the lag from ``steps`` (the experiment built for them; with wheels of unequal lag
+    # a spin can read one tick more and a shorter lag), from ``spin`` only without it; the gain
+    # difference from ``spin`` (at half rate no wheel is capped, which hides it in ``steps``) when
+    # given; the reachable speed from both.
+    timed, timed_runs = (per["steps"], runs["steps"]) if per["steps"] else (per["spin"], runs["spin"])
+    paired, paired_runs = (per["spin"], runs["spin"]) if per["spin"] else (per["steps"], runs["steps"])
     moving = per["steps"] + per["spin"]
-    n_moving = runs["steps"] + runs["spin"]
     if moving:
-        delays = [r["delay_ticks"] for r in moving]
+        delays = [r["delay_ticks"] for r in timed]
         params.append({"name": "pose_delay_ticks", "estimate": int(min(delays)), "lo": int(min(delays)),
-                       "hi": int(max(delays)), "robots": len(delays), "runs": n_moving,
+                       "hi": int(max(delays)), "robots": len(delays), "runs": timed_runs,
                        "note": "pose + command delay (not separable); lo-hi: per-robot range"})
-        add("motor_tau_s", [r["tau_s"] for r in moving], n_moving, "per-robot mean")
+        add("motor_tau_s", [r["tau_s"] for r in timed], timed_runs, "per-robot mean")
         if per["steps"]:
             add("speed_gain", [r["gain"] for r in per["steps"]], runs["steps"], "forward speed gain (mean of the wheels)")
         if per["spin"]:
@@ -284,12 +290,14 @@ def fit_logs(paths: Sequence[str]) -> dict:
                 "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)")
             add("tracked_ahead_m", [r["tracked_ahead_m"] for r in per["spin"]], runs["spin"],
                 "tracked point ahead of the wheel axle (reported, not in the layer)")
-        add("top_speed_fraction", [r["cap_fraction"] * r["gain"] for r in moving], n_moving, "reachable / 12.5 rad/s")
-        diffs = [r["half_gain_diff"] for r in moving if np.isfinite(r["half_gain_diff"])]
+        add("top_speed_fraction", [r["cap_fraction"] * r["gain"] for r in moving], runs["steps"] + runs["spin"],
+            "reachable / 12.5 rad/s")
+        diffs = [r["half_gain_diff"] for r in paired if np.isfinite(r["half_gain_diff"])]
         spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
         params.append({"name": "wheel_gain_spread", "estimate": spread, "lo": float("nan"), "hi": float("nan"),
-                       "robots": len(diffs), "runs": n_moving,
-                       "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"})
+                       "robots": len(diffs), "runs": paired_runs,
+                       "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"
+                               + (", from spin" if per["spin"] else ", from steps")})
     if per["still"]:
         still = per["still"]
         add("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"])
@@ -319,12 +327,13 @@ def profile_fields(fit: dict) -> dict:
         p = est["pose_delay_ticks"]
         fields["pose_delay_ticks"] = int(p["lo"])
         fields["pose_delay_spread_ticks"] = int(p["hi"] - p["lo"])
-    moving = fit["per_robot"]["steps"] + fit["per_robot"].get("spin", [])
+    steps, spin = fit["per_robot"]["steps"], fit["per_robot"].get("spin", [])
+    moving, timed = steps + spin, steps or spin  # the lag from steps when given (see fit_logs)
     if moving:
-        own = [r["tau_own_s"] for r in moving]
-        shared = [r["tau_s"] for r in moving]  # each log's shared lag; the robots' own ones widen the range
+        own = [r["tau_own_s"] for r in timed]
+        shared = [r["tau_s"] for r in timed]  # each log's shared lag; the robots' own ones widen the range
         fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(*shared, *own)), float(max(*shared, *own))
-        fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in moving]))
+        fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in timed]))
         # a cap at or above the fastest commanded wheel speed (steps: 95 % of the top; spin: 91 %) is not seen
         seen = [r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - 0.01]
         fields["top_speed_derate_min"] = float(min(1.0, min(seen))) if seen else 1.0
