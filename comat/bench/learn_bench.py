@@ -23,7 +23,7 @@ import time
 
 import torch
 
-__all__ = ["bench_decode", "bench_train", "run_learn_bench"]
+__all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "run_learn_bench"]
 
 TRAIN_TARGET = 400.0
 """COMAT env-steps/s on PCP, unicycle tier, the learners issue's target for a 2-core machine."""
@@ -31,6 +31,10 @@ DECODE_TARGET = 3.0
 """Cached decoding vs a full re-run per robot, 8 robots."""
 WIDE_SLOTS = 20
 """Robot slots of the ``<baseline>_20`` rows (the Robotarium's largest team)."""
+COMAT_VARIANTS = {"comat_type_heads": {"decision": "type_heads"}, "comat_shared_trunk": {"decision": "shared_trunk"},
+                  "comat_one_block": {"heat_blocks": 1}}
+"""COMAT rows with one architecture option changed (issue 30's screen), to time a candidate default
+next to today's in one run; ``comat_paper`` is the paper form (``PAPER_FORM``)."""
 
 
 def _best_time(fn, repeats: int) -> float:
@@ -81,8 +85,8 @@ def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: i
 def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0) -> dict:
     """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on PCP (unicycle);
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
-    measure what today's default costs against it in the same run; ``<baseline>_20``: that
-    baseline with 20 robot slots."""
+    measure what today's default costs against it in the same run; ``comat_<option>``: one option
+    of :data:`COMAT_VARIANTS` changed; ``<baseline>_20``: that baseline with 20 robot slots."""
     from comat.models.comat import PAPER_FORM
     from comat.rl.algos import Dims, make_learner
     from comat.rl.config import load_preset, resolve
@@ -90,8 +94,9 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
 
     settings = load_preset(preset)
     label = algo
-    algo = "comat" if label == "comat_paper" else label.removesuffix(f"_{WIDE_SLOTS}")
-    change = PAPER_FORM if label == "comat_paper" else {"max_robots": WIDE_SLOTS} if label != algo else None
+    variants = {"comat_paper": PAPER_FORM, **COMAT_VARIANTS}
+    algo = "comat" if label in variants else label.removesuffix(f"_{WIDE_SLOTS}")
+    change = variants.get(label) or ({"max_robots": WIDE_SLOTS} if label != algo else None)
     if change:
         models = dict(settings.get("models") or {})
         models[algo] = {**(models.get(algo) or {}), **change}
