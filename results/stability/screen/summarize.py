@@ -74,6 +74,7 @@ def main() -> None:
     if control not in worst:
         print("No control runs yet.")
         return
+    chosen, best = "control", worst[control]
     for (task, algo, variant), w in sorted(worst.items()):
         if task != "hmt" or algo != "comat" or variant == "control":
             continue
@@ -83,6 +84,15 @@ def main() -> None:
               f"({w - worst[control]:+.1f} points); PCP mean "
               + (f"{mean[pcp]:.1f} vs control {mean[('pcp', 'comat', 'control')]:.1f} ({'within' if pcp_ok else 'more than'} 2 points below)"
                  if pcp in mean and ("pcp", "comat", "control") in mean else "not run yet"))
+        mat, mat_control = ("hmt", "mat", variant), ("hmt", "mat", "control")
+        if mat in worst and mat_control in worst:
+            print(f"  * the same change for MAT: worst HMT seed {worst[mat]:.1f} vs MAT's control {worst[mat_control]:.1f} "
+                  f"({worst[mat] - worst[mat_control]:+.1f} points): COMAT's gain minus MAT's "
+                  f"{(w - worst[control]) - (worst[mat] - worst[mat_control]):+.1f} points (COMAT alone if >= +2)")
+        if pcp_ok and w >= best + 1:
+            chosen, best = variant, w
+    print(f"\n**Selected for the confirmation: {chosen}** (the highest worst HMT seed, at least 1 point above "
+          "the control's, PCP mean no more than 2 points below the control's; otherwise the control).")
 
 
 if __name__ == "__main__":
