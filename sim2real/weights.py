@@ -25,12 +25,16 @@ def comat_arrays(model) -> tuple[dict[str, int], dict[str, np.ndarray]]:
               "embed": cfg.embed, "heads": cfg.heads, "heat_blocks": cfg.heat_blocks, "edge_embed": cfg.edge_embed,
               "root_weight": int(cfg.root_weight), "obs_embed": int(cfg.obs_embed), "node_ffn": int(cfg.node_ffn),
               "reference_messages": int(cfg.heat_form == "reference"), "world_edges": int(cfg.edge_frame == "world"),
-              "shared_trunk": int(cfg.decision == "shared_trunk")}
+              "shared_trunk": int(cfg.decision in ("shared_trunk", "adapters"))}
     assert set(config) == set(CONFIG_KEYS)
     # Only the critic is dropped: any other entry the runtime does not know (a changed model)
     # must fail the shape check below rather than vanish from the export.
     arrays = {k: v.detach().cpu().numpy().astype(np.float32)
               for k, v in model.state_dict().items() if not k.startswith("critic.")}
+    if cfg.decision == "adapters":  # folded into each type's output layer: the shared-trunk form
+        w2, b2 = (t.detach().cpu().numpy().astype(np.float32) for t in model.heads.output_layer())
+        arrays.update({"heads.w2": w2, "heads.b2": b2})
+        del arrays["heads.w2_shared"], arrays["heads.b2_shared"]
     missing = sorted(set(expected_shapes(config)) - set(arrays))
     extra = sorted(set(arrays) - set(expected_shapes(config)))
     if missing or extra:

@@ -43,7 +43,8 @@ def models():
             # a shared decision trunk; HEAT's reference message form with world-frame edges
             "comat_embed": Comat(LAYOUT, ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True,
                                                      decision="shared_trunk")),
-            "comat_reference": Comat(LAYOUT, ComatConfig(obs_embed=True, heat_form="reference", edge_frame="world"))}
+            "comat_reference": Comat(LAYOUT, ComatConfig(obs_embed=True, heat_form="reference", edge_frame="world")),
+            "comat_adapters": Comat(LAYOUT, ComatConfig(decision="adapters"))}
 
 
 def decoding(path: str):
@@ -56,7 +57,8 @@ PATHS = ["loop", "compiled"]
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference",
+                                  "comat_adapters", "mat"])
 @pytest.mark.parametrize("n", list(range(1, 17)))
 def test_autoregressive_logps_equal_teacher_forced(name, n, path):
     model = models()[name]
@@ -74,7 +76,8 @@ def test_autoregressive_logps_equal_teacher_forced(name, n, path):
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference", "mat"])
+@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference",
+                                  "comat_adapters", "mat"])
 @pytest.mark.parametrize("n", [1, 3, 8, 16])
 def test_cached_decoding_equals_uncached(name, n, path):
     model = models()[name]
@@ -146,7 +149,8 @@ def test_compiled_encoder_equals_torch(task, config):
     torch.testing.assert_close(values_c[mask], values[mask], atol=2e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_heads", "comat_shared", "mat", "mat_deep"])
+@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_heads", "comat_shared", "comat_adapters", "mat",
+                                  "mat_deep"])
 @pytest.mark.parametrize("batch", [1, 7, 64])
 def test_compiled_decoding_equals_the_torch_loop(name, batch):
     """Same actions and logits (to float32 rounding) as the step-by-step torch reference, for
@@ -155,6 +159,7 @@ def test_compiled_decoding_equals_the_torch_loop(name, batch):
     layout = ObsLayout.for_task(MaterialTransport())  # three robot types
     model = {"comat": lambda: Comat(layout), "comat_heads": lambda: Comat(layout, ComatConfig(embed=48, heads=3)),
              "comat_shared": lambda: Comat(layout, ComatConfig(decision="shared_trunk")),
+             "comat_adapters": lambda: Comat(layout, ComatConfig(decision="adapters")),
              "comat_paper": lambda: Comat(layout, ComatConfig(**PAPER_FORM)),
              "mat": lambda: Mat(layout, MatConfig(max_robots=64)),
              "mat_deep": lambda: Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64))}[name]()
@@ -346,3 +351,20 @@ def test_an_empty_out_is_refused_before_anything_is_written(tmp_path, monkeypatc
     assert main(["rollout", "--policy", "heuristic", "--task", "pcp", "--out", ""]) == 2
     assert "--out must be a file or folder path, got '' (empty)" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_adapters_start_as_one_decision_layer_that_every_type_trains():
+    """``decision: adapters``: at initialization both types' output layers are the shared one (the
+    types' own parts are zero), and a loss on one type's robots moves the shared layer."""
+    from comat.models.layers import TypeHeads
+
+    torch.manual_seed(0)
+    heads = TypeHeads(6, 8, 5, 2, adapters=True)
+    x = torch.randn(4, 3, 6)
+    one_hot = torch.nn.functional.one_hot(torch.tensor([0, 1, 1]), 2).float().expand(4, 3, 2)
+    w2, b2 = heads.output_layer()
+    assert torch.equal(w2[0], w2[1]) and torch.equal(b2[0], b2[1]) and heads.first.weight.shape == (8, 6)
+    other = torch.nn.functional.one_hot(torch.tensor([1, 0, 0]), 2).float().expand(4, 3, 2)
+    assert torch.allclose(heads(x, one_hot), heads(x, other))
+    heads(x, torch.nn.functional.one_hot(torch.ones(4, 3, dtype=torch.long), 2).float()).sum().backward()
+    assert heads.w2_shared.grad.abs().sum() > 0 and heads.w2.grad[0].abs().sum() == 0 < heads.w2.grad[1].abs().sum()

@@ -90,6 +90,7 @@ OPTIONS = {
     "embed": {"obs_embed": True, "message_gain": 0.01, "node_ffn": True, "decision": "shared_trunk"},
     "reference": {"obs_embed": True, "heat_form": "reference", "edge_frame": "world", "root_weight": True},
     "raw_reference_ffn": {"heat_form": "reference", "node_ffn": True},
+    "adapters": {"decision": "adapters"},
 }
 
 

@@ -60,7 +60,7 @@ PAPER_FORM = {"root_weight": False, "obs_embed": False, "message_gain": 1.0, "no
 ablation, results/ablations/): ``ComatConfig(**PAPER_FORM)``."""
 HEAT_FORMS = ("paper", "reference")
 EDGE_FRAMES = ("heading", "world")
-DECISIONS = ("type_heads", "shared_trunk")
+DECISIONS = ("type_heads", "shared_trunk", "adapters")
 
 
 @dataclass(frozen=True)
@@ -205,7 +205,8 @@ class Comat(AutoregressivePolicy):
         self.ln3, self.ln4 = nn.LayerNorm(E), nn.LayerNorm(E)
         self.fc2 = mlp([E, E, E])
         # Decision layer: per robot type, on [h_m ‖ c_m].
-        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, shared_first=cfg.decision == "shared_trunk")
+        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, shared_first=cfg.decision == "shared_trunk",
+                               adapters=cfg.decision == "adapters")
 
     # -- encoder ------------------------------------------------------------------------------------
     def encode(self, obs, mask):
@@ -296,8 +297,9 @@ class Comat(AutoregressivePolicy):
         sa, ca, heads = self.self_attn, self.cross_attn, self.heads
         linears = (self.token[0], sa.q, sa.kv, sa.o, self.fc[0], self.fc[2], ca.q, ca.kv, ca.o,
                    self.fc2[0], self.fc2[2], heads.first)
-        mats = [numpy_view(layer.weight) for layer in linears] + [numpy_view(heads.w2).reshape(-1, self.n_actions)]
-        vecs = [numpy_view(layer.bias) for layer in linears[1:]] + [numpy_view(heads.b2).reshape(-1)]
+        w2, b2 = heads.output_layer()
+        mats = [numpy_view(layer.weight) for layer in linears] + [numpy_view(w2).reshape(-1, self.n_actions)]
+        vecs = [numpy_view(layer.bias) for layer in linears[1:]] + [numpy_view(b2).reshape(-1)]
         vecs += [numpy_view(p) for ln in (self.ln1, self.ln2, self.ln3, self.ln4) for p in (ln.weight, ln.bias)]
         noise_np, mask_np = self._compiled_inputs(noise, mask)
         actions, logits = comat_decode(tuple(mats), tuple(vecs), numpy_view(rep), numpy_view(obs), mask_np, noise_np,
