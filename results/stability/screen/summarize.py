@@ -75,8 +75,13 @@ def main() -> None:
         print("No control runs yet.")
         return
     chosen, best = "control", worst[control]
+    seeds = {k: {r["seed"] for r in rs} for k, rs in groups.items()}
     for (task, algo, variant), w in sorted(worst.items()):
         if task != "hmt" or algo != "comat" or variant == "control":
+            continue
+        if seeds[(task, algo, variant)] != seeds[control]:
+            print(f"* {variant}: {len(seeds[(task, algo, variant)])} of the control's {len(seeds[control])} seeds so far: "
+                  "not compared yet")
             continue
         pcp = ("pcp", "comat", variant)
         pcp_ok = pcp in mean and ("pcp", "comat", "control") in mean and mean[pcp] >= mean[("pcp", "comat", "control")] - 2
