@@ -12,20 +12,21 @@ root="$(cd "$(dirname "$0")/../../.." && pwd)"
 code=${COMAT_CODE:-$root}
 name="${variant}_${task}_s${seed}_${steps}"
 [[ $algo == comat ]] || name="${algo}_$name"
-run="$root/runs/screen/$name"
-keep="$root/results/stability/screen/runs/$name"
+study=${STUDY:-screen}  # screen, or confirm (results/stability/confirm/PLAN.md)
+run="$root/runs/$study/$name"
+keep="$root/results/stability/$study/runs/$name"
 comat() { PYTHONPATH=$code OMP_NUM_THREADS=1 "$root/.venv/bin/python" -P -c \
   "import sys; from comat.cli import main; sys.argv=['comat']+sys.argv[1:]; sys.exit(main())" "$@"; }
 cd "$root"
 if [[ -f "$keep/summary.json" ]]; then echo "done: $name"; exit 0; fi
-mkdir -p runs/screen
+mkdir -p "runs/$study"
 echo "start: $name $(date -u +%FT%TZ)"
 if [[ ! -f "$run/policy.pt" ]]; then
   resume=(); [[ -f "$run/checkpoint.pt" ]] && resume=(--resume)
   comat train --algo "$algo" --task "$task" --preset "results/stability/screen/configs/$variant.yaml" \
-    --seed "$seed" --steps "$steps" --out "$run" --quiet "${resume[@]}" > "runs/screen/$name.log" 2>&1
+    --seed "$seed" --steps "$steps" --out "$run" --quiet "${resume[@]}" > "runs/$study/$name.log" 2>&1
 fi
-comat eval --policy "$run" --teams val --episodes 5 --no-references --out "$run" --force >> "runs/screen/$name.log" 2>&1
+comat eval --policy "$run" --teams val --episodes 5 --no-references --out "$run" --force >> "runs/$study/$name.log" 2>&1
 mkdir -p "$keep"
 cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json,evaluation_unicycle.json,evaluation_unicycle.csv} "$keep"/
 echo "end: $name $(date -u +%FT%TZ)"
