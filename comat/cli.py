@@ -444,11 +444,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
                         "algorithm on PCP in the unicycle tier with the paper's settings.")
     b.add_argument("--algos", nargs="+",
-                   choices=["comat", "comat_paper", "comat_type_heads", "comat_shared_trunk", "comat_one_block", "mat",
+                   choices=["comat", "comat_paper", "comat_type_heads", "comat_shared_trunk", "comat_adapters", "comat_one_block", "mat",
                             "mappo", "qmix", "mat_20", "mappo_20", "qmix_20"],
                    default=["comat", "comat_paper", "mat", "mappo", "qmix"],
                    help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
-                   "to compare today's default with it in one run; comat_type_heads, comat_shared_trunk, "
+                   "to compare today's default with it in one run; comat_type_heads, comat_shared_trunk, comat_adapters, "
                    "comat_one_block: COMAT with that decision layer or one HEAT block; mat_20, mappo_20, qmix_20: the baseline with 20 "
                    "robot slots instead of 8 (default: %(default)s)")
     b.add_argument("--workers", type=int, nargs="+", default=[1, 2],

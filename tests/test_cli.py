@@ -116,12 +116,13 @@ def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
     seen = []
     real = algos.make_learner
     with mock.patch.object(algos, "make_learner", side_effect=lambda c, *a: seen.append(c.model) or real(c, *a)):
-        names = ("comat", "comat_paper", "comat_shared_trunk", "comat_one_block")
+        names = ("comat", "comat_paper", "comat_shared_trunk", "comat_one_block", "comat_adapters")
         rows = [bench_train(name, iterations=1, preset=str(preset)) for name in names]
     assert [r["algo"] for r in rows] == list(names) and all(r["env_steps"] == 4 for r in rows)
     assert seen[0].obs_embed and seen[0].node_ffn and seen[0].embed == 16 and seen[0].decision == "type_heads"
     assert {k: getattr(seen[1], k) for k in PAPER_FORM} == PAPER_FORM and seen[1].embed == 16
     assert seen[2].decision == "shared_trunk" and seen[2].obs_embed and seen[3].heat_blocks == 1 and seen[3].embed == 16
+    assert seen[4].decision == "adapters"
 
 
 def test_sweep_status_of_a_missing_folder_is_an_error(tmp_path, capsys):

@@ -32,7 +32,7 @@ DECODE_TARGET = 3.0
 WIDE_SLOTS = 20
 """Robot slots of the ``<baseline>_20`` rows (the Robotarium's largest team)."""
 COMAT_VARIANTS = {"comat_type_heads": {"decision": "type_heads"}, "comat_shared_trunk": {"decision": "shared_trunk"},
-                  "comat_one_block": {"heat_blocks": 1}}
+                  "comat_adapters": {"decision": "adapters"}, "comat_one_block": {"heat_blocks": 1}}
 """COMAT rows with one architecture option changed (issue 30's screen), to time a candidate default
 next to today's in one run; ``comat_paper`` is the paper form (``PAPER_FORM``)."""
 
