@@ -2,6 +2,7 @@
 selection rule applied. Reads only U_val (the final evaluation) and U_train (the periodic ones):
 
     python results/stability/screen/summarize.py > results/stability/screen/screen.md
+    python results/stability/screen/summarize.py results/stability/confirm/runs   # the confirmation's table
 """
 
 from __future__ import annotations
@@ -47,13 +48,13 @@ def one_run(folder: Path) -> dict:
             "slope": slope, "t95": first_at(folder / "eval.csv")}
 
 
-def main() -> None:
-    runs = [one_run(f) for f in sorted((HERE / "runs").iterdir()) if (f / "summary.json").is_file()]
+def main(folder: Path = HERE / "runs") -> None:
+    runs = [one_run(f) for f in sorted(folder.iterdir()) if (f / "summary.json").is_file()]
     groups: dict[tuple, list[dict]] = {}
     for r in runs:
         groups.setdefault((r["task"], r["algo"], r["variant"]), []).append(r)
-    print("# Issue 30 screen: U_val at 150 k env steps (deterministic, 5 episodes per coalition)\n")
-    print("Per seed s0 / s1 / s2; SD over seeds. *first ≥ 95 %*: the first periodic U_train evaluation")
+    print(f"# Issue 30, {folder.parent.name}: U_val (deterministic, 5 episodes per coalition)\n")
+    print("Per seed, in seed order; SD over seeds. *first ≥ 95 %*: the first periodic U_train evaluation")
     print("(every 25 k, 1 episode per coalition) at ≥ 95 % progress. *slope*: HMT progress points per SD")
     print("of the slow robots' payload share over U_val's episodes, mean over seeds.\n")
     print("| task | learner | variant | seeds | progress % per seed | mean | SD | worst | finished % (mean) "
@@ -67,6 +68,8 @@ def main() -> None:
         print(f"| {task} | {algo} | {variant} | {len(rs)} | {' / '.join(f'{v:.1f}' for v in p)} | {p.mean():.1f} | "
               f"{sd:.1f} | {p.min():.1f} | {np.mean([r['finished'] for r in rs]):.1f} | "
               f"{' / '.join(r['t95'] for r in rs)} | {'' if np.isnan(slope) else f'{slope:+.1f}'} |")
+    if folder != HERE / "runs":
+        return  # the confirmation: its targets are judged in confirm/README.md
     print("\n## The selection rule (PLAN.md)\n")
     worst = {k: min(r["progress"] for r in rs) for k, rs in groups.items()}
     mean = {k: float(np.mean([r["progress"] for r in rs])) for k, rs in groups.items()}
@@ -103,4 +106,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else HERE / "runs")
