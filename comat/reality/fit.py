@@ -159,10 +159,8 @@ def _spin_circle(log: np.ndarray, fresh: np.ndarray, delay: int, settle: int = 6
     centre of its own; nan where the heading does not turn more than half round in them."""
     w = log[:, 2]
     level = 0.5 * TOP_TURN_RATE_RADPS
-    steady = np.abs(np.abs(w) - level) < 0.02 * level
-    for j in range(1, settle):
-        steady[j:] &= steady[:-j].copy()
-        steady[:j] = False
+    at_level = np.abs(np.abs(w) - level) < 0.02 * level
+    steady = np.convolve(at_level, np.ones(settle), "full")[: len(w)] >= settle  # the last `settle` ticks at it
     use = np.zeros_like(steady)
     use[delay:] = steady[: len(steady) - delay]
     segment = np.cumsum(np.r_[True, np.diff(use.astype(int)) != 0])  # one id per phase
@@ -265,10 +263,10 @@ def fit_logs(paths: Sequence[str]) -> dict:
         timing.append(loop_timing(log))
     params = []
 
-    def add(name, values, n_runs, note=""):
+    def add(name, values, n_runs, note="", robots=None):
         est, lo, hi = _interval(values)
-        params.append({"name": name, "estimate": est, "lo": lo, "hi": hi, "robots": len(values), "runs": n_runs,
-                       "note": note})
+        params.append({"name": name, "estimate": est, "lo": lo, "hi": hi,
+                       "robots": len(values) if robots is None else robots, "runs": n_runs, "note": note})
 
     # The delay and the lag from ``steps`` (the experiment built for them; with wheels of unequal lag
     # a spin can read one tick more and a shorter lag), from ``spin`` only without it; the gain
@@ -309,8 +307,7 @@ def fit_logs(paths: Sequence[str]) -> dict:
             "wheel speed below which a robot does not move (0.05 rad/s grid)")
     add("loop_tick_s", [t["tick_s"] for t in timing], len(paths),
         "median iteration (s), over runs; not in the layer: a longer tick moves the robots further per tick, "
-        "which the gains hold")
-    params[-1]["robots"] = 0
+        "which the gains hold", robots=0)
     unknown = ("pose_bias_xy_m", "command_delay_ticks", "command_loss_prob",
                *(() if per["ramp"] else ("motor_dead_zone_radps",)), "wheel_disturbance_radps", "fault_prob")
     for name in unknown:
