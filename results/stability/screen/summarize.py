@@ -45,7 +45,62 @@ def one_run(folder: Path) -> dict:
         slope = float(np.polyfit((x - x.mean()) / x.std(), y, 1)[0])
     return {"algo": m["algo"] or "comat", "variant": m["variant"], "task": m["task"], "seed": int(m["seed"]),
             "progress": float(y.mean()), "finished": 100 * float(np.mean([e["finished"] for e in eps])),
-            "slope": slope, "t95": first_at(folder / "eval.csv")}
+            "slope": slope, "t95": first_at(folder / "eval.csv"), "folder": str(folder)}
+
+
+def first_step(path: Path, level: float = 0.95) -> int | None:
+    """The env steps of the first periodic U_train evaluation at >= ``level`` progress (None: never)."""
+    with open(path) as fh:
+        return next((int(r["env_steps"]) for r in csv.DictReader(fh) if float(r["progress"]) >= level), None)
+
+
+def t_interval(x: np.ndarray) -> tuple[float, float]:
+    """95 % Student-t interval of the mean over seeds."""
+    from scipy import stats
+
+    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size)
+    return float(x.mean() - half), float(x.mean() + half)
+
+
+def judge(groups: dict) -> None:
+    """confirm/PLAN.md's targets, COMAT (the selected variant) against MAT, each said whether or not it holds."""
+    from scipy import stats
+
+    comat = [g for k, g in groups.items() if k[:2] == ("hmt", "comat")]
+    mat = groups.get(("hmt", "mat", "control"))
+    if len(comat) != 1 or not mat:
+        print("\nThe targets need COMAT's and MAT's HMT runs.")
+        return
+    comat = sorted(comat[0], key=lambda r: r["seed"])
+    mat = sorted(mat, key=lambda r: r["seed"])
+    c, m = np.array([r["progress"] for r in comat]), np.array([r["progress"] for r in mat])
+    sc, sm = np.array([r["slope"] for r in comat]), np.array([r["slope"] for r in mat])
+    print(f"\n## The issue's targets (PLAN.md), HMT on U_val: {c.size} COMAT and {m.size} MAT seeds\n")
+    if c.size < 5 or m.size < 5:
+        print("*Interim: the targets are judged at 5 seeds each.*\n")
+    say = {True: "**holds**", False: "**does not hold**"}
+    limit = max(2 * m.std(ddof=1), 3.0)
+    print(f"1. Seed SD: COMAT {c.std(ddof=1):.1f} ≤ max(2 × MAT's {m.std(ddof=1):.1f}, 3) = {limit:.1f}: "
+          f"{say[bool(c.std(ddof=1) <= limit)]}.")
+    steps = [first_step(Path(r["folder"]) / "eval.csv") for r in comat]
+    early = sum(s is not None and s <= 151_000 for s in steps)
+    print(f"2. ≥ 95 % U_train progress by the 150 k evaluation: {early} of {len(steps)} COMAT seeds "
+          f"(need ≥ 4 of 5): {say[early >= 4]}.")
+    lo, hi = t_interval(m)
+    print(f"3. COMAT mean {c.mean():.1f} ≥ the lower end of MAT's 95 % t-interval [{lo:.1f}, {hi:.1f}]: "
+          f"{say[bool(c.mean() >= lo)]}.")
+    slo, shi = t_interval(sm)
+    print(f"4. COMAT's slow-share slope {sc.mean():+.2f} within MAT's 95 % t-interval [{slo:+.2f}, {shi:+.2f}]: "
+          f"{say[bool(slo <= sc.mean() <= shi)]}.")
+    welch = stats.ttest_ind(c, m, equal_var=False)
+    print(f"\nDescriptive: COMAT − MAT HMT progress {c.mean() - m.mean():+.2f} points, Welch t {welch.statistic:+.2f}, "
+          f"p = {welch.pvalue:.2f} (not powered for less than ~10 points at 5 seeds).")
+    for task in ("pcp",):
+        pc, pm = groups.get((task, "comat", comat[0]["variant"])), groups.get((task, "mat", "control"))
+        if pc and pm:
+            a, b = np.array([r["progress"] for r in pc]), np.array([r["progress"] for r in pm])
+            print(f"PCP progress: COMAT {a.mean():.1f} (SD {a.std(ddof=1):.1f}, {a.size} seeds), "
+                  f"MAT {b.mean():.1f} (SD {b.std(ddof=1):.1f}, {b.size} seeds).")
 
 
 def main(folder: Path = HERE / "runs") -> None:
@@ -69,7 +124,8 @@ def main(folder: Path = HERE / "runs") -> None:
               f"{sd:.1f} | {p.min():.1f} | {np.mean([r['finished'] for r in rs]):.1f} | "
               f"{' / '.join(r['t95'] for r in rs)} | {'' if np.isnan(slope) else f'{slope:+.1f}'} |")
     if folder != HERE / "runs":
-        return  # the confirmation: its targets are judged in confirm/README.md
+        judge(groups)  # the confirmation (confirm/PLAN.md): the issue's four targets
+        return
     print("\n## The selection rule (PLAN.md)\n")
     worst = {k: min(r["progress"] for r in rs) for k, rs in groups.items()}
     mean = {k: float(np.mean([r["progress"] for r in rs])) for k, rs in groups.items()}
