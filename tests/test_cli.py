@@ -119,7 +119,7 @@ def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
         names = ("comat", "comat_paper", "comat_shared_trunk", "comat_one_block", "comat_adapters")
         rows = [bench_train(name, iterations=1, preset=str(preset)) for name in names]
     assert [r["algo"] for r in rows] == list(names) and all(r["env_steps"] == 4 for r in rows)
-    assert seen[0].obs_embed and seen[0].node_ffn and seen[0].embed == 16 and seen[0].decision == "type_heads"
+    assert seen[0].obs_embed and seen[0].node_ffn and seen[0].embed == 16 and seen[0].decision == "adapters"
     assert {k: getattr(seen[1], k) for k in PAPER_FORM} == PAPER_FORM and seen[1].embed == 16
     assert seen[2].decision == "shared_trunk" and seen[2].obs_embed and seen[3].heat_blocks == 1 and seen[3].embed == 16
     assert seen[4].decision == "adapters"

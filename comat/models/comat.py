@@ -32,7 +32,11 @@ reference code and PyG's ``HEATConv`` where they differ from that reading: a non
 per edge, concatenated heads with an output map, and a path for the robot's own features — here
 a per-robot observation embedding, a residual on every block and the output map initialized
 small (gain 0.01), so COMAT starts as a per-robot policy, as MAT does — plus a per-robot
-feed-forward sublayer. Every paper-form choice stays available as a ``ComatConfig`` option.
+feed-forward sublayer. The decision layer stays type-stratified, but as one layer every robot
+trains with a zero-initialized per-type part (``decision: adapters``): with one head per type the
+slow type learned from slow robots alone and, in a third of the seeds, never learned to carry
+material home (``results/stability/``). Every paper-form choice stays available as a
+``ComatConfig`` option.
 
 Shapes: obs (B, N, D_obs), mask (B, N); embedding E; T types; C capabilities; A = 5 actions.
 """
@@ -65,7 +69,8 @@ DECISIONS = ("type_heads", "shared_trunk", "adapters")
 
 @dataclass(frozen=True)
 class ComatConfig:
-    """COMAT sizes and architecture options. Defaults: the ablation's choice (results/ablations/);
+    """COMAT sizes and architecture options. Defaults: the encoder ablation's choice
+    (results/ablations/) and the stability study's decision layer (results/stability/);
     ``ComatConfig(**PAPER_FORM)`` is the paper's eq. 2–3 read literally."""
 
     embed: int = 64
@@ -99,10 +104,13 @@ class ComatConfig:
     edge_frame: str = "heading"
     """Frame of the relative positions in the edge features: ``heading`` (robot j's position in
     robot i's body frame) or ``world`` (p_j − p_i unrotated; actions are world-frame steps)."""
-    decision: str = "type_heads"
-    """Decision layer on [h_m ‖ c_m]: ``type_heads`` (one two-layer head per robot type, the
-    paper's type-stratified layer) or ``shared_trunk`` (a hidden layer shared by all robots and
-    a per-type output layer: still type-stratified, but both types train the trunk)."""
+    decision: str = "adapters"
+    """Decision layer on [h_m ‖ c_m], type-stratified in every form: ``adapters`` (default, issue
+    30: one two-layer layer every robot trains, plus a per-type part of its output layer that
+    starts at zero, so a type's own term grows only where it pays; results/stability/),
+    ``type_heads`` (one two-layer head per robot type, the paper's layer read literally: the
+    default until issue 30; a checkpoint without this option was trained with it) or
+    ``shared_trunk`` (a hidden layer shared by all robots and a per-type output layer)."""
 
     def __post_init__(self) -> None:
         check_numbers(self, "models.comat", at_least_one=("embed", "heads", "heat_blocks", "edge_embed"))
@@ -204,7 +212,7 @@ class Comat(AutoregressivePolicy):
         self.cross_attn = Attention(E, K)
         self.ln3, self.ln4 = nn.LayerNorm(E), nn.LayerNorm(E)
         self.fc2 = mlp([E, E, E])
-        # Decision layer: per robot type, on [h_m ‖ c_m].
+        # Decision layer: type-stratified (ComatConfig.decision), on [h_m ‖ c_m].
         self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, shared_first=cfg.decision == "shared_trunk",
                                adapters=cfg.decision == "adapters")
 
