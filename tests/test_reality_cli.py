@@ -164,6 +164,14 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     assert main([*ev]) == 0
     assert (tmp_path / "run" / "evaluation_unicycle.json").read_bytes() == plain["json"]
     assert json.loads((tmp_path / "run" / "evaluation_unicycle_nominal.json").read_text()) == nominal
+    # the report's robustness table reads the two levels as one component, in the levels' order
+    from comat.eval.report import load_run
+    from comat.eval.robustness import robustness_figure, robustness_rows
+
+    every = robustness_rows([load_run(run)])
+    rows = [r for r in every if r["metric"] == "progress"]
+    assert [(r["component"], r["value"], r["seeds"]) for r in rows] == [("level", "off", 1), ("level", "nominal", 1)]
+    assert "fig.png" in robustness_figure(every, tmp_path / "fig")
     capsys.readouterr()
     # a bad level: one line naming the flag, the choices and the value, nothing written
     assert main([*ev, "--reality", "foo", "--out", str(tmp_path / "bad")]) == 2

@@ -32,7 +32,8 @@ Outputs in ``--out`` (:data:`REPORT_FILES`):
   hierarchical-bootstrap intervals (2,000 resamples, generator seed 0).
 * ``fig4_training_return``, ``fig5_generalization``, ``fig6_team_size`` (.png and .pdf):
   :mod:`comat.eval.figures`.
-* Only when runs hold reality sweeps (``comat eval --reality-sweep``): ``robustness.csv`` and
+* Only when runs hold reality sweeps (``comat eval --reality-sweep``) or evaluations at two or more
+  levels (``comat eval --reality nominal`` next to ``off``): ``robustness.csv`` and
   ``fig7_robustness`` (.png and .pdf), :mod:`comat.eval.robustness`.
 """
 

@@ -8,6 +8,11 @@ value (paired episodes). The file ``evaluation_<tier>_sweep_<component>.json`` h
 each policy's metrics per set (means over the set's episodes, and the per-episode table for the
 coalition-first averaging of :mod:`comat.eval.stats`).
 
+``comat report`` also reads a run's evaluations at the named levels (``evaluation_<tier>.json`` at
+``off``, ``evaluation_<tier>_nominal.json``, ``evaluation_<tier>_stress.json``: ``comat eval
+--reality LEVEL``) as one more component, ``level``, with the values off, nominal, stress, where a
+run has at least two of them: the gap a grid measures at every level, drawn the same way.
+
 ``comat report`` reads the sweep files of its runs: per task, component and algorithm, each
 endpoint at each value as the mean over seeds (one value per run: its episodes averaged per
 coalition, then over coalitions) with the Student-t interval over those per-seed means
@@ -29,8 +34,9 @@ import numpy as np
 from comat.eval.metrics import current_names
 from comat.reality.config import LEVELS, RealityConfig
 
-__all__ = ["ROBUSTNESS_ENDPOINTS", "ROBUSTNESS_FILES", "SWEEP_VALUES", "load_sweeps", "print_sweep", "robustness_csv",
-           "robustness_figure", "robustness_rows", "run_reality_sweep", "sweep_values", "write_sweep"]
+__all__ = ["LEVEL_COMPONENT", "LEVEL_ORDER", "ROBUSTNESS_ENDPOINTS", "ROBUSTNESS_FILES", "SWEEP_VALUES", "load_levels",
+           "load_sweeps", "print_sweep", "robustness_csv", "robustness_figure", "robustness_rows", "run_reality_sweep",
+           "sweep_values", "write_sweep"]
 
 ROBUSTNESS_FILES = ("robustness.csv", "fig7_robustness.png", "fig7_robustness.pdf")
 """What ``comat report`` adds when its runs hold reality sweeps."""
@@ -121,6 +127,27 @@ def load_sweeps(folder: str | Path, tier: str) -> list[dict]:
             for p in sorted(Path(folder).glob(f"evaluation_{tier}_sweep_*.json"))]
 
 
+LEVEL_COMPONENT = "level"
+"""The component under which the level evaluations appear (values: :data:`LEVEL_ORDER`)."""
+LEVEL_ORDER = ("off", "nominal", "stress")
+
+
+def load_levels(folder: str | Path, tier: str) -> list[dict]:
+    """A run's evaluations at the named reality levels as one sweep-like record (``component``
+    ``level``, one point per level present, in :data:`LEVEL_ORDER`); [] with fewer than two."""
+    points = []
+    for level in LEVEL_ORDER:
+        path = Path(folder) / (f"evaluation_{tier}.json" if level == "off" else f"evaluation_{tier}_{level}.json")
+        if path.is_file():
+            points.append({"value": level, "rows": current_names(json.loads(path.read_text()))["rows"]})
+    return [{"component": LEVEL_COMPONENT, "points": points}] if len(points) >= 2 else []
+
+
+def _x(component: str, value):
+    """Where a value sits on its axis: a level's place in :data:`LEVEL_ORDER`, else the value."""
+    return LEVEL_ORDER.index(value) if component == LEVEL_COMPONENT else value
+
+
 def _run_value(row: dict, metric: str) -> float | None:
     """A run's score on one set: its episodes averaged per coalition first, then over coalitions."""
     from comat.eval.stats import per_seed_means
@@ -140,7 +167,7 @@ def robustness_rows(runs: list[dict]) -> list[dict]:
 
     cells: dict[tuple, list[float]] = {}
     for run in runs:
-        for sweep in load_sweeps(run["folder"], run["tier"]):
+        for sweep in [*load_sweeps(run["folder"], run["tier"]), *load_levels(run["folder"], run["tier"])]:
             for point in sweep["points"]:
                 for row in point["rows"]:
                     if row["policy"] != run["algo"]:
@@ -151,7 +178,11 @@ def robustness_rows(runs: list[dict]) -> list[dict]:
                             key = (run["task"], sweep["component"], row["set"], run["algo"], point["value"], metric)
                             cells.setdefault(key, []).append(v)
     out = []
-    for (task, comp, split, algo, value, metric), vals in sorted(cells.items(), key=lambda kv: tuple(map(str, kv[0]))):
+    def order(item):
+        task, comp, split, algo, value, metric = item[0]
+        return task, comp, split, algo, _x(comp, value), metric
+
+    for (task, comp, split, algo, value, metric), vals in sorted(cells.items(), key=order):
         t = t_interval(vals)
         out.append({"task": task, "component": comp, "set": split, "algo": algo, "value": value, "metric": metric,
                     "mean": t["mean"], "ci95": t["half"], "seeds": t["n"]})
@@ -175,7 +206,8 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
     plt = _plt()
     keys = sorted({(r["task"], r["component"], r["set"]) for r in rows})
     if not keys:
-        return empty_figure("no reality sweeps in these runs (comat eval --reality-sweep COMPONENT)", stem)
+        return empty_figure("no reality sweeps or level evaluations in these runs (comat eval --reality-sweep "
+                            "COMPONENT, or --reality nominal next to off)", stem)
     fig, axes = plt.subplots(len(keys), len(ROBUSTNESS_ENDPOINTS), figsize=(4 * len(ROBUSTNESS_ENDPOINTS),
                                                                              3 * len(keys)), squeeze=False)
     for i, (task, comp, split) in enumerate(keys):
@@ -183,9 +215,9 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
             ax = axes[i][j]
             sel = [r for r in rows if (r["task"], r["component"], r["set"], r["metric"]) == (task, comp, split, metric)]
             for algo in sorted({r["algo"] for r in sel}):
-                pts = sorted((r for r in sel if r["algo"] == algo), key=lambda r: r["value"])
+                pts = sorted((r for r in sel if r["algo"] == algo), key=lambda r: _x(comp, r["value"]))
                 scale = 100.0 if metric in ("progress", "finished") else 1.0
-                x = [r["value"] for r in pts]
+                x = [_x(comp, r["value"]) for r in pts]
                 y = np.array([r["mean"] for r in pts]) * scale
                 err = np.nan_to_num(np.array([r["ci95"] for r in pts]) * scale)
                 if metric in ("progress", "finished"):
@@ -194,6 +226,8 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
                 ax.errorbar(x, y, yerr=err, marker="o", capsize=3,
                             label=f"{ALGO_LABELS.get(algo, algo)} ({seeds} seed{'s' if seeds > 1 else ''})")
             ax.set_xlabel(comp)
+            if comp == LEVEL_COMPONENT:
+                ax.set_xticks(range(len(LEVEL_ORDER)), LEVEL_ORDER)
             ax.set_ylabel(label)
             if metric in ("progress", "finished"):
                 ax.set_ylim(0, 105)
