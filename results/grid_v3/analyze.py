@@ -20,12 +20,11 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
 from comat.eval.metrics import current_names
-from comat.eval.stats import welch
+from comat.eval.stats import per_seed_means, t_interval, welch
 
 NAME = re.compile(r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
                   r"(?:_(?P<k>\d+)k)?$")
@@ -40,11 +39,18 @@ LEVELS = {"off": "evaluation_unicycle.json", "nominal": "evaluation_unicycle_nom
 def seed_value(row: dict, key: str) -> float:
     """A run's value on one set: the mean over coalitions of each coalition's episode mean
     (progress, finished and progress_auc in %, time_to_90 in env steps)."""
-    by = defaultdict(list)
-    for e in row["per_episode"]:
-        by[e["coalition"]].append(float(e[key]))
-    value = float(np.mean([np.mean(v) for v in by.values()]))
+    eps = row["per_episode"]
+    value = float(per_seed_means([0] * len(eps), [e["coalition"] for e in eps], [float(e[key]) for e in eps])[1][0])
     return value if key == "time_to_90" else 100 * value
+
+
+def paired_change(a: dict, b: dict) -> tuple[np.ndarray, dict] | None:
+    """b − a over the seeds both have (S,), with its 95 % t-interval; None with fewer than 2."""
+    seeds = sorted(set(a) & set(b))
+    if len(seeds) < 2:
+        return None
+    d = np.array([b[k] - a[k] for k in seeds])
+    return d, t_interval(d)
 
 
 def load(folder: Path) -> dict:
@@ -155,14 +161,13 @@ def reality(table: dict) -> list[str]:
                 for trained in ("off", "nominal"):
                     off = table.get((algo, task, trained, 300, "off", s, "progress"), {})
                     nom = table.get((algo, task, trained, 300, "nominal", s, "progress"), {})
-                    seeds = sorted(set(off) & set(nom))
-                    if len(seeds) < 2:
+                    change = paired_change(off, nom)
+                    if change is None:
                         continue
-                    d = np.array([nom[k] - off[k] for k in seeds])
-                    gaps[(task, s, algo, trained)] = dict(zip(seeds, d))
-                    half = stats.t.ppf(0.975, d.size - 1) * d.std(ddof=1) / math.sqrt(d.size)
+                    d, t = change
+                    gaps[(task, s, algo, trained)] = dict(zip(sorted(set(off) & set(nom)), d))
                     lines.append(f"| {task.upper()} | {name} | {algo.upper()} ({trained}) | {d.size} | "
-                                 f"{d.mean():+.1f} [{d.mean() - half:+.1f}, {d.mean() + half:+.1f}] |")
+                                 f"{t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |")
     note = ("COMAT's gap − MAT's (trained at `off`), and what training at `nominal` recovers (at `nominal`, "
             "trained at `nominal` − trained at `off`):")
     lines += ["", note, "", "| task | set | comparison " + HEAD, "|" + "---|" * 11]
@@ -186,14 +191,12 @@ def budget(table: dict) -> list[str]:
         for s in ("size", "scale", "train"):
             a = table.get((algo, "hmt", "off", 300, "off", s, "progress"), {})
             b = table.get((algo, "hmt", "off", 1000, "off", s, "progress"), {})
-            seeds = sorted(set(a) & set(b))
-            if len(seeds) < 2:
+            change = paired_change(a, b)
+            if change is None:
                 continue
-            d = np.array([b[k] - a[k] for k in seeds])
-            half = stats.t.ppf(0.975, d.size - 1) * d.std(ddof=1) / math.sqrt(d.size)
+            (d, t), seeds = change, sorted(set(a) & set(b))
             lines.append(f"| {algo.upper()} | {SETS[s]} | {d.size} | {np.mean([a[k] for k in seeds]):.1f} | "
-                         f"{np.mean([b[k] for k in seeds]):.1f} | {d.mean():+.1f} [{d.mean() - half:+.1f}, "
-                         f"{d.mean() + half:+.1f}] |")
+                         f"{np.mean([b[k] for k in seeds]):.1f} | {t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |")
     return lines + [""]
 
 

@@ -20,17 +20,15 @@ sys.path.insert(0, str(HERE.parent))
 from diagnose import _team_slow_payload
 
 from comat.eval.metrics import current_names
+from comat.eval.stats import t_interval
 
 NAME = re.compile(r"^(?:(?P<algo>mat)_)?(?P<variant>[a-z_]+?)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
 
 
 def first_at(path: Path, level: float = 0.95) -> str:
     """The first periodic U_train evaluation (deterministic) at >= ``level`` progress, in k env steps."""
-    with open(path) as fh:
-        for row in csv.DictReader(fh):
-            if float(row["progress"]) >= level:
-                return f"{int(row['env_steps']) / 1000:.0f} k"
-    return "never"
+    steps = first_step(path, level)
+    return "never" if steps is None else f"{steps / 1000:.0f} k"
 
 
 def one_run(folder: Path) -> dict:
@@ -52,14 +50,6 @@ def first_step(path: Path, level: float = 0.95) -> int | None:
     """The env steps of the first periodic U_train evaluation at >= ``level`` progress (None: never)."""
     with open(path) as fh:
         return next((int(r["env_steps"]) for r in csv.DictReader(fh) if float(r["progress"]) >= level), None)
-
-
-def t_interval(x: np.ndarray) -> tuple[float, float]:
-    """95 % Student-t interval of the mean over seeds."""
-    from scipy import stats
-
-    half = stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size)
-    return float(x.mean() - half), float(x.mean() + half)
 
 
 def judge(groups: dict) -> None:
@@ -86,10 +76,10 @@ def judge(groups: dict) -> None:
     early = sum(s is not None and s <= 151_000 for s in steps)
     print(f"2. ≥ 95 % U_train progress by the 150 k evaluation: {early} of {len(steps)} COMAT seeds "
           f"(need ≥ 4 of 5): {say[early >= 4]}.")
-    lo, hi = t_interval(m)
+    lo, hi = (t_interval(m)[k] for k in ("lo", "hi"))
     print(f"3. COMAT mean {c.mean():.1f} ≥ the lower end of MAT's 95 % t-interval [{lo:.1f}, {hi:.1f}]: "
           f"{say[bool(c.mean() >= lo)]}.")
-    slo, shi = t_interval(sm)
+    slo, shi = (t_interval(sm)[k] for k in ("lo", "hi"))
     print(f"4. COMAT's slow-share slope {sc.mean():+.2f} within MAT's 95 % t-interval [{slo:+.2f}, {shi:+.2f}]: "
           f"{say[bool(slo <= sc.mean() <= shi)]}.")
     welch = stats.ttest_ind(c, m, equal_var=False)
