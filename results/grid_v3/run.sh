@@ -33,9 +33,10 @@ if [[ $steps != 300000 && ! -d $run ]]; then  # the budget check continues a cop
   mv "$run.partial" "$run"
 fi
 if [[ ! -f $run/policy.pt ]]; then
-  resume=(); [[ -f $run/checkpoint.pt ]] && resume=(--resume)
+  # a resumed run keeps the settings its config.yaml holds (comat train refuses overrides with --resume)
+  args=("${extra[@]}"); [[ -f $run/checkpoint.pt ]] && args=(--resume)
   comat train --algo "$algo" --task "$task" --preset sweep --seed "$seed" --steps "$steps" --out "$run" \
-    --quiet "${resume[@]}" "${extra[@]}" >> "$log" 2>&1
+    --quiet "${args[@]}" >> "$log" 2>&1
 fi
 teams=all; [[ $algo == qmix ]] && teams=both  # QMIX's 8 slots: U_train and U_test only
 levels=(off nominal); [[ $steps == 300000 && $seed -le 102 ]] && levels+=(stress)
