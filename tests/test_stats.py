@@ -80,6 +80,10 @@ def test_welch_matches_scipy_and_the_satterthwaite_df():
     assert math.isnan(welch([1.0], [2.0, 3.0])["p"])
     one = welch([1.0, 1.0], [1.0, 1.0])
     assert one["diff"] == 0.0 and math.isnan(one["p"]) and math.isnan(one["lo"])
+    # spread at rounding level is no spread (a seed at 100 % reached by another float path)
+    rounded = welch([100.0, 100.0 - 1.4e-14], [99.8, 99.8 + 2.8e-14])
+    assert math.isnan(rounded["p"]) and rounded["diff"] == pytest.approx(0.2)
+    assert welch([100.0, 99.9], [99.8, 99.8])["p"] < 1  # a real spread of 0.1 point still counts
     # one side constant is fine (the other carries the spread)
     assert welch([1.0, 1.0, 1.0], [0.0, 0.5, 1.0])["df"] == pytest.approx(2.0)
 

@@ -184,7 +184,7 @@ def welch(a: Sequence[float], b: Sequence[float], confidence: float = 0.95) -> d
     Returns ``{"diff", "lo", "hi", "t", "df", "p", "n_a", "n_b"}``: the difference, its
     ``confidence`` interval with the Welch–Satterthwaite degrees of freedom, the statistic and
     the two-sided p-value. nan where it is undefined: fewer than 2 values in either, or no
-    spread in either (both constant)."""
+    spread in either (both constant, up to rounding)."""
     from scipy import stats
 
     a = np.asarray(_vector("a", a), dtype=float)
@@ -198,7 +198,9 @@ def welch(a: Sequence[float], b: Sequence[float], confidence: float = 0.95) -> d
         return nan
     va, vb = a.var(ddof=1) / a.size, b.var(ddof=1) / b.size
     se2 = va + vb
-    if se2 <= 0:
+    # Spread at rounding level (two seeds that both reach 100 % by different float paths) is no
+    # spread: a t of 1e13 from it would read as certainty.
+    if math.sqrt(se2) <= 1e-9 * max(1.0, float(np.abs(a).max()), float(np.abs(b).max())):
         return nan
     df = se2 ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1))
     t = diff / math.sqrt(se2)
