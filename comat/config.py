@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 
 from comat import constants as C
 
-__all__ = ["SafetyConfig", "SimConfig", "load", "load_yaml", "to_dict"]
+__all__ = ["LOOPS", "SafetyConfig", "SimConfig", "load", "load_yaml", "to_dict"]
 
 T = TypeVar("T")
 
@@ -75,6 +75,10 @@ class SimConfig:
         return self.substeps if self.substeps is not None else DEFAULT_SUBSTEPS[self.tier]
 
 
+LOOPS = ("comat", "robotarium_v2", "robotarium_legacy")
+"""The per-tick loops :class:`SafetyConfig` can run (``loop``): comat's filter, or an export's."""
+
+
 @dataclass(frozen=True)
 class SafetyConfig:
     """Control-barrier-function filter settings (DESIGN §4, docs/safety.md)."""
@@ -107,6 +111,12 @@ class SafetyConfig:
     """Under a reality layer (``reality=`` not ``off``), lower the gains to the loop delay's
     bound, widen the distances by the measurement bound and dead-reckon repeated poses
     (:mod:`comat.reality.margin`); False keeps these settings as given. No effect at ``off``."""
+    loop: str = "comat"
+    """Which loop turns waypoints into wheel commands every tick: ``"comat"`` (comat's own
+    filter, the settings above) or the loop an export runs on the Robotarium
+    (:mod:`comat.safety.deployed`): ``"robotarium_v2"`` / ``"robotarium_legacy"``, the exported
+    main.py with that rps generation's own barrier and speed cap. The deployed loops ignore
+    every other field here."""
 
     def __post_init__(self) -> None:
         for name in ("safety_distance_m", "projection_distance_m", "barrier_gain", "boundary_gain", "eps"):
@@ -119,6 +129,8 @@ class SafetyConfig:
             raise ValueError(
                 f"SafetyConfig.wheel_speed_fraction must be in (0, 1], got {self.wheel_speed_fraction!r}"
             )
+        if self.loop not in LOOPS:
+            raise ValueError(f"SafetyConfig.loop must be one of {list(LOOPS)}, got {self.loop!r}")
         if self.barrier_gain * C.CONTROL_DT_S >= 1 or self.boundary_gain * C.CONTROL_DT_S >= 1:
             raise ValueError(
                 f"SafetyConfig gains must satisfy gain * {C.CONTROL_DT_S} s < 1 to stay safe between ticks, "

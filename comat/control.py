@@ -11,6 +11,7 @@ waypoint controller of the projected points (Robotarium ``si_position_controller
 
 from __future__ import annotations
 
+import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -18,12 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig, SimConfig
 from comat.reality import RealityConfig, RealityLayer
-from comat.reality.margin import robust_safety
+from comat.reality.margin import loop_delay_s, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
+from comat.safety.deployed import DeployedLoop, PortableBarrier, RobotWatch, osqp_qp, robotarium_loop, uni_to_si
 from comat.sim import BatchWorld, World
 from comat.sim.kinematics import (
     WHEEL_LIMIT_TOLERANCE,
@@ -35,7 +38,7 @@ from comat.sim.kinematics import (
 )
 from comat.sim.violations import TickEvents
 
-__all__ = ["SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
+__all__ = ["DeployedInfo", "SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
 
 
 def go_to_goal(points: np.ndarray, goals: np.ndarray, gain: float = 1.0, max_speed: float = 0.2) -> np.ndarray:
@@ -98,6 +101,23 @@ class TickTiming:
         return self.total - self.physics - self.solver
 
 
+@dataclass
+class DeployedInfo:
+    """What the deployed loop's barrier did in one tick (the fields of :class:`SafetyInfo` that
+    counters and recorders read)."""
+
+    intervention: np.ndarray
+    """(B,) ‖u − û‖ of the projected points' velocities per team (m/s)."""
+    robot_intervened: np.ndarray
+    """(R,) bool, the barrier changed the robot's command."""
+    fallback: np.ndarray
+    """(B,) bool, the barrier's QP failed this tick (V2 then commands zeros to the team)."""
+    recovery: np.ndarray
+    """(B,) bool, always False: the Robotarium's barrier has no recovery mode."""
+    status: str = "deployed"
+    solve_time_s: float = 0.0
+
+
 class SafeTeams:
     """Teams of robots whose every command passes the barrier filter before the wheels.
 
@@ -139,6 +159,14 @@ class SafeTeams:
             self.reality = RealityLayer(reality, self.world.profile, self.world.layout, reality_seed)
             self.filter_config = robust_safety(self.safety_config, reality, self.world.profile)
         self.filter = SafetyFilter(sizes, self.filter_config, self.world.profile, self._qp_cache)
+        self.watch: RobotWatch | None = self._new_watch()
+        """What the script tells of each robot under a reality layer (comat's robust filter only):
+        a team with a robot on probation (one that does not respond) is filtered by
+        :class:`~comat.safety.deployed.PortableBarrier`, which treats it as an obstacle."""
+        self._portable = PortableBarrier(self._portable_settings(), osqp_qp)
+        self.deployed: list[DeployedLoop] | None = self._deployed_loops(sizes)
+        """Per team, the exported script's loop (``safety.loop`` not ``"comat"``; else None):
+        :meth:`tick_deployed` runs it."""
         self.timing = TickTiming()
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
@@ -149,6 +177,29 @@ class SafeTeams:
         self.tick_observers: list[Callable[[np.ndarray, np.ndarray, TickEvents, SafetyInfo], None]] = []
         """Called after every tick with (nominal (R, 2), filtered (R, 2), events, info); e.g. a
         :mod:`comat.viz` recorder. Empty by default (nothing to pay when not recording)."""
+
+    def _new_watch(self) -> RobotWatch | None:
+        if self.reality is None or not self.safety_config.robust or self.safety_config.loop != "comat":
+            return None
+        lag = math.ceil(loop_delay_s(self.reality.config, self.world.profile) / C.CONTROL_DT_S)
+        return RobotWatch(self.world.layout.n_robots, self.safety_config.projection_distance_m, lag)
+
+    def _portable_settings(self) -> dict:
+        """The filter's settings as :class:`~comat.safety.deployed.PortableBarrier` takes them."""
+        cfg, p = self.filter_config, self.world.profile
+        return {"safety_distance_m": cfg.safety_distance_m, "projection_distance_m": cfg.projection_distance_m,
+                "boundary_margin_m": cfg.boundary_margin_m, "barrier_gain": cfg.barrier_gain,
+                "boundary_gain": cfg.boundary_gain, "axle_m": p.base_length_m, "wheel_radius_m": p.wheel_radius_m,
+                "wheel_limit_radps": p.max_wheel_velocity_radps * cfg.wheel_speed_fraction}
+
+    def _deployed_loops(self, sizes: Sequence[int]) -> list[DeployedLoop] | None:
+        """One deployed loop per team of ``sizes`` (None for comat's own filter)."""
+        loop = self.safety_config.loop
+        if loop == "comat":
+            return None
+        generation = loop.removeprefix("robotarium_")
+        d = self.safety_config.projection_distance_m
+        return [robotarium_loop(generation, projection=d) for _ in sizes]
 
     @property
     def poses(self) -> np.ndarray:
@@ -203,6 +254,8 @@ class SafeTeams:
         self.world.reset(poses, teams) if teams is not None else self.world.reset(poses)
         if self.reality is not None:
             self.reality.begin_measuring(self.world._poses, team_ids)
+        if self.watch is not None:
+            self.watch.restart(np.flatnonzero(np.isin(self.world.layout.robot_team, team_ids)))
         sel = slice(None) if teams is None else np.asarray(teams, dtype=np.int64)
         self.interventions[sel] = 0
         self.fallbacks[sel] = 0
@@ -233,8 +286,10 @@ class SafeTeams:
             return
         self.world.set_team_sizes(sizes)
         self.filter = SafetyFilter(sizes, self.filter_config, self.world.profile, self._qp_cache)
+        self.deployed = self._deployed_loops(sizes)
         if self.reality is not None:
             self.reality.relayout(self.world.layout)
+        self.watch = self._new_watch()  # teams whose size changed start afresh; the others lose a window
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
         self.recoveries = np.zeros(len(sizes), np.int64)
@@ -274,6 +329,8 @@ class SafeTeams:
             dxi[turn] = dxi[turn] @ np.array([[c, s], [-s, c]])
             self._detour[turn] -= 1
         safe, info = self.filter._filter(poses, dxi, cos_sin)
+        if self.watch is not None:
+            self._watch_teams(dxi, safe, info)
         # A robot the filter holds still against its command for HOLD_TICKS ticks starts a detour.
         want = nominal[:, 0] ** 2 + nominal[:, 1] ** 2
         still = (want > 1e-6) & (safe[:, 0] ** 2 + safe[:, 1] ** 2 < HOLD_FRACTION**2 * want)
@@ -286,6 +343,8 @@ class SafeTeams:
             events = self.world._step_points(safe, self.safety_config.projection_distance_m)
         else:
             events = self._step_real(safe, poses, cos_sin)
+            if self.watch is not None:
+                self.watch.sent(self.reality._sent)
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.recoveries += info.recovery
@@ -294,6 +353,66 @@ class SafeTeams:
         self.timing.solver = self.filter.last_solver_s
         for observe in self.tick_observers:
             observe(nominal, safe, events, info)
+        return events, info
+
+    def _watch_teams(self, dxi: np.ndarray, safe: np.ndarray, info: SafetyInfo) -> None:
+        """Teams with a robot on probation (:class:`RobotWatch`) take the portable filter's answer,
+        which treats that robot as an obstacle, in place of the fast filter's (``safe`` (R, 2))."""
+        watch, lay = self.watch, self.world.layout
+        watch.observe(self.reality.measured)
+        if not watch.probation.any():
+            return
+        poses, extra = watch.obstacles()
+        for b in np.unique(lay.robot_team[watch.probation]):
+            rows = slice(lay.offsets[b], lay.offsets[b + 1])
+            failures = self._portable.failures
+            safe[rows] = self._portable(poses[rows], dxi[rows], watch.probation[rows], extra[rows])
+            info.fallback[b] |= self._portable.failures > failures
+            info.intervention[b] = np.linalg.norm(safe[rows] - dxi[rows])
+
+    def tick_deployed(self, dxi: np.ndarray) -> tuple[TickEvents, DeployedInfo]:
+        """One tick of the exported script's loop (``safety.loop`` not ``"comat"``).
+
+        ``dxi`` (R, 2): the waypoint controller's velocities of the measured projected points
+        (main.py's: gain·(waypoint − point), norm-clipped to 0.2 m/s). Per team, on the measured
+        poses (what ``get_poses`` returns: no dead reckoning), :class:`DeployedLoop` maps them to
+        unicycle commands, scales the wheels, runs the Robotarium's barrier and scales again;
+        the commands then pass the reality layer (if any) into the world, as ``set_velocities``
+        does on the testbed. Judging (contacts, Robotarium checks) stays on true poses."""
+        if self.deployed is None:
+            raise RuntimeError("tick_deployed needs SafetyConfig.loop 'robotarium_v2' or 'robotarium_legacy', "
+                               f"got {self.safety_config.loop!r}")
+        t0 = time.perf_counter()
+        dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
+        lay, d = self.world.layout, self.safety_config.projection_distance_m
+        x = self.measured_poses
+        sent = np.empty((lay.n_robots, 2))
+        nominal = np.empty((lay.n_robots, 2))
+        fallback = np.zeros(lay.n_teams, dtype=bool)
+        for b, loop in enumerate(self.deployed):
+            rows = slice(lay.offsets[b], lay.offsets[b + 1])
+            failures = loop.barrier.failures
+            nom, out = loop.commands(x[rows].T, dxi[rows].T)
+            nominal[rows], sent[rows] = nom.T, out.T
+            fallback[b] = loop.barrier.failures > failures
+        clipped, overrun = threshold_wheels(sent, self.world.profile)
+        if self.reality is None:
+            events = self.world._advance(clipped, overrun)
+        else:
+            events = self.world._advance(self.reality.actuate(clipped), overrun)
+            self.reality.observe(self.world._poses)
+        u_nom, u = uni_to_si(nominal.T, x.T, d).T, uni_to_si(sent.T, x.T, d).T
+        change = np.linalg.norm(u - u_nom, axis=1)
+        info = DeployedInfo(intervention=np.sqrt(np.bincount(lay.robot_team, weights=change**2, minlength=lay.n_teams)),
+                            robot_intervened=change > 1e-9, fallback=fallback,
+                            recovery=np.zeros(lay.n_teams, dtype=bool))
+        self.interventions += info.intervention > 1e-9
+        self.fallbacks += info.fallback
+        self.timing.total = time.perf_counter() - t0
+        self.timing.physics = self.world.last_physics_s
+        self.timing.solver = 0.0
+        for observe in self.tick_observers:
+            observe(u_nom, u, events, info)
         return events, info
 
     def _step_real(self, safe: np.ndarray, poses: np.ndarray, cos_sin: tuple[np.ndarray, np.ndarray]) -> TickEvents:

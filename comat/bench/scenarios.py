@@ -11,6 +11,7 @@ With ``reality=`` the controller reads measured points and the outcome is judged
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -22,7 +23,7 @@ from comat.control import SafeTeams, go_to_goal
 from comat.reality import RealityConfig, resolve_reality
 from comat.sim.kinematics import si_to_uni
 
-__all__ = ["SCENARIOS", "UNSAFE_STARTS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario", "swap_scenario"]
+__all__ = ["FAULTS", "SCENARIOS", "UNSAFE_STARTS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario", "swap_scenario"]
 
 _X0, _X1, _Y0, _Y1 = C.ARENA_BOUNDS_M
 
@@ -38,6 +39,8 @@ class Scenario:
     ticks: int
     bangbang: bool = False
     """Full-speed random directions instead of go-to-goal (``goals`` unused)."""
+    reality: dict = dataclasses.field(default_factory=dict)
+    """Reality fields set on top of the level the scenario runs at (:data:`FAULTS`)."""
 
 
 def _spread(rng: np.random.Generator, n: int, spacing: float, margin: float = 0.25) -> np.ndarray:
@@ -174,6 +177,23 @@ SCENARIOS: dict[str, Callable] = {
 UNSAFE_STARTS: dict[str, Callable] = {"inside": _inside}
 """Scenarios that start outside it: the filter must recover, not keep a promise it cannot."""
 
+_STOP = {"fault_prob": 1.0, "fault_speed_fraction": 0.0, "fault_start_min_s": 0.5, "fault_start_max_s": 4.0}
+FAULTS: dict[str, tuple[str, dict]] = {
+    "stop_swap4": ("swap4", _STOP),
+    "stop_converge16": ("converge16", _STOP),
+    "dropout_swap4": ("swap4", {"command_loss_prob": 0.004, "command_loss_mean_ticks": 45.0}),
+    "frozen_stop_swap4": ("swap4", {**_STOP, "pose_freeze_prob": 0.02, "pose_freeze_mean_ticks": 15.0}),
+    "exact_swap4": ("swap4", {"pose_noise_xy_m": 0.0, "pose_noise_theta_rad": 0.0, "pose_bias_xy_m": 0.0}),
+    "exact_bangbang16": ("bangbang16", {"pose_noise_xy_m": 0.0, "pose_noise_theta_rad": 0.0, "pose_bias_xy_m": 0.0}),
+}
+"""Faults the filters must survive (issue 45), each a safe-start scenario with reality fields set
+on top of the battery's level: a robot whose motors stop while it is commanded to move (a dead
+robot: ``stop_*``, from 0.5–4 s on); Wi-Fi dropouts of 1.5 s on average, so that the robot brakes
+after 0.5 s (``dropout_*``); a stopped robot whose pose also freezes (``frozen_stop_*``: its
+commands are not executed and what the script sees of it is stale); repeated poses with no noise
+(``exact_*``: an exact tracker, where a repeat cannot be told from a robot standing still). A robot
+that does not respond is an obstacle to the others, whatever it was told."""
+
 
 def swap_scenario(robots: int, episodes: int, seed: int, ticks: int = 300, radius: float = 0.75) -> Scenario:
     """``episodes`` teams of ``robots`` on a jittered ring, each robot driven to the opposite side."""
@@ -182,10 +202,15 @@ def swap_scenario(robots: int, episodes: int, seed: int, ticks: int = 300, radiu
 
 
 def make_scenario(name: str, episodes: int, seed: int) -> Scenario:
-    """Draw ``episodes`` random episodes of scenario ``name`` (one of :data:`SCENARIOS`)."""
+    """Draw ``episodes`` random episodes of scenario ``name`` (one of :data:`SCENARIOS`,
+    :data:`UNSAFE_STARTS` or :data:`FAULTS`: a fault scenario draws its base scenario's episodes
+    and carries its reality fields in :attr:`Scenario.reality`)."""
     makers = {**SCENARIOS, **UNSAFE_STARTS}
+    if name in FAULTS:
+        base, fields = FAULTS[name]
+        return dataclasses.replace(make_scenario(base, episodes, seed), name=name, reality=dict(fields))
     if name not in makers:
-        raise ValueError(f"scenario must be one of {sorted(makers)}, got {name!r}")
+        raise ValueError(f"scenario must be one of {sorted(makers) + sorted(FAULTS)}, got {name!r}")
     sizes, poses, goals, ticks = makers[name](np.random.default_rng(seed), episodes)
     return Scenario(name, tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks,
                     bangbang=name.startswith("bangbang"))
@@ -233,8 +258,14 @@ def _bangbang(rng: np.random.Generator, n: int):
 
 
 def _in_safe_set(teams: SafeTeams) -> np.ndarray:
-    """(B,) every true projected point of the team inside the filter's safe set."""
-    cfg, lay, q = teams.filter_config, teams.world.layout, teams.points
+    """(B,) every true projected point of the team inside the filter's safe set (the deployed
+    loop's: the Robotarium barrier's own)."""
+    lay = teams.world.layout
+    if teams.deployed is not None:
+        true = teams.poses
+        return np.array([loop.barrier.in_safe_set(true[lay.offsets[b]:lay.offsets[b + 1]].T)
+                         for b, loop in enumerate(teams.deployed)])
+    cfg, q = teams.filter_config, teams.points
     close = np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1) < cfg.safety_distance_m
     m = cfg.boundary_margin_m
     out = (q[:, 0] < _X0 + m) | (q[:, 0] > _X1 - m) | (q[:, 1] < _Y0 + m) | (q[:, 1] > _Y1 - m)
@@ -251,9 +282,14 @@ def run_scenario(
 
     With ``filtered=False`` the nominal commands go to the wheels unfiltered (only clipped to
     the wheel limits), to show what the barrier prevents. ``reality`` (a level or config) puts
-    the reality layer between the world and the controller, its draws keyed by ``seed``.
+    the reality layer between the world and the controller, its draws keyed by ``seed``; a fault
+    scenario's fields (:attr:`Scenario.reality`) are set on top. ``safety.loop`` other than
+    ``"comat"`` runs the exported script's loop (:meth:`SafeTeams.tick_deployed`) instead.
     """
-    teams = SafeTeams(scn.team_sizes, sim, safety, reality=resolve_reality(reality), reality_seed=seed)
+    config = resolve_reality(reality)
+    if scn.reality:
+        config = dataclasses.replace(config, **scn.reality)
+    teams = SafeTeams(scn.team_sizes, sim, safety, reality=config, reality_seed=seed)
     teams.reset(scn.poses)
     lay = teams.world.layout
     safe_start = _in_safe_set(teams)
@@ -263,7 +299,9 @@ def run_scenario(
     bang = _bangbang(np.random.default_rng(seed), lay.n_robots) if scn.bangbang else None
     for _ in range(scn.ticks):
         nominal = bang() if bang is not None else go_to_goal(teams.measured_points, scn.goals)
-        if filtered:
+        if filtered and teams.deployed is not None:
+            teams.tick_deployed(nominal)
+        elif filtered:
             teams.tick(nominal)
         else:
             teams.world.step(si_to_uni(nominal, teams.poses, d_proj))
