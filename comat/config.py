@@ -75,8 +75,9 @@ class SimConfig:
         return self.substeps if self.substeps is not None else DEFAULT_SUBSTEPS[self.tier]
 
 
-LOOPS = ("comat", "robotarium_v2", "robotarium_legacy")
-"""The per-tick loops :class:`SafetyConfig` can run (``loop``): comat's filter, or an export's."""
+LOOPS = ("comat", "robotarium_v2", "robotarium_legacy", "shipped_v2", "shipped_legacy")
+"""The per-tick loops :class:`SafetyConfig` can run (``loop``): comat's filter, or an export's
+main.py under an rps generation, with the Robotarium's barrier or with comat's shipped filter."""
 
 
 @dataclass(frozen=True)
@@ -115,8 +116,10 @@ class SafetyConfig:
     """Which loop turns waypoints into wheel commands every tick: ``"comat"`` (comat's own
     filter, the settings above) or the loop an export runs on the Robotarium
     (:mod:`comat.safety.deployed`): ``"robotarium_v2"`` / ``"robotarium_legacy"``, the exported
-    main.py with that rps generation's own barrier and speed cap. The deployed loops ignore
-    every other field here."""
+    main.py with that rps generation's own barrier and speed cap, or ``"shipped_v2"`` /
+    ``"shipped_legacy"``, main.py with comat's filter in the barrier's place
+    (:class:`comat.safety.deployed.ShippedFilter`, made robust to the reality layer as comat's
+    own is). The Robotarium loops ignore every other field here."""
 
     def __post_init__(self) -> None:
         for name in ("safety_distance_m", "projection_distance_m", "barrier_gain", "boundary_gain", "eps"):

@@ -22,11 +22,23 @@ import numpy as np
 from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
-from comat.config import SafetyConfig, SimConfig
+from comat.config import LOOPS, SafetyConfig, SimConfig
 from comat.reality import RealityConfig, RealityLayer
 from comat.reality.margin import loop_delay_s, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
-from comat.safety.deployed import DeployedLoop, PortableBarrier, RobotWatch, osqp_qp, robotarium_loop, uni_to_si
+from comat.safety.deployed import (
+    DETOUR_ANGLE_RAD,
+    DETOUR_TICKS,
+    HOLD_FRACTION,
+    HOLD_TICKS,
+    DeployedLoop,
+    PortableBarrier,
+    RobotWatch,
+    ShippedFilter,
+    osqp_qp,
+    robotarium_loop,
+    uni_to_si,
+)
 from comat.sim import BatchWorld, World
 from comat.sim.kinematics import (
     WHEEL_LIMIT_TOLERANCE,
@@ -73,19 +85,6 @@ def waypoint_controller(
         points = projected_points(poses, projection_distance)
     dxi = go_to_goal(points, goals, gain, max_speed)
     return limit_to_wheels(dxi, poses, projection_distance, cos_sin=(c, s))
-
-
-HOLD_TICKS = 30
-"""Ticks (1 s) a robot may be held still against its command before the deadlock tie-break."""
-HOLD_FRACTION = 0.2
-"""A robot is held still when its filtered speed is below this fraction of its nominal speed."""
-DETOUR_TICKS = 30
-"""Ticks (1 s) the tie-break lasts once triggered."""
-DETOUR_ANGLE_RAD = -np.pi / 6
-"""The tie-break: a held robot's nominal command rotated clockwise by 30° ("keep right"). Two
-robots that block each other head-on on one line both turn to their right and pass; measured
-with the scripted PCP policy on every 2-robot U_test team from the env's starts (seeds 0–4,
-MuJoCo wheels tier): 33 of 35 episodes finished without it, 35 of 35 with it."""
 
 
 @dataclass
@@ -181,8 +180,14 @@ class SafeTeams:
     def _new_watch(self) -> RobotWatch | None:
         if self.reality is None or not self.safety_config.robust or self.safety_config.loop != "comat":
             return None
-        lag = math.ceil(loop_delay_s(self.reality.config, self.world.profile) / C.CONTROL_DT_S)
-        return RobotWatch(self.world.layout.n_robots, self.safety_config.projection_distance_m, lag)
+        return RobotWatch(self.world.layout.n_robots, self.safety_config.projection_distance_m, self._response_lag())
+
+    def _response_lag(self) -> int:
+        """Ticks from a command to its effect on a measured pose, at most (the robust filter's
+        loop delay bound; 1 at ``off``)."""
+        if self.reality is None:
+            return 1
+        return math.ceil(loop_delay_s(self.reality.config, self.world.profile) / C.CONTROL_DT_S)
 
     def _portable_settings(self) -> dict:
         """The filter's settings as :class:`~comat.safety.deployed.PortableBarrier` takes them."""
@@ -197,9 +202,13 @@ class SafeTeams:
         loop = self.safety_config.loop
         if loop == "comat":
             return None
-        generation = loop.removeprefix("robotarium_")
+        kind, generation = loop.split("_")
         d = self.safety_config.projection_distance_m
-        return [robotarium_loop(generation, projection=d) for _ in sizes]
+        if kind == "robotarium":
+            return [robotarium_loop(generation, projection=d) for _ in sizes]
+        lag = self._response_lag()
+        return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, self._portable_settings(), lag))
+                for n in sizes]
 
     @property
     def poses(self) -> np.ndarray:
@@ -380,7 +389,7 @@ class SafeTeams:
         the commands then pass the reality layer (if any) into the world, as ``set_velocities``
         does on the testbed. Judging (contacts, Robotarium checks) stays on true poses."""
         if self.deployed is None:
-            raise RuntimeError("tick_deployed needs SafetyConfig.loop 'robotarium_v2' or 'robotarium_legacy', "
+            raise RuntimeError(f"tick_deployed needs a deployed SafetyConfig.loop (one of {list(LOOPS[1:])}), "
                                f"got {self.safety_config.loop!r}")
         t0 = time.perf_counter()
         dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))

@@ -10,7 +10,7 @@ import pytest
 
 from comat import constants as C
 from comat.bench.safety_bench import SCENARIO_NAMES, run_safety_bench
-from comat.bench.scenarios import SCENARIOS, UNSAFE_STARTS, make_scenario, run_scenario
+from comat.bench.scenarios import FAULTS, SCENARIOS, UNSAFE_STARTS, make_scenario, run_scenario
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams
 from comat.reality import RealityConfig
@@ -85,7 +85,7 @@ def test_the_filter_reads_the_estimate_of_a_frozen_robot():
 
 
 def test_scenario_names_match_the_simulator():
-    assert set(SCENARIO_NAMES) == set(SCENARIOS) | set(UNSAFE_STARTS)
+    assert set(SCENARIO_NAMES) == set(SCENARIOS) | set(UNSAFE_STARTS) | set(FAULTS)
 
 
 def test_without_the_margin_nominal_collides_and_with_it_it_does_not():
@@ -187,3 +187,28 @@ def test_a_slippery_floor_makes_the_wheels_slip():
             teams.world.step(np.tile([0.2 if k < 20 else -0.2, 0.0], (3, 1)))
         ends[mu] = teams.poses[:, 0].copy()
     assert np.abs(ends[0.02] - ends[None]).min() > 0.01
+
+
+def test_both_loops_pass_a_short_battery_at_nominal_with_faults(tmp_path):
+    """comat's loop and the exported loop with comat's shipped filter, side by side: no contact or
+    collision from safe starts, a robot that stops while commanded included; the Robotarium's own
+    V2 barrier lets robots collide with a stopped robot (issue 45's probe: 3 of 8 converge16 episodes)."""
+    out = tmp_path / "loops.json"
+    result = run_safety_bench(("nominal",), ("unicycle",), 3, 2, str(out), ("swap4", "stop_swap4", "frozen_stop_swap4"),
+                              ("comat", "shipped_v2"))
+    assert result["checks"]["safe_starts_clean_nominal"]["pass"]
+    assert result["checks"]["safe_starts_clean_nominal_shipped_v2"]["pass"]
+    assert {r["loop"] for r in result["rows"]} == {"comat", "shipped_v2"}
+    assert all(r["safe_starts"] == 3 for r in result["rows"])
+
+
+def test_a_stopped_robot_is_an_obstacle_to_comats_filter(monkeypatch):
+    """The robust filter without its watch (as before issue 45) drives teammates into a robot whose
+    motors stopped (4 of these 20 episodes); with it, the robot goes on probation and they keep clear."""
+    scn = make_scenario("stop_swap4", 20, seed=0)
+    robust = run_scenario(scn, SimConfig(tier="unicycle"), SafetyConfig(), reality="nominal", seed=0)
+    s = robust.safe_start
+    assert s.all() and robust.robot_contacts.sum() == 0 and robust.robotarium_collisions.sum() == 0
+    monkeypatch.setattr(SafeTeams, "_new_watch", lambda self: None)
+    blind = run_scenario(scn, SimConfig(tier="unicycle"), SafetyConfig(), reality="nominal", seed=0)
+    assert ((blind.robot_contacts + blind.robotarium_collisions) > 0).sum() >= 2

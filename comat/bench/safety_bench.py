@@ -1,13 +1,17 @@
 """``comat bench safety``: the safety battery at reality levels, judged on true poses.
 
-Every scenario of :data:`comat.bench.scenarios.SCENARIOS` (safe starts) and
-:data:`~comat.bench.scenarios.UNSAFE_STARTS`, ``--episodes`` each, in each tier and at each
-reality level. Per scenario: episodes, those that really started inside the filter's safe set
+Every scenario of :data:`comat.bench.scenarios.SCENARIOS` (safe starts),
+:data:`~comat.bench.scenarios.FAULTS` (safe starts with a fault: a robot that stops, Wi-Fi
+dropouts, a stopped robot whose pose freezes, repeats without noise) and
+:data:`~comat.bench.scenarios.UNSAFE_STARTS`, ``--episodes`` each, through each loop (comat's own
+filter, and the loops an export runs: ``SafetyConfig.loop``), in each tier and at each reality
+level. Per scenario: episodes, those that really started inside the loop's safe set
 (the start error can move a requested safe start out of it), MuJoCo robot–robot contacts,
 Robotarium-style collisions (pair-ticks), boundary exits, wall contacts, actuator errors (each
 for safe starts and for all episodes), the closest true projected points, recovery and fallback
 ticks, interventions, and the median distance left to the goals (liveness). The check: zero
-contacts and zero Robotarium collisions over the safe-start episodes of every safe-start scenario.
+contacts and zero Robotarium collisions over the safe-start episodes of every safe-start
+scenario, per loop and level.
 """
 
 from __future__ import annotations
@@ -18,31 +22,38 @@ import time
 
 import numpy as np
 
+from comat.config import LOOPS
 from comat.reality.config import REALITY_LEVELS, RealityConfig
 
-__all__ = ["SCENARIO_NAMES", "add_safety_bench_parser", "run_safety_bench"]
+__all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "add_safety_bench_parser", "run_safety_bench"]
 
 SCENARIO_NAMES = ("head_on", "swap4", "swap8", "converge16", "converge32", "walls", "ring20", "bangbang16", "corner",
-                  "inside")
+                  "stop_swap4", "stop_converge16", "dropout_swap4", "frozen_stop_swap4", "exact_swap4",
+                  "exact_bangbang16", "inside")
 """The battery's scenarios (those of comat.bench.scenarios, named here so that the command line
 is built without importing the simulator; a test keeps the two equal)."""
+DEFAULT_LOOPS = ("comat", "robotarium_v2", "shipped_v2")
+"""comat's filter, the export's main.py with the Robotarium's V2 barrier, and with comat's shipped filter."""
 
 
-def _row(name: str, tier: str, level: str, episodes: int, seed: int) -> dict:
-    from comat.bench.scenarios import SCENARIOS, make_scenario, run_scenario
-    from comat.config import SimConfig
+def _row(name: str, tier: str, level: str, episodes: int, seed: int, loop: str = "comat") -> dict:
+    from comat.bench.scenarios import FAULTS, SCENARIOS, make_scenario, run_scenario
+    from comat.config import SafetyConfig, SimConfig
 
     scn = make_scenario(name, episodes, seed=seed)
     t0 = time.perf_counter()
-    r = run_scenario(scn, SimConfig(tier=tier), reality=level, seed=seed)
+    r = run_scenario(scn, SimConfig(tier=tier), SafetyConfig(loop=loop), reality=level, seed=seed)
     s = r.safe_start
 
     def both(x: np.ndarray) -> dict:
         return {"safe_starts": int(x[s].sum()), "all": int(x.sum())}
 
     return {
-        "scenario": name, "tier": tier, "reality": level, "episodes": episodes, "seed": seed,
-        "safe_start_scenario": name in SCENARIOS, "safe_starts": int(s.sum()),
+        "scenario": name, "loop": loop, "tier": tier, "reality": level, "episodes": episodes, "seed": seed,
+        "fault": FAULTS[name][1] if name in FAULTS else None,
+        "safe_start_scenario": name in SCENARIOS or name in FAULTS, "safe_starts": int(s.sum()),
+        "episodes_hit": int(((r.robot_contacts + r.robotarium_collisions)[s] > 0).sum()),
+        "min_centre_distance_m": float(r.min_centre_distance[s].min()) if s.any() else None,
         "robot_contacts": both(r.robot_contacts), "robotarium_collisions": both(r.robotarium_collisions),
         "boundary_exits": both(r.boundary_exits), "wall_contacts": both(r.wall_contacts),
         "actuator_errors": both(r.actuator_errors),
@@ -55,39 +66,52 @@ def _row(name: str, tier: str, level: str, episodes: int, seed: int) -> dict:
 
 
 def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: int, seed: int, out: str,
-                     scenarios: tuple[str, ...] | None = None) -> dict:
-    """Run the battery, print a table row per scenario, write ``out`` (JSON) and return it."""
+                     scenarios: tuple[str, ...] | None = None, loops: tuple[str, ...] = ("comat",)) -> dict:
+    """Run the battery, print a table row per scenario and loop, write ``out`` (JSON) and return it.
+
+    ``out`` is rewritten after every row, so an interrupted run keeps what it measured."""
     from comat.files import write_atomic
 
     names = scenarios or SCENARIO_NAMES
-    rows = []
-    print(f"{'level':8s} {'tier':9s} {'scenario':11s} {'safe':>7s} {'contacts':>9s} {'rob.coll':>9s} {'exits':>6s} "
-          f"{'min d (m)':>9s} {'recov':>6s} {'brake':>6s} {'goal (m)':>8s}")
+    rows: list[dict] = []
+    print(f"{'level':8s} {'tier':9s} {'scenario':18s} {'loop':18s} {'safe':>7s} {'hit':>4s} {'contacts':>9s} "
+          f"{'rob.coll':>9s} {'exits':>6s} {'min d (m)':>9s} {'recov':>6s} {'brake':>6s} {'goal (m)':>8s}")
+    filters = {lv: _filter_settings(lv) for lv in levels}
+
+    def result() -> dict:
+        checks = {}
+        for level in levels:
+            for loop in loops:
+                safe = [r for r in rows if r["reality"] == level and r["loop"] == loop and r["safe_start_scenario"]]
+                bad = sum(r["robot_contacts"]["safe_starts"] + r["robotarium_collisions"]["safe_starts"] for r in safe)
+                hit = sorted({r["scenario"] for r in safe if r["episodes_hit"]})
+                checks[f"safe_starts_clean_{level}" + ("" if loop == "comat" else f"_{loop}")] = {
+                    "contacts_plus_collisions": bad, "scenarios_hit": hit, "pass": bad == 0}
+        return {"levels": list(levels), "tiers": list(tiers), "loops": list(loops), "episodes": episodes, "seed": seed,
+                "filter": filters, "rows": rows, "checks": checks}
+
     for level in levels:
         for tier in tiers:
             for name in names:
-                row = _row(name, tier, level, episodes, seed)
-                rows.append(row)
-                d = row["min_point_distance_m"]["safe_starts"]
-                print(f"{level:8s} {tier:9s} {name:11s} {row['safe_starts']:>3d}/{episodes:<3d} "
-                      f"{row['robot_contacts']['safe_starts']:>4d}|{row['robot_contacts']['all']:<4d} "
-                      f"{row['robotarium_collisions']['safe_starts']:>4d}|{row['robotarium_collisions']['all']:<4d} "
-                      f"{row['boundary_exits']['all']:>6d} {d if d is not None else float('nan'):>9.4f} "
-                      f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} {row['median_goal_error_m']:>8.3f}",
-                      flush=True)
-    filters = {lv: _filter_settings(lv) for lv in levels}
-    checks = {}
-    for level in levels:
-        safe = [r for r in rows if r["reality"] == level and r["safe_start_scenario"]]
-        bad = sum(r["robot_contacts"]["safe_starts"] + r["robotarium_collisions"]["safe_starts"] for r in safe)
-        checks[f"safe_starts_clean_{level}"] = {"contacts_plus_collisions": bad, "pass": bad == 0}
-    result = {"levels": list(levels), "tiers": list(tiers), "episodes": episodes, "seed": seed,
-              "filter": filters, "rows": rows, "checks": checks}
-    write_atomic(out, json.dumps(result, indent=1) + "\n")
-    for name, c in checks.items():
-        print(f"{name}: {'pass' if c['pass'] else 'FAIL'} ({c['contacts_plus_collisions']} contacts + collisions)")
+                for loop in loops:
+                    row = _row(name, tier, level, episodes, seed, loop)
+                    rows.append(row)
+                    d = row["min_point_distance_m"]["safe_starts"]
+                    print(f"{level:8s} {tier:9s} {name:18s} {loop:18s} {row['safe_starts']:>3d}/{episodes:<3d} "
+                          f"{row['episodes_hit']:>4d} "
+                          f"{row['robot_contacts']['safe_starts']:>4d}|{row['robot_contacts']['all']:<4d} "
+                          f"{row['robotarium_collisions']['safe_starts']:>4d}|{row['robotarium_collisions']['all']:<4d} "
+                          f"{row['boundary_exits']['all']:>6d} {d if d is not None else float('nan'):>9.4f} "
+                          f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} {row['median_goal_error_m']:>8.3f}",
+                          flush=True)
+                    write_atomic(out, json.dumps(result(), indent=1) + "\n")
+    final = result()
+    write_atomic(out, json.dumps(final, indent=1) + "\n")
+    for name, c in final["checks"].items():
+        where = f"; hit: {', '.join(c['scenarios_hit'])}" if c["scenarios_hit"] else ""
+        print(f"{name}: {'pass' if c['pass'] else 'FAIL'} ({c['contacts_plus_collisions']} contacts + collisions{where})")
     print(f"wrote {out}")
-    return result
+    return final
 
 
 def _filter_settings(level: str) -> dict:
@@ -100,7 +124,7 @@ def _filter_settings(level: str) -> dict:
 
 def _cmd(args: argparse.Namespace) -> int:
     result = run_safety_bench(tuple(args.reality), tuple(args.tiers), args.episodes, args.seed, args.out,
-                              tuple(args.scenarios) if args.scenarios else None)
+                              tuple(args.scenarios) if args.scenarios else None, tuple(args.loops))
     return 0 if all(c["pass"] for c in result["checks"].values()) else 1
 
 
@@ -109,11 +133,15 @@ def add_safety_bench_parser(bsub) -> None:
     b = bsub.add_parser("safety", help="the safety battery at reality levels: contacts and collisions on true poses",
                         description="Every scenario of the safety battery (head-on pairs, swaps of 4 and 8, 16 and 32 robots "
                         "driven at one point, robots driven into the walls, a ring of 20 driven through its centre, "
-                        "bang-bang at full speed among 16 robots, a robot pinned in a corner; and two robots started "
-                        "inside the safety distance), in each tier and at each reality level, judged on true poses: "
+                        "bang-bang at full speed among 16 robots, a robot pinned in a corner; faults: a robot that stops "
+                        "while commanded, Wi-Fi dropouts that brake a robot, a stopped robot whose pose freezes, "
+                        "repeated poses with no noise; and two robots started inside the safety distance), through "
+                        "each loop (--loops: comat's filter; the exported main.py with the Robotarium's barrier or "
+                        "with comat's shipped filter), in each tier and at each reality level, judged on true poses: "
                         "contacts, Robotarium collisions, boundary exits, the closest projected points, recoveries, "
                         "fallbacks and the distance left to the goals, for the episodes that really started in the "
-                        "filter's safe set and for all. Exit 1 if a safe start saw a contact or a collision.")
+                        "loop's safe set and for all. Exit 1 if a safe start saw a contact or a collision. The JSON is "
+                        "rewritten after every row.")
     b.add_argument("--reality", nargs="+", choices=REALITY_LEVELS, default=["nominal"],
                    help="reality levels (default: %(default)s)")
     b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["unicycle", "wheels"],
@@ -121,6 +149,8 @@ def add_safety_bench_parser(bsub) -> None:
     b.add_argument("--episodes", type=int, default=50, help="episodes per scenario (default: %(default)s)")
     b.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=None,
                    help="scenarios (default: all)")
+    b.add_argument("--loops", nargs="+", choices=LOOPS, default=list(DEFAULT_LOOPS),
+                   help="loops, side by side (default: %(default)s)")
     b.add_argument("--seed", type=int, default=0, help="seed of the episodes and the layer (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/safety_reality.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd)

@@ -44,8 +44,8 @@ import math
 
 import numpy as np
 
-__all__ = ["GENERATIONS", "DeployedLoop", "PortableBarrier", "RobotWatch", "cvxopt_qp", "osqp_qp", "robotarium_barrier", "robotarium_loop", "si_to_uni", "uni_to_si",
-           "wheel_scaled"]
+__all__ = ["GENERATIONS", "DeployedLoop", "PortableBarrier", "RobotWatch", "ShippedFilter", "cvxopt_qp", "osqp_qp",
+           "robotarium_barrier", "robotarium_loop", "si_to_uni", "uni_to_si", "wheel_projected", "wheel_scaled"]
 
 GENERATIONS = ("v2", "legacy")
 """The rps generations whose barrier this module runs."""
@@ -57,6 +57,20 @@ AXLE_M = {"v2": 0.11, "legacy": 0.105}
 """The simulator's axle length (``BASE_LENGTH`` / ``base_length``) that main.py's wheel scaling reads."""
 WHEEL_RADIUS_M = 0.016
 """Both generations' wheel radius."""
+
+
+HOLD_TICKS = 30
+"""Ticks (1 s) a robot may be held still against its command before the deadlock tie-break
+(comat's loop, :meth:`comat.control.SafeTeams.tick`, and :class:`ShippedFilter`)."""
+HOLD_FRACTION = 0.2
+"""A robot is held still when its filtered speed is below this fraction of its nominal speed."""
+DETOUR_TICKS = 30
+"""Ticks (1 s) the tie-break lasts once triggered."""
+DETOUR_ANGLE_RAD = -np.pi / 6
+"""The tie-break: a held robot's nominal command rotated clockwise by 30° ("keep right"). Two
+robots that block each other head-on on one line both turn to their right and pass; measured
+with the scripted PCP policy on every 2-robot U_test team from the env's starts (seeds 0–4,
+MuJoCo wheels tier): 33 of 35 episodes finished without it, 35 of 35 with it."""
 
 
 # -- maps between points and unicycles (row 0 x / v, row 1 y / ω; one column per robot) ----------
@@ -81,6 +95,22 @@ def wheel_scaled(dxu: np.ndarray, radius: float, axle: float, limit: float) -> n
     left, right = (2 * dxu[0] - axle * dxu[1]) / (2 * radius), (2 * dxu[0] + axle * dxu[1]) / (2 * radius)
     fastest = np.maximum(np.abs(left), np.abs(right))
     return dxu * np.minimum(1.0, limit / np.maximum(fastest, 1e-12))
+
+
+def wheel_projected(dxi: np.ndarray, x: np.ndarray, d: float, radius: float, axle: float, limit: float) -> np.ndarray:
+    """Closest point velocities (2, N) to dxi (2, N) that the wheels can drive (comat's waypoint
+    controller saturation): the per-wheel limit is the rhombus |a| + k|b| <= v in the components
+    along (a) and across (b) the heading, k = axle / 2d, v = radius·limit; points outside are
+    projected onto it in closed form (comat.sim.kinematics.limit_to_wheels, tested equal)."""
+    k, v = axle / (2.0 * d), radius * limit
+    c, s = np.cos(x[2]), np.sin(x[2])
+    a, b = c * dxi[0] + s * dxi[1], c * dxi[1] - s * dxi[0]
+    pa, pb = np.abs(a), np.abs(b)
+    outside = pa + k * pb > v
+    t = np.clip(((v - pa) * v + pb * v / k) / (v * v * (1.0 + 1.0 / (k * k))), 0.0, 1.0)
+    pa, pb = np.where(outside, v - t * v, pa), np.where(outside, t * v / k, pb)
+    a, b = np.copysign(pa, a), np.copysign(pb, b)
+    return np.vstack([c * a - s * b, s * a + c * b])
 
 
 # -- the Robotarium's barrier ----------------------------------------------------------------------
@@ -421,6 +451,67 @@ class PortableBarrier:
         return u.reshape(n, 2)
 
 
+class ShippedFilter:
+    """``filter(dxu (2, N), x (3, N)) -> dxu (2, N)``: comat's filter as an export ships it, in the
+    barrier's place of main.py — :class:`RobotWatch` on the measured poses, :class:`PortableBarrier`
+    on the projected points (cvxopt on the Robotarium), back to unicycle commands.
+
+    Args:
+        n: robots.
+        settings: :class:`PortableBarrier`'s (the robust filter's values for the reality level
+            the export was made for).
+        lag: ticks from a command to its effect on a measured pose, at most (:class:`RobotWatch`).
+    """
+
+    def __init__(self, n: int, settings: dict, lag: int, solve=cvxopt_qp) -> None:
+        self.projection = float(settings["projection_distance_m"])
+        self.watch = RobotWatch(n, self.projection, lag)
+        self.barrier = PortableBarrier(settings, solve)
+        self._held = np.zeros(n, np.int64)  # per robot: consecutive ticks held still (deadlock tie-break)
+        self._detour = np.zeros(n, np.int64)  # per robot: tie-break ticks left
+
+    @property
+    def failures(self) -> int:
+        """Ticks with no feasible command (the team braked)."""
+        return self.barrier.failures
+
+    def in_safe_set(self, x: np.ndarray) -> bool:
+        """Poses x (3, N) inside the filter's safe set (its pair and wall rows' h >= 0)."""
+        s = self.barrier.s
+        p = x[:2] + self.projection * np.vstack([np.cos(x[2]), np.sin(x[2])])
+        x0, x1, y0, y1 = ARENA
+        m = s["boundary_margin_m"]
+        if (p[0] < x0 + m).any() or (p[0] > x1 - m).any() or (p[1] < y0 + m).any() or (p[1] > y1 - m).any():
+            return False
+        i, j = np.triu_indices(p.shape[1], 1)
+        return bool((np.hypot(*(p[:, i] - p[:, j])) >= s["safety_distance_m"]).all())
+
+    def command(self, x: np.ndarray, nominal: np.ndarray) -> np.ndarray:
+        """Unicycle commands (2, N) for measured poses x (3, N) and the waypoint controller's
+        point velocities (2, N) (already within the wheels' rhombus)."""
+        watch, d = self.watch, self.projection
+        watch.observe(x.T)
+        poses, extra = watch.obstacles()
+        nominal = nominal.T
+        wanted = nominal
+        if self._detour.any():  # the deadlock tie-break, as comat's loop: keep right
+            turn = self._detour > 0
+            c, s = np.cos(DETOUR_ANGLE_RAD), np.sin(DETOUR_ANGLE_RAD)
+            wanted = nominal.copy()
+            wanted[turn] = nominal[turn] @ np.array([[c, s], [-s, c]])
+            self._detour[turn] -= 1
+        u = self.barrier(poses, wanted, watch.probation, extra)
+        want = nominal[:, 0] ** 2 + nominal[:, 1] ** 2
+        still = (want > 1e-6) & (u[:, 0] ** 2 + u[:, 1] ** 2 < HOLD_FRACTION**2 * want)
+        self._held = np.where(still, self._held + 1, 0)
+        start = self._held >= HOLD_TICKS
+        self._detour[start] = DETOUR_TICKS
+        self._held[start] = 0
+        out = si_to_uni(u.T, poses.T, d)
+        watch.sent(out.T)
+        return out
+
+
 # -- one iteration of main.py ----------------------------------------------------------------------
 class DeployedLoop:
     """``command(x (3, N), waypoints (2, N)) -> dxu (2, N)``: one iteration of an exported main.py.
@@ -438,6 +529,9 @@ class DeployedLoop:
     def __init__(self, barrier, si_to_uni_map, wheel_radius: float, axle: float, wheel_limit: float, gain: float,
                  max_speed: float, projection: float) -> None:
         self.barrier, self.si_to_uni = barrier, si_to_uni_map
+        self.shipped = isinstance(barrier, ShippedFilter)
+        """comat's pipeline (wheel projection, :class:`ShippedFilter` on the points, si→uni)
+        instead of the Robotarium's (si→uni, wheel scaling, the Robotarium's barrier)."""
         self.wheel = (float(wheel_radius), float(axle), float(wheel_limit))
         self.gain, self.max_speed, self.projection = float(gain), float(max_speed), float(projection)
 
@@ -453,7 +547,13 @@ class DeployedLoop:
 
     def commands(self, x: np.ndarray, dxi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(nominal, sent): unicycle commands (2, N) for the points' velocities dxi (2, N), before
-        the barrier (wheel-scaled) and as sent (barrier, wheel-scaled again)."""
+        the barrier and as sent. The Robotarium's pipeline: si→uni, wheel scaling, its barrier,
+        scaling again. comat's (a :class:`ShippedFilter`): the velocities projected onto the
+        wheels' rhombus, the filter on the points, si→uni, scaling as a safety net."""
+        if self.shipped:
+            nominal = wheel_projected(dxi, x, self.projection, *self.wheel)
+            sent = self.barrier.command(x, nominal)
+            return si_to_uni(nominal, x, self.projection), wheel_scaled(sent, *self.wheel)
         nominal = wheel_scaled(self.si_to_uni(dxi, x), *self.wheel)
         return nominal, wheel_scaled(self.barrier(nominal, x), *self.wheel)
 
@@ -463,8 +563,10 @@ class DeployedLoop:
 
 
 def robotarium_loop(generation: str = "v2", gain: float = 4.0, projection: float = 0.025,
-                    wheel_limit: float = 0.999 * 12.5, max_speed: float = 0.2) -> DeployedLoop:
-    """The exported loop as it runs under rps ``generation`` with the Robotarium's own barrier."""
+                    wheel_limit: float = 0.999 * 12.5, max_speed: float = 0.2, barrier=None) -> DeployedLoop:
+    """The exported loop as it runs under rps ``generation``: with the Robotarium's own barrier,
+    or with ``barrier`` (e.g. a :class:`ShippedFilter`) in its place."""
     limit = None if generation == "v2" else math.pi
-    return DeployedLoop(robotarium_barrier(generation), lambda dxi, x: si_to_uni(dxi, x, projection, limit),
+    return DeployedLoop(robotarium_barrier(generation) if barrier is None else barrier,
+                        lambda dxi, x: si_to_uni(dxi, x, projection, limit),
                         WHEEL_RADIUS_M, AXLE_M[generation], wheel_limit, gain, max_speed, projection)
