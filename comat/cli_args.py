@@ -175,16 +175,16 @@ def add_reality_sweep(p: argparse.ArgumentParser) -> None:
                    "comat.eval.robustness.SWEEP_VALUES)")
 
 
-def reality_arg(value: str) -> str:
-    """``--reality`` checked in the command (a one-line error, not argparse's usage block): a level,
-    or a profile file ``*.yaml`` from ``comat calibrate``."""
+def reality_arg(value: str, name: str = "--reality") -> str:
+    """``--reality`` (or the option ``name``) checked in the command (a one-line error, not
+    argparse's usage block): a level, or a profile file ``*.yaml`` from ``comat calibrate``."""
     if value.endswith((".yaml", ".yml")):
         from comat.reality.config import resolve_reality
 
-        resolve_reality(value, "--reality")  # the file's errors now, before anything runs
+        resolve_reality(value, name)  # the file's errors now, before anything runs
         return value
     if value not in REALITY_LEVELS:
-        raise ValueError(f"--reality must be one of {list(REALITY_LEVELS)} or a profile file PROFILE.yaml, got {value!r}")
+        raise ValueError(f"{name} must be one of {list(REALITY_LEVELS)} or a profile file PROFILE.yaml, got {value!r}")
     return value
 
 

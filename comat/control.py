@@ -26,6 +26,7 @@ from comat.config import LOOPS, SafetyConfig, SimConfig
 from comat.reality import RealityConfig, RealityLayer
 from comat.reality.margin import loop_delay_s, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
+from comat.safety.qp import dense_qp
 from comat.safety.deployed import (
     DETOUR_ANGLE_RAD,
     DETOUR_TICKS,
@@ -35,7 +36,6 @@ from comat.safety.deployed import (
     PortableBarrier,
     RobotWatch,
     ShippedFilter,
-    osqp_qp,
     robotarium_loop,
     uni_to_si,
 )
@@ -50,7 +50,7 @@ from comat.sim.kinematics import (
 )
 from comat.sim.violations import TickEvents
 
-__all__ = ["DeployedInfo", "SafeTeams", "TickTiming", "go_to_goal", "waypoint_controller"]
+__all__ = ["DeployedInfo", "SafeTeams", "TickTiming", "go_to_goal", "portable_settings", "waypoint_controller"]
 
 
 def go_to_goal(points: np.ndarray, goals: np.ndarray, gain: float = 1.0, max_speed: float = 0.2) -> np.ndarray:
@@ -100,6 +100,16 @@ class TickTiming:
         return self.total - self.physics - self.solver
 
 
+def portable_settings(filter_config: SafetyConfig, profile: C.RobotProfile) -> dict:
+    """A filter's settings as :class:`~comat.safety.deployed.PortableBarrier` (and an export's
+    config) take them."""
+    cfg, p = filter_config, profile
+    return {"safety_distance_m": cfg.safety_distance_m, "projection_distance_m": cfg.projection_distance_m,
+            "boundary_margin_m": cfg.boundary_margin_m, "barrier_gain": cfg.barrier_gain,
+            "boundary_gain": cfg.boundary_gain, "axle_m": p.base_length_m, "wheel_radius_m": p.wheel_radius_m,
+            "wheel_limit_radps": p.max_wheel_velocity_radps * cfg.wheel_speed_fraction}
+
+
 @dataclass
 class DeployedInfo:
     """What the deployed loop's barrier did in one tick (the fields of :class:`SafetyInfo` that
@@ -110,9 +120,11 @@ class DeployedInfo:
     robot_intervened: np.ndarray
     """(R,) bool, the barrier changed the robot's command."""
     fallback: np.ndarray
-    """(B,) bool, the barrier's QP failed this tick (V2 then commands zeros to the team)."""
+    """(B,) bool, the barrier's QP failed this tick (V2 and comat's shipped filter then command
+    zeros to the team)."""
     recovery: np.ndarray
-    """(B,) bool, always False: the Robotarium's barrier has no recovery mode."""
+    """(B,) bool, comat's shipped filter took its softened problem's answer (the Robotarium's
+    barrier has no recovery mode)."""
     status: str = "deployed"
     solve_time_s: float = 0.0
 
@@ -162,7 +174,7 @@ class SafeTeams:
         """What the script tells of each robot under a reality layer (comat's robust filter only):
         a team with a robot on probation (one that does not respond) is filtered by
         :class:`~comat.safety.deployed.PortableBarrier`, which treats it as an obstacle."""
-        self._portable = PortableBarrier(self._portable_settings(), osqp_qp)
+        self._portable = PortableBarrier(portable_settings(self.filter_config, self.world.profile), dense_qp)
         self.deployed: list[DeployedLoop] | None = self._deployed_loops(sizes)
         """Per team, the exported script's loop (``safety.loop`` not ``"comat"``; else None):
         :meth:`tick_deployed` runs it."""
@@ -189,14 +201,6 @@ class SafeTeams:
             return 1
         return math.ceil(loop_delay_s(self.reality.config, self.world.profile) / C.CONTROL_DT_S)
 
-    def _portable_settings(self) -> dict:
-        """The filter's settings as :class:`~comat.safety.deployed.PortableBarrier` takes them."""
-        cfg, p = self.filter_config, self.world.profile
-        return {"safety_distance_m": cfg.safety_distance_m, "projection_distance_m": cfg.projection_distance_m,
-                "boundary_margin_m": cfg.boundary_margin_m, "barrier_gain": cfg.barrier_gain,
-                "boundary_gain": cfg.boundary_gain, "axle_m": p.base_length_m, "wheel_radius_m": p.wheel_radius_m,
-                "wheel_limit_radps": p.max_wheel_velocity_radps * cfg.wheel_speed_fraction}
-
     def _deployed_loops(self, sizes: Sequence[int]) -> list[DeployedLoop] | None:
         """One deployed loop per team of ``sizes`` (None for comat's own filter)."""
         loop = self.safety_config.loop
@@ -207,7 +211,7 @@ class SafeTeams:
         if kind == "robotarium":
             return [robotarium_loop(generation, projection=d) for _ in sizes]
         lag = self._response_lag()
-        return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, self._portable_settings(), lag))
+        return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, portable_settings(self.filter_config, self.world.profile), lag))
                 for n in sizes]
 
     @property
@@ -374,9 +378,10 @@ class SafeTeams:
         poses, extra = watch.obstacles()
         for b in np.unique(lay.robot_team[watch.probation]):
             rows = slice(lay.offsets[b], lay.offsets[b + 1])
-            failures = self._portable.failures
+            failures, recoveries = self._portable.failures, self._portable.recoveries
             safe[rows] = self._portable(poses[rows], dxi[rows], watch.probation[rows], extra[rows])
             info.fallback[b] |= self._portable.failures > failures
+            info.recovery[b] |= self._portable.recoveries > recoveries
             info.intervention[b] = np.linalg.norm(safe[rows] - dxi[rows])
 
     def tick_deployed(self, dxi: np.ndarray) -> tuple[TickEvents, DeployedInfo]:
@@ -398,12 +403,14 @@ class SafeTeams:
         sent = np.empty((lay.n_robots, 2))
         nominal = np.empty((lay.n_robots, 2))
         fallback = np.zeros(lay.n_teams, dtype=bool)
+        recovery = np.zeros(lay.n_teams, dtype=bool)
         for b, loop in enumerate(self.deployed):
             rows = slice(lay.offsets[b], lay.offsets[b + 1])
-            failures = loop.barrier.failures
+            failures, recoveries = loop.barrier.failures, getattr(loop.barrier, "recoveries", 0)
             nom, out = loop.commands(x[rows].T, dxi[rows].T)
             nominal[rows], sent[rows] = nom.T, out.T
             fallback[b] = loop.barrier.failures > failures
+            recovery[b] = getattr(loop.barrier, "recoveries", 0) > recoveries
         clipped, overrun = threshold_wheels(sent, self.world.profile)
         if self.reality is None:
             events = self.world._advance(clipped, overrun)
@@ -413,10 +420,10 @@ class SafeTeams:
         u_nom, u = uni_to_si(nominal.T, x.T, d).T, uni_to_si(sent.T, x.T, d).T
         change = np.linalg.norm(u - u_nom, axis=1)
         info = DeployedInfo(intervention=np.sqrt(np.bincount(lay.robot_team, weights=change**2, minlength=lay.n_teams)),
-                            robot_intervened=change > 1e-9, fallback=fallback,
-                            recovery=np.zeros(lay.n_teams, dtype=bool))
+                            robot_intervened=change > 1e-9, fallback=fallback, recovery=recovery)
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
+        self.recoveries += info.recovery
         self.timing.total = time.perf_counter() - t0
         self.timing.physics = self.world.last_physics_s
         self.timing.solver = 0.0

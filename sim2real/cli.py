@@ -6,9 +6,12 @@
                                            team (``train:K``/``test:K``/``scale:K``, the K-th
                                            coalition of that set, or a JSON/YAML team file)
 ``comat export --check DIR… [--tier W]     check_submission: runs DIR/main.py under the installed
-  [--rps PATH]``                           rps (or the one in PATH, e.g. a V2 checkout; figures
-                                           off) and the MuJoCo env; prints both (several folders:
-                                           a line each and the means, the sim-to-sim gap)
+  [--rps PATH] [--reality L|PROFILE]       rps (or the one in PATH, e.g. a V2 checkout; figures
+  [--drive rps|unicycle|wheels]            off) and the MuJoCo env; prints both (several folders:
+  [--repeats K]``                          a line each and the means, the sim-to-sim gap); with
+                                           --reality, the reality layer around get_poses and
+                                           set_velocities, judged on true poses, next to comat's
+                                           own loop at that level
 =========================================  ==================================================
 
 Wired into ``comat/cli.py`` by ``add_export_parser(sub)`` in ``build_parser``.
@@ -62,6 +65,32 @@ def _print_checks(folders: list[str], reports: list[dict], tier: str) -> None:
           f"(gap {100 * (mean['rps', 'progress'] - mean['mujoco', 'progress']):+.1f} points), return "
           f"{mean['rps', 'return']:.2f} vs {mean['mujoco', 'return']:.2f}, steps {mean['rps', 'steps']:.1f} vs "
           f"{mean['mujoco', 'steps']:.1f}")
+
+
+def _print_reality(folders: list[str], reports: list[dict], tier: str) -> int:
+    """The deployed loop under the reality layer, per folder, next to comat's loop at the same
+    level; the collisions found (each named: folder, run, robots, iteration). Returns their count."""
+    first = reports[0]["rps"]["reality"]
+    print(f"\ndeployed loop under the reality layer ({first['level']}, robots moved by {first['drive']}), judged on "
+          f"true poses; comat's own loop in MuJoCo ({tier}) at the same level:")
+    print(f"{'folder':<28}{'filter':>11}{'runs':>6}{'collision runs':>16}{'pair-iter.':>11}{'contacts':>9}"
+          f"{'closest (m)':>12}{'progress deployed / comat':>28}")
+    hits = 0
+    for folder, r in zip(folders, reports):
+        rec, rps, mj = r["rps"]["reality"], r["rps"], r["mujoco"]
+        contacts = "-" if rec["mujoco_contact_ticks"] is None else str(rec["mujoco_contact_ticks"])
+        closest = rec["min_offset_centre_distance_m"]
+        print(f"{Path(folder).name[:27]:<28}{rps.get('filter', 'robotarium'):>11}{rec['runs']:>6}"
+              f"{rec['runs_with_collisions']:>16}{rec['collision_pair_iterations']:>11}{contacts:>9}"
+              f"{closest if closest is not None else float('nan'):>12.3f}"
+              f"{100 * rps['progress']:>18.1f} / {100 * mj['progress']:<6.1f}")
+        hits += rec["runs_with_collisions"] + bool(rec["mujoco_contact_ticks"])
+        if rec["first_collision"]:
+            c = rec["first_collision"]
+            print(f"  COLLISION in {folder}: run {c['run']} (layer seed {c['run']}), robots {c['robots'][0]} and "
+                  f"{c['robots'][1]} at iteration {c['iteration']} (offset centres {c['distance_m']:.3f} m <= "
+                  f"{0.135} m)")
+    return hits
 
 
 def _print_repeats(folders: list[str], reports: list[dict], repeats: int) -> None:
@@ -125,8 +154,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
                   f"{rps['robots']} robots, rps errors {rps['rps_errors']}; log {rps['log']}; fit per robot: {shown}")
         return 1 if bad else 0
     if args.check:
+        from comat.cli_args import reality_arg
+
         if args.timeout <= 0:
             raise ValueError(f"--timeout must be > 0 seconds, got {args.timeout}")
+        reality = None if args.reality is None else reality_arg(args.reality)
         reports = []
         for k, folder in enumerate(args.check, 1):
             t0 = time.perf_counter()
@@ -134,7 +166,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
                   file=sys.stderr, flush=True)
             try:
                 reports.append(check_submission(folder, tier=args.tier, timeout_s=args.timeout, rps_path=args.rps,
-                                                repeats=args.repeats))
+                                                repeats=args.repeats, reality=reality, drive=args.drive))
             except CheckError as err:
                 raise ValueError(str(err)) from err
             print(f"[{k}/{len(args.check)}] {folder}: done in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
@@ -145,8 +177,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
         _print_repeats(args.check, reports, args.repeats)
         bad = sum(r["rps"]["rps_errors"].get("boundary", 0) + r["rps"]["rps_errors"].get("collision", 0)
                   for r in reports)
+        if reality is not None:
+            bad += _print_reality(args.check, reports, args.tier)
         return 1 if bad else 0
-    from comat.cli_args import resolve_policy_arg
+    from comat.cli_args import reality_arg, resolve_policy_arg
 
     missing = [f"--{k}" for k in ("policy", "team", "out") if getattr(args, k) is None]
     if missing:
@@ -159,7 +193,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     # export_submission refuses an existing folder itself; this removes parents it made if it fails
     with new_outputs(Path(args.out).parent, []):
         out = export_submission(str(pol.checkpoint or pol.name), pol.task, team, args.out, start_poses=poses,
-                                seed=args.seed)
+                                seed=args.seed, filter_name=args.filter, filter_reality=reality_arg(args.filter_reality, "--filter-reality"))
     print(f"wrote {out}: " + ", ".join(sorted(p.name for p in out.iterdir())))
     return 0
 
@@ -181,6 +215,13 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--start-poses", metavar="FILE", help="start poses instead of the seed's: a .npy (3, N) array or "
                    "a text file of 3 rows x, y, θ (m, m, rad); checked: inside the arena by 0.1 m, centres >= 0.4 m "
                    "apart (what the Robotarium's start-up drive can reach)")
+    p.add_argument("--filter", choices=("comat", "robotarium"), default="comat",
+                   help="what main.py filters its commands with: comat's filter (shipped in deployed_loop.py; robust "
+                   "to late and noisy poses, robots that stop are obstacles: clean in the safety battery at nominal "
+                   "with faults, docs/safety.md) or the installed rps's own barrier (default: %(default)s)")
+    p.add_argument("--filter-reality", default="nominal", metavar="LEVEL|PROFILE",
+                   help="the reality level or calibrated profile comat's filter is made robust to (default: "
+                   "%(default)s)")
     p.add_argument("--timeout", type=float, default=1800.0,
                    help="--check: seconds main.py may run under rps per folder (default: %(default)s)")
     p.add_argument("--calibration", metavar="OUT", default=None,
@@ -195,6 +236,14 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                    "Robotarium's own simulator)")
     p.add_argument("--rps", metavar="PATH", help="--check against the rps package in PATH (e.g. a checkout of "
                    "robotarium/robotarium_python_simulator, the 2026 V2) instead of the installed one")
+    p.add_argument("--reality", default=None, metavar="LEVEL|PROFILE",
+                   help="--check with the reality layer around rps's get_poses and set_velocities (off, nominal, stress "
+                   "or a profile.yaml of comat calibrate): the exact main.py, its filter and wheel scaling, judged on "
+                   "true poses (closest robots, collisions named by robots and iteration) next to comat's own loop "
+                   "at that level; run k has layer seed k; exit 1 on a collision (default: no layer)")
+    p.add_argument("--drive", choices=("rps", "unicycle", "wheels"), default="rps",
+                   help="--check --reality: what moves the robots: rps's own integration, or comat's MuJoCo world "
+                   "(contacts counted) in that tier (default: %(default)s)")
     p.add_argument("--repeats", type=int, default=1, metavar="K",
                    help="--check: run main.py under rps K times and report the means and the spread (V2 drives the "
                    "robots from random charger places first, so one V2 run is one random sample; default: "

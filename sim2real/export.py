@@ -6,9 +6,12 @@ Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/`
                        second lets legacy ``rps`` draw under matplotlib >= 3.10), ``runtime.py``
                        (``sim2real/runtime.py``, verbatim), ``task_logic.py``
                        (``comat/task_logic.py``, verbatim: numpy only, so the very file the
-                       MuJoCo envs run is shipped), ``weights.npy`` (pickle-free weights),
+                       MuJoCo envs run is shipped), ``deployed_loop.py``
+                       (``comat/safety/deployed.py``, verbatim: the per-iteration loop and
+                       comat's filter, numpy + cvxopt), ``weights.npy`` (pickle-free weights),
                        ``submission_config.py`` (``CONFIG = {...}``: policy, task, team, start
-                       poses, prey, ticks per step, controller constants); the scripted
+                       poses, prey, ticks per step, controller constants, the filter and its
+                       settings); the scripted
                        policy's folder has no ``runtime.py`` and ``weights.npy``
 File types             ``.py`` and ``.npy`` only (the Robotarium accepts .m .jpg .jpeg .png .gif
                        .tiff .bmp .py .mat .npy .mexa64 and no folders; JSON is not accepted,
@@ -47,6 +50,7 @@ from typing import Any
 
 import numpy as np
 
+import comat.safety.deployed as deployed_module
 import comat.task_logic as task_logic_module
 from comat import constants as C
 from comat.envs.core import WAYPOINT_GAIN
@@ -57,6 +61,7 @@ __all__ = [
     "ACCEPTED_EXTENSIONS",
     "ALLOWED_IMPORTS",
     "EXPORT_SPACING_M",
+    "FILTERS",
     "HEURISTIC_FILES",
     "MIN_SPACING_M",
     "SHIPPED_FILES",
@@ -64,18 +69,23 @@ __all__ = [
     "CheckError",
     "check_submission",
     "export_submission",
+    "filter_config",
 ]
 
 HERE = Path(__file__).resolve().parent
 ACCEPTED_EXTENSIONS = (".m", ".jpg", ".jpeg", ".png", ".gif", ".tiff", ".bmp", ".py", ".mat", ".npy", ".mexa64")
 """File types the Robotarium's upload form accepts (reference §3.2)."""
-ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps"})
+ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps", "cvxopt"})
 """Third-party top-level packages shipped code may import (besides the standard library and the
 folder's own modules)."""
-SHIPPED_FILES = ("main.py", "rps_compat.py", "runtime.py", "task_logic.py", "submission_config.py", "weights.npy")
+SHIPPED_FILES = ("main.py", "rps_compat.py", "runtime.py", "task_logic.py", "deployed_loop.py", "submission_config.py",
+                 "weights.npy")
 """The folder of a COMAT policy."""
-HEURISTIC_FILES = ("main.py", "rps_compat.py", "task_logic.py", "submission_config.py")
+HEURISTIC_FILES = ("main.py", "rps_compat.py", "task_logic.py", "deployed_loop.py", "submission_config.py")
 """The folder of the scripted policy."""
+FILTERS = ("comat", "robotarium")
+"""What an export's main.py filters its commands with: comat's filter (the default: it meets the
+safety battery at ``nominal`` with faults, docs/safety.md) or the installed rps's own barrier."""
 
 
 def _files(policy: str) -> tuple[str, ...]:
@@ -196,8 +206,30 @@ def _min_spacing(poses: np.ndarray) -> float:
 
 
 # -- export ----------------------------------------------------------------------------------------
+def filter_config(filter_name: str, filter_reality: Any) -> dict:
+    """The CONFIG entries of an export's filter: ``filter``, and for comat's its settings, robust
+    to the reality level (or profile) ``filter_reality`` as comat's own filter is (the simulator's
+    wheel constants replace the profile's at run time), and its response lag (ticks)."""
+    if filter_name not in FILTERS:
+        raise ValueError(f"filter must be one of {list(FILTERS)}, got {filter_name!r}")
+    if filter_name == "robotarium":
+        return {"filter": "robotarium"}
+    from comat.config import SafetyConfig
+    from comat.control import portable_settings
+    from comat.reality import resolve_reality
+    from comat.reality.margin import loop_delay_s, robust_safety
+
+    reality = resolve_reality(filter_reality, "filter_reality")
+    profile = C.DEFAULT_PROFILE
+    cfg = robust_safety(SafetyConfig(), reality, profile)
+    lag = 1 if reality.is_off else int(np.ceil(loop_delay_s(reality, profile) / C.CONTROL_DT_S))
+    level = filter_reality if isinstance(filter_reality, str) else reality.level
+    return {"filter": "comat", "filter_reality": level, "filter_lag_ticks": lag,
+            "filter_settings": {k: float(v) for k, v in portable_settings(cfg, profile).items()}}
+
+
 def _config(policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int,
-            seed: int) -> dict:
+            seed: int, filters: dict) -> dict:
     return {
         "policy": policy,
         "task": task,
@@ -217,11 +249,13 @@ def _config(policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.
         "collision_distance_m": 0.135,
         "min_spacing_m": MIN_SPACING_M - SPACING_TOL_M,
         "wall_margin_m": WALL_MARGIN_M - 1e-9,
+        **filters,
     }
 
 
 def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start_poses: Any = None,
-                      seed: int = 0, ticks_per_step: int | None = None) -> Path:
+                      seed: int = 0, ticks_per_step: int | None = None, filter_name: str = "comat",
+                      filter_reality: Any = "nominal") -> Path:
     """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
 
     Args:
@@ -233,6 +267,9 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         start_poses: (3, N) x, y, θ; default the MuJoCo env's spawn for ``seed``.
         seed: seed of the default spawn and PCP prey.
         ticks_per_step: Robotarium iterations per env step (default the task's: PCP 29, HMT 74).
+        filter_name: "comat" (comat's filter, shipped in deployed_loop.py) or "robotarium" (the
+            installed rps's own barrier).
+        filter_reality: the reality level or profile comat's filter is made robust to.
 
     Returns:
         The folder's path.
@@ -241,6 +278,7 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
 
     task_obj = _task(task)
     team = _team(team, task)
+    filters = filter_config(filter_name, filter_reality)
     out = Path(out_dir)
     if out.exists():
         raise FileExistsError(f"out_dir {str(out)!r} already exists; choose a new folder")
@@ -268,10 +306,11 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         for name in ("main.py", "rps_compat.py"):
             shutil.copyfile(HERE / "templates" / name, tmp / name)
         shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
+        shutil.copyfile(Path(deployed_module.__file__), tmp / "deployed_loop.py")
         if model is not None:
             shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
             export_weights(model, tmp / "weights.npy")
-        config = _config(policy, task, team, poses, prey, ticks, seed)
+        config = _config(policy, task, team, poses, prey, ticks, seed, filters)
         text = ('"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
                 f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n")
         (tmp / "submission_config.py").write_text(text)
@@ -318,12 +357,16 @@ def _tail(stderr) -> str:
 
 
 def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool = False,
-            max_steps: int | None = None) -> dict:
+            max_steps: int | None = None, reality: str | None = None, seed: int = 0, drive: str = "rps") -> dict:
     """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
     backend); its COMAT_RESULT dict + output.
 
     ``rps_path``: a folder holding an ``rps`` package (e.g. a checkout of the 2026 V2 simulator)
     used instead of the installed one. ``max_steps``: stop after that many env steps.
+    ``reality`` (a level or profile file): the reality layer around ``get_poses`` and
+    ``set_velocities`` (:mod:`sim2real.reality_rps`, seeded by ``seed``; ``drive`` "unicycle" or
+    "wheels" moves the robots in comat's MuJoCo world); the dict then has ``reality``, that run's
+    true-pose record.
     """
     folder = Path(folder)
     env = {**os.environ, "COMAT_SHOW_FIGURE": "1" if show_figure else "0", "MPLBACKEND": "Agg",
@@ -338,6 +381,9 @@ def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool 
     if max_steps is not None:
         env["COMAT_MAX_STEPS"] = str(int(max_steps))
     argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
+    if reality is not None:
+        argv = [sys.executable, "-m", "sim2real.reality_rps", "--reality", str(reality), "--seed", str(int(seed)),
+                "--drive", drive, "main.py"] + argv[2:]
     try:
         proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True,
                               text=True, timeout=timeout_s, check=False)
@@ -350,13 +396,20 @@ def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool 
     if not lines:
         raise CheckError(f"{folder / 'main.py'} printed no COMAT_RESULT line" + _tail(proc.stdout))
     result = current_names(json.loads(lines[-1][len("COMAT_RESULT "):]))  # folders exported before issue 32
-    result["stdout"] = proc.stdout
+    if reality is not None:
+        records = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_REALITY ")]
+        if not records:
+            raise CheckError(f"{folder / 'main.py'} under the reality layer printed no COMAT_REALITY line"
+                             + _tail(proc.stderr))
+        result["reality"] = json.loads(records[-1][len("COMAT_REALITY "):])
+    result["stdout"] = "\n".join(ln for ln in proc.stdout.splitlines() if not ln.startswith("COMAT_REALITY "))
     return result
 
 
-def run_mujoco(folder, tier: str = "wheels") -> dict:
+def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0) -> dict:
     """The same policy (the folder's weights through the numpy runtime, or the scripted policy),
-    team, start poses and prey in the MuJoCo env; its episode metrics."""
+    team, start poses and prey in the MuJoCo env, comat's own loop (at ``reality``, its layer
+    seeded by ``seed``); its episode metrics."""
     from comat.envs import make_env
     from sim2real.runtime import ComatRuntime
 
@@ -365,10 +418,11 @@ def run_mujoco(folder, tier: str = "wheels") -> dict:
     task = cfg["task"]
     team = TeamSpec.from_dict({"task": task, "robots": [{"type": t, "capabilities": c}
                                                          for t, c in zip(cfg["types"], cfg["capabilities"])]})
-    env = make_env(f"{task}_v0", team=team, tier=tier, ticks_per_step=cfg["ticks_per_step"])
+    env = make_env(f"{task}_v0", team=team, tier=tier, ticks_per_step=cfg["ticks_per_step"],
+                   reality="off" if reality is None else reality)
     env.reset(seed=cfg["seed"])
     core = env.core
-    core.safe.reset(np.array(cfg["start_poses"], dtype=float).T)
+    core.safe.reset(np.array(cfg["start_poses"], dtype=float).T, reality_keys=None if reality is None else [seed])
     if task == "pcp":
         core.state["prey"][0] = np.array(cfg["prey"], dtype=float)
     if cfg.get("policy", "comat") == "heuristic":
@@ -389,29 +443,59 @@ def run_mujoco(folder, tier: str = "wheels") -> dict:
             return core.episode_metrics(0)
 
 
-def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None, repeats: int = 1) -> dict:
+def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None, repeats: int = 1,
+                     reality: str | None = None, drive: str = "rps") -> dict:
     """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
     see :func:`run_rps`).
 
     ``repeats`` runs main.py under rps that many times: V2 drives the robots from randomly placed
     chargers to the start poses first, so one V2 run is one random sample (the legacy simulator
     starts at the poses and repeats itself). ``rps`` then holds the means of return, steps,
-    progress and finished, the worst error counts, and ``runs`` (each run's figures)."""
+    progress and finished, the worst error counts, and ``runs`` (each run's figures).
+
+    ``reality`` (a level or profile): every run has the reality layer around ``get_poses`` and
+    ``set_velocities`` (run k seeded k; ``drive``: see :func:`run_rps`), and ``rps["reality"]``
+    sums their true-pose records (closest offset centres, collision pair-iterations, the first
+    collision, MuJoCo contacts); the MuJoCo side is comat's own loop at the same level."""
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
     folder = Path(folder)
-    missing = [f for f in HEURISTIC_FILES if not (folder / f).is_file()]  # what every folder has
+    missing = [f for f in HEURISTIC_FILES if f != "deployed_loop.py" and not (folder / f).is_file()]  # every folder's
     if not missing:
-        missing = [f for f in _files(_load_config(folder).get("policy", "comat")) if not (folder / f).is_file()]
+        config = _load_config(folder)
+        wanted = _files(config.get("policy", "comat"))
+        if "filter" not in config:  # exported before issue 45: main.py had the loop inline
+            wanted = tuple(f for f in wanted if f != "deployed_loop.py")
+        missing = [f for f in wanted if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
-    runs = [run_rps(folder, timeout_s, rps_path) for _ in range(repeats)]
+    if reality is not None:
+        from comat.reality import resolve_reality
+        from sim2real.reality_rps import DRIVES
+
+        resolve_reality(reality, "--reality")  # a one-line error before anything runs
+        if drive not in DRIVES:
+            raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
+    runs = [run_rps(folder, timeout_s, rps_path, reality=reality, seed=k, drive=drive) for k in range(repeats)]
     rps = dict(runs[0])
     keys = ("return", "steps", "progress", "finished")
     for key in keys:
         rps[key] = float(np.mean([r[key] for r in runs]))
     rps["rps_errors"] = {k: max(r["rps_errors"].get(k, 0) for r in runs) for k in runs[0]["rps_errors"]}
-    rps["runs"] = [{**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"]} for r in runs]
-    mj = run_mujoco(folder, tier)
+    rps["runs"] = [{**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"], **({"reality": r["reality"]} if reality
+                                                                               else {})} for r in runs]
+    if reality is not None:
+        records = [r["reality"] for r in runs]
+        hits = [dict(rec["first_collision"], run=k) for k, rec in enumerate(records) if rec["first_collision"]]
+        closest = [rec["min_offset_centre_distance_m"] for rec in records if rec["min_offset_centre_distance_m"] is not None]
+        rps["reality"] = {
+            "level": reality, "drive": drive, "runs": len(runs),
+            "collision_pair_iterations": sum(rec["collision_pair_iterations"] for rec in records),
+            "runs_with_collisions": len(hits), "first_collision": hits[0] if hits else None,
+            "min_offset_centre_distance_m": min(closest) if closest else None,
+            "mujoco_contact_ticks": None if drive == "rps" else sum(rec["mujoco_contact_ticks"] for rec in records),
+            "boundary_iterations": sum(rec["boundary_iterations"] for rec in records),
+        }
+    mj = run_mujoco(folder, tier, reality)
     gap = {"progress_points": 100.0 * (rps["progress"] - mj["progress"]), "return": rps["return"] - mj["return"]}
     return {"rps": rps, "mujoco": mj, "gap": gap}

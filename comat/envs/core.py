@@ -24,7 +24,7 @@ import numpy as np
 
 from comat import kernels
 from comat.config import SafetyConfig, SimConfig
-from comat.control import SafeTeams, waypoint_controller
+from comat.control import SafeTeams, go_to_goal, waypoint_controller
 from comat.envs.diagnostics import EpisodeRecorder
 from comat.reality import RealityConfig, episode_key, resolve_reality
 from comat.task_logic import waypoint_goals
@@ -199,8 +199,12 @@ class TaskCore:
         s = self.stats.values
         last = self._last_contact
         for _ in range(self.ticks_per_step):
-            seen, cos_sin = safe.decision_poses()  # measured with a reality layer, else true
-            events, info = safe._tick(waypoint_controller(None, goals, seen, WAYPOINT_GAIN, d, cos_sin))
+            if safe.deployed is not None:  # the exported script's loop (SafetyConfig.loop)
+                events, info = safe.tick_deployed(
+                    go_to_goal(safe.measured_points, goals, WAYPOINT_GAIN, safe.world.profile.max_linear_velocity_mps))
+            else:
+                seen, cos_sin = safe.decision_poses()  # measured with a reality layer, else true
+                events, info = safe._tick(waypoint_controller(None, goals, seen, WAYPOINT_GAIN, d, cos_sin))
             self._count_tick(starts, events, info, last, violations)
             last = events.robot_contact
         self._last_contact = last

@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-__all__ = ["GENERATIONS", "DeployedLoop", "PortableBarrier", "RobotWatch", "ShippedFilter", "cvxopt_qp", "osqp_qp",
+__all__ = ["GENERATIONS", "DeployedLoop", "PortableBarrier", "RobotWatch", "ShippedFilter", "cvxopt_qp",
            "robotarium_barrier", "robotarium_loop", "si_to_uni", "uni_to_si", "wheel_projected", "wheel_scaled"]
 
 GENERATIONS = ("v2", "legacy")
@@ -341,27 +341,14 @@ class RobotWatch:
         return poses, extra
 
 
-def osqp_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray):
-    """min ‖v − v̂‖² s.t. A v <= b with OSQP (comat's own runs): (v or None, status)."""
-    import osqp
-    import scipy.sparse as sp
-
-    n = vhat.size
-    solver = osqp.OSQP()
-    solver.setup(sp.identity(n, format="csc"), -vhat, sp.csc_matrix(A), np.full(b.size, -1e30), b, verbose=False,
-                 eps_abs=1e-7, eps_rel=1e-7, max_iter=20000, polishing=True)
-    res = solver.solve(raise_error=False)
-    ok = res.info.status_val == osqp.SolverStatus.OSQP_SOLVED and np.all(np.isfinite(res.x))
-    return (np.array(res.x), "optimal") if ok else (None, str(res.info.status))
-
-
-def cvxopt_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray):
-    """min ‖v − v̂‖² s.t. A v <= b with cvxopt at tight tolerances (the export): (v or None, status)."""
+def cvxopt_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray, weights: np.ndarray | None = None):
+    """min ½·Σ w_k (v_k − v̂_k)² (w = 1 by default) s.t. A v <= b with cvxopt at tight tolerances
+    (the export): (v or None, status)."""
     from cvxopt import matrix, solvers
 
-    n = vhat.size
+    w = np.ones(vhat.size) if weights is None else weights
     try:
-        sol = solvers.qp(matrix(np.eye(n)), matrix(-vhat), matrix(A), matrix(b),
+        sol = solvers.qp(matrix(np.diag(w)), matrix(-w * vhat), matrix(A), matrix(b),
                          options={"show_progress": False, "abstol": 1e-9, "reltol": 1e-9, "feastol": 1e-9,
                                   "maxiters": 100})
     except (ValueError, ArithmeticError):
@@ -369,6 +356,11 @@ def cvxopt_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray):
     if sol["status"] != "optimal":
         return None, sol["status"]
     return np.array(sol["x"]).ravel(), "optimal"
+
+
+SLACK_WEIGHT = 1e4
+"""Weight of the squared slacks of :class:`PortableBarrier`'s softened problem against the squared
+deviation from the nominal command (as comat.safety.recovery's)."""
 
 
 class PortableBarrier:
@@ -385,14 +377,20 @@ class PortableBarrier:
 
     ``settings``: safety_distance_m, projection_distance_m, boundary_margin_m, barrier_gain,
     boundary_gain, axle_m, wheel_radius_m, wheel_limit_radps (the comat filter's robust values,
-    written into the export's config). ``solve``: :func:`cvxopt_qp` or :func:`osqp_qp`.
-    ``failures`` counts ticks with no feasible command (the team then brakes).
+    written into the export's config). ``solve``: :func:`cvxopt_qp` (the export) or
+    :func:`comat.safety.qp.dense_qp` (OSQP, comat's own runs).
+
+    A team outside the safe set (no command meets the hard rows, e.g. after a robot's extra radius
+    grew) takes the answer of the softened problem — pair and wall rows relaxed by slacks of
+    weight :data:`SLACK_WEIGHT`, wheel rows hard — which moves it back as fast as the wheels allow
+    (``recoveries`` counts those ticks); only if that fails too does it brake (``failures``).
     """
 
     def __init__(self, settings: dict, solve=cvxopt_qp) -> None:
         self.s = dict(settings)
         self.solve = solve
         self.failures = 0
+        self.recoveries = 0
 
     def __call__(self, poses: np.ndarray, u_nom: np.ndarray, probation: np.ndarray | None = None,
                  extra: np.ndarray | None = None) -> np.ndarray:
@@ -445,9 +443,19 @@ class PortableBarrier:
         if np.all(A @ u0 <= b):  # the nominal command meets every row: it is the optimum
             return u_nom.reshape(n, 2).astype(float)
         u, status = self.solve(u0, A, b)
-        if u is None:
-            self.failures += 1
-            return np.zeros((n, 2))
+        if u is None:  # outside the safe set: relax the pair and wall rows (the last 4n rows are the wheels')
+            soft = A.shape[0] - 4 * n
+            m = A.shape[0]
+            relaxed = np.hstack([A, np.vstack([-np.eye(soft), np.zeros((m - soft, soft))])])
+            positive = np.hstack([np.zeros((soft, 2 * n)), -np.eye(soft)])
+            z, status = self.solve(np.concatenate([u0, np.zeros(soft)]), np.vstack([relaxed, positive]),
+                                   np.concatenate([b, np.zeros(soft)]),
+                                   np.concatenate([np.ones(2 * n), np.full(soft, SLACK_WEIGHT)]))
+            if z is None:
+                self.failures += 1
+                return np.zeros((n, 2))
+            self.recoveries += 1
+            u = z[: 2 * n]
         return u.reshape(n, 2)
 
 
@@ -474,6 +482,11 @@ class ShippedFilter:
     def failures(self) -> int:
         """Ticks with no feasible command (the team braked)."""
         return self.barrier.failures
+
+    @property
+    def recoveries(self) -> int:
+        """Ticks the team was outside the safe set and took the softened problem's answer."""
+        return self.barrier.recoveries
 
     def in_safe_set(self, x: np.ndarray) -> bool:
         """Poses x (3, N) inside the filter's safe set (its pair and wall rows' h >= 0)."""

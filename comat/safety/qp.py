@@ -15,7 +15,7 @@ from comat.config import SafetyConfig
 from comat.safety.constraints import Layout, RowValues, make_layout, row_values
 from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE
 
-__all__ = ["BarrierQP", "QPResult", "matrix_of"]
+__all__ = ["BarrierQP", "QPResult", "dense_qp", "matrix_of"]
 
 _SOLVED = osqp.SolverStatus.OSQP_SOLVED
 _REFINE_MAX_TEAMS = 8
@@ -185,3 +185,18 @@ class BarrierQP:
         np.minimum.at(alpha, lay.row_team, np.clip(ratio, 0.0, 1.0))
         alpha = np.where(zero_ok, alpha * (1.0 - 1e-12), 1.0)
         return x * np.repeat(alpha[lay.teams.robot_team], 2)
+
+
+def dense_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray,
+             weights: np.ndarray | None = None) -> tuple[np.ndarray | None, str]:
+    """min ½·Σ w_k (v_k − v̂_k)² (w = 1 by default) s.t. A v <= b for one small dense problem (the
+    portable barrier of a team with a robot on probation,
+    :class:`comat.safety.deployed.PortableBarrier`): (v or None, status)."""
+    w = np.ones(vhat.size) if weights is None else weights
+    solver = osqp.OSQP()
+    solver.setup(sp.diags(w, format="csc"), -w * vhat, sp.csc_matrix(A), np.full(b.size, -1e30), b,
+                 verbose=False, eps_abs=1e-7, eps_rel=1e-7, max_iter=20000, polishing=True)
+    res = solver.solve(raise_error=False)
+    if res.info.status_val != _SOLVED or not np.all(np.isfinite(res.x)):
+        return None, str(res.info.status)
+    return np.array(res.x), "optimal"
