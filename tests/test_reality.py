@@ -201,10 +201,81 @@ def test_pose_delay_shifts_a_step_by_k_ticks(k):
 
 
 def test_pose_delay_spread_draws_per_robot_from_the_binomial():
-    layer = RealityLayer(RealityConfig(pose_delay_spread_ticks=2), PROFILE, team_layout((400,)), seed=2)
+    layer = RealityLayer(RealityConfig(pose_delay_spread_ticks=2, pose_per_robot=True), PROFILE, team_layout((400,)),
+                         seed=2)
     layer.start(np.zeros((400, 3)), np.array([0]), None)
     counts = np.bincount(layer.pose.delay, minlength=3) / 400
     assert np.allclose(counts, [0.25, 0.5, 0.25], atol=0.07)
+
+
+def _teams_layer(n_teams: int, size: int, **fields) -> RealityLayer:
+    layer = RealityLayer(RealityConfig(**fields), PROFILE, team_layout((size,) * n_teams), seed=4)
+    layer.start(np.zeros((n_teams * size, 3)), np.arange(n_teams), None)
+    layer.begin_measuring(np.zeros((n_teams * size, 3)), np.arange(n_teams))
+    return layer
+
+
+def test_the_pose_message_is_common_to_the_team():
+    """One message per tick carries every pose: its age (per episode, binomial across teams) and
+    its holds are the team's, not each robot's."""
+    layer = _teams_layer(300, 3, pose_delay_spread_ticks=2, pose_hold_prob=0.3)
+    delay = layer.pose.delay.reshape(300, 3)
+    assert (delay == delay[:, :1]).all()
+    assert np.allclose(np.bincount(delay[:, 0], minlength=3) / 300, [0.25, 0.5, 0.25], atol=0.08)
+    held = []
+    for t in range(1, 40):
+        layer.actuate(np.zeros((900, 2)))
+        before = layer.measured.copy()
+        layer.observe(_ramp(t, 900))
+        held.append((layer.measured == before).all(axis=1).reshape(300, 3))
+    held = np.array(held)
+    assert (held == held[..., :1]).all() and abs(held.mean() - 0.3) < 0.03
+
+
+def test_jitter_makes_some_ticks_one_older():
+    """Tick to tick, the message is sometimes one tick older than the episode's delay, for the whole team."""
+    layer = _teams_layer(200, 2, pose_delay_jitter_prob=0.25)
+    assert layer.config.pose_delay_max_ticks == 1 and (layer.pose.delay == 0).all()
+    ages = []
+    for t in range(1, 30):
+        layer.actuate(np.zeros((400, 2)))
+        layer.observe(_ramp(t, 400))
+        ages.append(t - np.rint(layer.measured[:, 1] / 0.01).reshape(200, 2))
+    ages = np.array(ages)
+    assert set(np.unique(ages)) == {0, 1} and (ages == ages[..., :1]).all()
+    assert abs((ages == 1).mean() - 0.25) < 0.03
+
+
+def test_a_missed_tick_sends_nothing_and_a_stall_brakes_the_team():
+    """An overrun: no command that tick (the last stays in force) and the next pose read is stale;
+    a stall longer than 0.5 s: every robot of the team brakes, and the robots of other teams not."""
+    layer = _teams_layer(400, 2, script_miss_prob=0.1, pose_noise_xy_m=1e-3)
+    missed = []
+    for t in range(1, 60):
+        cmd = np.full((800, 2), [0.1, 0.0]) if t < 30 else np.full((800, 2), [0.05, 0.0])
+        out = layer.actuate(cmd)
+        missed.append(layer.missed.copy())
+        assert np.array_equal(out[~layer.missed & (t < 30)], cmd[~layer.missed & (t < 30)])
+        layer.observe(_ramp(t, 800))
+    missed = np.array(missed).reshape(-1, 400, 2)
+    assert (missed == missed[..., :1]).all() and abs(missed.mean() - 0.1) < 0.01
+    stall = _teams_layer(50, 3, script_stall_prob=1.0, script_stall_mean_ticks=1000.0)
+    for t in range(1, 25):
+        out = stall.actuate(np.full((150, 2), [0.1, 0.0]))
+        stall.observe(np.zeros((150, 3)))
+    assert stall.missed.all() and (out == 0).all()  # 24 ticks without a command: past the 15-tick brake
+    calm = _teams_layer(50, 3, script_stall_prob=0.0, script_miss_prob=1e-9)
+    assert (calm.actuate(np.full((150, 2), [0.1, 0.0])) == 0.1 * np.array([1, 0])).all()
+
+
+def test_the_start_error_is_radial():
+    layer = RealityLayer(RealityConfig(start_xy_m=0.05, start_theta_rad=0.2), PROFILE, team_layout((1,) * 3000), seed=1)
+    poses = np.column_stack([np.tile([0.0, 0.0], (3000, 1)), np.zeros(3000)])
+    out = layer.start(poses, np.arange(3000), None)
+    r = np.hypot(out[:, 0], out[:, 1])
+    assert r.max() <= 0.05 + 1e-12 and r.max() > 0.049
+    assert abs((r < 0.05 / np.sqrt(2)).mean() - 0.5) < 0.03  # uniform in the disc: half the area inside r/√2
+    assert np.abs(out[:, 2]).max() <= 0.2 + 1e-12
 
 
 def test_a_frozen_pose_repeats_exactly_while_the_robot_moves():

@@ -29,7 +29,7 @@ __all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "add_safety_bench_parser", "run_sa
 
 SCENARIO_NAMES = ("head_on", "swap4", "swap8", "converge16", "converge32", "walls", "ring20", "bangbang16", "corner",
                   "stop_swap4", "stop_converge16", "dropout_swap4", "frozen_stop_swap4", "exact_swap4",
-                  "exact_bangbang16", "inside")
+                  "exact_bangbang16", "stall_converge16", "stall_bangbang16", "inside")
 """The battery's scenarios (those of comat.bench.scenarios, named here so that the command line
 is built without importing the simulator; a test keeps the two equal)."""
 DEFAULT_LOOPS = ("comat", "robotarium_v2", "shipped_v2")
@@ -135,7 +135,8 @@ def add_safety_bench_parser(bsub) -> None:
                         "driven at one point, robots driven into the walls, a ring of 20 driven through its centre, "
                         "bang-bang at full speed among 16 robots, a robot pinned in a corner; faults: a robot that stops "
                         "while commanded, Wi-Fi dropouts that brake a robot, a stopped robot whose pose freezes, "
-                        "repeated poses with no noise; and two robots started inside the safety distance), through "
+                        "repeated poses with no noise, team-wide stalls of the script; and two robots started inside the safety "
+                        "distance), through "
                         "each loop (--loops: comat's filter; the exported main.py with the Robotarium's barrier or "
                         "with comat's shipped filter), in each tier and at each reality level, judged on true poses: "
                         "contacts, Robotarium collisions, boundary exits, the closest projected points, recoveries, "

@@ -185,14 +185,18 @@ FAULTS: dict[str, tuple[str, dict]] = {
     "frozen_stop_swap4": ("swap4", {**_STOP, "pose_freeze_prob": 0.02, "pose_freeze_mean_ticks": 15.0}),
     "exact_swap4": ("swap4", {"pose_noise_xy_m": 0.0, "pose_noise_theta_rad": 0.0, "pose_bias_xy_m": 0.0}),
     "exact_bangbang16": ("bangbang16", {"pose_noise_xy_m": 0.0, "pose_noise_theta_rad": 0.0, "pose_bias_xy_m": 0.0}),
+    "stall_converge16": ("converge16", {"script_stall_prob": 0.01, "script_stall_mean_ticks": 8.0}),
+    "stall_bangbang16": ("bangbang16", {"script_stall_prob": 0.01, "script_stall_mean_ticks": 8.0}),
 }
 """Faults the filters must survive (issue 45), each a safe-start scenario with reality fields set
 on top of the battery's level: a robot whose motors stop while it is commanded to move (a dead
 robot: ``stop_*``, from 0.5–4 s on); Wi-Fi dropouts of 1.5 s on average, so that the robot brakes
 after 0.5 s (``dropout_*``); a stopped robot whose pose also freezes (``frozen_stop_*``: its
 commands are not executed and what the script sees of it is stale); repeated poses with no noise
-(``exact_*``: an exact tracker, where a repeat cannot be told from a robot standing still). A robot
-that does not respond is an obstacle to the others, whatever it was told."""
+(``exact_*``: an exact tracker, where a repeat cannot be told from a robot standing still); team-wide
+stalls of the script, 8 ticks (0.26 s) on average, 1 % of ticks (``stall_*``: every robot keeps its
+last command, those past 0.5 s brake). A robot that does not respond is an obstacle to the others,
+whatever it was told."""
 
 
 def swap_scenario(robots: int, episodes: int, seed: int, ticks: int = 300, radius: float = 0.75) -> Scenario:

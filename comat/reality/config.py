@@ -44,11 +44,21 @@ class RealityConfig:
     """Minimum measurement delay (ticks). nominal 0, stress 1: derived (Vicon->MQTT every 33 ms,
     no timestamps; sim2real-anchors §1.2, §6 #1)."""
     pose_delay_spread_ticks: int | None = None
-    """Extra delay per robot and episode ~ Binomial(spread, 1/2) ticks on top of the minimum:
-    spread 2 gives {0, 1, 2} with P .25/.5/.25 (§6 #1). nominal 2, stress 2: derived."""
+    """Extra delay per episode ~ Binomial(spread, 1/2) ticks on top of the minimum: spread 2 gives
+    {0, 1, 2} with P .25/.5/.25 (§6 #1), common to the team (one message carries every pose) unless
+    ``pose_per_robot``. nominal 2, stress 2: derived."""
+    pose_delay_jitter_prob: float | None = None
+    """Per tick, probability that this tick's message is one tick older than the episode's delay
+    (two unsynchronised 33 ms clocks, the tracker's and the script's, beat between k and k + 1
+    ticks; no timestamps to tell). Common to the team. nominal 0.2, stress 0.4: assumed (§1.1)."""
     pose_hold_prob: float | None = None
-    """Per robot-tick probability that the measurement is not refreshed (the last measured pose
-    repeats; mjlab-style hold). nominal 0.3, stress 0.3: assumed (§6 #1)."""
+    """Per tick probability that the measurement is not refreshed (the last measured pose repeats;
+    mjlab-style hold): common to the team (a message that did not come repeats every pose) unless
+    ``pose_per_robot``. nominal 0.3, stress 0.3: assumed (§6 #1)."""
+    pose_per_robot: bool | None = None
+    """True: each robot's pose delay, jitter and holds are its own (comat's structure before issue
+    45; the results committed before 2026-12-06 used it). False (every level): common to the team,
+    as the testbed's one message per tick with every pose. Structure only: it switches nothing on."""
     pose_noise_xy_m: float | None = None
     """SD of Gaussian position noise per axis per tick (m). nominal 0.001 (Vicon class), stress
     0.005: assumed (§1.4, §6 #8)."""
@@ -80,6 +90,18 @@ class RealityConfig:
     command_loss_mean_ticks: float | None = None
     """Mean length of a run of losses (geometric, ticks >= 1). nominal 1, stress 5 (bursts):
     assumed (§6 #10)."""
+    script_miss_prob: float | None = None
+    """Per tick probability that the script's iteration overruns the 0.033 s tick (a long QP, the
+    policy's inference at a step boundary): that tick no command goes out to any robot of the team
+    (each keeps its last; it counts toward the brake) and the pose it reads next is one tick
+    staler (a hold). nominal 0.002, stress 0.02: derived from the deployed loop's measured
+    compute time (docs/reality.md) with the server's speed assumed."""
+    script_stall_prob: float | None = None
+    """Per tick probability that the script stalls (garbage collection, I/O, the server's load):
+    no command to any robot of the team for a run of ticks; a run past the brake time stops every
+    robot. nominal 0, stress 0.001: assumed (§1.1; CASH's server logs end in interrupts)."""
+    script_stall_mean_ticks: float | None = None
+    """Mean length of a stall (geometric, ticks >= 1). 10 (0.33 s) at both levels: assumed."""
     command_brake_after_s: float | None = None
     """A robot without a command for this long brakes (v = ω = 0) until one arrives: it brakes
     from the tick during which the timeout expires (15 lost ticks at 0.033 s). 0.5 s at both
@@ -134,8 +156,9 @@ class RealityConfig:
 
     # -- start ------------------------------------------------------------------------------------
     start_xy_m: float | None = None
-    """A robot starts up to ± this far from its requested pose per axis (uniform, m). 0.05 at
-    both levels: measured (V2 initializer ``at_pose`` tolerance, §1.3, §6 #12)."""
+    """A robot starts up to this far from its requested position (uniform in the disc of this
+    radius, m: the start-up drive's radial tolerance). 0.05 at both levels: measured (V2
+    initializer ``at_pose`` tolerance, a norm, §1.3, §6 #12)."""
     start_theta_rad: float | None = None
     """Heading start error, uniform ± this (rad). 0.2 at both levels: measured (§1.3)."""
 
@@ -176,8 +199,8 @@ class RealityConfig:
 
     @property
     def pose_delay_max_ticks(self) -> int:
-        """The longest pose delay any robot can get (ticks)."""
-        return self.pose_delay_ticks + self.pose_delay_spread_ticks
+        """The longest pose delay any robot can get (ticks; a jittered tick included)."""
+        return self.pose_delay_ticks + self.pose_delay_spread_ticks + (1 if self.pose_delay_jitter_prob > 0 else 0)
 
     @property
     def command_delay_max_ticks(self) -> int:
@@ -192,7 +215,8 @@ class RealityConfig:
 
 _INT_FIELDS = ("pose_delay_ticks", "pose_delay_spread_ticks", "pose_freeze_max_ticks", "command_delay_ticks",
                "command_delay_spread_ticks")
-_PROB_FIELDS = ("pose_hold_prob", "pose_freeze_prob", "command_loss_prob", "fault_prob", "fault_speed_fraction")
+_PROB_FIELDS = ("pose_hold_prob", "pose_delay_jitter_prob", "pose_freeze_prob", "command_loss_prob", "script_miss_prob",
+                "script_stall_prob", "fault_prob", "fault_speed_fraction")
 _NONNEG_FIELDS = ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_bias_xy_m", "motor_tau_min_s", "motor_tau_max_s",
                   "motor_accel_limit_radps2", "motor_dead_zone_radps", "wheel_disturbance_radps",
                   "wheel_disturbance_bound_radps", "fault_start_min_s", "fault_start_max_s", "start_xy_m",
@@ -200,7 +224,7 @@ _NONNEG_FIELDS = ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_bias_xy_m", "
 _POSITIVE_FIELDS = ("command_brake_after_s", "wheel_disturbance_corr_s")
 _INERT = ("fault_speed_fraction", "fault_start_min_s", "fault_start_max_s", "fault_known", "pose_freeze_mean_ticks",
           "pose_freeze_max_ticks", "command_loss_mean_ticks", "command_brake_after_s", "wheel_disturbance_corr_s",
-          "wheel_disturbance_bound_radps")
+          "wheel_disturbance_bound_radps", "pose_per_robot", "script_stall_mean_ticks")
 """Fields that shape a component without switching it on (a component is on through its
 probability, SD, delay or range). The upper ends of ranges are not among them: a lag drawn from
 [0, motor_tau_max_s] or a delay from [0, spread] ticks is on with its lower end at 0 (they were,
@@ -219,7 +243,7 @@ def _check(c: RealityConfig) -> None:
             fail(name, "an integer >= 0 (ticks)")
     for name in _PROB_FIELDS + _NONNEG_FIELDS + _POSITIVE_FIELDS + ("pose_freeze_mean_ticks", "command_loss_mean_ticks",
                                                                       "wheel_gain_spread", "top_speed_derate_min",
-                                                                      "chassis_mass_spread"):
+                                                                      "chassis_mass_spread", "script_stall_mean_ticks"):
         v = getattr(c, name)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             fail(name, "a finite number")
@@ -232,7 +256,7 @@ def _check(c: RealityConfig) -> None:
     for name in _POSITIVE_FIELDS:
         if getattr(c, name) <= 0:
             fail(name, "a number > 0")
-    for name in ("pose_freeze_mean_ticks", "command_loss_mean_ticks"):
+    for name in ("pose_freeze_mean_ticks", "command_loss_mean_ticks", "script_stall_mean_ticks"):
         if getattr(c, name) < 1:
             fail(name, "a mean run length >= 1 tick")
     if c.pose_freeze_max_ticks < 1:
@@ -249,14 +273,16 @@ def _check(c: RealityConfig) -> None:
         fail("floor_friction_min", f"a number in (0, floor_friction_max = {c.floor_friction_max}] (max 0: unchanged)")
     if c.fault_start_max_s < c.fault_start_min_s:
         fail("fault_start_max_s", f"a number >= fault_start_min_s ({c.fault_start_min_s})")
-    if not isinstance(c.fault_known, bool):
-        raise TypeError(f"RealityConfig.fault_known must be a bool, got {c.fault_known!r}")
+    for name in ("fault_known", "pose_per_robot"):
+        if not isinstance(getattr(c, name), bool):
+            raise TypeError(f"RealityConfig.{name} must be a bool, got {getattr(c, name)!r}")
 
 
 _OFF = {
     "pose_delay_ticks": 0, "pose_delay_spread_ticks": 0, "pose_hold_prob": 0.0, "pose_noise_xy_m": 0.0, "pose_noise_theta_rad": 0.0,
     "pose_bias_xy_m": 0.0, "pose_freeze_prob": 0.0, "pose_freeze_mean_ticks": 3.0, "pose_freeze_max_ticks": 150,
-    "command_delay_ticks": 0, "command_delay_spread_ticks": 0, "command_loss_prob": 0.0, "command_loss_mean_ticks": 1.0,
+    "pose_delay_jitter_prob": 0.0, "pose_per_robot": False, "script_miss_prob": 0.0, "script_stall_prob": 0.0,
+    "script_stall_mean_ticks": 10.0, "command_delay_ticks": 0, "command_delay_spread_ticks": 0, "command_loss_prob": 0.0, "command_loss_mean_ticks": 1.0,
     "command_brake_after_s": 0.5, "motor_tau_min_s": 0.0, "motor_tau_max_s": 0.0, "motor_accel_limit_radps2": 0.0,
     "motor_dead_zone_radps": 0.0, "wheel_gain_spread": 0.0, "top_speed_derate_min": 1.0, "wheel_disturbance_radps": 0.0,
     "wheel_disturbance_corr_s": 0.2, "wheel_disturbance_bound_radps": 5.0, "fault_prob": 0.0, "fault_speed_fraction": 0.25,
@@ -272,7 +298,7 @@ LEVELS: dict[str, dict[str, Any]] = {
         "command_loss_mean_ticks": 1.0, "motor_tau_min_s": 0.04, "motor_tau_max_s": 0.08, "motor_accel_limit_radps2": 200.0,
         "motor_dead_zone_radps": 1.9, "wheel_gain_spread": 0.03, "top_speed_derate_min": 0.9, "wheel_disturbance_radps": 0.5,
         "start_xy_m": 0.05, "start_theta_rad": 0.2, "floor_friction_min": 0.6, "floor_friction_max": 1.5,
-        "chassis_mass_spread": 0.1, "com_offset_m": 0.005,
+        "chassis_mass_spread": 0.1, "com_offset_m": 0.005, "pose_delay_jitter_prob": 0.2, "script_miss_prob": 0.002,
     },
     "stress": {**_OFF, 
         "pose_delay_ticks": 1, "pose_delay_spread_ticks": 2, "pose_hold_prob": 0.3, "pose_noise_xy_m": 0.005,
@@ -281,7 +307,8 @@ LEVELS: dict[str, dict[str, Any]] = {
         "command_loss_mean_ticks": 5.0, "motor_tau_min_s": 0.08, "motor_tau_max_s": 0.12, "motor_accel_limit_radps2": 200.0,
         "motor_dead_zone_radps": 3.0, "wheel_gain_spread": 0.07, "top_speed_derate_min": 0.75, "wheel_disturbance_radps": 2.0,
         "start_xy_m": 0.05, "start_theta_rad": 0.2, "floor_friction_min": 0.4, "floor_friction_max": 1.5,
-        "chassis_mass_spread": 0.1, "com_offset_m": 0.005,
+        "chassis_mass_spread": 0.1, "com_offset_m": 0.005, "pose_delay_jitter_prob": 0.4, "script_miss_prob": 0.02,
+        "script_stall_prob": 0.001,
     },
 }
 """Each level's value of every field (the ``off`` values switch every component off)."""
@@ -296,6 +323,11 @@ SOURCES: dict[str, tuple[str, str]] = {
     "pose_freeze_prob": ("assumed", "§6 #9"),
     "pose_freeze_mean_ticks": ("assumed", "§6 #9"),
     "pose_freeze_max_ticks": ("measured", "tracker timeout 5000 ms (§1.1); stress 30 assumed (§6 #9)"),
+    "pose_delay_jitter_prob": ("assumed", "two unsynchronised 33 ms clocks, no timestamps (§1.1)"),
+    "pose_per_robot": ("measured", "structure: one MQTT message with every pose (§1.1)"),
+    "script_miss_prob": ("derived", "the deployed loop's measured compute time; server speed assumed"),
+    "script_stall_prob": ("assumed", "stalls and interrupts of the user's script (§1.1)"),
+    "script_stall_mean_ticks": ("assumed", "—"),
     "command_delay_ticks": ("derived", "Pi poll + ISR + execute-then-sense (§1.2, §6 #2)"),
     "command_delay_spread_ticks": ("derived", "{0,1} / {1,2} ticks (§6 #2)"),
     "command_loss_prob": ("assumed", "§6 #10"),
@@ -315,7 +347,7 @@ SOURCES: dict[str, tuple[str, str]] = {
     "fault_start_min_s": ("assumed", "—"),
     "fault_start_max_s": ("assumed", "within the first minute"),
     "fault_known": ("assumed", "—"),
-    "start_xy_m": ("measured", "V2 initializer at_pose tolerance (§1.3, §6 #12)"),
+    "start_xy_m": ("measured", "V2 initializer at_pose radial tolerance (§1.3, §6 #12)"),
     "start_theta_rad": ("measured", "V2 initializer at_pose tolerance (§1.3, §6 #12)"),
     "floor_friction_min": ("assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"),
     "floor_friction_max": ("assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"),

@@ -108,6 +108,7 @@ def command_step(sent_now, ticks, delay, sent, last, lost_run, lost_left, loss_p
         if loss_prob <= 0:
             last[r, 0], last[r, 1] = ax, ay
             out[r, 0], out[r, 1] = ax, ay
+            lost_run[r] = 0  # (only a missed tick of the script loses a command then: the numpy path)
             continue
         lost = lost_left[r] > 0
         if lost:

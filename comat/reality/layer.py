@@ -25,7 +25,7 @@ from comat.reality import random as rr
 from comat.reality.config import RealityConfig
 from comat.reality.margin import StalePoses
 from comat.reality.motors import Motors
-from comat.reality.paths import CommandPath, PosePath
+from comat.reality.paths import CommandPath, PosePath, run_lengths
 from comat.sim.kinematics import projected_points
 from comat.sim.layout import TeamLayout
 
@@ -41,6 +41,11 @@ _POSE_N = slice(2, 5)
 # Per-episode stream offsets (tick = rr.EPISODE).
 _EP_POSE_DELAY, _EP_BIAS, _EP_POSE0, _EP_CMD_DELAY, _EP_MOTOR, _EP_MOTOR_N, _EP_FAULT, _EP_START, _EP_PHYSICS = (
     100, 200, 250, 300, 400, 450, 500, 600, 700)
+# Per-tick team streams, drawn from each team's first robot (its key and its clock): the script's
+# timing (missed tick, stall start, stall length) and the pose message's jitter.
+_TEAM_STREAM = 20
+_T_MISS, _T_STALL, _T_STALL_LEN, _T_HOLD, _T_JITTER = 0, 1, 2, 3, 4
+_TEAM_DRAWS = 5
 
 
 class RealityLayer:
@@ -61,12 +66,16 @@ class RealityLayer:
         self.seed = int(seed)
         self.pose_on = any(getattr(config, k) for k in (
             "pose_delay_ticks", "pose_delay_spread_ticks", "pose_hold_prob", "pose_noise_xy_m", "pose_noise_theta_rad",
-            "pose_bias_xy_m", "pose_freeze_prob"))
+            "pose_bias_xy_m", "pose_freeze_prob", "pose_delay_jitter_prob"))
         self.command_on = bool(config.command_delay_max_ticks or config.command_loss_prob)
         self.motors_on = bool(config.motor_tau_max_s or config.motor_accel_limit_radps2 or config.motor_dead_zone_radps
                               or config.wheel_gain_spread or config.top_speed_derate_min < 1
                               or config.wheel_disturbance_radps or config.fault_prob)
         self.physics_on = bool(config.floor_friction_max or config.chassis_mass_spread or config.com_offset_m)
+        self.script_on = bool(config.script_miss_prob or config.script_stall_prob)
+        """The script's own timing: ticks it misses (overruns) and stalls, common to a team."""
+        self.team_poses = self.pose_on and not config.pose_per_robot
+        """The pose message's delay, jitter and holds are common to each team (one message per tick)."""
         """Per-robot physics to vary (wheels tier; :meth:`physics` gives the values)."""
         self._episodes = np.zeros(0, np.int64)  # per team: episodes begun (for seed-derived keys)
         self._build(layout)
@@ -88,6 +97,13 @@ class RealityLayer:
         """The filter's pose estimate: measured, dead-reckoned while a measurement repeats."""
         self._sent = np.zeros((R, 2))
         self._physics = (np.full(R, C.WHEEL_FRICTION), np.ones(R), np.zeros((R, 2)))
+        self._first = layout.offsets[:-1].astype(np.int64)
+        """(B,) each team's first robot: its key and clock draw the team's shared randomness."""
+        self.stall_left = np.zeros(layout.n_teams, np.int64)
+        """(B,) ticks of the team's script stall still to come."""
+        self.missed = np.zeros(R, dtype=bool)
+        """(R,) robots whose script sent nothing this tick (an overrun or a stall)."""
+        self._team_u: np.ndarray | None = None  # this tick's team draws (B, _TEAM_DRAWS)
         self._est_cos_sin: tuple[np.ndarray, np.ndarray] | None = None
         episodes = np.zeros(layout.n_teams, np.int64)
         episodes[: min(layout.n_teams, self._episodes.size)] = self._episodes[: layout.n_teams]
@@ -158,8 +174,12 @@ class RealityLayer:
         self.ticks[rows] = 0
         c = self.config
         spread = max(c.pose_delay_spread_ticks, 1)
-        self.pose.begin(rows, poses[rows], rr.uniforms(k, rr.EPISODE, spread, _EP_POSE_DELAY)[:, : c.pose_delay_spread_ticks],
-                        rr.normals(k, rr.EPISODE, 2, _EP_BIAS))
+        delay_u = rr.uniforms(k, rr.EPISODE, spread, _EP_POSE_DELAY)[:, : c.pose_delay_spread_ticks]
+        if not c.pose_per_robot:  # one message per tick: the team's first robot draws its age for all
+            first = np.repeat([int(np.flatnonzero(rows == r[0])[0]) for r in rows_of], [r.size for r in rows_of])
+            delay_u = delay_u[first] if first.size else delay_u
+        self.pose.begin(rows, poses[rows], delay_u, rr.normals(k, rr.EPISODE, 2, _EP_BIAS))
+        self.stall_left[teams] = 0
         spread = max(c.command_delay_spread_ticks, 1)
         self.command.begin(rows, rr.uniforms(k, rr.EPISODE, spread, _EP_CMD_DELAY)[:, : c.command_delay_spread_ticks])
         self.motors.begin(rows, rr.uniforms(k, rr.EPISODE, 5, _EP_MOTOR), rr.normals(k, rr.EPISODE, 2, _EP_MOTOR_N),
@@ -192,10 +212,14 @@ class RealityLayer:
         return np.concatenate(out)
 
     def _start_error(self, poses: np.ndarray, keys: np.ndarray) -> np.ndarray:
-        """One team's start poses (n, 3) moved by the start error, valid for the world."""
+        """One team's start poses (n, 3) moved by the start error (uniform in a disc of radius
+        ``start_xy_m``: the start-up drive's radial tolerance; heading ±``start_theta_rad``), valid
+        for the world."""
         c = self.config
-        u = 2.0 * rr.uniforms(keys, rr.EPISODE, 3, _EP_START) - 1.0
-        out = poses + u * np.array([c.start_xy_m, c.start_xy_m, c.start_theta_rad])
+        u = rr.uniforms(keys, rr.EPISODE, 3, _EP_START)
+        radius, angle = c.start_xy_m * np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+        out = poses + np.column_stack([radius * np.cos(angle), radius * np.sin(angle),
+                                       (2.0 * u[:, 2] - 1.0) * c.start_theta_rad])
         out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
         r = self.profile.radius_m
         x0, x1, y0, y1 = C.ARENA_BOUNDS_M
@@ -216,6 +240,18 @@ class RealityLayer:
                 moved[back] = False
         return out
 
+    def _script_missed(self, u: np.ndarray) -> np.ndarray:
+        """(B,) teams whose script sends nothing this tick: an overrun (``script_miss_prob``) or a
+        stall (a run of ticks started with ``script_stall_prob``), from the team draws u (B, 5)."""
+        c = self.config
+        stalled = self.stall_left > 0
+        self.stall_left -= stalled
+        start = ~stalled & (u[:, _T_STALL] < c.script_stall_prob)
+        if start.any():
+            self.stall_left[start] = run_lengths(u[start, _T_STALL_LEN], c.script_stall_mean_ticks,
+                                                 np.iinfo(np.int32).max) - 1
+        return stalled | start | (u[:, _T_MISS] < c.script_miss_prob)
+
     def begin_measuring(self, true: np.ndarray, teams: np.ndarray) -> None:
         """After the world placed the reset teams: their first measurement from true poses (R, 3)."""
         lay = self.layout
@@ -235,8 +271,15 @@ class RealityLayer:
         (within the wheel limits)."""
         u, normal = rr.tick_draws(self.keys, self.ticks, _UNIFORM.stop, _NORMAL.stop - _NORMAL.start)
         self._u = (u, normal)
+        if self.script_on or self.team_poses:
+            self._team_u = rr.uniforms(self.keys[self._first], self.ticks[self._first], _TEAM_DRAWS, _TEAM_STREAM)
+        if self.script_on:
+            self.missed = self._script_missed(self._team_u)[self.layout.robot_team]
         np.copyto(self._sent, dxu)
-        out = self.command.update(dxu, self.ticks, u[:, _CMD]) if self.command_on else dxu
+        if self.command_on or self.script_on:
+            out = self.command.update(dxu, self.ticks, u[:, _CMD], self.missed if self.script_on else None)
+        else:
+            out = dxu
         if self.motors_on:
             out = self.motors.update_unicycle(out, self.ticks, normal[:, _MOTOR])
         return out
@@ -252,7 +295,20 @@ class RealityLayer:
             self._u = rr.tick_draws(self.keys, self.ticks - 1, _UNIFORM.stop, _NORMAL.stop - _NORMAL.start)
         u, normal = self._u
         self._u = None
-        self.pose.update(true, self.ticks, normal[:, _POSE_N] if self.pose.noisy else None, u[:, _POSE_U])
+        hold, jitter = None, None
+        if self.team_poses or self.script_on:
+            if self._team_u is None:  # observed without actuate
+                self._team_u = rr.uniforms(self.keys[self._first], self.ticks[self._first] - 1, _TEAM_DRAWS, _TEAM_STREAM)
+            c, team, tu = self.config, self.layout.robot_team, self._team_u
+            if self.team_poses:  # the message that did not come, or came late, did for every robot
+                hold = (tu[:, _T_HOLD] < c.pose_hold_prob)[team]
+                if c.pose_delay_jitter_prob > 0:
+                    jitter = (tu[:, _T_JITTER] < c.pose_delay_jitter_prob)[team].astype(np.int64)
+            else:
+                hold = u[:, _POSE_U][:, 0] < c.pose_hold_prob
+            hold = hold | self.missed  # a script that missed the tick reads a stale message next
+        self._team_u = None
+        self.pose.update(true, self.ticks, normal[:, _POSE_N] if self.pose.noisy else None, u[:, _POSE_U], hold, jitter)
         self.stale.update(self.pose.measured, self._sent)
 
     # -- layout ---------------------------------------------------------------------------------------
@@ -260,7 +316,7 @@ class RealityLayer:
         """New team sizes: teams that kept their size keep their state (as the world keeps their
         poses); the others must be started again."""
         parts = {name: getattr(self, name) for name in ("pose", "command", "motors")}
-        old_stale, old_sent, old_physics = self.stale, self._sent, self._physics
+        old_stale, old_sent, old_physics, old_stall = self.stale, self._sent, self._physics, self.stall_left
         keys, ticks, true = self.keys, self.ticks, self._true
         old_layout = self.layout
         self._build(layout)
@@ -270,6 +326,7 @@ class RealityLayer:
             new_rows = slice(layout.offsets[b], layout.offsets[b + 1])
             old_rows = slice(old_layout.offsets[b], old_layout.offsets[b + 1])
             self.keys[new_rows], self.ticks[new_rows], self._true[new_rows] = keys[old_rows], ticks[old_rows], true[old_rows]
+            self.stall_left[b] = old_stall[b]
             self.stale.remap(new_rows, old_stale, old_rows)
             self._sent[new_rows] = old_sent[old_rows]
             for new, old in zip(self._physics, old_physics):

@@ -42,15 +42,19 @@ __all__ = ["StalePoses", "loop_delay_s", "measurement_bound_m", "robust_safety"]
 def loop_delay_s(reality: RealityConfig, profile: C.RobotProfile) -> float:
     """Upper bound T (s) on the delay from a true pose to the wheels' response to it.
 
-    Ticks: the longest pose delay + the longest command delay + 1 (the zero-order hold of a
-    tick) + the longest run of lost commands the level draws at its mean (a lost command repeats
-    the previous one: one more tick of delay each); then the motors' slowest lag τ_max and half
-    the time the slew limit needs for a full wheel-speed change (the mean delay of a ramp).
-    Holds and freezes are not in T: the dead reckoning of :class:`StalePoses` covers them.
+    Ticks: the longest pose delay (a jittered message included) + the longest command delay + 1
+    (the zero-order hold of a tick) + the longest run of lost commands the level draws at its mean
+    (a lost command repeats the previous one: one more tick of delay each) + 1 if the script
+    misses ticks; then the motors' slowest lag τ_max and half the time the slew limit needs for a
+    full wheel-speed change (the mean delay of a ramp). Holds and freezes are not in T: the dead
+    reckoning of :class:`StalePoses` covers them. Script stalls are not either: past 0.5 s the
+    robots brake; shorter ones are a scenario of the battery (``stall_converge16``).
     """
     ticks = reality.pose_delay_max_ticks + reality.command_delay_max_ticks + 1
     if reality.command_loss_prob > 0:
         ticks += math.ceil(reality.command_loss_mean_ticks)
+    if reality.script_miss_prob > 0:  # a missed tick: the command before stays in force one tick longer
+        ticks += 1
     slew = 0.0
     if reality.motor_accel_limit_radps2 > 0:
         slew = 2.0 * profile.max_wheel_velocity_radps / reality.motor_accel_limit_radps2 / 2.0

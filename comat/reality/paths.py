@@ -79,15 +79,24 @@ class PosePath:
             out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
         return out
 
-    def update(self, true: np.ndarray, ticks: np.ndarray, noise: np.ndarray, u: np.ndarray) -> None:
+    def update(self, true: np.ndarray, ticks: np.ndarray, noise: np.ndarray, u: np.ndarray,
+               hold: np.ndarray | None = None, extra_delay: np.ndarray | None = None) -> None:
         """After a tick: record true poses (R, 3) at the robots' ticks (R,) (already advanced)
         and measure; ``noise`` (R, >= 3) normals (None: no noise), ``u`` (R, 3) uniforms (hold,
-        freeze start, length)."""
+        freeze start, length). ``hold`` (R,) bool: the robots whose measurement is held this
+        tick, decided by the caller (team-common holds, a script that missed the tick) instead
+        of ``u[:, 0]``; ``extra_delay`` (R,) ticks added to the episode's delay this tick (jitter)."""
         c, L = self.c, self.length
+        hold_prob = c.pose_hold_prob
+        if hold is not None:  # the caller's decision, through the same test: u < 0.5 exactly where held
+            u = u.copy()
+            u[:, 0] = np.where(hold, 0.0, 1.0)
+            hold_prob = 0.5
+        delay = self.delay if extra_delay is None else self.delay + extra_delay
         if kernels.enabled():
             starts = np.empty(true.shape[0], np.int64)
-            k = rk.pose_step(true, ticks, self.history, self.delay, self.bias, self._scale, noise, self.measured,
-                                  self.freeze_left, c.pose_freeze_prob, c.pose_hold_prob, u, starts)
+            k = rk.pose_step(true, ticks, self.history, delay, self.bias, self._scale, noise, self.measured,
+                                  self.freeze_left, c.pose_freeze_prob, hold_prob, u, starts)
             if k:  # a started freeze repeats the pose it holds now, so its length is only needed from the next tick
                 rows = starts[:k]
                 self.freeze_left[rows] = run_lengths(u[rows, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
@@ -95,7 +104,7 @@ class PosePath:
         if L > 1:
             slot = ticks % L
             self.history[self.rows, slot] = true
-            delayed = np.take(self.history.reshape(-1, 3), self.rows * L + (slot - self.delay) % L, axis=0)
+            delayed = np.take(self.history.reshape(-1, 3), self.rows * L + (slot - delay) % L, axis=0)
         else:
             delayed = true
         fresh = self._corrupt(delayed, self.bias, noise)
@@ -106,8 +115,8 @@ class PosePath:
             if start.any():
                 self.freeze_left[start] = run_lengths(u[start, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
                 frozen |= start
-        if c.pose_hold_prob > 0:
-            frozen |= u[:, 0] < c.pose_hold_prob
+        if hold_prob > 0:
+            frozen |= u[:, 0] < hold_prob
         np.copyto(self.measured, fresh, where=~frozen[:, None])
 
 
@@ -146,11 +155,14 @@ class CommandPath:
         self.lost_run[rows] = 0
         self.lost_left[rows] = 0
 
-    def update(self, sent: np.ndarray, ticks: np.ndarray, u: np.ndarray) -> np.ndarray:
+    def update(self, sent: np.ndarray, ticks: np.ndarray, u: np.ndarray, missed: np.ndarray | None = None) -> np.ndarray:
         """Commands (R, 2) the robots execute this tick, given those sent now (R, 2) at the robots'
-        ticks (R,) and uniforms (R, 2) (loss start, run length)."""
+        ticks (R,) and uniforms (R, 2) (loss start, run length). ``missed`` (R,) bool: robots to
+        which the script sent nothing this tick (its iteration overran or stalled): as a lost
+        command, the last one stays in force and the brake's clock runs."""
         c, L = self.c, self.length
-        if kernels.enabled():
+        forced = missed is not None and bool(missed.any())
+        if kernels.enabled() and not forced:
             starts, out = np.empty(sent.shape[0], np.int64), np.empty_like(sent)
             k = rk.command_step(sent, ticks, self.delay, self.sent, self.last, self.lost_run, self.lost_left,
                                      c.command_loss_prob, self.brake_after, u, starts, out)
@@ -163,8 +175,9 @@ class CommandPath:
             arrived = np.where((ticks >= self.delay)[:, None], self.sent[self.rows, (ticks - self.delay) % L], 0.0)
         else:
             arrived = sent
-        if c.command_loss_prob <= 0:
+        if c.command_loss_prob <= 0 and not forced:
             np.copyto(self.last, arrived)  # a copy: ``arrived`` may be the caller's array
+            self.lost_run[:] = 0
             return arrived
         lost = self.lost_left > 0
         self.lost_left -= lost
@@ -172,6 +185,8 @@ class CommandPath:
         if start.any():
             self.lost_left[start] = run_lengths(u[start, 1], c.command_loss_mean_ticks, np.iinfo(np.int32).max) - 1
             lost |= start
+        if forced:
+            lost = lost | missed
         self.lost_run = np.where(lost, self.lost_run + 1, 0)
         self.last = np.where(lost[:, None], self.last, arrived)
         return np.where((self.lost_run >= self.brake_after)[:, None], 0.0, self.last)
