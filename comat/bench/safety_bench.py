@@ -53,6 +53,8 @@ def _row(name: str, tier: str, level: str, episodes: int, seed: int, loop: str =
         "fault": FAULTS[name][1] if name in FAULTS else None,
         "safe_start_scenario": name in SCENARIOS or name in FAULTS, "safe_starts": int(s.sum()),
         "episodes_hit": int(((r.robot_contacts + r.robotarium_collisions)[s] > 0).sum()),
+        "first_collision": next(({"episode": b, "tick": c[0], "robots": [c[1], c[2]]}
+                                 for b, c in enumerate(r.first_collision) if c is not None and s[b]), None),
         "min_centre_distance_m": float(r.min_centre_distance[s].min()) if s.any() else None,
         "robot_contacts": both(r.robot_contacts), "robotarium_collisions": both(r.robotarium_collisions),
         "boundary_exits": both(r.boundary_exits), "wall_contacts": both(r.wall_contacts),
@@ -84,7 +86,10 @@ def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: 
             for loop in loops:
                 safe = [r for r in rows if r["reality"] == level and r["loop"] == loop and r["safe_start_scenario"]]
                 bad = sum(r["robot_contacts"]["safe_starts"] + r["robotarium_collisions"]["safe_starts"] for r in safe)
-                hit = sorted({r["scenario"] for r in safe if r["episodes_hit"]})
+                hit = [f"{r['scenario']} (episode {r['first_collision']['episode']}, robots "
+                       f"{r['first_collision']['robots'][0]} and {r['first_collision']['robots'][1]}, tick "
+                       f"{r['first_collision']['tick']})" if r["first_collision"] else r["scenario"]
+                       for r in safe if r["episodes_hit"]]
                 checks[f"safe_starts_clean_{level}" + ("" if loop == "comat" else f"_{loop}")] = {
                     "contacts_plus_collisions": bad, "scenarios_hit": hit, "pass": bad == 0}
         return {"levels": list(levels), "tiers": list(tiers), "loops": list(loops), "episodes": episodes, "seed": seed,

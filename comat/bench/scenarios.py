@@ -241,6 +241,9 @@ class ScenarioResult:
     recoveries: np.ndarray
     goal_error: np.ndarray
     goal_error_robot: np.ndarray
+    first_collision: list = dataclasses.field(default_factory=list)
+    """Per episode, its first Robotarium collision on true poses: None or (tick, robot i, robot j),
+    robots numbered within the team."""
 
 
 def _bangbang(rng: np.random.Generator, n: int):
@@ -301,7 +304,8 @@ def run_scenario(
     min_p = np.full(lay.n_teams, np.inf)
     d_proj = teams.safety_config.projection_distance_m
     bang = _bangbang(np.random.default_rng(seed), lay.n_robots) if scn.bangbang else None
-    for _ in range(scn.ticks):
+    first: list = [None] * lay.n_teams
+    for tick in range(scn.ticks):
         nominal = bang() if bang is not None else go_to_goal(teams.measured_points, scn.goals)
         if filtered and teams.deployed is not None:
             teams.tick_deployed(nominal)
@@ -314,6 +318,12 @@ def run_scenario(
         np.minimum.at(min_d, lay.pair_team, d)
         q = teams.points
         np.minimum.at(min_p, lay.pair_team, np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1))
+        c = teams.poses[:, :2] + C.COLLISION_OFFSET_M * np.column_stack([np.cos(teams.poses[:, 2]), np.sin(teams.poses[:, 2])])
+        hit = np.linalg.norm(c[lay.pair_i] - c[lay.pair_j], axis=1) <= C.COLLISION_DIAMETER_M
+        for k in np.flatnonzero(hit):
+            b = int(lay.pair_team[k])
+            if first[b] is None:
+                first[b] = (tick, int(lay.pair_i[k] - lay.offsets[b]), int(lay.pair_j[k] - lay.offsets[b]))
     v = teams.world.violations
     err = np.linalg.norm(teams.points - scn.goals, axis=1)
     return ScenarioResult(
@@ -330,4 +340,5 @@ def run_scenario(
         recoveries=teams.recoveries.copy(),
         goal_error=np.bincount(lay.robot_team, weights=err) / np.array(lay.team_sizes),
         goal_error_robot=err,
+        first_collision=first,
     )
