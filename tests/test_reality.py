@@ -496,3 +496,14 @@ def test_a_range_from_zero_switches_its_component_on(field, value):
         return env.core.poses()[0]
 
     assert np.abs(poses(config) - poses("off")).max() > 1e-3
+
+
+def test_the_docs_levels_table_is_the_codes():
+    """docs/reality.md's table of levels is :func:`comat.reality.config.levels_markdown`: one source
+    for every field's values, marks and sources."""
+    from pathlib import Path
+
+    from comat.reality.config import levels_markdown
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "reality.md").read_text()
+    assert levels_markdown() in page

@@ -25,7 +25,7 @@ import numpy as np
 from comat.config import LOOPS
 from comat.reality.config import REALITY_LEVELS, RealityConfig
 
-__all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "add_safety_bench_parser", "run_safety_bench"]
+__all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "add_safety_bench_parser", "loops_table", "run_safety_bench"]
 
 SCENARIO_NAMES = ("head_on", "swap4", "swap8", "converge16", "converge32", "walls", "ring20", "bangbang16", "corner",
                   "stop_swap4", "stop_converge16", "dropout_swap4", "frozen_stop_swap4", "exact_swap4",
@@ -117,6 +117,29 @@ def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: 
         print(f"{name}: {'pass' if c['pass'] else 'FAIL'} ({c['contacts_plus_collisions']} contacts + collisions{where})")
     print(f"wrote {out}")
     return final
+
+
+def loops_table(result: dict, level: str, tier: str = "unicycle") -> str:
+    """Markdown: a row per scenario, the loops side by side (episodes with a contact or a
+    Robotarium collision / safe-start episodes, closest true projected points, median distance left
+    to the goals), at ``level`` in ``tier``, from :func:`run_safety_bench`'s result."""
+    rows = [r for r in result["rows"] if r["reality"] == level and r["tier"] == tier]
+    loops = [lp for lp in result["loops"] if any(r["loop"] == lp for r in rows)]
+    head = "| scenario | " + " | ".join(f"{lp}: hit / safe, closest (m), goal (m)" for lp in loops) + " |"
+    lines = [head, "|---|" + "---|" * len(loops)]
+    for name in dict.fromkeys(r["scenario"] for r in rows):
+        cells = []
+        for lp in loops:
+            r = next((x for x in rows if x["scenario"] == name and x["loop"] == lp), None)
+            if r is None:
+                cells.append("")
+                continue
+            d = r["min_point_distance_m"]["safe_starts"]
+            hit = r["episodes_hit"] if r["safe_start_scenario"] else "—"
+            cells.append(f"{hit} / {r['safe_starts']}, {'—' if d is None else f'{d:.3f}'}, "
+                         f"{r['median_goal_error_m']:.2f}")
+        lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def _filter_settings(level: str) -> dict:

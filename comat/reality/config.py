@@ -21,7 +21,8 @@ from typing import Any
 
 from comat import constants as C
 
-__all__ = ["LEVELS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "profile_fields", "resolve_reality"]
+__all__ = ["LEVELS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "levels_markdown", "profile_fields",
+           "resolve_reality"]
 
 REALITY_LEVELS = ("off", "nominal", "stress")
 """The named levels, in order of severity."""
@@ -355,6 +356,16 @@ SOURCES: dict[str, tuple[str, str]] = {
     "com_offset_m": ("assumed", "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)"),
 }
 """Per field: (mark, source) for the documentation and the levels table of docs/reality.md."""
+
+
+def levels_markdown() -> str:
+    """The levels table of docs/reality.md (field, nominal, stress, mark, source), made from
+    :data:`LEVELS` and :data:`SOURCES`: a test keeps the page equal to it."""
+    rows = ["| field | nominal | stress | mark | source |", "|---|---|---|---|---|"]
+    for name in LEVELS["off"]:
+        mark, source = SOURCES[name]
+        rows.append(f"| `{name}` | {LEVELS['nominal'][name]} | {LEVELS['stress'][name]} | {mark} | {source} |")
+    return "\n".join(rows) + "\n"
 
 
 def profile_fields(path: str, name: str = "reality") -> dict[str, Any]:
