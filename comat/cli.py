@@ -16,6 +16,7 @@ __all__ = ["main"]
 
 
 from comat.bench.safety_bench import add_safety_bench_parser
+from comat.config import LOOPS
 from comat.cli_args import (
     ALGOS,
     TASKS,
@@ -98,6 +99,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     tier = args.tier or pol.tier
     level = Path(reality).stem if reality.endswith((".yaml", ".yml")) else reality  # a profile: its file's name
     stem = f"evaluation_{tier}" + ("" if level == "off" else f"_{level}")  # never over an off evaluation
+    stem += "" if args.loop == "comat" else f"_{args.loop}"  # nor over comat's own loop's
     if pol.checkpoint is None:  # a reference policy: it, or with the other references next to it
         refs = (pol.name,) if args.no_references else REFERENCES
     else:
@@ -109,9 +111,13 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                                   (() if args.no_references else ("heuristic",)), reality)
     with new_outputs(out, [f"{stem}.json", f"{stem}.csv"], force=args.force):
         print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} "
-              f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}", file=sys.stderr)
+              f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}, loop {args.loop}",
+              file=sys.stderr)
+        from comat.config import SafetyConfig
+
         result = evaluate_policies(pol.checkpoint, pol.task, named, args.episodes, tier, args.seed,
-                                   references=refs, progress=lambda m: print(m, file=sys.stderr), reality=reality)
+                                   references=refs, progress=lambda m: print(m, file=sys.stderr), reality=reality,
+                                   safety=None if args.loop == "comat" else SafetyConfig(loop=args.loop))
         print_table(result)
         paths = write_results(result, out, stem)
     for path in paths:
@@ -333,6 +339,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_seed(p, "evaluation seed")
     add_reality(p)
     add_reality_sweep(p)
+    p.add_argument("--loop", choices=LOOPS, default="comat",
+                   help="what turns waypoints into wheel commands: comat's filter, or the loop an export runs on the "
+                   "Robotarium (robotarium_v2 / robotarium_legacy: the rps generation's own barrier; shipped_v2 / "
+                   "shipped_legacy: comat's shipped filter); another loop writes evaluation_<tier>[_<level>]_<loop> "
+                   "(default: %(default)s)")
     p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
     p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
                    "folder)")

@@ -100,3 +100,29 @@ def test_the_loop_steers_toward_its_waypoints():
     assert u[0, 0] > 0.1 and u[0, 1] > 0.1 and np.all(np.abs(u[1]) < 1e-6)  # straight ahead, both
     with pytest.raises(ValueError, match=r"generation must be one of \['v2', 'legacy'\], got 'v3'"):
         robotarium_barrier("v3")
+
+
+def test_envs_and_runs_take_the_deployed_loop():
+    """make_env(..., safety=SafetyConfig(loop=...)) steps the exported script's loop in comat's tick;
+    a training run takes it as the run key ``loop`` (a bad one is a one-line error)."""
+    from comat.config import SafetyConfig
+    from comat.envs import make_env
+    from comat.envs.heuristics import heuristic_actions
+    from comat.rl.config import apply_overrides, resolve
+
+    for loop in ("robotarium_v2", "shipped_legacy"):
+        env = make_env("pcp_v0", coalitions="test", tier="unicycle", ticks_per_step=10, safety=SafetyConfig(loop=loop))
+        env.reset(seed=1)
+        assert env.core.safe.deployed is not None
+        start = env.core.poses().copy()
+        for _ in range(4):
+            act = heuristic_actions(env.core)[0]
+            env.step({a: int(act[i]) for i, a in enumerate(env.agents)})
+        assert np.abs(env.core.poses() - start).max() > 0.05
+        assert env.core.episode_metrics(0)["robotarium_collisions"] == 0
+    config = resolve(apply_overrides({}, ["loop=shipped_v2"]), "comat", "pcp")
+    assert config.loop == "shipped_v2" and config.to_dict()["loop"] == "shipped_v2"
+    with pytest.raises(ValueError, match=r"loop must be one of .*'robotarium_v2'.*got 'robotarium_v3'"):
+        resolve(apply_overrides({}, ["loop=robotarium_v3"]), "comat", "pcp")
+    with pytest.raises(ValueError, match=r"SafetyConfig.loop must be one of"):
+        SafetyConfig(loop="rps")

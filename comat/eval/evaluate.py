@@ -145,7 +145,8 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
             "algo": None if config is None else config.algo, "trained_tier": None if config is None else config.tier,
             "trained_reality": None if config is None else reality_name(config.reality),
             "task": task, "tier": tier, "seed": seed, "episodes_per_coalition": episodes, "reality": level,
-            "reality_config": dataclasses.asdict(layer), "rows": rows}
+            "reality_config": dataclasses.asdict(layer), "loop": "comat" if safety is None else safety.loop,
+            "trained_loop": None if config is None else config.loop, "rows": rows}
 
 
 TABLE_NAMES = {"return": "return", "steps": "steps", "progress": "progress", "finished": "finished",

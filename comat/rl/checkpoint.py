@@ -61,9 +61,9 @@ EARLIER_DEFAULTS = {
     "trainer": {"comat": {"value_target": "td"}, "mat": {"value_target": "td"}, "mappo": {"value_target": "td"}},
 }
 """Section -> algo -> option -> the value a checkpoint without that option was trained with."""
-EARLIER_RUN_DEFAULTS = {"reality": "off"}
+EARLIER_RUN_DEFAULTS = {"reality": "off", "loop": "comat"}
 """Run-level key -> the value a checkpoint without it was trained with (before the reality layer
-existed, every run trained in the ideal world)."""
+existed, every run trained in the ideal world; before ``loop``, with comat's filter)."""
 
 
 def with_earlier_defaults(config: dict) -> dict:

@@ -30,6 +30,7 @@ from comat.models.comat import ComatConfig
 from comat.models.mappo import MappoConfig
 from comat.models.mat import MatConfig
 from comat.models.qmix import QmixNetConfig
+from comat.config import LOOPS
 from comat.reality import RealityConfig, resolve_reality
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
@@ -46,7 +47,7 @@ PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
 _RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
              "env_workers", "torch_threads", "physics_threads")
-_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "ppo", "qmix", "models", "reality", "base", "by_task")
+_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "loop", "ppo", "qmix", "models", "reality", "base", "by_task")
 _TASK_KEYS = tuple(k for k in _PRESET_KEYS if k not in ("base", "by_task", "seeds"))
 """What ``by_task: {hmt: {...}}`` may change for one task (the budget, the trainer, the models ...)."""
 
@@ -87,10 +88,16 @@ class RunConfig:
     evaluation (:mod:`comat.reality`): each episode draws its own delays, noise, motors and
     start error from its seed (domain randomization). Default ``off``, the ideal world; a run
     config stored before the layer existed loads as ``off``."""
+    loop: str = "comat"
+    """What turns waypoints into wheel commands in every environment of the run
+    (:attr:`comat.config.SafetyConfig.loop`): ``"comat"`` (comat's filter, the default) or an
+    export's loop (``robotarium_v2``, ``shipped_v2`` ...), to train and evaluate against what the
+    Robotarium will run. A run config stored before the option existed loads as ``comat``."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.reality, RealityConfig):
             object.__setattr__(self, "reality", run_reality(self.reality))
+        _check_choice("loop", self.loop, LOOPS)
 
     @property
     def env_id(self) -> str:
@@ -294,7 +301,7 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         return RunConfig.from_dict({
             "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
             "trainer": preset.get(section), "model": (preset.get("models") or {}).get(algo),
-            "reality": preset.get("reality"),
+            "reality": preset.get("reality"), "loop": preset.get("loop", "comat"),
         })
     except (TypeError, ValueError) as err:  # name the key as presets and overrides spell it
         text = str(err)

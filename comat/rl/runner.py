@@ -30,7 +30,7 @@ from pathlib import Path
 import torch
 
 import comat
-from comat.config import SimConfig
+from comat.config import SafetyConfig, SimConfig
 from comat.envs.base import resolve_coalitions
 from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
@@ -53,8 +53,10 @@ def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
     episode (every reset and autoreset) draws its layer from its own generator, so a run at
     ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
+    safety = None if config.loop == "comat" else SafetyConfig(loop=config.loop)
     return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
-                              sim=sim, coalitions=coalitions, reality=config.reality, **env_slots(config))
+                              sim=sim, coalitions=coalitions, reality=config.reality, safety=safety,
+                              **env_slots(config))
 
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = (),
