@@ -211,8 +211,8 @@ class SafeTeams:
         if kind == "robotarium":
             return [robotarium_loop(generation, projection=d) for _ in sizes]
         lag = self._response_lag()
-        return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, portable_settings(self.filter_config, self.world.profile), lag))
-                for n in sizes]
+        settings = portable_settings(self.filter_config, self.world.profile)
+        return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, settings, lag)) for n in sizes]
 
     @property
     def poses(self) -> np.ndarray:

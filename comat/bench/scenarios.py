@@ -318,7 +318,8 @@ def run_scenario(
         np.minimum.at(min_d, lay.pair_team, d)
         q = teams.points
         np.minimum.at(min_p, lay.pair_team, np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1))
-        c = teams.poses[:, :2] + C.COLLISION_OFFSET_M * np.column_stack([np.cos(teams.poses[:, 2]), np.sin(teams.poses[:, 2])])
+        true = teams.poses
+        c = true[:, :2] + C.COLLISION_OFFSET_M * np.column_stack([np.cos(true[:, 2]), np.sin(true[:, 2])])
         hit = np.linalg.norm(c[lay.pair_i] - c[lay.pair_j], axis=1) <= C.COLLISION_DIAMETER_M
         for k in np.flatnonzero(hit):
             b = int(lay.pair_team[k])

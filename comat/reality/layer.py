@@ -298,7 +298,8 @@ class RealityLayer:
         hold, jitter = None, None
         if self.team_poses or self.script_on:
             if self._team_u is None:  # observed without actuate
-                self._team_u = rr.uniforms(self.keys[self._first], self.ticks[self._first] - 1, _TEAM_DRAWS, _TEAM_STREAM)
+                first = self._first
+                self._team_u = rr.uniforms(self.keys[first], self.ticks[first] - 1, _TEAM_DRAWS, _TEAM_STREAM)
             c, team, tu = self.config, self.layout.robot_team, self._team_u
             if self.team_poses:  # the message that did not come, or came late, did for every robot
                 hold = (tu[:, _T_HOLD] < c.pose_hold_prob)[team]

@@ -247,7 +247,8 @@ class RobotWatch:
                  min_path_m: float = 0.03, ratio: float = 0.15, release_ratio: float = 0.5, dt: float = 0.033,
                  dead_reckon: bool = True) -> None:
         self.n, self.d, self.lag, self.window = n, float(projection), int(lag), int(window)
-        self.stale_limit, self.min_path, self.ratio, self.release_ratio = int(stale_limit), min_path_m, ratio, release_ratio
+        self.stale_limit, self.min_path = int(stale_limit), min_path_m
+        self.ratio, self.release_ratio = ratio, release_ratio
         self.dt, self.dead_reckon = dt, dead_reckon
         self.tick = 0
         self.estimate = np.zeros((n, 3))
@@ -299,7 +300,8 @@ class RobotWatch:
             # the lag is put on probation.
             recent = self._ask[:, [(self.tick - i) % span for i in range(self.window + self.lag)]]  # newest first
             sums = np.cumsum(recent, axis=1)
-            windows = sums[:, self.window - 1:] - np.concatenate([np.zeros((self.n, 1, 2)), sums[:, :-self.window]], axis=1)
+            before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, :-self.window]], axis=1)
+            windows = sums[:, self.window - 1:] - before
             asked = np.hypot(windows[..., 0], windows[..., 1]).min(axis=1)
             moved = np.hypot(*(self._points[:, k] - self._points[:, then]).T)
             judged = old & ~stale & (asked >= self.min_path)
