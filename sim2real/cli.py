@@ -215,7 +215,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--start-poses", metavar="FILE", help="start poses instead of the seed's: a .npy (3, N) array or "
                    "a text file of 3 rows x, y, θ (m, m, rad); checked: inside the arena by 0.1 m, centres >= 0.4 m "
                    "apart (what the Robotarium's start-up drive can reach)")
-    p.add_argument("--filter", choices=("comat", "robotarium"), default="comat",
+    p.add_argument("--filter", default="comat", metavar="{comat,robotarium}",
                    help="what main.py filters its commands with: comat's filter (shipped in deployed_loop.py; robust "
                    "to late and noisy poses, robots that stop are obstacles: clean in the safety battery at nominal "
                    "with faults, docs/safety.md) or the installed rps's own barrier (default: %(default)s)")
@@ -241,7 +241,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                    "or a profile.yaml of comat calibrate): the exact main.py, its filter and wheel scaling, judged on "
                    "true poses (closest robots, collisions named by robots and iteration) next to comat's own loop "
                    "at that level; run k has layer seed k; exit 1 on a collision (default: no layer)")
-    p.add_argument("--drive", choices=("rps", "unicycle", "wheels"), default="rps",
+    p.add_argument("--drive", default="rps", metavar="{rps,unicycle,wheels}",
                    help="--check --reality: what moves the robots: rps's own integration, or comat's MuJoCo world "
                    "(contacts counted) in that tier (default: %(default)s)")
     p.add_argument("--repeats", type=int, default=1, metavar="K",

@@ -211,7 +211,7 @@ def filter_config(filter_name: str, filter_reality: Any) -> dict:
     to the reality level (or profile) ``filter_reality`` as comat's own filter is (the simulator's
     wheel constants replace the profile's at run time), and its response lag (ticks)."""
     if filter_name not in FILTERS:
-        raise ValueError(f"filter must be one of {list(FILTERS)}, got {filter_name!r}")
+        raise ValueError(f"--filter must be one of {list(FILTERS)}, got {filter_name!r}")
     if filter_name == "robotarium":
         return {"filter": "robotarium"}
     from comat.config import SafetyConfig
@@ -469,13 +469,14 @@ def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rp
         missing = [f for f in wanted if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
+    from sim2real.reality_rps import DRIVES
+
+    if drive not in DRIVES:
+        raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
     if reality is not None:
         from comat.reality import resolve_reality
-        from sim2real.reality_rps import DRIVES
 
         resolve_reality(reality, "--reality")  # a one-line error before anything runs
-        if drive not in DRIVES:
-            raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
     runs = [run_rps(folder, timeout_s, rps_path, reality=reality, seed=k, drive=drive) for k in range(repeats)]
     rps = dict(runs[0])
     keys = ("return", "steps", "progress", "finished")

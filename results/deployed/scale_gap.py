@@ -103,8 +103,9 @@ def main() -> None:
     p.add_argument("--teams", nargs="+", type=int, default=list(range(20)))
     a = p.parse_args()
     path = HERE / "scale_gap.csv"
-    rows = list(csv.DictReader(path.open())) if path.exists() else []
-    done = {(r["task"], int(r["team"]), r["filter"]) for r in rows}
+    rows = [{**r, "team": int(r["team"]), "robots": int(r["robots"])} for r in csv.DictReader(path.open())] \
+        if path.exists() else []
+    done = {(r["task"], r["team"], r["filter"]) for r in rows}
     with tempfile.TemporaryDirectory() as tmp:
         for task in a.tasks:
             for k in a.teams:
