@@ -11,7 +11,6 @@ waypoint controller of the projected points (Robotarium ``si_position_controller
 
 from __future__ import annotations
 
-import math
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
@@ -24,14 +23,11 @@ from comat import kernels
 from comat._validate import as_float_array
 from comat.config import LOOPS, SafetyConfig, SimConfig
 from comat.reality import RealityConfig, RealityLayer
-from comat.reality.margin import loop_delay_s, robust_safety
+from comat.reality.margin import response_lag_ticks, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.safety.qp import dense_qp
 from comat.safety.deployed import (
-    DETOUR_ANGLE_RAD,
-    DETOUR_TICKS,
-    HOLD_FRACTION,
-    HOLD_TICKS,
+    DeadlockTieBreak,
     DeployedLoop,
     PortableBarrier,
     RobotWatch,
@@ -183,8 +179,8 @@ class SafeTeams:
         self.fallbacks = np.zeros(len(sizes), np.int64)
         self.recoveries = np.zeros(len(sizes), np.int64)
         """Per team: ticks the filter changed a command, braked, recovered from outside the safe set."""
-        self._held = np.zeros(sum(sizes), np.int64)  # per robot: consecutive ticks held still
-        self._detour = np.zeros(sum(sizes), np.int64)  # per robot: tie-break ticks left
+        self.tie_break = DeadlockTieBreak(sum(sizes))
+        """Per robot: the deadlock tie-break (keep right after 1 s held still)."""
         self.tick_observers: list[Callable[[np.ndarray, np.ndarray, TickEvents, SafetyInfo], None]] = []
         """Called after every tick with (nominal (R, 2), filtered (R, 2), events, info); e.g. a
         :mod:`comat.viz` recorder. Empty by default (nothing to pay when not recording)."""
@@ -192,14 +188,8 @@ class SafeTeams:
     def _new_watch(self) -> RobotWatch | None:
         if self.reality is None or not self.safety_config.robust or self.safety_config.loop != "comat":
             return None
-        return RobotWatch(self.world.layout.n_robots, self.safety_config.projection_distance_m, self._response_lag())
-
-    def _response_lag(self) -> int:
-        """Ticks from a command to its effect on a measured pose, at most (the robust filter's
-        loop delay bound; 1 at ``off``)."""
-        if self.reality is None:
-            return 1
-        return math.ceil(loop_delay_s(self.reality.config, self.world.profile) / C.CONTROL_DT_S)
+        return RobotWatch(self.world.layout.n_robots, self.safety_config.projection_distance_m,
+                          response_lag_ticks(self.reality.config, self.world.profile))
 
     def _deployed_loops(self, sizes: Sequence[int]) -> list[DeployedLoop] | None:
         """One deployed loop per team of ``sizes`` (None for comat's own filter)."""
@@ -210,7 +200,8 @@ class SafeTeams:
         d = self.safety_config.projection_distance_m
         if kind == "robotarium":
             return [robotarium_loop(generation, projection=d) for _ in sizes]
-        lag = self._response_lag()
+        reality = RealityConfig() if self.reality is None else self.reality.config
+        lag = response_lag_ticks(reality, self.world.profile)
         settings = portable_settings(self.filter_config, self.world.profile)
         return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, settings, lag)) for n in sizes]
 
@@ -274,8 +265,7 @@ class SafeTeams:
         self.fallbacks[sel] = 0
         self.recoveries[sel] = 0
         robots = slice(None) if teams is None else np.isin(self.world.layout.robot_team, sel)
-        self._held[robots] = 0
-        self._detour[robots] = 0
+        self.tie_break.restart(robots)
 
     def forget_solver_state(self) -> None:
         """Drop the OSQP problems (their adapted step sizes) and the filter's warm-start duals.
@@ -306,8 +296,7 @@ class SafeTeams:
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
         self.recoveries = np.zeros(len(sizes), np.int64)
-        self._held = np.zeros(sum(sizes), np.int64)
-        self._detour = np.zeros(sum(sizes), np.int64)
+        self.tie_break = DeadlockTieBreak(sum(sizes))
 
     def tick(self, dxi: np.ndarray) -> tuple[TickEvents, SafetyInfo]:
         """One control tick with nominal projected-point velocities (R, 2).
@@ -335,23 +324,11 @@ class SafeTeams:
         t0 = time.perf_counter()
         poses, cos_sin = self.filter_poses()  # read-only here; our own arrays skip the public checks
         nominal = dxi
-        if self._detour.any():  # the deadlock tie-break (see HOLD_TICKS): keep right
-            turn = self._detour > 0
-            c, s = np.cos(DETOUR_ANGLE_RAD), np.sin(DETOUR_ANGLE_RAD)
-            dxi = dxi.copy()
-            dxi[turn] = dxi[turn] @ np.array([[c, s], [-s, c]])
-            self._detour[turn] -= 1
+        dxi = self.tie_break.steer(nominal)
         safe, info = self.filter._filter(poses, dxi, cos_sin)
         if self.watch is not None:
             self._watch_teams(dxi, safe, info)
-        # A robot the filter holds still against its command for HOLD_TICKS ticks starts a detour.
-        want = nominal[:, 0] ** 2 + nominal[:, 1] ** 2
-        still = (want > 1e-6) & (safe[:, 0] ** 2 + safe[:, 1] ** 2 < HOLD_FRACTION**2 * want)
-        self._held = np.where(still, self._held + 1, 0)
-        start = self._held >= HOLD_TICKS
-        if start.any():
-            self._detour[start] = DETOUR_TICKS
-            self._held[start] = 0
+        self.tie_break.update(nominal, safe)
         if self.reality is None:
             events = self.world._step_points(safe, self.safety_config.projection_distance_m)
         else:

@@ -217,12 +217,12 @@ def filter_config(filter_name: str, filter_reality: Any) -> dict:
     from comat.config import SafetyConfig
     from comat.control import portable_settings
     from comat.reality import resolve_reality
-    from comat.reality.margin import loop_delay_s, robust_safety
+    from comat.reality.margin import response_lag_ticks, robust_safety
 
     reality = resolve_reality(filter_reality, "filter_reality")
     profile = C.DEFAULT_PROFILE
     cfg = robust_safety(SafetyConfig(), reality, profile)
-    lag = 1 if reality.is_off else int(np.ceil(loop_delay_s(reality, profile) / C.CONTROL_DT_S))
+    lag = response_lag_ticks(reality, profile)
     level = filter_reality if isinstance(filter_reality, str) else reality.level
     return {"filter": "comat", "filter_reality": level, "filter_lag_ticks": lag,
             "filter_settings": {k: float(v) for k, v in portable_settings(cfg, profile).items()}}

@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from comat.safety.deployed import DeployedLoop, robotarium_barrier, robotarium_loop, si_to_uni, wheel_scaled
+from comat.safety.deployed import DeployedLoop, robotarium_barrier, robotarium_loop, wheel_projected, wheel_scaled
 
 V2 = os.environ.get("COMAT_RPS_V2")
 
@@ -90,6 +90,21 @@ def test_wheel_scaling_keeps_the_direction_and_the_limit():
     wheels = np.abs(np.vstack([2 * out[0] - 0.105 * out[1], 2 * out[0] + 0.105 * out[1]]) / 0.032)
     assert wheels.max() <= 12.5 + 1e-12
     assert np.allclose(out[0] * dxu[1], out[1] * dxu[0])  # v and ω scaled together
+
+
+def test_the_shipped_wheel_projection_is_comats():
+    """deployed.wheel_projected (numpy only, shipped) equals comat's limit_to_wheels (the envs'
+    controller saturation, compiled twin included) on random commands and headings."""
+    from comat import constants as C
+    from comat.sim.kinematics import limit_to_wheels
+
+    rng = np.random.default_rng(3)
+    poses = np.column_stack([rng.uniform(-1, 1, (500, 2)), rng.uniform(-np.pi, np.pi, 500)])
+    dxi = rng.normal(0.0, 0.3, (500, 2))
+    p = C.DEFAULT_PROFILE
+    ours = wheel_projected(dxi.T, poses.T, 0.025, p.wheel_radius_m, p.base_length_m, p.max_wheel_velocity_radps).T
+    np.testing.assert_allclose(ours, limit_to_wheels(dxi, poses, 0.025, p), rtol=0, atol=1e-14)
+    assert (np.abs(ours - dxi) > 1e-9).any(axis=1).sum() > 100  # many were outside the rhombus
 
 
 def test_the_loop_steers_toward_its_waypoints():

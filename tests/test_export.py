@@ -180,7 +180,7 @@ def test_scripted_policy_completes_the_task_under_rps(scripted, task):
     assert rps["finished"] == 1.0 and rps["progress"] == pytest.approx(1.0), rps
     assert mj["finished"] == 1.0
     assert abs(report["gap"]["progress_points"]) <= 10.0
-    # MuJoCo's filter breaks barrier deadlocks (comat.control.HOLD_TICKS); the Robotarium's barrier
+    # MuJoCo's filter breaks barrier deadlocks (comat.safety.deployed.DeadlockTieBreak); the Robotarium's barrier
     # has no tie-break, so the MuJoCo episode may be shorter, never much longer.
     assert mj["steps"] <= rps["steps"] + 5, (rps["steps"], mj["steps"])
 

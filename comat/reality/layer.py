@@ -175,9 +175,9 @@ class RealityLayer:
         c = self.config
         spread = max(c.pose_delay_spread_ticks, 1)
         delay_u = rr.uniforms(k, rr.EPISODE, spread, _EP_POSE_DELAY)[:, : c.pose_delay_spread_ticks]
-        if not c.pose_per_robot:  # one message per tick: the team's first robot draws its age for all
-            first = np.repeat([int(np.flatnonzero(rows == r[0])[0]) for r in rows_of], [r.size for r in rows_of])
-            delay_u = delay_u[first] if first.size else delay_u
+        if not c.pose_per_robot and rows.size:  # one message per tick: each team's first robot draws its age
+            sizes = [r.size for r in rows_of]
+            delay_u = delay_u[np.repeat(np.cumsum([0, *sizes[:-1]]), sizes)]
         self.pose.begin(rows, poses[rows], delay_u, rr.normals(k, rr.EPISODE, 2, _EP_BIAS))
         self.stall_left[teams] = 0
         spread = max(c.command_delay_spread_ticks, 1)

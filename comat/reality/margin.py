@@ -36,7 +36,7 @@ from comat.config import SafetyConfig
 from comat.reality.config import RealityConfig
 from comat.reality.random import NORMAL_BOUND
 
-__all__ = ["StalePoses", "loop_delay_s", "measurement_bound_m", "robust_safety"]
+__all__ = ["StalePoses", "loop_delay_s", "measurement_bound_m", "response_lag_ticks", "robust_safety"]
 
 
 def loop_delay_s(reality: RealityConfig, profile: C.RobotProfile) -> float:
@@ -59,6 +59,15 @@ def loop_delay_s(reality: RealityConfig, profile: C.RobotProfile) -> float:
     if reality.motor_accel_limit_radps2 > 0:
         slew = 2.0 * profile.max_wheel_velocity_radps / reality.motor_accel_limit_radps2 / 2.0
     return ticks * C.CONTROL_DT_S + reality.motor_tau_max_s + slew
+
+
+def response_lag_ticks(reality: RealityConfig, profile: C.RobotProfile) -> int:
+    """Ticks from a command to its effect on a measured pose, at most: :func:`loop_delay_s` in
+    whole ticks (1 with no layer), the lags a robot watch tries before it calls a robot
+    unresponsive (:class:`comat.safety.deployed.RobotWatch`)."""
+    if reality.is_off:
+        return 1
+    return math.ceil(loop_delay_s(reality, profile) / C.CONTROL_DT_S)
 
 
 def measurement_bound_m(reality: RealityConfig, projection_m: float) -> float:

@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-__all__ = ["GENERATIONS", "DeployedLoop", "PortableBarrier", "RobotWatch", "ShippedFilter", "cvxopt_qp",
+__all__ = ["GENERATIONS", "DeadlockTieBreak", "DeployedLoop", "PortableBarrier", "RobotWatch", "ShippedFilter", "cvxopt_qp",
            "robotarium_barrier", "robotarium_loop", "si_to_uni", "uni_to_si", "wheel_projected", "wheel_scaled"]
 
 GENERATIONS = ("v2", "legacy")
@@ -71,6 +71,47 @@ DETOUR_ANGLE_RAD = -np.pi / 6
 robots that block each other head-on on one line both turn to their right and pass; measured
 with the scripted PCP policy on every 2-robot U_test team from the env's starts (seeds 0–4,
 MuJoCo wheels tier): 33 of 35 episodes finished without it, 35 of 35 with it."""
+
+
+class DeadlockTieBreak:
+    """The deadlock tie-break of comat's loops (its own and :class:`ShippedFilter`), per robot: a
+    robot the filter holds still against its command (filtered speed under ``HOLD_FRACTION`` of the
+    nominal) for ``HOLD_TICKS`` ticks has its nominal command turned by ``DETOUR_ANGLE_RAD``
+    ("keep right") for ``DETOUR_TICKS`` ticks."""
+
+    def __init__(self, n: int) -> None:
+        self.held = np.zeros(n, np.int64)
+        """(N,) consecutive ticks each robot has been held still."""
+        self.detour = np.zeros(n, np.int64)
+        """(N,) tie-break ticks each robot has left."""
+
+    def restart(self, rows) -> None:
+        """Robots ``rows`` (indices or a mask) begin anew."""
+        self.held[rows] = 0
+        self.detour[rows] = 0
+
+    def steer(self, nominal: np.ndarray) -> np.ndarray:
+        """The point velocities (N, 2) to filter: ``nominal`` itself, or a copy turned where a robot
+        is on its detour (one tick of it used up)."""
+        if not self.detour.any():
+            return nominal
+        turn = self.detour > 0
+        c, s = np.cos(DETOUR_ANGLE_RAD), np.sin(DETOUR_ANGLE_RAD)
+        out = nominal.copy()
+        out[turn] = nominal[turn] @ np.array([[c, s], [-s, c]])
+        self.detour[turn] -= 1
+        return out
+
+    def update(self, nominal: np.ndarray, safe: np.ndarray) -> None:
+        """After the filter: count the robots it held still (nominal and filtered (N, 2)) and start
+        the detours that are due."""
+        want = nominal[:, 0] ** 2 + nominal[:, 1] ** 2
+        still = (want > 1e-6) & (safe[:, 0] ** 2 + safe[:, 1] ** 2 < HOLD_FRACTION**2 * want)
+        self.held = np.where(still, self.held + 1, 0)
+        start = self.held >= HOLD_TICKS
+        if start.any():
+            self.detour[start] = DETOUR_TICKS
+            self.held[start] = 0
 
 
 # -- maps between points and unicycles (row 0 x / v, row 1 y / ω; one column per robot) ----------
@@ -111,6 +152,17 @@ def wheel_projected(dxi: np.ndarray, x: np.ndarray, d: float, radius: float, axl
     pa, pb = np.where(outside, v - t * v, pa), np.where(outside, t * v / k, pb)
     a, b = np.copysign(pa, a), np.copysign(pb, b)
     return np.vstack([c * a - s * b, s * a + c * b])
+
+
+def points_apart_and_inside(points: np.ndarray, distance: float, margin: float) -> bool:
+    """Points (2, N) pairwise >= ``distance`` apart and >= ``margin`` inside the arena."""
+    x0, x1, y0, y1 = ARENA
+    p = points
+    if (p[0] < x0 + margin).any() or (p[0] > x1 - margin).any() or (p[1] < y0 + margin).any() \
+            or (p[1] > y1 - margin).any():
+        return False
+    i, j = np.triu_indices(p.shape[1], 1)
+    return bool((np.hypot(*(p[:, i] - p[:, j])) >= distance).all())
 
 
 # -- the Robotarium's barrier ----------------------------------------------------------------------
@@ -182,13 +234,7 @@ class RobotariumBarrier:
     def in_safe_set(self, x: np.ndarray) -> bool:
         """Poses x (3, N) inside this barrier's safe set: every pair of points >= ``radius`` apart
         and every point >= ``radius``/2 inside the arena (all its rows' h >= 0)."""
-        p = self.points(x)
-        x0, x1, y0, y1 = ARENA
-        m = self.radius / 2
-        if (p[0] < x0 + m).any() or (p[0] > x1 - m).any() or (p[1] < y0 + m).any() or (p[1] > y1 - m).any():
-            return False
-        i, j = np.triu_indices(p.shape[1], 1)
-        return bool((np.hypot(*(p[:, i] - p[:, j])) >= self.radius).all())
+        return points_apart_and_inside(self.points(x), self.radius, self.radius / 2)
 
     def __call__(self, dxu: np.ndarray, x: np.ndarray) -> np.ndarray:
         n = dxu.shape[1]
@@ -477,8 +523,7 @@ class ShippedFilter:
         self.projection = float(settings["projection_distance_m"])
         self.watch = RobotWatch(n, self.projection, lag)
         self.barrier = PortableBarrier(settings, solve)
-        self._held = np.zeros(n, np.int64)  # per robot: consecutive ticks held still (deadlock tie-break)
-        self._detour = np.zeros(n, np.int64)  # per robot: tie-break ticks left
+        self.tie_break = DeadlockTieBreak(n)
 
     @property
     def failures(self) -> int:
@@ -494,12 +539,7 @@ class ShippedFilter:
         """Poses x (3, N) inside the filter's safe set (its pair and wall rows' h >= 0)."""
         s = self.barrier.s
         p = x[:2] + self.projection * np.vstack([np.cos(x[2]), np.sin(x[2])])
-        x0, x1, y0, y1 = ARENA
-        m = s["boundary_margin_m"]
-        if (p[0] < x0 + m).any() or (p[0] > x1 - m).any() or (p[1] < y0 + m).any() or (p[1] > y1 - m).any():
-            return False
-        i, j = np.triu_indices(p.shape[1], 1)
-        return bool((np.hypot(*(p[:, i] - p[:, j])) >= s["safety_distance_m"]).all())
+        return points_apart_and_inside(p, s["safety_distance_m"], s["boundary_margin_m"])
 
     def command(self, x: np.ndarray, nominal: np.ndarray) -> np.ndarray:
         """Unicycle commands (2, N) for measured poses x (3, N) and the waypoint controller's
@@ -508,20 +548,8 @@ class ShippedFilter:
         watch.observe(x.T)
         poses, extra = watch.obstacles()
         nominal = nominal.T
-        wanted = nominal
-        if self._detour.any():  # the deadlock tie-break, as comat's loop: keep right
-            turn = self._detour > 0
-            c, s = np.cos(DETOUR_ANGLE_RAD), np.sin(DETOUR_ANGLE_RAD)
-            wanted = nominal.copy()
-            wanted[turn] = nominal[turn] @ np.array([[c, s], [-s, c]])
-            self._detour[turn] -= 1
-        u = self.barrier(poses, wanted, watch.probation, extra)
-        want = nominal[:, 0] ** 2 + nominal[:, 1] ** 2
-        still = (want > 1e-6) & (u[:, 0] ** 2 + u[:, 1] ** 2 < HOLD_FRACTION**2 * want)
-        self._held = np.where(still, self._held + 1, 0)
-        start = self._held >= HOLD_TICKS
-        self._detour[start] = DETOUR_TICKS
-        self._held[start] = 0
+        u = self.barrier(poses, self.tie_break.steer(nominal), watch.probation, extra)
+        self.tie_break.update(nominal, u)
         out = si_to_uni(u.T, poses.T, d)
         watch.sent(out.T)
         return out

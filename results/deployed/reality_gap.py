@@ -15,7 +15,6 @@ and ``reality_gap.md`` (means per task, filter and level) beside this file.
 from __future__ import annotations
 
 import argparse
-import csv
 import tempfile
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 
 from comat.cli_args import parse_team, resolve_policy_arg
 from comat.files import write_atomic
+from rows import keep_row, load_rows  # this folder's (run as a script, the folder is on the path)
 from sim2real.export import check_submission, export_submission
 
 HERE = Path(__file__).resolve().parent
@@ -71,8 +71,8 @@ def main() -> None:
     p.add_argument("--teams", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     a = p.parse_args()
     path = HERE / "reality_gap.csv"
-    rows = list(csv.DictReader(path.open())) if path.exists() else []
-    done = {(r["task"], int(r["team"]), r["filter"], r["level"]) for r in rows}
+    rows = load_rows(path)
+    done = {(r["task"], r["team"], r["filter"], r["level"]) for r in rows}
     with tempfile.TemporaryDirectory() as tmp:
         for task in ("hmt", "pcp"):
             for k in a.teams:
@@ -80,11 +80,7 @@ def main() -> None:
                     for level in ("off", "nominal"):
                         if (task, k, f, level) in done:
                             continue
-                        row = measure(task, k, f, level, a.repeats, Path(tmp))
-                        rows.append(row)
-                        print(" ".join(f"{key}={row[key]}" for key in FIELDS), flush=True)
-                        lines = [",".join(FIELDS)] + [",".join(str(r[key]) for key in FIELDS) for r in rows]
-                        write_atomic(path, "\n".join(lines) + "\n")
+                        keep_row(path, rows, measure(task, k, f, level, a.repeats, Path(tmp)), FIELDS)
     write_atomic(HERE / "reality_gap.md", table(rows))
 
 

@@ -21,7 +21,6 @@ team size) beside this file; rows already in the CSV are kept (an interrupted ru
 from __future__ import annotations
 
 import argparse
-import csv
 import tempfile
 from pathlib import Path
 
@@ -31,6 +30,7 @@ from comat.cli_args import parse_team, resolve_policy_arg
 from comat.config import SafetyConfig
 from comat.envs import make_env
 from comat.files import write_atomic
+from rows import keep_row, load_rows  # this folder's (run as a script, the folder is on the path)
 from comat.team import TeamSpec
 from sim2real.export import _load_config, export_submission, run_mujoco, run_rps
 from sim2real.runtime import ComatRuntime
@@ -103,8 +103,7 @@ def main() -> None:
     p.add_argument("--teams", nargs="+", type=int, default=list(range(20)))
     a = p.parse_args()
     path = HERE / "scale_gap.csv"
-    rows = [{**r, "team": int(r["team"]), "robots": int(r["robots"])} for r in csv.DictReader(path.open())] \
-        if path.exists() else []
+    rows = load_rows(path)
     done = {(r["task"], r["team"], r["filter"]) for r in rows}
     with tempfile.TemporaryDirectory() as tmp:
         for task in a.tasks:
@@ -112,11 +111,7 @@ def main() -> None:
                 for f in ("robotarium", "comat"):
                     if (task, k, f) in done:
                         continue
-                    row = measure(task, k, f, a.rps, Path(tmp))
-                    rows.append(row)
-                    print(" ".join(f"{key}={row[key]}" for key in FIELDS), flush=True)
-                    lines = [",".join(FIELDS)] + [",".join(str(r[key]) for key in FIELDS) for r in rows]
-                    write_atomic(path, "\n".join(lines) + "\n")
+                    keep_row(path, rows, measure(task, k, f, a.rps, Path(tmp)), FIELDS)
     write_atomic(HERE / "scale_gap.md", table(rows))
 
 
