@@ -344,7 +344,7 @@ class RobotWatch:
             # robot is judged against the alignment that asks least (a command that reversed
             # asks for little at some lag), so only a robot that ignores its commands whatever
             # the lag is put on probation.
-            recent = self._ask[:, [(self.tick - i) % span for i in range(self.window + self.lag)]]  # newest first
+            recent = self._ask[:, (self.tick - np.arange(self.window + self.lag)) % span]  # newest first
             sums = np.cumsum(recent, axis=1)
             before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, :-self.window]], axis=1)
             windows = sums[:, self.window - 1:] - before
