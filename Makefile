@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test test-slow test-all test-cluster test-wheel bench mjcf clean docs
+.PHONY: setup demo test test-slow test-all test-cluster test-wheel bench mjcf clean docs lint
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,11 @@ test-all: test test-slow test-cluster
 docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warnings and broken links fail)
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[docs]"
 	$(BIN)/mkdocs build --strict
+
+lint: $(STAMP)  ## ruff (lint + format check) and the import-layering contracts of pyproject.toml (import-linter)
+	$(BIN)/pip install --disable-pip-version-check -q -e ".[lint]"
+	$(BIN)/ruff check comat sim2real tests benchmarks results
+	$(BIN)/lint-imports
 
 test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, two nodes on loopback, ray job submit (about 7 minutes)
 	$(BIN)/python -m pytest -q -m cluster

@@ -16,8 +16,14 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from comat import constants as C
+from comat.mjcf.robot import TIERS
+from comat.mjcf.scene import DEFAULT_SUBSTEPS
 
-__all__ = ["LOOPS", "SafetyConfig", "SimConfig", "load", "load_yaml", "to_dict"]
+__all__ = ["LOOPS", "REFERENCE_TIER", "SafetyConfig", "SimConfig", "load", "load_yaml", "to_dict"]
+
+REFERENCE_TIER = "unicycle"
+"""Tier of a policy that has no training tier (the reference policies): the presets' training tier,
+so reference numbers sit next to a checkpoint's evaluated in the same dynamics."""
 
 T = TypeVar("T")
 
@@ -39,7 +45,6 @@ class SimConfig:
     depend on it: each team's simulation is independent."""
 
     def __post_init__(self) -> None:
-        from comat.mjcf.robot import TIERS
 
         if self.tier not in TIERS:
             raise ValueError(f"SimConfig.tier must be one of {TIERS}, got {self.tier!r}")
@@ -68,7 +73,6 @@ class SimConfig:
     @property
     def resolved_substeps(self) -> int:
         """Physics steps per tick after defaults."""
-        from comat.mjcf.scene import DEFAULT_SUBSTEPS
 
         if self.timestep_s is not None:
             return round(C.CONTROL_DT_S / self.timestep_s)

@@ -25,7 +25,6 @@ from comat.config import LOOPS, SafetyConfig, SimConfig
 from comat.reality import RealityConfig, RealityLayer
 from comat.reality.margin import response_lag_ticks, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
-from comat.safety.qp import dense_qp
 from comat.safety.deployed import (
     DeadlockTieBreak,
     DeployedLoop,
@@ -35,6 +34,7 @@ from comat.safety.deployed import (
     robotarium_loop,
     uni_to_si,
 )
+from comat.safety.qp import dense_qp
 from comat.sim import BatchWorld, World
 from comat.sim.kinematics import (
     WHEEL_LIMIT_TOLERANCE,

@@ -22,34 +22,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
+
+from comat.rl.algos import robot_slots
+from comat.rl.checkpoint import load_trained
+from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, policy_modules, pretrained_path
 
 __all__ = ["PRETRAINED", "Policy", "load_policy", "pretrained_path"]
-
-PRETRAINED_DIR = Path(__file__).parent / "data" / "pretrained"
-PRETRAINED: dict[str, dict[str, str]] = {
-    "comat-pcp": {"file": "comat_pcp_s0.pt", "what": "COMAT on PCP, seed 0, 302 k env steps (sweep preset); "
-                  "U_train progress 99.5 %, finished 97 %; U_test 96.5 % / 85 % (results/policies/comat_pcp_s0)"},
-    "comat-hmt": {"file": "comat_hmt_s0.pt", "what": "COMAT on HMT, seed 0, 300 k env steps (sweep preset); "
-                  "U_train progress 97.9 %, finished 52 %; U_test 96.4 % / 41 % (results/policies/comat_hmt_s0)"},
-    "mat-pcp": {"file": "mat_pcp_s1.pt", "what": "MAT (20 robot slots) on PCP, seed 1, 300 k env steps; "
-                "U_train progress 100 %, finished 100 %; U_test 99.0 % / 94 % (results/policies/mat_pcp_s1)"},
-    "mat-hmt": {"file": "mat_hmt_s1.pt", "what": "MAT (20 robot slots) on HMT, seed 1, 300 k env steps; "
-                "U_train progress 97.7 %, finished 68 %; U_test 97.9 % / 65 % (results/policies/mat_hmt_s1)"},
-}
-"""The policies that ship with comat (``pretrained:NAME`` wherever a policy is taken): copies of the
-kept policy files under ``results/policies/`` (their READMEs say how each was trained and what it
-scores; ``comat policy pretrained:NAME`` prints what a file holds)."""
-
-PREFIX = "pretrained:"
-
-
-def pretrained_path(name: str, flag: str = "--policy") -> Path:
-    """The file of ``pretrained:NAME`` (or ``NAME``); ValueError naming ``flag`` and the known names."""
-    key = name.removeprefix(PREFIX)
-    if key not in PRETRAINED:
-        raise ValueError(f"{flag} must be one of {[PREFIX + k for k in PRETRAINED]}, got {name!r}")
-    return PRETRAINED_DIR / PRETRAINED[key]["file"]
-
 
 class Policy:
     """A trained policy: ``policy(observations) -> actions`` on PettingZoo dicts, ``act`` on batches.
@@ -60,10 +39,6 @@ class Policy:
     """
 
     def __init__(self, modules: dict, config, path: Path, deterministic: bool = True, seed: int = 0) -> None:
-        import torch
-
-        from comat.rl.algos import robot_slots
-
         if not isinstance(deterministic, bool):
             raise TypeError(f"deterministic must be True or False, got {deterministic!r}")
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
@@ -85,8 +60,6 @@ class Policy:
     def act(self, obs: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
         """Actions (B, N) int64 for observations (B, N, D) (or one team's (N, D): actions (N,)) and
         the mask of real robots (B, N) (default: all). Padded slots get action 0."""
-        import torch
-
         obs = np.asarray(obs, dtype=np.float32)
         single = obs.ndim == 2
         if single:
@@ -143,9 +116,6 @@ def load_policy(path_or_name: str | Path, *, deterministic: bool = True, seed: i
     Raises:
         ValueError: an unknown name, a missing file, a file that is not a comat policy (naming it).
     """
-    from comat.rl.checkpoint import load_trained
-    from comat.rl.policy import policy_file_of, policy_modules
-
     text, flag = str(path_or_name), "load_policy: path_or_name"
     path = pretrained_path(text, flag) if text.startswith(PREFIX) else Path(text)
     if not path.exists():

@@ -1,10 +1,10 @@
 """Robotarium calibration folders: ``export_calibration`` and ``check_calibration``.
 
 ``comat export --calibration OUT`` writes one flat submission folder per experiment of
-:data:`comat.reality.calibration_schedule.EXPERIMENTS` (``OUT/steps``, ``OUT/still``, ``OUT/ramp``, ``OUT/spin``): ``main.py``
+:data:`comat.calibration.schedule.EXPERIMENTS` (``OUT/steps``, ``OUT/still``, ``OUT/ramp``, ``OUT/spin``): ``main.py``
 (``sim2real/templates/calibration_main.py``, its first line naming the experiment, what it measures
 and how long it runs), ``calibration_schedule.py``
-(``comat/reality/calibration_schedule.py``, verbatim: numpy only) and ``submission_config.py``
+(``comat/calibration/schedule.py``, verbatim: numpy only) and ``submission_config.py``
 (``CONFIG``: experiment, robots, iterations, what it measures, how long it runs). The same rules
 as every export: ``.py`` files only, numpy and rps imports, no folders, atomically written.
 Upload a folder, download the ``calib_<experiment>.npy`` the run saves, fit with ``comat
@@ -19,8 +19,11 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from comat.reality import calibration_schedule as schedule_module
-from comat.reality.calibration_schedule import CONTROL_DT_S, EXPERIMENTS, MAX_ROBOTS
+from comat.calibration import schedule as schedule_module
+from comat.calibration.experiments import load_log
+from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still
+from comat.calibration.schedule import CONTROL_DT_S, EXPERIMENTS, MAX_ROBOTS
+from sim2real.export import run_rps
 
 __all__ = ["CALIBRATION_FILES", "MEASURES", "check_calibration", "export_calibration", "is_calibration"]
 
@@ -79,9 +82,6 @@ def is_calibration(folder) -> bool:
 def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
     """Run the folder under rps (:func:`sim2real.export.run_rps`) and fit the log it saved:
     ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``; the log is left in the folder."""
-    from comat.reality.calibration import load_log
-    from comat.reality.fit import fit_ramp, fit_spin, fit_steps, fit_still
-    from sim2real.export import run_rps
 
     folder = Path(folder)
     missing = [f for f in CALIBRATION_FILES if not (folder / f).is_file()]

@@ -37,7 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from comat import constants as C
+from comat.config import SimConfig
 from comat.reality import RealityConfig, RealityLayer, resolve_reality
+from comat.sim import World
 from comat.sim.kinematics import threshold_wheels
 from comat.sim.layout import team_layout
 
@@ -101,8 +103,6 @@ def install(reality: RealityConfig, seed: int, drive: str = "rps") -> _Run:
             start = run.layer.start(np.array(self._true(), dtype=float).T, np.array([0]), None)
             self._set_true(start.T)
             if run.drive != "rps":
-                from comat.config import SimConfig
-                from comat.sim import World
 
                 run.world = World(n, SimConfig(tier=run.drive, profile=profile.name))
                 run.world.reset(start)

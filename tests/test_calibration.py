@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import yaml
 
+from comat.calibration.experiments import run_under_rps, simulate
+from comat.calibration.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still
 from comat.cli import main
 from comat.reality import RealityConfig, resolve_reality
-from comat.reality.calibration import run_under_rps, simulate
-from comat.reality.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "results" / "calibration"))
 from recovery import check, recover, setting
@@ -145,7 +145,7 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
     assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4
     assert "dead_zone_radps 0..0" in printed
     assert "delay_ticks 0..0" in printed
-    from comat.reality.calibration import load_log
+    from comat.calibration.experiments import load_log
 
     _, log = load_log(out / "steps" / "calib_steps.npy")
     fit = fit_steps(log)
@@ -159,7 +159,7 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
 def test_calibration_folders_under_rps_v2_show_no_gap(tmp_path, capsys):
     """All four experiments under V2: 0 simulator errors; no delay, lag, noise or dead zone; gains 1
     (V2's barrier steers a little: gain differences <= 0.01 in steps)."""
-    from comat.reality.calibration import load_log
+    from comat.calibration.experiments import load_log
 
     out = tmp_path / "cal"
     assert main(["export", "--calibration", str(out)]) == 0

@@ -105,17 +105,17 @@ def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
 
     import yaml
 
+    from comat.bench import learn_bench
     from comat.bench.learn_bench import bench_train
     from comat.models.comat import PAPER_FORM
-    from comat.rl import algos
 
     preset = tmp_path / "tiny.yaml"
     preset.write_text(yaml.safe_dump({"ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1},
                                       "models": {"comat": {"embed": 16, "heads": 2, "heat_blocks": 1, "edge_embed": 8,
                                                            "obs_embed": True, "node_ffn": True}}}))
     seen = []
-    real = algos.make_learner
-    with mock.patch.object(algos, "make_learner", side_effect=lambda c, *a: seen.append(c.model) or real(c, *a)):
+    real = learn_bench.make_learner
+    with mock.patch.object(learn_bench, "make_learner", side_effect=lambda c, *a: seen.append(c.model) or real(c, *a)):
         names = ("comat", "comat_paper", "comat_shared_trunk", "comat_one_block", "comat_adapters")
         rows = [bench_train(name, iterations=1, preset=str(preset)) for name in names]
     assert [r["algo"] for r in rows] == list(names) and all(r["env_steps"] == 4 for r in rows)

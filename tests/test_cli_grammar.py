@@ -5,7 +5,7 @@ import argparse
 import pytest
 
 from comat.cli import build_parser
-from comat.cli_args import ALGOS, DEFAULT_SEED, DEFAULT_TEAMS, TASKS, TIERS
+from comat.cli.args import ALGOS, DEFAULT_SEED, DEFAULT_TEAMS, TASKS, TIERS
 from comat.eval.evaluate import EVAL_SEED
 from comat.team import COALITION_SETS
 

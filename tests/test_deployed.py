@@ -12,7 +12,13 @@ import textwrap
 import numpy as np
 import pytest
 
-from comat.safety.deployed import DeployedLoop, robotarium_barrier, robotarium_loop, wheel_projected, wheel_scaled
+from comat.safety.deployed import (
+    DeployedLoop,
+    robotarium_barrier,
+    robotarium_loop,
+    wheel_projected,
+    wheel_scaled,
+)
 
 V2 = os.environ.get("COMAT_RPS_V2")
 

@@ -7,16 +7,15 @@ import torch
 from test_rl import assert_same, tiny
 
 from comat.cli import main
-from comat.rl.algos import Dims, Learner, build_modules, uses_state
+from comat.rl.algos import Dims, Learner, build_modules, make_run_env, uses_state
 from comat.rl.checkpoint import to_plain
 from comat.rl.device import resolve_device
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
-from comat.rl.runner import _make_env
 
 
 def _learner(config, device):
-    env = _make_env(config, config.trainer.num_envs, config.seed)
+    env = make_run_env(config, config.trainer.num_envs, config.seed)
     env.reset()
     torch.manual_seed(config.seed)
     modules = build_modules(config.algo, Dims.of(env), config.model)

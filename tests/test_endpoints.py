@@ -12,8 +12,8 @@ from comat.envs import make_vec_env
 from comat.envs.core import TaskCore
 from comat.envs.diagnostics import ROBOT_COUNTS, STILL_FRACTION
 from comat.envs.heuristics import heuristic_actions
-from comat.eval.episodes import run_episodes
-from comat.eval.metrics import curve_endpoints
+from comat.measure.episodes import run_episodes
+from comat.measure.metrics import curve_endpoints
 from comat.task_logic import HMT, PCP
 from comat.team import RobotSpec, TeamSpec, generate_coalitions
 

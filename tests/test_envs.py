@@ -196,9 +196,9 @@ def test_bad_actions():
 
 
 def _pixel(xy):
-    """(row, col) of arena point xy in a frame (comat.viz.frames: arena axes under a 48 px header)."""
+    """(row, col) of arena point xy in a frame (comat.envs.render: arena axes under a 48 px header)."""
     from comat import constants as C
-    from comat.viz.frames import FRAME_SIZE
+    from comat.envs.render import FRAME_SIZE
 
     h, w = FRAME_SIZE
     X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
@@ -210,7 +210,7 @@ def _pixel(xy):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_render_rgb_array_draws_the_team_and_leaves_the_episode_unchanged(task):
-    from comat.viz.frames import FRAME_SIZE, TYPE_COLORS
+    from comat.envs.render import FRAME_SIZE, TYPE_COLORS
 
     env = make_env(f"{task}_v0", tier="unicycle", render_mode="rgb_array")
     assert env.metadata["render_modes"] == ["rgb_array"] and env.render_mode == "rgb_array"

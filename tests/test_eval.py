@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from comat.cli import main
-from comat.eval.metrics import REPORTED, mean_ci, summarize_ci, violations
+from comat.measure.metrics import REPORTED, mean_ci, summarize_ci, violations
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
@@ -129,7 +129,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     # the constant row is every robot always taking the task's best constant action (+x on PCP)
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
-    from comat.eval.episodes import run_episodes
+    from comat.measure.episodes import run_episodes
 
     env = make_vec_env("pcp_v0", 20, seed=2_000_003, tier="unicycle", coalitions="test")
     direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), resolve_coalitions("test", "pcp"), seed=2_000_003)
@@ -231,8 +231,9 @@ def test_best_constant_action_is_the_best_of_the_five(task):
     the highest mean return on U_train (one episode per coalition, the evaluation seed)."""
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
-    from comat.eval.episodes import run_episodes
-    from comat.eval.evaluate import BEST_CONSTANT_ACTION, EVAL_SEED
+    from comat.envs.heuristics import BEST_CONSTANT_ACTION
+    from comat.eval.evaluate import EVAL_SEED
+    from comat.measure.episodes import run_episodes
 
     teams = resolve_coalitions("train", task)
     env = make_vec_env(f"{task}_v0", 20, seed=0, tier="unicycle", coalitions="train")
@@ -244,7 +245,7 @@ def test_best_constant_action_is_the_best_of_the_five(task):
 def test_share_intervals_stay_inside_0_1_and_one_unit_says_it_has_none():
     """Two episodes printed ``progress 0.33 ± 4.24`` (issue 32): a share's interval is cut to its
     range; one seed prints no interval, in words; other metrics keep their symmetric interval."""
-    from comat.eval.metrics import interval_text, mean_ci
+    from comat.measure.metrics import interval_text, mean_ci
 
     mean, half = mean_ci([0.0, 0.66])
     assert half > 1 and interval_text(mean, half, share=True) == "0.33 [0.00, 1.00]"

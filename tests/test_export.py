@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 import torch
 
+from comat.cli.export import parse_team
 from comat.rl.config import resolve
 from comat.rl.runner import train
 from comat.team import random_team
-from sim2real.cli import parse_team
 from sim2real.export import (
     ACCEPTED_EXTENSIONS,
     ALLOWED_IMPORTS,

@@ -8,7 +8,7 @@ import os
 import pytest
 
 from comat.cli import main
-from sim2real.cli import _print_reality, parse_team
+from comat.cli.export import _print_reality, parse_team
 from sim2real.export import check_submission, export_submission, run_rps
 
 pytest.importorskip("rps")

@@ -8,7 +8,7 @@ import numpy as np
 import comat
 from comat.envs import make_env
 from comat.envs.heuristics import heuristic_actions
-from comat.eval.metrics import RETIRED_NAMES
+from comat.measure.metrics import RETIRED_NAMES
 from comat.task_logic import PCP
 from comat.team import generate_coalitions, random_team
 

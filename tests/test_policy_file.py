@@ -18,11 +18,11 @@ import torch
 
 from comat.cli import main
 from comat.envs import make_vec_env
-from comat.eval.episodes import run_episodes
+from comat.measure.episodes import run_episodes
 from comat.rl.algos import ACTING_MODULES, env_slots, uses_state
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, load_policy_file
-from comat.rl.policy import POLICY_FILE, policy_file_of
-from comat.rl.runner import load_policy, train
+from comat.rl.policy import POLICY_FILE, load_policy, policy_file_of
+from comat.rl.runner import train
 from comat.team import random_team
 
 sys.path.insert(0, str(Path(__file__).parent))

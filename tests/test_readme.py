@@ -19,8 +19,10 @@ TINY = ["ppo.num_envs=2", "ppo.rollout_steps=8", "ppo.epochs=1", "ppo.minibatche
 
 
 def _section() -> str:
+    """The README's "Common tasks": between the snippet markers docs/getting-started.md splices in."""
     text = README.read_text()
-    return text[text.index("<!-- common-tasks:start"): text.index("<!-- common-tasks:end -->")]
+    start, end = "<!-- --8<-- [start:common-tasks] -->", "<!-- --8<-- [end:common-tasks] -->"
+    return text[text.index(start): text.index(end)]
 
 
 def test_common_tasks_run_as_written(tmp_path, monkeypatch, capsys):

@@ -87,7 +87,7 @@ def _tiny_preset(tmp_path):
 
 
 def test_training_at_nominal_records_the_level_and_resumes_exactly(tmp_path, capsys):
-    from comat.rl.runner import _make_env
+    from comat.rl.algos import make_run_env
 
     preset = _tiny_preset(tmp_path)
     train = ["train", "--algo", "comat", "--task", "pcp", "--preset", preset, "--quiet"]
@@ -100,7 +100,7 @@ def test_training_at_nominal_records_the_level_and_resumes_exactly(tmp_path, cap
     config = RunConfig.from_dict(ckpt["config"])
     assert config.reality == RealityConfig(level="nominal")
     # the run's environments carry the layer, drawn afresh for every episode from its own generator
-    env = _make_env(config, 2, seed=config.seed)
+    env = make_run_env(config, 2, seed=config.seed)
     try:
         same = [resolve_coalitions("train", "pcp")[0]] * 2  # one layout: the keys line up
         env.reset(teams=same)
@@ -167,8 +167,8 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     assert (tmp_path / "run" / "evaluation_unicycle.json").read_bytes() == plain["json"]
     assert json.loads((tmp_path / "run" / "evaluation_unicycle_nominal.json").read_text()) == nominal
     # the report's robustness table reads the two levels as one component, in the levels' order
-    from comat.eval.report import load_run
     from comat.eval.robustness import robustness_figure, robustness_rows
+    from comat.eval.runs import load_run
 
     every = robustness_rows([load_run(run)])
     rows = [r for r in every if r["metric"] == "progress"]

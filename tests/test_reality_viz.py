@@ -4,8 +4,8 @@ true ones, faults marked; nothing of it at off."""
 import numpy as np
 from test_viz import column, read
 
+from comat.envs.render import EpisodeFrames
 from comat.viz import record_episodes
-from comat.viz.frames import EpisodeFrames
 
 
 def test_recording_holds_measured_poses_error_lines_and_faults(tmp_path):
@@ -54,9 +54,10 @@ def test_training_recordings_play_at_the_runs_level(tmp_path):
     from test_rl import tiny
 
     from comat.rl.runner import train
+    from comat.viz import record_training
 
     config = tiny("comat", steps=6, eval_every_steps=6, eval_episodes_per_team=1, reality="nominal")
-    train(config, tmp_path / "run", quiet=True, rrd_every=1)
+    train(config, tmp_path / "run", quiet=True, rrd_every=1, record=record_training)
     (path,) = (tmp_path / "run" / "rrd").glob("*.rrd")
     static, temporal = read(path)
     assert "/episode_0/world/robots/measured" in temporal and "nominal" in str(static["/episode_0/meta"])

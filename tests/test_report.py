@@ -14,8 +14,9 @@ import yaml
 from scipy import stats as sst
 
 from comat.cli import main
-from comat.eval.metrics import summarize_ci
-from comat.eval.report import PAPER_TABLE1, REPORT_FILES, SET_NAMES, SETS, make_report
+from comat.eval.report import PAPER_TABLE1, REPORT_FILES, make_report
+from comat.eval.runs import SET_NAMES, SETS
+from comat.measure.metrics import summarize_ci
 
 
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):

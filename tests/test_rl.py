@@ -12,14 +12,15 @@ import torch
 
 from comat.cli import main
 from comat.envs import make_vec_env
-from comat.eval.episodes import run_episodes
+from comat.measure.episodes import run_episodes
 from comat.models.features import ObsLayout
 from comat.models.mappo import Mappo
 from comat.rl.checkpoint import CheckpointError, load_checkpoint
 from comat.rl.config import load_preset, resolve
 from comat.rl.gae import gae
+from comat.rl.policy import load_policy
 from comat.rl.ppo import PPOConfig, PPOTrainer, Rollout
-from comat.rl.runner import load_policy, train
+from comat.rl.runner import train
 from comat.team import random_team
 
 TINY_MODELS = {
@@ -238,14 +239,13 @@ def test_resume_with_env_workers_continues_exactly(tmp_path):
 def test_collect_over_env_workers_assembles_rollout_in_env_order():
     """Shards stepped in turn with the policy: the rollout equals the one-process rollout
     (MAPPO samples each robot independently, so drawing shard by shard takes the same stream)."""
-    from comat.rl.algos import Dims, make_learner
-    from comat.rl.runner import _make_env
+    from comat.rl.algos import Dims, make_learner, make_run_env
 
     rollouts = []
     for workers in (1, 2):
         config = tiny("mappo", env_workers=workers, ppo={"num_envs": 3, "rollout_steps": 4, "epochs": 1, "minibatches": 1})
         torch.manual_seed(0)
-        env = _make_env(config, 3, seed=11)
+        env = make_run_env(config, 3, seed=11)
         try:
             learner = make_learner(config, env, Dims.of(env))
             rollouts.append(learner.trainer.collect())
@@ -444,14 +444,18 @@ def test_every_preset_resolves_for_every_algo_and_task(name):
 
 
 def test_train_records_evaluation_episodes(tmp_path):
+    from comat.viz import record_training
+
     config = tiny("comat", steps=6, eval_every_steps=6, eval_episodes_per_team=1)
-    train(config, tmp_path / "run", quiet=True, rrd_every=1)
+    train(config, tmp_path / "run", quiet=True, rrd_every=1, record=record_training)
     files = sorted((tmp_path / "run" / "rrd").glob("*.rrd"))
     assert [f.name for f in files] == ["eval_000000000006.rrd"]
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
     assert subprocess.run([rerun, "rrd", "verify", str(files[0])], capture_output=True, check=False).returncode == 0
     with pytest.raises(ValueError, match="eval_episodes_per_team is 0"):
-        train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=1)
+        train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=1, record=record_training)
+    with pytest.raises(ValueError, match="needs record="):
+        train(config, tmp_path / "other", quiet=True, rrd_every=1)
     with pytest.raises(ValueError, match="rrd_every must be"):
         train(tiny("comat"), tmp_path / "other", quiet=True, rrd_every=-1)
 

@@ -236,10 +236,10 @@ def test_head_on_deadlock_is_broken_by_keeping_right(tie_break):
     for the rest of the episode (4 of 6 prey) unless the tie-break turns them to their right."""
     from unittest import mock
 
-    from comat.safety import deployed
     from comat.envs import make_env
     from comat.envs.base import resolve_coalitions
     from comat.envs.heuristics import heuristic_actions
+    from comat.safety import deployed
 
     env = make_env("pcp_v0", team=resolve_coalitions("test", "pcp")[1], tier="wheels")
     with mock.patch.object(deployed, "HOLD_TICKS", deployed.HOLD_TICKS if tie_break else 10**9):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from comat.cli_args import parse_team, parse_teams
+from comat.cli.args import parse_team, parse_teams
 from comat.envs.base import resolve_coalitions
 from comat.team import (
     CAPABILITY_RANGES,

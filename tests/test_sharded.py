@@ -147,7 +147,7 @@ def test_evaluation_episodes_run_on_a_sharded_env():
     """``run_episodes`` (evaluation) works on a sharded env, whose workers drop their OSQP problems
     at its end, and gives the same episodes again."""
     from comat.envs.heuristics import random_actions
-    from comat.eval.episodes import run_episodes
+    from comat.measure.episodes import run_episodes
     from comat.team import generate_coalitions
 
     def random_policy():

@@ -1,4 +1,4 @@
-"""comat.eval.stats: intervals over seeds, the hierarchical bootstrap, Welch's test, and the
+"""comat.measure.stats: intervals over seeds, the hierarchical bootstrap, Welch's test, and the
 calibration of each on synthetic scores with a known, dominant seed effect."""
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats as sst
 
-from comat.eval.stats import cell_means, hierarchical_bootstrap, iqm, per_seed_means, t_interval, welch
+from comat.measure.stats import cell_means, hierarchical_bootstrap, iqm, per_seed_means, t_interval, welch
 
 # Synthetic design of the calibration: y[s, c, e] = MU + a_s + b_c + e_sce (the report's case:
 # C coalitions, K episodes each, the seed effect dominant).

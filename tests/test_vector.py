@@ -5,7 +5,7 @@ import pytest
 
 from comat.envs import make_env, make_vec_env
 from comat.envs.heuristics import heuristic_actions, random_actions
-from comat.eval.episodes import run_episodes
+from comat.measure.episodes import run_episodes
 from comat.team import generate_coalitions
 
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from comat.cli import main
+from comat.envs.render import FRAME_SIZE
 from comat.viz import record_episodes
-from comat.viz.frames import FRAME_SIZE
 from comat.viz.video import VideoWriter
 
 

@@ -12,14 +12,16 @@ import pytest
 from rerun.chunk import RrdReader
 
 import comat
+import comat.viz.rollout as rollout_module
 from comat import constants as C
+from comat.cli.rollout import add_rollout_parser, add_viz_bench_parser
 from comat.envs.heuristics import heuristic_actions, random_actions
+from comat.envs.tap import MIN_CHANGE_MPS
 from comat.team import random_team
 from comat.viz import EpisodeRecorder, check_rrd_path, record_episodes
 from comat.viz.bench import run_viz_bench
-from comat.viz.cli import WEB_VIEWER_URL, add_rollout_parser, add_viz_bench_parser, viewer_hint
 from comat.viz.recorder import SAFETY_ARROW_S
-from comat.viz.tap import MIN_CHANGE_MPS
+from comat.viz.viewer import WEB_VIEWER_URL, viewer_hint
 
 RERUN = Path(sys.executable).parent / "rerun"
 TICKS = 6
@@ -341,14 +343,14 @@ def _no_env(*args, **kwargs):
 def test_bad_output_paths_fail_before_anything_runs(tmp_path, monkeypatch, make, message):
     (tmp_path / "file.txt").write_text("")
     (tmp_path / "dir.rrd").mkdir()
-    monkeypatch.setattr(comat, "make_env", _no_env)
+    monkeypatch.setattr(rollout_module, "make_env", _no_env)
     with pytest.raises(ValueError, match=message):
         record_episodes(make(tmp_path), "pcp", "heuristic")
 
 
 @pytest.mark.skipif(not Path("/sys").is_dir(), reason="needs a read-only folder (/sys)")
 def test_unwritable_folder_fails_before_anything_runs(monkeypatch):
-    monkeypatch.setattr(comat, "make_env", _no_env)
+    monkeypatch.setattr(rollout_module, "make_env", _no_env)
     with pytest.raises(ValueError, match="cannot write in folder '/sys'"):
         check_rrd_path("/sys/comat-test.rrd")
 
@@ -359,7 +361,7 @@ def test_policy_task_mismatch_and_unknown_policy_fail_before_anything_runs(tmp_p
     ckpt = save_checkpoint(
         tmp_path / "hmt.pt", algo="mappo", task="hmt", config={}, progress={}, trainer={}, env_rngs=[]
     )
-    monkeypatch.setattr(comat, "make_env", _no_env)
+    monkeypatch.setattr(rollout_module, "make_env", _no_env)
     out = tmp_path / "x.rrd"
     with pytest.raises(ValueError, match="is for task 'hmt', expected 'pcp'"):
         record_episodes(out, "pcp", ckpt)
@@ -446,8 +448,6 @@ def test_checkpoint_policy_is_recorded(tmp_path):
     import shutil
     from unittest import mock
 
-    import comat.viz.rollout as rollout_module
-
     (tmp_path / "run2").mkdir()
     shutil.copy(tmp_path / "run" / "checkpoint.pt", tmp_path / "run2" / "checkpoint.pt")
     ids = []
@@ -484,8 +484,8 @@ def test_bench_reports_overhead_and_bytes_per_robot_step(tmp_path, capsys):
 
 
 def test_command_line_registration_does_not_import_rerun():
-    # comat.cli imports comat.viz.cli for every command; Rerun (seconds to import) loads on use.
-    code = "import sys, comat.viz.cli; assert 'rerun' not in sys.modules, sorted(sys.modules)"
+    # comat.cli imports comat.cli.rollout for every command; Rerun (seconds to import) loads on use.
+    code = "import sys, comat.cli.rollout; assert 'rerun' not in sys.modules, sorted(sys.modules)"
     subprocess.run([sys.executable, "-c", code], check=True)
 
 

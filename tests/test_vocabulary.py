@@ -10,7 +10,7 @@ import re
 import pytest
 
 from comat.cli import main
-from comat.eval.metrics import RETIRED_NAMES, current_names
+from comat.measure.metrics import RETIRED_NAMES, current_names
 
 RETIRED = re.compile(r"\b(completion|success|brakes?)\b", re.IGNORECASE)
 PAPER_QUOTES = ('the paper\'s "completion"', "the paper's \\\"completion\\\"", "paper: completion")

@@ -11,7 +11,7 @@ import osqp
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
 from comat.envs.heuristics import heuristic_actions
-from comat.eval.episodes import run_episodes
+from comat.measure.episodes import run_episodes
 from comat.safety.qp import BarrierQP
 
 made = [0]

@@ -18,6 +18,13 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from comat.bench.sim_bench import bench_rps, finish, rps_available
+from comat.envs import make_vec_env
+from comat.envs.heuristics import random_actions
+from comat.envs.sharded import shard_slices
+from comat.task_logic import HMT, PCP
+from comat.team import random_team
+
 __all__ = ["EnvBenchRow", "bench_env", "bench_rollout_split", "run_env_bench", "run_rollout_bench"]
 
 MARBLER_PCP4_REPORTED = 15.0
@@ -37,9 +44,6 @@ class EnvBenchRow:
 
 def bench_env(task: str, tier: str, n: int, batch: int, steps: int, seed: int = 0) -> EnvBenchRow:
     """Time ``steps`` vector steps of B environments with a fixed random team of n robots."""
-    from comat.envs import make_vec_env
-    from comat.envs.heuristics import random_actions
-    from comat.team import random_team
 
     team = random_team(np.random.default_rng(seed), task, "train", n)
     env = make_vec_env(f"{task}_v0", batch, seed=seed, team=team, tier=tier)
@@ -55,8 +59,6 @@ def bench_env(task: str, tier: str, n: int, batch: int, steps: int, seed: int = 
 
 def bench_rps_env(task: str, n: int, iterations: int = 150) -> EnvBenchRow | None:
     """The Robotarium loop with its barrier every iteration, per env step of ``task``."""
-    from comat.bench.sim_bench import bench_rps, rps_available
-    from comat.task_logic import HMT, PCP
 
     if not rps_available():
         return None
@@ -96,7 +98,6 @@ def run_env_bench(
     progress(head + "\n" + "-" * len(head))
     for r in rows:
         progress(f"{r.system:<20}{r.task:<6}{r.tier:<10}{r.n_robots:>4}{r.batch:>5}{r.env_steps_per_s:>14.1f}")
-    from comat.bench.sim_bench import finish
 
     return finish(result, checks, out, progress)
 
@@ -114,8 +115,6 @@ def _checks(rows: list[EnvBenchRow]) -> dict:
 def _timed_shard(task: str, tier: str, first: int, count: int, total: int, steps: int, seed: int) -> dict:
     """ms per vector step of environments first..first+count-1 of ``total`` (training coalitions,
     random actions), split into physics, OSQP, the rest of the ticks and the rest of the step."""
-    from comat.envs import make_vec_env
-    from comat.envs.heuristics import random_actions
 
     env = make_vec_env(f"{task}_v0", count, seed=seed, tier=tier, shard=(first, total))
     rng = np.random.default_rng(seed + first)
@@ -146,7 +145,6 @@ def bench_rollout_split(task: str = "pcp", tier: str = "unicycle", batch: int = 
     ``workers`` shards an env process would hold, timed one after the other (their maximum is
     what a step with that many processes costs at best), plus a single environment (the fixed
     part)."""
-    from comat.envs.sharded import shard_slices
 
     whole = _timed_shard(task, tier, 0, batch, batch, steps, seed)
     shards = [_timed_shard(task, tier, sl.start, sl.stop - sl.start, batch, steps, seed)
@@ -172,7 +170,6 @@ def run_rollout_bench(task: str = "pcp", tier: str = "unicycle", batch: int = 32
                  f"{row['outside_ticks_ms']:>9.1f}")
     progress(f"{workers} env processes: a step costs at least {r['sharded_step_ms_lower_bound']:.1f} ms (the slowest "
              f"shard), at most {r['sharding_speedup_upper_bound']:.2f}x faster than one process")
-    from comat.bench.sim_bench import finish
 
     result = {"benchmark": "env-rollout",
               "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},

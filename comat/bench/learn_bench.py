@@ -23,6 +23,15 @@ import time
 
 import torch
 
+from comat.bench.sim_bench import finish
+from comat.models.autoregressive import AutoregressivePolicy
+from comat.models.comat import PAPER_FORM, Comat, ComatConfig
+from comat.models.features import ObsLayout
+from comat.models.mat import Mat, MatConfig
+from comat.rl.algos import Dims, make_learner, make_run_env
+from comat.rl.config import load_preset, resolve
+from comat.task_logic import PCP
+
 __all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "run_learn_bench"]
 
 TRAIN_TARGET = 400.0
@@ -51,11 +60,6 @@ def _best_time(fn, repeats: int) -> float:
 @torch.no_grad()
 def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: int = 20, seed: int = 0) -> dict:
     """Cached vs uncached autoregressive decoding of ``model_name`` ("comat" or "mat")."""
-    from comat.models.autoregressive import AutoregressivePolicy
-    from comat.models.comat import Comat, ComatConfig
-    from comat.models.features import ObsLayout
-    from comat.models.mat import Mat, MatConfig
-    from comat.task_logic import PCP
 
     torch.manual_seed(seed)
     layout = ObsLayout.for_task(PCP())
@@ -87,10 +91,6 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
     measure what today's default costs against it in the same run; ``comat_<option>``: one option
     of :data:`COMAT_VARIANTS` changed; ``<baseline>_20``: that baseline with 20 robot slots."""
-    from comat.models.comat import PAPER_FORM
-    from comat.rl.algos import Dims, make_learner
-    from comat.rl.config import load_preset, resolve
-    from comat.rl.runner import _make_env
 
     settings = load_preset(preset)
     label = algo
@@ -104,7 +104,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
     config = resolve(settings, algo, "pcp", seed=seed, tier="unicycle", env_workers=env_workers)
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(seed)
-    env = _make_env(config, config.trainer.num_envs, seed)
+    env = make_run_env(config, config.trainer.num_envs, seed)
     try:
         env.reset()
         learner = make_learner(config, env, Dims.of(env))
@@ -203,6 +203,5 @@ def run_learn_bench(algos=("comat", "comat_paper", "mat", "mappo", "qmix"), work
                  f"{r['learn_s']:>9.2f}{env_only:>12}")
     progress("env s: waiting for the environments (with several workers, the part of their steps that the "
              "policy's turns on other shards did not hide); act s: the rest of collecting.")
-    from comat.bench.sim_bench import finish
 
     return finish(result, checks, out, progress)

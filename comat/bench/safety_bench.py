@@ -16,16 +16,18 @@ scenario, per loop and level.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
 import numpy as np
 
-from comat.config import LOOPS
-from comat.reality.config import REALITY_LEVELS, RealityConfig
+from comat.bench.scenarios import FAULTS, SCENARIOS, make_scenario, run_scenario
+from comat.config import SafetyConfig, SimConfig
+from comat.control import SafeTeams
+from comat.files import write_atomic
+from comat.reality.config import RealityConfig
 
-__all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "add_safety_bench_parser", "loops_table", "run_safety_bench"]
+__all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "loops_table", "run_safety_bench"]
 
 SCENARIO_NAMES = ("head_on", "swap4", "swap8", "converge16", "converge32", "walls", "ring20", "bangbang16", "corner",
                   "stop_swap4", "stop_converge16", "dropout_swap4", "frozen_stop_swap4", "exact_swap4",
@@ -37,8 +39,6 @@ DEFAULT_LOOPS = ("comat", "robotarium_v2", "shipped_v2")
 
 
 def _row(name: str, tier: str, level: str, episodes: int, seed: int, loop: str = "comat") -> dict:
-    from comat.bench.scenarios import FAULTS, SCENARIOS, make_scenario, run_scenario
-    from comat.config import SafetyConfig, SimConfig
 
     scn = make_scenario(name, episodes, seed=seed)
     t0 = time.perf_counter()
@@ -72,7 +72,6 @@ def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: 
     """Run the battery, print a table row per scenario and loop, write ``out`` (JSON) and return it.
 
     ``out`` is rewritten after every row, so an interrupted run keeps what it measured."""
-    from comat.files import write_atomic
 
     names = scenarios or SCENARIO_NAMES
     rows: list[dict] = []
@@ -144,42 +143,6 @@ def loops_table(result: dict, level: str, tier: str = "unicycle") -> str:
 
 def _filter_settings(level: str) -> dict:
     """The filter's distance, gains and boundary margin at ``level`` (one robot, for the record)."""
-    from comat.control import SafeTeams
 
     cfg = SafeTeams((1,), reality=RealityConfig(level=level)).filter_config
     return {k: getattr(cfg, k) for k in ("safety_distance_m", "barrier_gain", "boundary_gain", "boundary_margin_m")}
-
-
-def _cmd(args: argparse.Namespace) -> int:
-    result = run_safety_bench(tuple(args.reality), tuple(args.tiers), args.episodes, args.seed, args.out,
-                              tuple(args.scenarios) if args.scenarios else None, tuple(args.loops))
-    return 0 if all(c["pass"] for c in result["checks"].values()) else 1
-
-
-def add_safety_bench_parser(bsub) -> None:
-    """``comat bench safety`` on the bench sub-parsers."""
-    b = bsub.add_parser("safety", help="the safety battery at reality levels: contacts and collisions on true poses",
-                        description="Every scenario of the safety battery (head-on pairs, swaps of 4 and 8, 16 and 32 robots "
-                        "driven at one point, robots driven into the walls, a ring of 20 driven through its centre, "
-                        "bang-bang at full speed among 16 robots, a robot pinned in a corner; faults: a robot that stops "
-                        "while commanded, Wi-Fi dropouts that brake a robot, a stopped robot whose pose freezes, "
-                        "repeated poses with no noise, team-wide stalls of the script; and two robots started inside the safety "
-                        "distance), through "
-                        "each loop (--loops: comat's filter; the exported main.py with the Robotarium's barrier or "
-                        "with comat's shipped filter), in each tier and at each reality level, judged on true poses: "
-                        "contacts, Robotarium collisions, boundary exits, the closest projected points, recoveries, "
-                        "fallbacks and the distance left to the goals, for the episodes that really started in the "
-                        "loop's safe set and for all. Exit 1 if a safe start saw a contact or a collision. The JSON is "
-                        "rewritten after every row.")
-    b.add_argument("--reality", nargs="+", choices=REALITY_LEVELS, default=["nominal"],
-                   help="reality levels (default: %(default)s)")
-    b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["unicycle", "wheels"],
-                   help="tiers (default: %(default)s)")
-    b.add_argument("--episodes", type=int, default=50, help="episodes per scenario (default: %(default)s)")
-    b.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=None,
-                   help="scenarios (default: all)")
-    b.add_argument("--loops", nargs="+", choices=LOOPS, default=list(DEFAULT_LOOPS),
-                   help="loops, side by side (default: %(default)s)")
-    b.add_argument("--seed", type=int, default=0, help="seed of the episodes and the layer (default: %(default)s)")
-    b.add_argument("--out", default="benchmarks/results/safety_reality.json", help="JSON output (default: %(default)s)")
-    b.set_defaults(func=_cmd)

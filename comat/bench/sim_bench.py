@@ -28,6 +28,10 @@ from typing import Any
 import numpy as np
 
 from comat import constants as C
+from comat.config import SimConfig
+from comat.control import SafeTeams, go_to_goal
+from comat.files import write_atomic
+from comat.reality import resolve_reality
 
 __all__ = ["SimBenchRow", "bench_ours", "bench_rps", "run_sim_bench"]
 
@@ -72,9 +76,6 @@ def bench_ours(tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup:
                reality: Any = "off") -> SimBenchRow:
     """Time ``ticks`` control ticks of ``batch`` teams of ``n`` robots in one tier, at a reality level
     (the controller then reads the measured points, as the envs' does)."""
-    from comat.config import SimConfig
-    from comat.control import SafeTeams, go_to_goal
-    from comat.reality import resolve_reality
 
     rng = np.random.default_rng(seed)
     teams = SafeTeams((n,) * batch, SimConfig(tier=tier), reality=resolve_reality(reality), reality_seed=seed)
@@ -279,7 +280,6 @@ def finish(result: dict, checks: dict, out: str | None, progress=print) -> dict:
 def _write_json(path: str, data: dict) -> None:
     from pathlib import Path
 
-    from comat.files import write_atomic
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)

@@ -24,6 +24,13 @@ import time
 
 import numpy as np
 
+from comat.bench.sim_bench import finish
+from comat.envs import make_vec_env
+from comat.envs.base import resolve_coalitions
+from comat.envs.heuristics import heuristic_actions, random_actions
+from comat.measure.episodes import run_episodes
+from comat.team import COALITION_SETS
+
 __all__ = ["MEMORY_GROWTH_TARGET", "run_soak"]
 
 MEMORY_GROWTH_TARGET = 0.05
@@ -72,10 +79,8 @@ def _growth(first: float, last: float) -> float:
 
 
 def _episodes(env, policy: str, teams, seed: int, rng: np.random.Generator) -> tuple[list[dict], int]:
-    """One episode per team (``comat.eval.episodes.run_episodes``) and the number of env steps
+    """One episode per team (``comat.measure.episodes.run_episodes``) and the number of env steps
     whose observations held NaN or inf (seen by the policy wrapper)."""
-    from comat.envs.heuristics import heuristic_actions, random_actions
-    from comat.eval.episodes import run_episodes
 
     bad_steps = 0
 
@@ -92,10 +97,6 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × len(sets) × 2 tasks);
     resident memory is sampled after every batch and compared over the first and the last thousand
     episodes (tenth of a shorter run)."""
-    from comat.bench.sim_bench import finish
-    from comat.envs import make_vec_env
-    from comat.envs.base import resolve_coalitions
-    from comat.team import COALITION_SETS
 
     sets = tuple(sets)
     if not sets or any(s not in COALITION_SETS for s in sets) or len(set(sets)) < len(sets):
@@ -114,7 +115,6 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     # use (MuJoCo data, filters, compiled kernels) is in place before the first memory sample; the
     # wheels environments are otherwise first used at random moments. Their OSQP problems are
     # dropped again, as after every batch (held, they would inflate the first samples).
-    from comat.envs.heuristics import random_actions
 
     for env in envs.values():
         _, info = env.reset(seed=seed)

@@ -6,43 +6,17 @@ options and name any unknown one together with the valid ones.
 
 from __future__ import annotations
 
-import inspect
 from typing import Any
 
 from comat.envs.base import TaskEnv
 from comat.envs.hmt import HmtEnv
 from comat.envs.pcp import PcpEnv
+from comat.envs.registry import ENV_IDS, make_env, make_local_vec_env
 from comat.envs.sharded import ShardedVectorEnv
 from comat.envs.vector import VectorEnv
 
 __all__ = ["ENV_IDS", "HmtEnv", "PcpEnv", "ShardedVectorEnv", "TaskEnv", "VectorEnv", "make_env", "make_vec_env"]
 
-_ENVS: dict[str, type[TaskEnv]] = {"hmt_v0": HmtEnv, "pcp_v0": PcpEnv}
-ENV_IDS = tuple(sorted(_ENVS))
-
-
-def _env_class(env_id: str) -> type[TaskEnv]:
-    if env_id not in _ENVS:
-        raise ValueError(f"env_id must be one of {ENV_IDS}, got {env_id!r}")
-    return _ENVS[env_id]
-
-
-def _check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] = (), vector: bool = False) -> None:
-    cls = _env_class(env_id)
-    # A vector env draws nothing: render_mode belongs to the PettingZoo env alone.
-    skip = ("self", "task_options", "render_mode") if vector else ("self", "task_options")
-    valid = {p for p in inspect.signature(TaskEnv.__init__).parameters if p not in skip}
-    valid |= {p for p in inspect.signature(cls.task_cls.__init__).parameters if p not in ("self", "args", "kwargs")}
-    valid |= set(extra)
-    unknown = sorted(set(options) - valid)
-    if unknown:
-        raise ValueError(f"unknown option(s) {unknown} for {env_id}; valid options: {sorted(valid)}")
-
-
-def make_env(env_id: str, **options: Any) -> TaskEnv:
-    """A PettingZoo parallel environment: ``"pcp_v0"`` or ``"hmt_v0"`` (options: see TaskEnv)."""
-    _check_options(env_id, options)
-    return _env_class(env_id)(**options)
 
 
 def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -> VectorEnv | ShardedVectorEnv:
@@ -51,14 +25,4 @@ def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -
     plus ``seed``)."""
     if workers != 1:
         return ShardedVectorEnv(env_id, num_envs, workers=workers, **options)
-    _check_options(env_id, options, extra=("seed", "shard"), vector=True)
-    task, rest = _make_task(env_id, options)
-    return VectorEnv(task, num_envs, **rest)
-
-
-def _make_task(env_id: str, options: dict[str, Any]):
-    """The task-logic instance from the task's own options, and the remaining (env) options."""
-    cls = _env_class(env_id)
-    task_keys = set(inspect.signature(cls.task_cls.__init__).parameters) - {"self"}
-    task = cls.task_cls(**{k: v for k, v in options.items() if k in task_keys})
-    return task, {k: v for k, v in options.items() if k not in task_keys}
+    return make_local_vec_env(env_id, num_envs, **options)

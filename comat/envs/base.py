@@ -20,6 +20,7 @@ from pettingzoo import ParallelEnv
 
 from comat.config import SafetyConfig, SimConfig
 from comat.envs.core import TaskCore
+from comat.envs.render import EpisodeFrames
 from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coalitions
 
 __all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team", "team_source"]
@@ -120,7 +121,7 @@ class TaskEnv(ParallelEnv):
             mapping of its fields (``{"level": "nominal", "pose_delay_ticks": 2}``). Observations,
             waypoints, controller and filter then read measured poses; rewards and metrics true ones.
         render_mode: None (default) or "rgb_array": ``render()`` then returns the arena drawn
-            top-down, an (H, W, 3) uint8 frame (:mod:`comat.viz.frames`; matplotlib, headless).
+            top-down, an (H, W, 3) uint8 frame (:mod:`comat.envs.render`; matplotlib, headless).
         task options: see each task (e.g. PCP ``n_prey``: a fixed prey count instead of the
             rule K(N)). A reset's team (``options={"team": ...}``) must not need more task slots
             than the largest team of the set or fixed team (PCP: prey), else ValueError.
@@ -164,7 +165,6 @@ class TaskEnv(ParallelEnv):
         self.render_caption = self.metadata["name"]
         """First line drawn above every rendered frame (e.g. the policy and the episode)."""
         if render_mode == "rgb_array":
-            from comat.viz.frames import EpisodeFrames  # matplotlib loads only when rendering
 
             self._frames = EpisodeFrames()
 
@@ -261,7 +261,7 @@ class TaskEnv(ParallelEnv):
 
     def render(self) -> np.ndarray | None:
         """With ``render_mode="rgb_array"``: the arena now, (H, W, 3) uint8 (H, W =
-        :data:`comat.viz.frames.FRAME_SIZE`); robots by type with their capability radii, trails,
+        :data:`comat.envs.render.FRAME_SIZE`); robots by type with their capability radii, trails,
         prey or material, and where the safety filter changed a command in the last step.
         Without a render mode: a warning and None (as Gymnasium and PettingZoo envs do)."""
         if self.render_mode is None:

@@ -13,7 +13,13 @@ import numpy as np
 
 from comat.envs.core import TaskCore
 
-__all__ = ["heuristic_actions", "random_actions"]
+__all__ = ["BEST_CONSTANT_ACTION", "heuristic_actions", "random_actions"]
+
+BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1}
+"""Per task, the action (0 stay, 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train
+when every robot always takes it (all five tried, one episode per coalition, the evaluation seed;
+tests/test_eval.py): +x on both. On PCP it captures half the prey (return 16.4, 20 % of the
+episodes finished): early learning curves must beat it to mean anything."""
 
 
 def heuristic_actions(core: TaskCore) -> np.ndarray:

@@ -9,7 +9,7 @@
 | Step | 74 control ticks of 0.033 s (2.44 s): waypoint controller → safety filter → MuJoCo |
 | Observation | Box(15,) float64, below |
 | State | Box(4 + S·15,): material left per zone, initial amount per zone, then the observations of S = ``state_robots`` slots (default 8, or the env's robot slots when larger: 20 for `scale` and `size`, so every set has a state; a fixed-size baseline's run uses its ``max_robots``, 8 or 20) |
-| Render | ``render_mode="rgb_array"``: ``env.render()`` → (448, 640, 3) uint8, the arena top-down (comat.viz.frames) |
+| Render | ``render_mode="rgb_array"``: ``env.render()`` → (448, 640, 3) uint8, the arena top-down (comat.envs.render) |
 | Horizon | 70 steps; ends early when all material is delivered |
 | Zones | zone 1: circle r = 0.35 m at the centre; zone 2: x > 1.0 m; drop-off: x < −1.0 m |
 | Material | zone 1 = 1.5 × and zone 2 = 0.5 × the team's total payload (two full team loads) |

@@ -9,7 +9,7 @@
 | Step | 29 control ticks of 0.033 s (0.96 s): waypoint controller → safety filter → MuJoCo |
 | Observation | Box(13,) float64, below |
 | State | Box(4K + S·13,): prey (x, y) ×K, sensed ×K, captured ×K over the env's K = K_max prey slots (K(N) of its largest coalition: 6 up to 8 robots, 24 for U_scale's and U_size's 20; a smaller team's unused slots are parked at (2.6, 0), sensed and captured), then the observations of S = ``state_robots`` slots (default 8, or the env's robot slots when larger: 20 for `scale` and `size`, so every set has a state; a fixed-size baseline's run uses its ``max_robots``, 8 or 20) |
-| Render | ``render_mode="rgb_array"``: ``env.render()`` → (448, 640, 3) uint8, the arena top-down (comat.viz.frames) |
+| Render | ``render_mode="rgb_array"``: ``env.render()`` → (448, 640, 3) uint8, the arena top-down (comat.envs.render) |
 | Horizon | 80 steps; ends early when every prey of the team is captured |
 | Prey | K(N) static prey for a team of N robots: 6 for N ≤ 8 (every U_train, U_val, U_test and U_cap team: the paper's 6), round(1.2·N) above (11 at 9, 12 at 10, 14 at 12, 19 at 16, 24 at 20); ≥ 0.2 m apart in x ∈ [0.5, 1.4], y ∈ [−0.85, 0.85] (45 places on that grid); ``n_prey=K`` gives every team K instead |
 | Spawn | robots ≥ 0.3 m apart in x ∈ [−1.4, −0.5], y ∈ [−0.85, 0.85], random headings |

@@ -25,6 +25,7 @@ from typing import Any, Self
 
 import numpy as np
 
+from comat.envs.registry import check_options, make_local_vec_env, make_task
 from comat.team import TeamSpec
 
 __all__ = ["ShardedVectorEnv", "WorkerError", "shard_slices"]
@@ -41,10 +42,9 @@ def shard_slices(num_envs: int, workers: int) -> list[slice]:
 
 
 def _worker(conn, env_id: str, num_envs: int, first: int, total: int, seed: int, options: dict) -> None:
-    from comat.envs import make_vec_env  # imported in the child: spawn starts a fresh interpreter
 
     try:
-        env = make_vec_env(env_id, num_envs, seed=seed, shard=(first, total), **options)
+        env = make_local_vec_env(env_id, num_envs, seed=seed, shard=(first, total), **options)
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises
         conn.send(("error", exc, traceback.format_exc()))
         return
@@ -93,15 +93,14 @@ class ShardedVectorEnv:
     """
 
     def __init__(self, env_id: str, num_envs: int, *, workers: int, seed: int | None = None, **options: Any) -> None:
-        from comat.envs import _check_options, _make_task
 
-        _check_options(env_id, options, vector=True)
+        check_options(env_id, options, vector=True)
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= num_envs:
             raise ValueError(f"workers must be an integer in [1, num_envs={num_envs}], got {workers!r}")
         self.num_envs, self.workers = num_envs, workers
-        self.task = _make_task(env_id, options)[0]
+        self.task = make_task(env_id, options)[0]
         seed = int(np.random.SeedSequence().entropy) if seed is None else seed
         self._slices = shard_slices(num_envs, workers)
         ctx = mp.get_context("spawn")

@@ -6,8 +6,8 @@ starts for every policy. Rows: the checkpoint's policy, the scripted heuristic (
 reads the task state), the best constant action (every robot always the same waypoint step:
 what a policy that ignores its observations can reach) and uniformly random actions. Each metric of :data:`REPORTED` comes with
 a 95 % confidence interval over the coalitions (each coalition's episodes averaged first:
-:func:`comat.eval.metrics.summarize_ci`). Every episode row keeps its progress curve, endpoints
-and per-robot diagnostics (:func:`comat.eval.episodes.run_episodes`).
+:func:`comat.measure.metrics.summarize_ci`). Every episode row keeps its progress curve, endpoints
+and per-robot diagnostics (:func:`comat.measure.episodes.run_episodes`).
 
 Reality: every policy plays at one reality layer (:mod:`comat.reality`; default ``off``, the
 ideal world, whatever level the policy trained at), the same teams and starts at every level
@@ -29,26 +29,26 @@ from pathlib import Path
 
 import numpy as np
 
-from comat.eval.episodes import run_episodes
-from comat.eval.metrics import REPORTED, SHARES, interval_text, summarize_ci
+from comat.envs import make_vec_env
+from comat.envs.base import resolve_coalitions
+from comat.envs.heuristics import BEST_CONSTANT_ACTION, heuristic_actions, random_actions
 from comat.files import write_atomic
+from comat.measure.episodes import run_episodes
+from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
+from comat.reality import resolve_reality
+from comat.rl.algos import BASELINE_ROBOTS, robot_slots
+from comat.rl.policy import load_policy
 from comat.team import COALITION_SETS
 
-__all__ = ["BEST_CONSTANT_ACTION", "EVAL_SEED", "REFERENCES", "TABLE_NAMES", "evaluate_policies", "print_table",
-           "reality_name", "result_json", "write_results"]
+__all__ = ["EVAL_SEED", "REFERENCES", "TABLE_NAMES", "evaluate_policies", "print_table",
+           "result_json", "write_results"]
 
 EVAL_SEED = 2_000_003
 """Default seed of evaluation episodes (never a training seed of the presets)."""
-BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1}
-"""Per task, the action (0 stay, 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train
-when every robot always takes it (all five tried, one episode per coalition, EVAL_SEED;
-tests/test_eval.py): +x on both. On PCP it captures half the prey (return 16.4, 20 % of the
-episodes finished): early learning curves must beat it to mean anything."""
 SETS = COALITION_SETS
 
 
 def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
-    from comat.envs.heuristics import heuristic_actions, random_actions
 
     rng = np.random.default_rng(seed)
     out = {}
@@ -63,12 +63,6 @@ def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
 
 REFERENCES = ("heuristic", "constant", "random")
 """Reference rows, in table order."""
-
-
-def reality_name(config) -> str:
-    """What a row says about its reality layer: the level's name, or ``"custom"`` when any field
-    differs from the level's value."""
-    return "custom" if config.overrides() else config.level
 
 
 def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, sets=SETS, episodes: int = 1,
@@ -92,11 +86,6 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     """
     import dataclasses
 
-    from comat.envs import make_vec_env
-    from comat.envs.base import resolve_coalitions
-    from comat.reality import resolve_reality
-    from comat.rl.algos import BASELINE_ROBOTS, robot_slots
-    from comat.rl.runner import load_policy
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1 (per coalition), got {episodes!r}")
@@ -108,7 +97,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     if any(r not in REFERENCES for r in refs):
         raise ValueError(f"references must be True, False or names from {REFERENCES}, got {references!r}")
     layer = resolve_reality(reality, "reality")
-    level = reality_name(layer)
+    level = layer.label
     act, config = (None, None)
     if checkpoint is not None:
         act, config = load_policy(checkpoint, task=task)
@@ -143,7 +132,7 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
             progress(f"  {name:<10} {split:<5} {len(eps)} episodes in {time.perf_counter() - t0:.0f} s")
     return {"checkpoint": None if checkpoint is None else str(checkpoint),
             "algo": None if config is None else config.algo, "trained_tier": None if config is None else config.tier,
-            "trained_reality": None if config is None else reality_name(config.reality),
+            "trained_reality": None if config is None else config.reality.label,
             "task": task, "tier": tier, "seed": seed, "episodes_per_coalition": episodes, "reality": level,
             "reality_config": dataclasses.asdict(layer), "loop": "comat" if safety is None else safety.loop,
             "trained_loop": None if config is None else config.loop, "rows": rows}

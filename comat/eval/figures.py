@@ -4,7 +4,7 @@ Every figure uses :data:`ALGO_COLORS` — one colour per algorithm in every figu
 report — and says in its caption what a line, band or bar is: the statistic, over what
 (seeds), the interval method and the env-step budget. Evaluation intervals are the report's: the
 95 % Student-t interval over per-seed means, each seed's mean first averaging its K episodes per
-coalition, then its coalitions (:mod:`comat.eval.stats`). Progress axes start at 0, and the team-size
+coalition, then its coalitions (:mod:`comat.measure.stats`). Progress axes start at 0, and the team-size
 figure writes how many coalitions each point averages. Each is written as PNG (200 dpi)
 and PDF (vector), atomically.
 
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from comat.eval.metrics import mean_ci
 from comat.files import write_atomic
+from comat.measure.metrics import mean_ci
 
 __all__ = ["ALGO_COLORS", "ALGO_LABELS", "SET_HATCHES", "SIZE_SETS", "TRAIN_SIZES", "fig4", "fig5", "fig_team_size",
            "save"]

@@ -5,7 +5,7 @@ Per (task, algorithm) row: for every composition set present and every endpoint 
 coalitions, each its K episodes averaged first), the 95 % t half-width over seeds (``_ci95``) and
 the number of seeds (``_seeds``); progress retention per set other than U_train; and, on every
 baseline's row, COMAT − this algorithm on :data:`comat.eval.report.COMPARED` with Welch's test
-over per-seed means (:func:`comat.eval.stats.welch`): ``<set>_<key>_comat_diff`` with
+over per-seed means (:func:`comat.measure.stats.welch`): ``<set>_<key>_comat_diff`` with
 ``_comat_diff_lo`` / ``_comat_diff_hi`` (95 %, Welch–Satterthwaite df), ``_welch_t``,
 ``_welch_df``, ``_welch_p``. The test decides a comparison (p < :data:`comat.eval.report.ALPHA`);
 two overlapping intervals are not a test and no verdict rests on them.
@@ -18,9 +18,9 @@ import io
 import math
 
 from comat.eval.figures import ALGO_LABELS
-from comat.eval.metrics import interval_text, mean_ci
-from comat.eval.report import ALPHA, COMPARED, PAPER_RETENTION, SET_NAMES, method_text, seed_means
-from comat.eval.stats import welch
+from comat.eval.runs import ALPHA, COMPARED, PAPER_RETENTION, SET_NAMES, method_text, seed_means
+from comat.measure.metrics import interval_text, mean_ci
+from comat.measure.stats import welch
 
 __all__ = ["generalization_csv", "generalization_md", "generalization_rows"]
 
@@ -132,7 +132,7 @@ def generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets
     lines += ["", ("aggregates.csv: per set and metric the same t-interval over seeds, and the mean and interquartile "
               "mean of the seed x coalition cells with hierarchical-bootstrap intervals (seeds, then coalitions "
               "within a seed; it targets the coalition population). That bootstrap is descriptive only: in "
-              "calibration (comat/eval/stats.py) its 95 % interval covered 73 % of the time at 3 seeds, 83 % at 5 "
+              "calibration (comat/measure/stats.py) its 95 % interval covered 73 % of the time at 3 seeds, 83 % at 5 "
               "and 90 % at 12; no claim rests on it.")]
     return "\n".join(lines) + "\n"
 

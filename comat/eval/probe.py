@@ -41,6 +41,9 @@ import numpy as np
 import torch
 
 from comat.files import write_atomic
+from comat.rl.algos import Dims, make_learner, make_run_env
+from comat.rl.checkpoint import load_checkpoint
+from comat.rl.config import RunConfig
 
 __all__ = ["print_probe", "probe_checkpoint", "write_probe"]
 
@@ -55,10 +58,6 @@ def probe_checkpoint(checkpoint: str | Path, seed: int | None = None, num_envs: 
         seed: environment and sampling seed (default: the run's seed).
         num_envs: environments (default: the run's ``num_envs``).
     """
-    from comat.rl.algos import Dims, make_learner
-    from comat.rl.checkpoint import load_checkpoint
-    from comat.rl.config import RunConfig
-    from comat.rl.runner import _make_env
 
     data = load_checkpoint(checkpoint)
     config = RunConfig.from_dict(data["config"])
@@ -69,7 +68,7 @@ def probe_checkpoint(checkpoint: str | Path, seed: int | None = None, num_envs: 
     seed = config.seed if seed is None else int(seed)
     config = dataclasses.replace(config, seed=seed, env_workers=1)
     torch.manual_seed(seed)
-    env = _make_env(config, config.trainer.num_envs, seed)
+    env = make_run_env(config, config.trainer.num_envs, seed)
     try:
         env.reset()
         learner = make_learner(config, env, Dims(**data["progress"]["dims"]))

@@ -6,7 +6,7 @@ deterministic policy on the composition sets, K episodes (start states) per coal
 policies on the same episodes). Runs are grouped by (algo, task); runs without an evaluation are
 left out with a warning; when none has one, nothing is written.
 
-Intervals (:mod:`comat.eval.stats`, which says why and gives their measured coverage). The seed
+Intervals (:mod:`comat.measure.stats`, which says why and gives their measured coverage). The seed
 is the replicated unit: every coalition of a run is played by the same policy. Each seed's score
 on a set first averages its K episodes per coalition, then its coalitions (so K episodes never
 count as K seeds); tables give the mean over seeds ± the 95 % Student-t interval over those
@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import sys
 from pathlib import Path
@@ -50,30 +49,28 @@ import numpy as np
 
 from comat.eval import figures
 from comat.eval.figures import ALGO_LABELS
-from comat.eval.metrics import SHARES, current_names, interval_text, mean_ci, violations
-from comat.eval.stats import cell_means, hierarchical_bootstrap
+from comat.eval.generalization import generalization_csv, generalization_md, generalization_rows
+from comat.eval.robustness import robustness_csv, robustness_figure, robustness_rows
+from comat.eval.runs import (
+    ALGO_ORDER,
+    ENDPOINTS,
+    PAPER_BUDGET,
+    REFERENCES,
+    SET_NAMES,
+    SETS,
+    evaluation_row,
+    k_text,
+    load_run,
+    method_text,
+    over_seeds,
+    run_cells,
+    seed_means,
+)
 from comat.files import write_atomic
+from comat.measure.metrics import SHARES, interval_text, mean_ci
+from comat.measure.stats import hierarchical_bootstrap
 
-__all__ = ["ENDPOINTS", "PAPER_RETENTION", "PAPER_TABLE1", "REPORT_FILES", "SETS", "SET_NAMES", "load_run",
-           "make_report", "method_text", "run_cells", "seed_means"]
-
-ALGO_ORDER = ("mappo", "qmix", "mat", "comat")
-SETS = ("train", "val", "test", "scale", "size", "capability")
-"""Composition sets in table order (``comat.team.COALITION_SETS``); only those present appear."""
-SET_NAMES = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
-             "capability": "U_cap"}
-"""The composition sets as the reports name them."""
-ENDPOINTS = (("return", "return"), ("progress", "progress"), ("finished", "finished"),
-             ("progress_auc", "progress_auc"), ("time_to_90", "time_to_90"))
-"""(evaluation metric, report key): the per-set endpoints of the generalization table. The last two
-appear only where the evaluation rows carry them (files written before issue 28 do not)."""
-COMPARED = ("progress", "finished", "progress_auc")
-"""Endpoints on which COMAT is compared with each baseline (Welch's t-test over seeds)."""
-REFERENCES = ("heuristic", "constant", "random")
-PAPER_BUDGET = 4_000_000
-"""Env steps per run in the paper's experiments."""
-ALPHA = 0.05
-"""Two-sided level of the Welch tests."""
+__all__ = ["PAPER_TABLE1", "REPORT_FILES", "make_report"]
 
 REPORT_FILES = ("table1.md", "table1.csv", "generalization.md", "generalization.csv", "aggregates.csv",
                 *(f"{stem}.{fmt}" for stem in ("fig4_training_return", "fig5_generalization", "fig6_team_size")
@@ -91,106 +88,9 @@ PAPER_TABLE1 = {
     ("hmt", "collisions"): (0.00, 0.00, 1.00, 0.00),
 }
 """The paper's Table I, keyed by (task, our metric name); values in ``ALGO_ORDER``."""
-PAPER_RETENTION = {("pcp", "comat"): 0.88, ("hmt", "comat"): 0.95}
-"""COMAT's retention of training return on unseen compositions reported in the paper (§IV-B; a
-ratio of returns — ours is of progress, see the module docstring)."""
 TABLE_METRICS = (("return", "Mean return"), ("steps", "Episode steps"), ("finished", "Finished (paper: completion)"),
                  ("collisions", "Collisions"), ("progress", "Progress (fraction done)"),
                  ("violations", "Robotarium violations"), ("interventions", "Filter interventions"))
-
-
-def load_run(folder: str | Path, tier: str | None = None) -> dict:
-    """One run folder: config, training curve and (if present) its evaluation rows."""
-    import yaml
-
-    folder = Path(folder)
-    cfg_path = folder / "config.yaml"
-    if not cfg_path.is_file():
-        raise FileNotFoundError(f"{str(folder)!r} is not a run folder (no config.yaml)")
-    config = yaml.safe_load(cfg_path.read_text())["config"]
-    curve: dict[str, list[float]] = {"env_steps": [], "return": []}
-    progress = folder / "progress.csv"
-    if progress.is_file():
-        with open(progress) as fh:
-            for row in csv.DictReader(fh):
-                if row["episode_return"] not in ("", "nan"):
-                    curve["env_steps"].append(float(row["env_steps"]))
-                    curve["return"].append(float(row["episode_return"]))
-    tier = tier or config["tier"]
-    eval_path = folder / f"evaluation_{tier}.json"
-    # Files written before issue 32 name the metrics the old way: read them under today's names.
-    evaluation = current_names(json.loads(eval_path.read_text())) if eval_path.is_file() else None
-    return {"folder": str(folder), "algo": config["algo"], "task": config["task"], "seed": config["seed"],
-            "tier": tier, "env_steps": curve["env_steps"][-1] if curve["env_steps"] else 0, "curve": curve,
-            "budget": int(config.get("total_env_steps") or 0), "evaluation": evaluation}
-
-
-def _row(run: dict, split: str, policy: str | None = None) -> dict | None:
-    """The evaluation row of ``policy`` (default: the run's own algorithm) on ``split``, or None."""
-    if run["evaluation"] is None:
-        return None
-    for row in run["evaluation"]["rows"]:
-        if row["set"] == split and row["policy"] == (policy or run["algo"]):
-            return row
-    return None
-
-
-def _episodes_per_coalition(run: dict) -> int:
-    return int(run["evaluation"].get("episodes_per_coalition") or 1)
-
-
-def _value(episode: dict, metric: str) -> float | None:
-    if metric == "violations":
-        keys = ("robotarium_collisions", "boundary_exits", "actuator_errors")
-        return violations(episode) if all(k in episode for k in keys) else None
-    return float(episode[metric]) if metric in episode else None
-
-
-def run_cells(run: dict, split: str, metric: str, policy: str | None = None) -> tuple[list, np.ndarray] | None:
-    """``(coalitions, means (C,))``: each coalition's mean of ``metric`` over its episodes in the
-    run's evaluation row of ``policy`` on ``split``; None where there is no such row or an
-    episode lacks the metric (a file written before it existed)."""
-    row = _row(run, split, policy)
-    if row is None or not row.get("per_episode"):
-        return None
-    eps = row["per_episode"]
-    values = [_value(e, metric) for e in eps]
-    if any(v is None for v in values):
-        return None
-    if all("coalition" in e for e in eps):
-        coalition = [int(e["coalition"]) for e in eps]
-    else:  # older files: episode i is coalition i % C (the set repeated K times)
-        k = _episodes_per_coalition(run)
-        if len(eps) % k:
-            raise ValueError(f"{run['folder']}: {split} has {len(eps)} episodes, not a multiple of its "
-                             f"episodes_per_coalition {k}")
-        coalition = [i % (len(eps) // k) for i in range(len(eps))]
-    table, _, coals = cell_means(np.zeros(len(eps)), coalition, values)
-    return coals, table[0]
-
-
-def seed_means(runs: list[dict], split: str, metric: str) -> list[float]:
-    """Each run's (seed's) mean over coalitions of its coalition means; runs without it left out."""
-    return [float(c[1].mean()) for c in (run_cells(r, split, metric) for r in runs) if c is not None]
-
-
-def _over_seeds(runs: list[dict], split: str, metric: str) -> tuple[float, float, int]:
-    values = seed_means(runs, split, metric)
-    if not values:
-        return math.nan, math.nan, 0
-    mean, half = mean_ci(values)
-    return mean, half, len(values)
-
-
-def method_text(seeds: str, k: str) -> str:
-    """The interval method, as every caption states it."""
-    return (f"mean over seeds ± 95 % t-interval over per-seed means ({seeds}); each seed's mean first averages "
-            f"its {k} episode(s) per coalition, then its coalitions")
-
-
-def _k_text(runs: list[dict]) -> str:
-    ks = sorted({_episodes_per_coalition(r) for r in runs if r["evaluation"]})
-    return "/".join(map(str, ks)) if ks else "1"
 
 
 def _fmt(mean: float, half: float, metric: str, unit: str | None = "seed") -> str:
@@ -229,7 +129,7 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
         for metric, label in TABLE_METRICS:
             cells = []
             for algo in algos:
-                mean, half, n = _over_seeds(groups.get((algo, task), []), "train", metric)
+                mean, half, n = over_seeds(groups.get((algo, task), []), "train", metric)
                 # Returns are not comparable: the paper's reward scale is not ours (see the caption).
                 paper = None if metric == "return" else PAPER_TABLE1.get((task, metric))
                 paper_v = None if paper is None else paper[ALGO_ORDER.index(algo)]
@@ -240,7 +140,7 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
              for t in tasks for a in algos}
     every = [r for rs in groups.values() for r in rs]
     lines += ["", "Training coalitions (U_train), deterministic actions; ours: "
-              + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), _k_text(every))
+              + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), k_text(every))
               + ". Finished = share of episodes in which every prey was captured / all material delivered (the "
               "paper's \"completion\"). The paper trains 4 M env steps per run. The paper's "
               "columns hold only what compares: the finished share, episode steps and collisions. Its returns are "
@@ -258,8 +158,8 @@ def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
     for task in tasks:
         runs = [r for (a, t), rs in groups.items() if t == task for r in rs if r["evaluation"]]
         for split in SETS:
-            found = next(((r, {p: _row(r, split, p) for p in REFERENCES}) for r in runs
-                          if any(_row(r, split, p) for p in REFERENCES)), None)
+            found = next(((r, {p: evaluation_row(r, split, p) for p in REFERENCES}) for r in runs
+                          if any(evaluation_row(r, split, p) for p in REFERENCES)), None)
             if not found:
                 continue
             if not out:
@@ -279,7 +179,7 @@ def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
 
 
 def _sets_present(runs: list[dict]) -> list[str]:
-    return [s for s in SETS if any(_row(r, s) for r in runs)]
+    return [s for s in SETS if any(evaluation_row(r, s) for r in runs)]
 
 
 def _endpoints_present(runs: list[dict], sets: list[str]) -> list[tuple[str, str]]:
@@ -316,7 +216,7 @@ def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str
                               "hierarchical bootstrap in aggregates.csv", file=sys.stderr)
                         boot = dict.fromkeys(("mean_lo", "mean_hi", "iqm", "iqm_lo", "iqm_hi"), math.nan)
                     writer.writerow([task, algo, split, metric, per_seed.size, len(got[0][1][0]) if same else "",
-                                     _k_text([r for r, _ in got]), mean, sd, mean - half, mean + half,
+                                     k_text([r for r, _ in got]), mean, sd, mean - half, mean + half,
                                      per_seed.size - 1, boot["mean_lo"], boot["mean_hi"], boot["iqm"],
                                      boot["iqm_lo"], boot["iqm_hi"]])
     return buf.getvalue()
@@ -349,8 +249,6 @@ def _by_team_size(groups: dict, sets: list[str]) -> dict:
 
 def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None = None) -> dict:
     """Write :data:`REPORT_FILES` for ``run_folders`` into the folder ``out`` (which must exist)."""
-    from comat.eval.generalization import generalization_csv, generalization_md, generalization_rows
-    from comat.eval.robustness import robustness_csv, robustness_figure, robustness_rows
 
     if not run_folders:
         raise ValueError("make_report needs at least one run folder")
@@ -373,11 +271,11 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     evaluated = {k: [r for r in v if r["evaluation"]] for k, v in groups.items()}
     sets = _sets_present(runs)
     endpoints = _endpoints_present(runs, sets)
-    k_text = _k_text(runs)
+    episodes_text = k_text(runs)
     md, table_csv = _table1(evaluated, tasks, algos)
     rows = generalization_rows(evaluated, tasks, algos, sets, endpoints)
     files = {"table1.md": md, "table1.csv": table_csv,
-             "generalization.md": generalization_md(rows, tasks, algos, sets, endpoints, k_text),
+             "generalization.md": generalization_md(rows, tasks, algos, sets, endpoints, episodes_text),
              "generalization.csv": generalization_csv(rows),
              "aggregates.csv": _aggregates(evaluated, tasks, algos, sets, endpoints)}
     for name, text in files.items():
@@ -388,9 +286,9 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     size_sets = [s for s in sets if s in figures.SIZE_SETS]
     names = list(files)
     names += figures.fig4(curves, tasks, algos, budgets, out / "fig4_training_return")
-    names += figures.fig5(rows, tasks, algos, sets, budgets, out / "fig5_generalization", k_text)
+    names += figures.fig5(rows, tasks, algos, sets, budgets, out / "fig5_generalization", episodes_text)
     names += figures.fig_team_size(_by_team_size(evaluated, size_sets), tasks, algos, budgets,
-                                   out / "fig6_team_size", size_sets, k_text)
+                                   out / "fig6_team_size", size_sets, episodes_text)
     assert set(names) == set(REPORT_FILES), names
     robust = robustness_rows(runs)
     if robust:  # runs with `comat eval --reality-sweep` files

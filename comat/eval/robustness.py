@@ -6,7 +6,7 @@ of one field of :class:`~comat.reality.RealityConfig`, every other field at the 
 (``--reality``, default ``off``: the component alone), on the same teams and starts at every
 value (paired episodes). The file ``evaluation_<tier>_sweep_<component>.json`` holds, per value,
 each policy's metrics per set (means over the set's episodes, and the per-episode table for the
-coalition-first averaging of :mod:`comat.eval.stats`).
+coalition-first averaging of :mod:`comat.measure.stats`).
 
 ``comat report`` also reads a run's evaluations at the named levels (``evaluation_<tier>.json`` at
 ``off``, ``evaluation_<tier>_nominal.json``, ``evaluation_<tier>_stress.json``: ``comat eval
@@ -31,7 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from comat.eval.metrics import current_names
+from comat.eval.evaluate import evaluate_policies
+from comat.eval.figures import ALGO_LABELS, _plt, clipped_err, empty_figure, save
+from comat.files import new_outputs, write_atomic
+from comat.measure.metrics import current_names
+from comat.measure.stats import per_seed_means, t_interval
 from comat.reality.config import LEVELS, RealityConfig
 
 __all__ = ["LEVEL_COMPONENT", "LEVEL_ORDER", "ROBUSTNESS_ENDPOINTS", "ROBUSTNESS_FILES", "SWEEP_VALUES", "load_levels",
@@ -107,7 +111,6 @@ def run_reality_sweep(checkpoint, task: str, sets, episodes: int, tier: str, see
                       values: Sequence[float] | None = None, base: str = "off", references=(),
                       progress: Callable[[str], None] = print) -> dict:
     """Evaluate at each value of ``component`` (module docstring); returns the sweep file's dict."""
-    from comat.eval.evaluate import evaluate_policies
 
     values = sweep_values(component, values)
     configs = [_config(component, v, base) for v in values]
@@ -150,7 +153,6 @@ def _x(component: str, value):
 
 def _run_value(row: dict, metric: str) -> float | None:
     """A run's score on one set: its episodes averaged per coalition first, then over coalitions."""
-    from comat.eval.stats import per_seed_means
 
     eps = row.get("per_episode") or []
     vals = [(e.get("coalition", i), e.get(metric)) for i, e in enumerate(eps) if e.get(metric) is not None]
@@ -163,7 +165,6 @@ def _run_value(row: dict, metric: str) -> float | None:
 
 def robustness_rows(runs: list[dict]) -> list[dict]:
     """Per (task, component, set, algorithm, value, endpoint): mean over seeds, t-interval, seeds."""
-    from comat.eval.stats import t_interval
 
     cells: dict[tuple, list[float]] = {}
     for run in runs:
@@ -201,7 +202,6 @@ def robustness_csv(rows: list[dict]) -> str:
 def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
     """One panel row per (task, component, set), one column per endpoint; lines per algorithm with
     t-intervals over seeds (bars; none with one seed, said in the title)."""
-    from comat.eval.figures import ALGO_LABELS, _plt, clipped_err, empty_figure, save
 
     plt = _plt()
     keys = sorted({(r["task"], r["component"], r["set"]) for r in rows})
@@ -248,7 +248,6 @@ _EPISODE_KEYS = ("coalition", "team_size", "return", "progress", "finished", "st
 
 def write_sweep(sweep: dict, out_dir: Path, stem: str) -> list[Path]:
     """``<stem>.json`` (the sweep) and ``<stem>.csv`` (value, policy, set, metric, mean, ci95)."""
-    from comat.files import write_atomic
 
     buf = io.StringIO()
     w = csv.writer(buf)
@@ -283,7 +282,6 @@ def eval_sweep_command(args, pol, named, tier: str, out: Path, refs: tuple, base
     """``comat eval --reality-sweep``: run, print, write ``evaluation_<tier>_sweep_<component>``."""
     import sys
 
-    from comat.files import new_outputs
 
     values = sweep_values(args.reality_sweep, args.sweep_values)
     for v in values:

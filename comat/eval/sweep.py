@@ -38,6 +38,16 @@ import sys
 import time
 from pathlib import Path
 
+import comat
+import sim2real
+from comat.eval.evaluate import evaluate_policies, write_results
+from comat.files import write_atomic
+from comat.rl.checkpoint import versions
+from comat.rl.config import ALGOS, TASKS, apply_overrides, load_preset, resolve
+from comat.rl.device import DEVICES, resolve_device
+from comat.rl.policy import ensure_policy
+from comat.rl.runner import train
+
 __all__ = ["RECORD", "param_space", "plan", "prepare_sweep", "read_record", "run_job", "run_sweep", "sweep_status"]
 
 RECORD = "sweep.json"
@@ -85,7 +95,6 @@ def read_record(root: str | Path) -> dict | None:
 
 
 def _check_grid(algos, tasks, seeds) -> None:
-    from comat.rl.config import ALGOS, TASKS
 
     for name, values, valid in (("algos", algos, ALGOS), ("tasks", tasks, TASKS)):
         bad = [v for v in values if v not in valid]
@@ -100,7 +109,6 @@ def _check_grid(algos, tasks, seeds) -> None:
 def _cpus_per_trial(settings: dict, algos, tasks, tier, steps) -> int:
     """CPUs one trial reserves: its env processes or its torch threads, whichever is more (the
     learner and the env processes take turns rather than run side by side)."""
-    from comat.rl.config import resolve
 
     configs = [resolve(settings, a, t, tier=tier, total_env_steps=steps) for a, t in itertools.product(algos, tasks)]
     return max(max(c.env_workers, c.torch_threads) for c in configs)
@@ -110,9 +118,6 @@ def prepare_sweep(root: str | Path, given: dict, command: list[str] | None = Non
     """The record of the sweep in ``root``: the one there (``given`` settings must agree with it), or a
     new one from ``given`` and :data:`DEFAULTS`, checked but not yet written. Returns it with the
     lines to tell the user (where the seeds come from; that a recorded sweep continues)."""
-    from comat.rl.checkpoint import versions
-    from comat.rl.config import apply_overrides, load_preset
-    from comat.rl.device import DEVICES
 
     root = Path(os.path.expanduser(str(root))).resolve()
     unknown = sorted(set(given) - set(DEFAULTS))
@@ -182,7 +187,6 @@ def sweep_status(root: str | Path, record: dict) -> list[dict]:
     started, at the mean rate of the grid's other runs of the same task (None if there is none).
     Evaluation time is not included.
     """
-    from comat.rl.config import resolve
 
     rows = []
     for job in plan(root, record["algos"], record["tasks"], record["seeds"], record["eval_tiers"], record["eval_sets"]):
@@ -218,10 +222,6 @@ def run_job(params: dict) -> dict:
     ``task`` and ``seed``) and ``sweep`` (the record)."""
     from ray import tune
 
-    from comat.eval.evaluate import evaluate_policies, write_results
-    from comat.rl.config import resolve
-    from comat.rl.policy import ensure_policy
-    from comat.rl.runner import train
 
     record = params["sweep"]
     algo, task, seed = params["job"]["algo"], params["job"]["task"], params["job"]["seed"]
@@ -309,15 +309,12 @@ def _code() -> list[str]:
     """The packages shipped to cluster workers: the driver's own comat (and sim2real, which export
     and evaluation import), so every node runs the code that planned the sweep. Folders, not module
     objects: inside a ``ray job submit`` job Ray merges this with the job's runtime env by pickling it."""
-    import comat
-    import sim2real
 
     return [str(Path(m.__file__).parent) for m in (comat, sim2real)]
 
 
 def _write_record(root: Path, record: dict) -> None:
     """Create the root folder and write the record, once (a continued sweep keeps its first one)."""
-    from comat.files import write_atomic
 
     try:
         root.mkdir(parents=True, exist_ok=True)
@@ -354,15 +351,12 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
         raise ValueError(f"comat sweep runs on Ray Tune, which cannot be imported here ({err}); install it with "
                          "pip install 'comat[ray]'") from err
 
-    from comat.rl.config import resolve
-    from comat.rl.device import resolve_device
 
     root = Path(record["root"])
     grid = (record["algos"], record["tasks"], record["seeds"], record["eval_tiers"], record["eval_sets"])
     jobs_now = plan(root, *grid)
     todo = [j for j in jobs_now if j["state"] != "done"]
     if (root / RECORD).is_file() and not todo:
-        from comat.rl.policy import ensure_policy
 
         for job in jobs_now:  # finished before policy files existed: keep theirs now
             ensure_policy(job["folder"])

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from comat import constants as C
+from comat.config import load
 
 __all__ = ["LEVELS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "levels_markdown", "profile_fields",
            "resolve_reality"]
@@ -213,6 +214,12 @@ class RealityConfig:
         base = LEVELS[self.level]
         return {k: getattr(self, k) for k in base if getattr(self, k) != base[k]}
 
+    @property
+    def label(self) -> str:
+        """What a row says about its reality layer: the level's name, or ``"custom"`` when any field
+        differs from the level's value."""
+        return "custom" if self.overrides() else self.level
+
 
 _INT_FIELDS = ("pose_delay_ticks", "pose_delay_spread_ticks", "pose_freeze_max_ticks", "command_delay_ticks",
                "command_delay_spread_ticks")
@@ -394,7 +401,6 @@ def resolve_reality(value: Any, name: str = "reality") -> RealityConfig:
     ``comat calibrate``), a RealityConfig, None (off), or a
     mapping of fields (``{"level": "nominal", "pose_delay_ticks": 2}``; without ``level`` the
     fields change the ``off`` level, so ``{"pose_delay_ticks": 2}`` is that one component alone)."""
-    from comat.config import load
 
     if value is None:
         return RealityConfig()

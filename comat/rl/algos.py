@@ -13,11 +13,14 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import torch
 
+from comat.config import SafetyConfig, SimConfig
+from comat.envs import make_vec_env
 from comat.models.comat import Comat
 from comat.models.features import ObsLayout
 from comat.models.mappo import Mappo
 from comat.models.mat import Mat
 from comat.models.qmix import QmixAgents, QmixMixer
+from comat.rl.config import RunConfig
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
 
@@ -147,3 +150,14 @@ def make_learner(config, env, dims: Dims) -> Learner:
         trainer = PPOTrainer(modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo),
                              device=device)
     return Learner(config.algo, modules, trainer)
+
+
+def make_run_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
+    """The run's environments, training and evaluation alike, at the run's reality layer: each
+    episode (every reset and autoreset) draws its layer from its own generator, so a run at
+    ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
+    sim = SimConfig(tier=config.tier, threads=config.physics_threads)
+    safety = None if config.loop == "comat" else SafetyConfig(loop=config.loop)
+    return make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
+                              sim=sim, coalitions=coalitions, reality=config.reality, safety=safety,
+                              **env_slots(config))

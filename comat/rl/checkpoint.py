@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from comat._version import __version__
 from comat.models.comat import PAPER_FORM
 
 __all__ = ["POLICY_FORMAT", "CheckpointError", "load_checkpoint", "load_policy_file", "load_trained",
@@ -119,7 +120,6 @@ def versions() -> dict[str, str]:
     different kernels: recorded so that such a difference can be traced."""
     import mujoco
 
-    from comat import __version__
 
     return {"comat": __version__, "commit": source_commit(), "torch": str(torch.__version__),
             "mujoco": str(mujoco.__version__), "numpy": str(np.__version__), "python": platform.python_version(),

@@ -25,13 +25,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from comat.config import load
+from comat.config import LOOPS, load
 from comat.models.comat import ComatConfig
 from comat.models.mappo import MappoConfig
 from comat.models.mat import MatConfig
 from comat.models.qmix import QmixNetConfig
-from comat.config import LOOPS
 from comat.reality import RealityConfig, resolve_reality
+from comat.reality.config import profile_fields
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 
@@ -210,7 +210,6 @@ def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
     if value is None or isinstance(value, Mapping):
         return data
     if isinstance(value, str) and value.endswith((".yaml", ".yml")):  # a calibrated profile: its fields
-        from comat.reality.config import profile_fields
 
         return {**data, "reality": profile_fields(value)}
     return {**data, "reality": {"level": value}}

@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from comat.eval.metrics import RETIRED_NAMES
+from comat.measure.metrics import RETIRED_NAMES
 
 __all__ = ["ProgressLine", "RunLogger"]
 

@@ -18,21 +18,63 @@ from pathlib import Path
 
 import torch
 
-from comat.rl.algos import ACTING_MODULES, Dims, build_modules
+from comat.rl.algos import ACTING_MODULES, Dims, build_modules, make_run_env, policy_act
 from comat.rl.checkpoint import (
     FORMAT,
     POLICY_FORMAT,
     CheckpointError,
     load_checkpoint,
+    load_trained,
     save_policy_file,
 )
-from comat.rl.config import RunConfig
+from comat.rl.config import RunConfig, load_preset, resolve
 
-__all__ = ["CHECKPOINT_FILE", "POLICY_FILE", "acting_weights", "describe_policy", "ensure_policy", "format_size", "policy_file_of",
-           "policy_from_checkpoint", "policy_modules", "policy_weights", "save_policy"]
+__all__ = [
+    "CHECKPOINT_FILE",
+    "POLICY_FILE",
+    "PREFIX",
+    "PRETRAINED",
+    "PRETRAINED_DIR",
+    "acting_weights",
+    "describe_policy",
+    "ensure_policy",
+    "format_size",
+    "load_policy",
+    "policy_file_of",
+    "policy_from_checkpoint",
+    "policy_modules",
+    "policy_weights",
+    "pretrained_path",
+    "save_policy",
+]
 
 POLICY_FILE = "policy.pt"
 CHECKPOINT_FILE = "checkpoint.pt"
+
+PRETRAINED_DIR = Path(__file__).parent.parent / "data" / "pretrained"
+PRETRAINED: dict[str, dict[str, str]] = {
+    "comat-pcp": {"file": "comat_pcp_s0.pt", "what": "COMAT on PCP, seed 0, 302 k env steps (sweep preset); "
+                  "U_train progress 99.5 %, finished 97 %; U_test 96.5 % / 85 % (results/policies/comat_pcp_s0)"},
+    "comat-hmt": {"file": "comat_hmt_s0.pt", "what": "COMAT on HMT, seed 0, 300 k env steps (sweep preset); "
+                  "U_train progress 97.9 %, finished 52 %; U_test 96.4 % / 41 % (results/policies/comat_hmt_s0)"},
+    "mat-pcp": {"file": "mat_pcp_s1.pt", "what": "MAT (20 robot slots) on PCP, seed 1, 300 k env steps; "
+                "U_train progress 100 %, finished 100 %; U_test 99.0 % / 94 % (results/policies/mat_pcp_s1)"},
+    "mat-hmt": {"file": "mat_hmt_s1.pt", "what": "MAT (20 robot slots) on HMT, seed 1, 300 k env steps; "
+                "U_train progress 97.7 %, finished 68 %; U_test 97.9 % / 65 % (results/policies/mat_hmt_s1)"},
+}
+"""The policies that ship with comat (``pretrained:NAME`` wherever a policy is taken): copies of the
+kept policy files under ``results/policies/`` (their READMEs say how each was trained and what it
+scores; ``comat policy pretrained:NAME`` prints what a file holds)."""
+
+PREFIX = "pretrained:"
+
+
+def pretrained_path(name: str, flag: str = "--policy") -> Path:
+    """The file of ``pretrained:NAME`` (or ``NAME``); ValueError naming ``flag`` and the known names."""
+    key = name.removeprefix(PREFIX)
+    if key not in PRETRAINED:
+        raise ValueError(f"{flag} must be one of {[PREFIX + k for k in PRETRAINED]}, got {name!r}")
+    return PRETRAINED_DIR / PRETRAINED[key]["file"]
 
 
 def format_size(n_bytes: int) -> str:
@@ -91,7 +133,7 @@ def ensure_policy(run: str | Path) -> Path | None:
 
 def policy_file_of(path: str | Path, need_checkpoint: str | None = None, flag: str = "--policy") -> Path:
     """The file ``--policy PATH`` names: the file itself, a shipped policy's (``pretrained:NAME``,
-    :data:`comat.policy_api.PRETRAINED`), or in a run folder its ``checkpoint.pt``, else its ``policy.pt`` (a folder of committed small files has only that). ``need_checkpoint``:
+    :data:`PRETRAINED`), or in a run folder its ``checkpoint.pt``, else its ``policy.pt`` (a folder of committed small files has only that). ``need_checkpoint``:
     why the caller needs the checkpoint (then a folder's ``policy.pt`` is not taken); ``flag``: the
     argument named in errors.
 
@@ -99,8 +141,6 @@ def policy_file_of(path: str | Path, need_checkpoint: str | None = None, flag: s
         ValueError: a folder with neither file, or a path that does not exist.
     """
     if str(path).startswith("pretrained:"):  # a policy that ships with comat
-        from comat.policy_api import pretrained_path
-
         return pretrained_path(str(path), flag)
     path = Path(path)
     if path.is_dir():
@@ -167,8 +207,6 @@ def policy_weights(preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "h
     (all the learner's modules, critic and mixer included), ``bytes`` (the file)."""
     import tempfile
 
-    from comat.rl.config import load_preset, resolve
-    from comat.rl.runner import _make_env
 
     settings = load_preset(preset)
     rows = []
@@ -177,7 +215,7 @@ def policy_weights(preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "h
         for task in tasks:
             for algo in algos:
                 config = resolve(settings, algo, task, seed=seed)
-                env = _make_env(config, 1, seed)
+                env = make_run_env(config, 1, seed)
                 try:
                     env.reset()  # as a run does before taking its sizes
                     dims = Dims.of(env)
@@ -193,3 +231,14 @@ def policy_weights(preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "h
                              "learner_parameters": sum(p.numel() for m in modules.values() for p in m.parameters()),
                              "bytes": path.stat().st_size})
     return rows
+
+
+def load_policy(path: str | Path, algo: str | None = None, task: str | None = None):
+    """A trained policy from a checkpoint or a policy file (``policy.pt``): ``(act, config)``
+    with ``act(obs, mask, state) -> actions`` deterministic (numpy in and out).
+
+    Raises:
+        CheckpointError: naming the file and what is wrong with it.
+    """
+    modules, config = policy_modules(load_trained(path, algo=algo, task=task), path)
+    return policy_act(config.algo, modules), config

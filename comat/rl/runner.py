@@ -25,38 +25,30 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import torch
 
-import comat
-from comat.config import SafetyConfig, SimConfig
 from comat.envs.base import resolve_coalitions
-from comat.eval.episodes import run_episodes, summarize
 from comat.files import write_atomic
 from comat.machine import RunRegistry, busy_warning, usable_cpus
-from comat.rl.algos import Dims, env_slots, make_learner, policy_act, robot_slots
-from comat.rl.checkpoint import CheckpointError, load_checkpoint, load_trained, save_checkpoint, versions
+from comat.measure.episodes import run_episodes, summarize
+from comat.rl.algos import Dims, make_learner, make_run_env, policy_act
+from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
 from comat.rl.config import RunConfig
 from comat.rl.logger import ProgressLine, RunLogger
-from comat.rl.policy import POLICY_FILE, policy_modules, save_policy
+from comat.rl.policy import POLICY_FILE, save_policy
 
-__all__ = ["EVAL_SEED_OFFSET", "load_policy", "train"]
+__all__ = ["EVAL_SEED_OFFSET", "Recorder", "train"]
 
 EVAL_SEED_OFFSET = 1_000_003
+
+Recorder = Callable[[RunConfig, dict, Path, int], tuple[Path, str]]
+"""``record(config, modules, out, env_steps) -> (path, how to view it)``: records evaluation episodes
+of the modules being trained (:func:`comat.viz.record_training`)."""
 """Evaluation episodes use seed ``run seed + EVAL_SEED_OFFSET`` (never a training seed)."""
 _SUMMARY_KEYS = ("return", "steps", "progress", "finished", "collisions", "interventions", "fallbacks")
-
-
-def _make_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
-    """The run's environments, training and evaluation alike, at the run's reality layer: each
-    episode (every reset and autoreset) draws its layer from its own generator, so a run at
-    ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
-    sim = SimConfig(tier=config.tier, threads=config.physics_threads)
-    safety = None if config.loop == "comat" else SafetyConfig(loop=config.loop)
-    return comat.make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
-                              sim=sim, coalitions=coalitions, reality=config.reality, safety=safety,
-                              **env_slots(config))
 
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = (),
@@ -79,7 +71,7 @@ def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = N
     """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition, at
     the run's reality layer (what the run trains under; ``comat eval --reality`` for others)."""
     teams = resolve_coalitions(coalitions, config.task) * (episodes_per_team or config.eval_episodes_per_team)
-    env = _make_env(config, min(len(teams), 32), config.seed + EVAL_SEED_OFFSET, coalitions)
+    env = make_run_env(config, min(len(teams), 32), config.seed + EVAL_SEED_OFFSET, coalitions)
     for m in modules.values():
         m.eval()
     try:
@@ -112,29 +104,9 @@ def _next_multiple(steps: int, every: int) -> int:
     return (steps // every + 1) * every
 
 
-def _record(config: RunConfig, modules: dict, out: Path, steps: int, episodes: int = 2) -> Path:
-    """Record ``episodes`` evaluation episodes (the first training coalitions) to ``out/rrd``
-    (in the ideal world: recordings do not take a reality layer yet)."""
-    from comat.viz import record_episodes
-
-    path = out / "rrd" / f"eval_{steps:012d}.rrd"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    for m in modules.values():
-        m.eval()
-    try:
-        record_episodes(path, config.task, policy_act(config.algo, modules),
-                        teams=resolve_coalitions("train", config.task)[:episodes],
-                        seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier,
-                        max_robots=robot_slots(config), reality=config.reality,
-                        policy_name=f"{config.algo} after {steps:,} env steps")
-    finally:
-        for m in modules.values():
-            m.train()
-    return path
-
-
 def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0,
-          overrides: tuple[str, ...] = (), command: list[str] | None = None, on_update=None) -> dict:
+          overrides: tuple[str, ...] = (), command: list[str] | None = None, on_update=None,
+          record: Recorder | None = None) -> dict:
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
     the final evaluation on the training coalitions (None if evaluation is off). A finished run
     (or a finished one resumed) writes ``out/policy.pt`` (:func:`comat.rl.policy.save_policy`).
@@ -142,7 +114,9 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
     ``overrides``: the ``key=value`` changes to the preset that ``config`` was resolved with,
     recorded in config.yaml next to the resolved config (they are already part of it).
     ``rrd_every`` = K > 0 records two evaluation episodes to ``out/rrd/`` at every K-th
-    evaluation and the last (a viewing aid; not part of the run's identity).
+    evaluation and the last (a viewing aid; not part of the run's identity) with ``record``
+    (:func:`comat.viz.record_training`, which ``comat train --rrd-every`` passes: the recorder
+    lives above the trainer, so it is handed in rather than imported).
     ``command``: the command line recorded in config.yaml (default ``sys.argv``; a sweep job
     records the ``comat sweep`` command, not its worker's). ``on_update(progress)`` is called after
     every update with ``env_steps``, ``updates``, ``wall_s`` and ``checkpoint_env_steps`` (how a
@@ -179,6 +153,9 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
                                   "resume it with its own (see config.yaml), or start a new run in another --out")
     if isinstance(rrd_every, bool) or not isinstance(rrd_every, int) or rrd_every < 0:
         raise ValueError(f"rrd_every must be an integer >= 0 (every K-th evaluation; 0 = never), got {rrd_every!r}")
+    if rrd_every and record is None:
+        raise ValueError("rrd_every needs record= (comat.viz.record_training): the trainer does not import the "
+                         "recorder")
     if rrd_every and not config.eval_episodes_per_team:
         raise ValueError("rrd_every records evaluation episodes, but this run's eval_episodes_per_team is 0")
     if not resume and data is None and ckpt_path.exists():
@@ -193,15 +170,17 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         warning = busy_warning(others, usable_cpus())
         if warning and not quiet:
             print(warning, file=sys.stderr)
-        return _train_registered(config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update)
+        return _train_registered(config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update,
+                                     record)
 
 
 def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bool, rrd_every: int,
-                      overrides: tuple[str, ...], command: list[str] | None, ckpt_path: Path, on_update) -> dict:
+                      overrides: tuple[str, ...], command: list[str] | None, ckpt_path: Path, on_update,
+                      record: Recorder | None) -> dict:
     """The training loop of :func:`train`, once the run is checked and registered."""
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
-    env = _make_env(config, config.trainer.num_envs, config.seed)
+    env = make_run_env(config, config.trainer.num_envs, config.seed)
     env.reset()
     dims = Dims.of(env)
     learner = make_learner(config, env, dims)
@@ -257,11 +236,9 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
                 next_eval = _next_multiple(steps, config.eval_every_steps)
                 evals = steps // config.eval_every_steps
                 if rrd_every and (evals % rrd_every == 0 or finished):
-                    rrd = _record(config, learner.modules, out, steps)
+                    rrd, hint = record(config, learner.modules, out, steps)
                     if not quiet:
-                        from comat.viz.cli import viewer_hint
-
-                        print(f"\nrecorded {rrd}; {viewer_hint(rrd)}", file=sys.stderr)
+                        print(f"\nrecorded {rrd}; {hint}", file=sys.stderr)
                 if not quiet:
                     print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, finished "
                           f"{last_eval['finished']:.0%} (progress {last_eval['progress']:.0%}), steps {last_eval['steps']:.1f}, collisions "
@@ -285,14 +262,3 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
                "env_steps": progress["env_steps"], "wall_s": progress["wall_s"], "eval_train": last_eval}
     write_atomic(out / "summary.json", json.dumps(summary, indent=2))
     return summary
-
-
-def load_policy(path: str | Path, algo: str | None = None, task: str | None = None):
-    """A trained policy from a checkpoint or a policy file (``policy.pt``): ``(act, config)``
-    with ``act(obs, mask, state) -> actions`` deterministic (numpy in and out).
-
-    Raises:
-        CheckpointError: naming the file and what is wrong with it.
-    """
-    modules, config = policy_modules(load_trained(path, algo=algo, task=task), path)
-    return policy_act(config.algo, modules), config

@@ -5,14 +5,13 @@
 * :func:`record_episodes` runs a policy (heuristic, random, checkpoint or callable) for some
   episodes and writes them to one ``.rrd`` file, one tab per episode (:func:`rollout_blueprint`).
 * :func:`check_rrd_path` and :func:`resolve_policy` are the checks done before anything runs.
-* :mod:`comat.viz.frames` draws an episode top-down with matplotlib (``env.render()`` with
+* :mod:`comat.envs.render` draws an episode top-down with matplotlib (``env.render()`` with
   ``render_mode="rgb_array"``); :mod:`comat.viz.video` encodes those frames to ``.mp4``/``.gif``
   (``comat rollout --video``).
 
 Entity layout: :mod:`comat.viz.scene`. Open a file with ``rerun file.rrd``.
 
-The names below load on first use: ``comat.viz.cli`` is imported by every ``comat`` command
-line, which should not pay for importing Rerun.
+The names below load on first use: importing :mod:`comat.viz` does not import Rerun.
 """
 
 from __future__ import annotations
@@ -25,6 +24,7 @@ __all__ = [
     "RolloutResult",
     "check_rrd_path",
     "record_episodes",
+    "record_training",
     "resolve_policy",
     "rollout_blueprint",
 ]
@@ -34,6 +34,7 @@ _HOME = {
     "RolloutResult": "comat.viz.rollout",
     "check_rrd_path": "comat.viz.rollout",
     "record_episodes": "comat.viz.rollout",
+    "record_training": "comat.viz.rollout",
     "resolve_policy": "comat.viz.rollout",
     "rollout_blueprint": "comat.viz.blueprint",
 }

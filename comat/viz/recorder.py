@@ -11,7 +11,7 @@ Per episode::
     recorder.end()                                        # before the next reset
 
 ``begin`` logs the static scene (:mod:`comat.viz.scene`) and hooks a
-:class:`~comat.viz.tap.TickTap` into the team's control ticks; ``step`` only appends arrays
+:class:`~comat.envs.tap.TickTap` into the team's control ticks; ``step`` only appends arrays
 to buffers; ``end`` sends every per-step entity in one ``send_columns`` call each, on the
 timelines ``step`` (sequence) and ``sim_time`` (duration, step × ticks × 0.033 s). Row counts
 per entity for an episode of T steps: state entities (robots, prey, task series) T + 1 rows,
@@ -30,9 +30,10 @@ import numpy as np
 import rerun as rr
 
 from comat import constants as C
+from comat.envs.render import reality_view
+from comat.envs.tap import EVENT_KINDS, StepSummary, TickTap
 from comat.sim.kinematics import projected_points
 from comat.task_logic import waypoint_goals
-from comat.viz.frames import reality_view
 from comat.viz.scene import (
     LOAD_BAR_M_PER_UNIT,
     LOAD_BAR_OFFSET_M,
@@ -41,7 +42,6 @@ from comat.viz.scene import (
     log_static_scene,
     meta_markdown,
 )
-from comat.viz.tap import EVENT_KINDS, StepSummary, TickTap
 
 __all__ = ["CAPABILITY_RING_SEGMENTS", "HEADING_ARROW_M", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP", "EpisodeRecorder"]
 

@@ -7,7 +7,7 @@ The file is written next to its target under a temporary name and renamed into p
 complete, so a failed rollout never leaves a half-written ``.rrd`` behind.
 
 Policies take the evaluation convention ``act(obs (B, N, D), mask (B, N), state (B, S) or
-None) -> actions (B, N)`` with B = 1 here (:mod:`comat.eval.episodes`). The scripted heuristic
+None) -> actions (B, N)`` with B = 1 here (:mod:`comat.measure.episodes`). The scripted heuristic
 reads the environment's task state (privileged; :mod:`comat.envs.heuristics`); ``"random"``
 draws uniform actions from a generator seeded by the rollout seed.
 
@@ -29,10 +29,19 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from comat.envs.heuristics import heuristic_actions, random_actions
+from comat.config import REFERENCE_TIER
+from comat.envs import make_env
+from comat.envs.base import resolve_coalitions
+from comat.envs.heuristics import BEST_CONSTANT_ACTION, heuristic_actions, random_actions
+from comat.rl.algos import policy_act, robot_slots
+from comat.rl.config import RunConfig
+from comat.rl.policy import load_policy
+from comat.rl.runner import EVAL_SEED_OFFSET
 from comat.team import COALITION_SETS, TeamSpec
 from comat.viz.blueprint import rollout_blueprint
 from comat.viz.recorder import EpisodeRecorder
+from comat.viz.video import VideoWriter, check_video_path
+from comat.viz.viewer import viewer_hint
 
 __all__ = [
     "POLICY_NAMES",
@@ -41,6 +50,7 @@ __all__ = [
     "check_rrd_path",
     "play_episodes",
     "record_episodes",
+    "record_training",
     "resolve_policy",
 ]
 
@@ -107,8 +117,6 @@ def _random(env, seed: int) -> Act:
 
 
 def _constant(env, seed: int) -> Act:
-    from comat.eval.evaluate import BEST_CONSTANT_ACTION
-
     action = BEST_CONSTANT_ACTION[env.task.name]
     return lambda obs, mask, state: np.where(mask, action, 0)
 
@@ -137,9 +145,6 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     if not Path(policy).is_file():
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
-    from comat.rl.algos import robot_slots
-    from comat.rl.runner import load_policy
-
     act, config = load_policy(policy, task=task)  # CheckpointError (a ValueError) names a task mismatch
     return PolicySpec(
         f"{config.algo} {'policy' if Path(policy).name.startswith('policy') else 'checkpoint'} {Path(policy).name}",
@@ -264,7 +269,7 @@ def record_episodes(
         teams: the team of each episode (else drawn from ``coalitions``: "train", "test", "scale" or
             a list of teams).
         seed: episode k resets with ``seed + k``.
-        tier: dynamics tier (default: the checkpoint's, else :data:`comat.cli_args.REFERENCE_TIER`).
+        tier: dynamics tier (default: the checkpoint's, else :data:`comat.config.REFERENCE_TIER`).
         ticks_per_step: control ticks per env step (default: the task's).
         use_state, max_robots: override what the policy declares (a trainer's own policy).
         policy_name: how the recording names the policy.
@@ -280,7 +285,6 @@ def record_episodes(
     """
     out = None if path is None else check_rrd_path(path)
     if video is not None:
-        from comat.viz.video import VideoWriter, check_video_path
 
         video = check_video_path(video)
     spec = policy if isinstance(policy, PolicySpec) else resolve_policy(policy, task)
@@ -298,30 +302,23 @@ def record_episodes(
         raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
     if isinstance(coalitions, str) and coalitions not in COALITION_SETS:
         raise ValueError(f"coalitions must be one of {list(COALITION_SETS)} or a list of teams, got {coalitions!r}")
-    import comat
-    from comat.cli_args import REFERENCE_TIER
-
     tier = tier or spec.tier or REFERENCE_TIER
     slots = max_robots if max_robots is not None else spec.max_robots
     # Given teams are the env's whole set: its robot slots fit the largest of them.
     pool = teams if teams is not None else coalitions
-    from comat.envs.base import resolve_coalitions
-
     largest = max(t.size for t in resolve_coalitions(pool, task))
     if slots is not None and largest > slots:
         raise ValueError(f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
                          f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)")
-    env = comat.make_env(
+    env = make_env(
         f"{task}_v0", coalitions=pool, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
         state_robots=slots or 8,  # a baseline's centralized state covers all its slots
         render_mode=None if video is None else "rgb_array", reality=reality,
     )
     act = spec.bind(env, seed)
-    from comat.eval.evaluate import reality_name
-
     meta = {
         "policy": policy_name or spec.name,
-        "reality": reality_name(env.core.reality_config),
+        "reality": env.core.reality_config.label,
         "coalition set": "given teams" if teams is not None else coalitions if isinstance(coalitions, str)
         else f"{len(coalitions)} teams given",
     }
@@ -376,3 +373,23 @@ def _result(path: Path | None, episodes: list[dict], wall_s: float) -> RolloutRe
     robot_steps = int(sum(e["steps"] * e["team_size"] for e in episodes))
     size = path.stat().st_size if path is not None else 0
     return RolloutResult(path, episodes, steps, robot_steps, size, wall_s)
+
+
+def record_training(config: RunConfig, modules: dict, out: Path, steps: int, episodes: int = 2) -> tuple[Path, str]:
+    """Record ``episodes`` evaluation episodes of a run being trained (the first training coalitions)
+    to ``out/rrd/eval_<env steps>.rrd``; returns the file and how to view it. The recorder that
+    :func:`comat.rl.runner.train` calls with ``rrd_every``."""
+    path = out / "rrd" / f"eval_{steps:012d}.rrd"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for m in modules.values():
+        m.eval()
+    try:
+        record_episodes(path, config.task, policy_act(config.algo, modules),
+                        teams=resolve_coalitions("train", config.task)[:episodes],
+                        seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier,
+                        max_robots=robot_slots(config), reality=config.reality,
+                        policy_name=f"{config.algo} after {steps:,} env steps")
+    finally:
+        for m in modules.values():
+            m.train()
+    return path, viewer_hint(path)

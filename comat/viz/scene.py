@@ -35,8 +35,9 @@ import numpy as np
 import rerun as rr
 
 from comat import constants as C
+from comat.envs.render import PREY_COLORS, TYPE_COLORS  # one palette for recordings and frames
 from comat.task_logic import ACTION_NAMES, ZONE1_CENTRE, ZONE1_RADIUS, ZONE2_X
-from comat.viz.frames import PREY_COLORS, TYPE_COLORS  # one palette for recordings and frames
+from comat.team import TASK_TYPES
 
 __all__ = [
     "ACTION_COLORS",
@@ -77,7 +78,6 @@ def circle_strip(centre: tuple[float, float], radius: float, segments: int = 48)
 
 def robot_labels(team) -> list[str]:
     """One label per robot: ``robot_i type`` and its non-zero capabilities."""
-    from comat.team import TASK_TYPES
 
     names = TASK_TYPES[team.task].capabilities
     out = []
@@ -222,7 +222,6 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
 
 def meta_markdown(meta: Mapping[str, Any], team, outcome: Mapping[str, float] | None) -> str:
     """The episode's metadata (and, once known, its outcome) as a markdown document."""
-    from comat.team import TASK_TYPES
 
     caps = TASK_TYPES[team.task].capabilities
     lines = [f"# {meta.get('title', 'episode')}", ""]

@@ -1,4 +1,4 @@
-"""Videos of episodes: frames of :mod:`comat.viz.frames` encoded to ``.mp4`` or ``.gif``, headless.
+"""Videos of episodes: frames of :mod:`comat.envs.render` encoded to ``.mp4`` or ``.gif``, headless.
 
 ``.mp4``: H.264 (yuv420p, what browsers and slide software play) through imageio's ffmpeg
 plugin, whose ``imageio-ffmpeg`` wheel ships an ffmpeg binary (no system install). ``.gif``:

@@ -31,7 +31,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from comat.eval.metrics import (
+from comat.measure.metrics import (
     current_names,  # files written before issue 32: today's names
     mean_ci,
 )

@@ -24,9 +24,9 @@ import warnings
 import numpy as np
 
 from comat import constants as C
+from comat.calibration.experiments import lane_poses, run_under_rps, simulate
+from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still
 from comat.reality import RealityLayer, resolve_reality
-from comat.reality.calibration import lane_poses, run_under_rps, simulate
-from comat.reality.fit import fit_ramp, fit_spin, fit_steps, fit_still
 from comat.sim.layout import team_layout
 
 warnings.simplefilter("ignore")  # rps's own warnings

@@ -19,10 +19,10 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
-from comat.cli_args import parse_team, resolve_policy_arg
-from comat.files import write_atomic
 from rows import keep_row, load_rows  # this folder's (run as a script, the folder is on the path)
+
+from comat.cli.args import parse_team, resolve_policy_arg
+from comat.files import write_atomic
 from sim2real.export import check_submission, export_submission
 
 HERE = Path(__file__).resolve().parent

@@ -25,12 +25,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from rows import keep_row, load_rows  # this folder's (run as a script, the folder is on the path)
 
-from comat.cli_args import parse_team, resolve_policy_arg
+from comat.cli.args import parse_team, resolve_policy_arg
 from comat.config import SafetyConfig
 from comat.envs import make_env
 from comat.files import write_atomic
-from rows import keep_row, load_rows  # this folder's (run as a script, the folder is on the path)
 from comat.team import TeamSpec
 from sim2real.export import _load_config, export_submission, run_mujoco, run_rps
 from sim2real.runtime import ComatRuntime

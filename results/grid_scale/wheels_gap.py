@@ -16,7 +16,7 @@ import json
 import sys
 from pathlib import Path
 
-from comat.eval.metrics import (
+from comat.measure.metrics import (
     current_names,  # files written before issue 32: today's names
     mean_ci,
 )

@@ -23,8 +23,8 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
-from comat.eval.metrics import current_names
-from comat.eval.stats import per_seed_means, t_interval, welch
+from comat.measure.metrics import current_names
+from comat.measure.stats import per_seed_means, t_interval, welch
 
 NAME = re.compile(r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
                   r"(?:_(?P<k>\d+)k)?$")

@@ -16,7 +16,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-from comat.eval.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import current_names  # files written before issue 32: today's names
 
 
 def _seed_rows(folder: Path) -> dict:

@@ -4,8 +4,8 @@ evaluation files that run.sh writes (no numbers typed by hand)."""
 import json
 from pathlib import Path
 
-from comat.eval.metrics import current_names  # files written before issue 32: today's names
-from comat.eval.report import SET_NAMES
+from comat.eval.runs import SET_NAMES
+from comat.measure.metrics import current_names  # files written before issue 32: today's names
 
 HERE = Path(__file__).resolve().parent
 COLUMNS = (("finished", "finished %", 100), ("progress", "progress %", 100), ("progress_auc", "progress AUC %", 100),

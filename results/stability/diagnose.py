@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from comat.envs.base import resolve_coalitions
-from comat.eval.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import current_names  # files written before issue 32: today's names
 
 SETS = ("train", "val", "test", "scale", "size", "capability")
 

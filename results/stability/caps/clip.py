@@ -15,11 +15,11 @@ import numpy as np
 
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
-from comat.eval.episodes import run_episodes
 from comat.eval.evaluate import EVAL_SEED
-from comat.eval.metrics import mean_ci
+from comat.measure.episodes import run_episodes
+from comat.measure.metrics import mean_ci
 from comat.rl.algos import BASELINE_ROBOTS, robot_slots
-from comat.rl.runner import load_policy
+from comat.rl.policy import load_policy
 from comat.team import CAPABILITY_RANGES
 
 EPISODES = 5

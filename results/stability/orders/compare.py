@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from comat.eval.metrics import current_names  # files written before issue 32: today's names
-from comat.eval.stats import t_interval
+from comat.measure.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.stats import t_interval
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -19,8 +19,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 from diagnose import _team_slow_payload
 
-from comat.eval.metrics import current_names
-from comat.eval.stats import t_interval
+from comat.measure.metrics import current_names
+from comat.measure.stats import t_interval
 
 NAME = re.compile(r"^(?:(?P<algo>mat)_)?(?P<variant>[a-z_]+?)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
 

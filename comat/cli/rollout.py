@@ -13,29 +13,12 @@ anything runs.
 from __future__ import annotations
 
 import argparse
-import shlex
 import sys
 import time
 
-__all__ = ["add_rollout_parser", "add_viz_bench_parser", "cmd_rollout", "cmd_viz_bench", "viewer_hint"]
+from comat.viz.viewer import viewer_hint
 
-WEB_VIEWER_URL = "http://localhost:9090/?url=rerun%2Bhttp%3A%2F%2Flocalhost%3A9876%2Fproxy"
-"""Where ``rerun --serve-web FILE.rrd`` (rerun 0.41) serves a recording: the web viewer on port 9090,
-the recording over gRPC on 9876."""
-
-
-def viewer_hint(path, environ=None) -> str:
-    """How to open a recording on this machine: the native viewer where there is a display, else
-    the web viewer served over HTTP (with the ssh port forward for a remote machine)."""
-    import os
-
-    env = os.environ if environ is None else environ
-    quoted = shlex.quote(str(path))
-    if env.get("DISPLAY") or env.get("WAYLAND_DISPLAY") or sys.platform in ("darwin", "win32"):
-        return f"open it with: rerun {quoted}"
-    return (f"no display here (DISPLAY and WAYLAND_DISPLAY unset): serve it with  rerun --serve-web {quoted}  and open "
-            f"{WEB_VIEWER_URL} in a browser (from another machine: ssh -L 9090:localhost:9090 -L 9876:localhost:9876 "
-            "HOST first)")
+__all__ = ["add_rollout_parser", "add_viz_bench_parser", "cmd_rollout", "cmd_viz_bench"]
 
 
 def _positive_int(text: str) -> int:
@@ -53,7 +36,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     import contextlib
     from pathlib import Path
 
-    from comat.cli_args import parse_team, parse_teams, reality_arg, resolve_policy_arg
+    from comat.cli.args import parse_team, parse_teams, reality_arg, resolve_policy_arg
     from comat.files import new_outputs
     from comat.viz.rollout import check_rrd_path, record_episodes
     from comat.viz.video import check_video_path
@@ -122,7 +105,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
 
 def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``rollout`` on the top-level ``subparsers`` of the ``comat`` parser."""
-    from comat.cli_args import (
+    from comat.cli.args import (
         add_force,
         add_policy,
         add_reality,
@@ -180,7 +163,7 @@ def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
 
 def cmd_viz_bench(args: argparse.Namespace) -> int:
     """``comat bench viz``: recording overhead and file size; JSON to ``--out`` plus a table."""
-    from comat.cli_args import REFERENCE_POLICIES, TASKS, resolve_policy_arg
+    from comat.cli.args import REFERENCE_POLICIES, TASKS, resolve_policy_arg
     from comat.viz.bench import run_viz_bench
 
     if args.policy in REFERENCE_POLICIES:
@@ -216,7 +199,7 @@ def add_viz_bench_parser(bench_subparsers) -> argparse.ArgumentParser:
         description="Run the same rollouts with and without Rerun recording, alternating, and report the median "
         "time overhead and the file size per robot-step.",
     )
-    from comat.cli_args import TASKS, add_policy, add_seed, add_tier
+    from comat.cli.args import TASKS, add_policy, add_seed, add_tier
 
     b.add_argument("--tasks", nargs="+", choices=TASKS, default=None,
                    help=f"tasks (default: {' '.join(TASKS)}; a checkpoint's own task)")

@@ -1,7 +1,7 @@
 """Evaluation episodes: given teams, run each for one episode with a policy, collect metrics.
 
 A policy here is any callable ``act(obs (B, N, D), mask (B, N), state (B, S) or None) ->
-actions (B, N)`` on numpy arrays — a trained model (``comat.rl.runner.load_policy``), the
+actions (B, N)`` on numpy arrays — a trained model (``comat.rl.policy.load_policy``), the
 scripted heuristic, or random actions.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 from comat.envs.core import EPISODE_METRICS
 from comat.envs.diagnostics import ROBOT_COUNTS
 from comat.envs.vector import VectorEnv
-from comat.eval.metrics import curve_endpoints
+from comat.measure.metrics import curve_endpoints
 from comat.team import TeamSpec
 
 __all__ = ["CURVE_DECIMALS", "SUMMED", "Policy", "robot_rows", "run_episodes", "summarize"]
@@ -74,7 +74,7 @@ def run_episodes(env: VectorEnv, act: Policy, teams: list[TeamSpec], seed: int, 
     ``episode_in_coalition`` (i // n_coalitions) for ``teams`` = n_coalitions coalitions
     repeated K times (None: every team its own coalition); ``progress_curve`` (progress after
     each env step, :data:`CURVE_DECIMALS`) with its endpoints ``progress_auc``, ``time_to_90``,
-    ``reached_90`` (:func:`comat.eval.metrics.curve_endpoints`); the task's end counts (HMT
+    ``reached_90`` (:func:`comat.measure.metrics.curve_endpoints`); the task's end counts (HMT
     ``on_board_end``, PCP ``sensed_not_captured``); ``robots`` and ``by_type``
     (:func:`robot_rows`; the counts are :data:`comat.envs.diagnostics.ROBOT_COUNTS`).
 

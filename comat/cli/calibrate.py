@@ -1,7 +1,7 @@
 """``comat calibrate LOGS... --out PROFILE.yaml``: fit the reality layer to calibration logs.
 
-Reads ``calib_<experiment>.npy`` logs (:mod:`comat.reality.calibration`; one or many runs),
-fits each parameter the logs identify (:mod:`comat.reality.fit`), prints a table (parameter,
+Reads ``calib_<experiment>.npy`` logs (:mod:`comat.calibration.experiments`; one or many runs),
+fits each parameter the logs identify (:mod:`comat.calibration.fit`), prints a table (parameter,
 estimate, 95 % interval over robots, robots and runs used, a note) and writes a profile that
 ``comat train ... reality=PROFILE.yaml`` and ``comat eval --reality PROFILE.yaml`` take: the
 layer at ``off`` with the identified fields set (what the logs cannot show stays off and is
@@ -37,7 +37,7 @@ def _cmd(args: argparse.Namespace) -> int:
     if args.simulate is not None:
         import numpy as np
 
-        from comat.reality.calibration import EXPERIMENTS, simulate
+        from comat.calibration.experiments import EXPERIMENTS, simulate
 
         reality = args.simulate
         if reality.startswith("{"):
@@ -52,8 +52,8 @@ def _cmd(args: argparse.Namespace) -> int:
                 write_atomic(buf_path, buf.getvalue())
                 print(f"wrote {buf_path} ({log.shape[0]} iterations, {log.shape[1]} robots)")
         return 0
+    from comat.calibration.fit import fit_logs, profile_fields
     from comat.reality import RealityConfig
-    from comat.reality.fit import fit_logs, profile_fields
 
     if not args.logs:
         raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
@@ -83,7 +83,7 @@ def _cmd(args: argparse.Namespace) -> int:
 
 def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     """``comat calibrate`` on the top-level sub-parsers."""
-    from comat.cli_args import add_force
+    from comat.cli.args import add_force
 
     p = subparsers.add_parser(
         "calibrate", help="fit the reality layer to calibration logs (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)",

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from comat.cli_args import ALGOS, TASKS, TIERS, add_force
+from comat.cli.args import ALGOS, TASKS, TIERS, add_force
 
 __all__ = ["MEASURED_ENV_STEPS_PER_S", "add_train_parsers", "cmd_policy", "cmd_train", "paper_budget_note",
            "print_policy_file"]
@@ -38,7 +38,6 @@ def paper_budget_note(config) -> str:
 def cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from comat.eval.evaluate import reality_name
     from comat.machine import usable_cpus
     from comat.rl.checkpoint import load_checkpoint
     from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
@@ -76,13 +75,17 @@ def cmd_train(args: argparse.Namespace) -> int:
         print(f"note: torch_threads {config.torch_threads} > the {cpus} CPU(s) this run may use (affinity): "
               f"using {cpus}", file=sys.stderr)
         config = RunConfig.from_dict({**config.to_dict(), "torch_threads": cpus})
-    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {reality_name(config.reality)}, "
+    print(f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {config.reality.label}, "
           f"updates on {config.device}), seed {config.seed}, "
           f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}; "
           f"CPUs: {cpus} usable (affinity), torch threads {config.torch_threads}, env workers {config.env_workers}",
           file=sys.stderr)
+    record = None
+    if args.rrd_every:
+        from comat.viz import record_training as record  # Rerun loads only when a run records
+
     summary = train(config, out, resume=args.resume, quiet=args.quiet, rrd_every=args.rrd_every,
-                    overrides=tuple(args.overrides))
+                    overrides=tuple(args.overrides), record=record)
     ev = summary["eval_train"]
     result = "" if ev is None else (
         f"; on the training coalitions (deterministic): return {ev['return']:.2f}, finished "

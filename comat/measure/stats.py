@@ -60,7 +60,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from comat.eval.metrics import mean_ci
+from comat.measure.metrics import mean_ci
 
 __all__ = ["BOOTSTRAP_REPS", "cell_means", "hierarchical_bootstrap", "iqm", "per_seed_means", "t_interval", "welch"]
 

@@ -27,8 +27,8 @@ __all__ = ["add_export_parser", "load_start_poses", "parse_team"]
 
 def parse_team(value: str, task: str):
     """A TeamSpec from ``train:K`` / ``test:K`` / ``scale:K`` (coalition K of that set) or a JSON/YAML file
-    (:func:`comat.cli_args.parse_team`, the grammar every command shares)."""
-    from comat.cli_args import parse_team as parse
+    (:func:`comat.cli.args.parse_team`, the grammar every command shares)."""
+    from comat.cli.args import parse_team as parse
 
     return parse(value, task)
 
@@ -154,7 +154,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
                   f"{rps['robots']} robots, rps errors {rps['rps_errors']}; log {rps['log']}; fit per robot: {shown}")
         return 1 if bad else 0
     if args.check:
-        from comat.cli_args import reality_arg
+        from comat.cli.args import reality_arg
 
         if args.timeout <= 0:
             raise ValueError(f"--timeout must be > 0 seconds, got {args.timeout}")
@@ -180,7 +180,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
         if reality is not None:
             bad += _print_reality(args.check, reports, args.tier)
         return 1 if bad else 0
-    from comat.cli_args import reality_arg, resolve_policy_arg
+    from comat.cli.args import reality_arg, resolve_policy_arg
 
     missing = [f"--{k}" for k in ("policy", "team", "out") if getattr(args, k) is None]
     if missing:
@@ -204,7 +204,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                               description="Export a COMAT checkpoint or policy.pt (or the scripted policy) as a flat "
                               "Robotarium submission (main.py, runtime.py, task_logic.py, submission_config.py, "
                               "weights.npy), or --check an exported folder: run it under rps and in MuJoCo and compare.")
-    from comat.cli_args import TIERS, add_policy, add_seed, add_task, add_team
+    from comat.cli.args import TIERS, add_policy, add_seed, add_task, add_team
 
     add_policy(p, required=True, references=("heuristic",))  # no default: an export names what it ships
     add_task(p)

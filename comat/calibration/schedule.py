@@ -1,6 +1,6 @@
 """The calibration experiments' command schedules (numpy only: shipped verbatim in every
 Robotarium calibration folder by ``comat export --calibration``, and used by comat's simulator
-runs, so both drive the robots alike). See :mod:`comat.reality.calibration`."""
+runs, so both drive the robots alike). See :mod:`comat.calibration.experiments`."""
 
 import numpy as np
 

@@ -5,8 +5,8 @@ a robot gets a unicycle command (v, ω) that depends only on the iteration and t
 logs, per iteration, the time, the commanded (v, ω) and the pose the robot's script received, as
 one float64 array (K, N, 6) with the columns :data:`LOG_COLUMNS`, saved as
 ``calib_<experiment>.npy`` — the same format whether the run happened on the Robotarium (its
-``main.py`` saves it, issue 31) or in comat's simulator with the reality layer at known values
-(:func:`simulate`), which is how the fit (:mod:`comat.reality.fit`) is proven on known truth.
+``main.py`` saves it) or in comat's simulator with the reality layer at known values
+(:func:`simulate`), which is how the fit (:mod:`comat.calibration.fit`) is proven on known truth.
 
 Experiments (:data:`EXPERIMENTS`):
 
@@ -34,7 +34,11 @@ from pathlib import Path
 import numpy as np
 
 from comat import constants as C
-from comat.reality.calibration_schedule import EXPERIMENTS, LOG_COLUMNS, lane_poses, schedule
+from comat.calibration.schedule import EXPERIMENTS, LOG_COLUMNS, lane_poses, schedule
+from comat.config import SimConfig
+from comat.control import SafeTeams
+from comat.reality import RealityLayer, resolve_reality
+from comat.sim.layout import team_layout
 
 __all__ = ["EXPERIMENTS", "LOG_COLUMNS", "lane_poses", "load_log", "run_under_rps", "schedule", "simulate"]
 
@@ -49,9 +53,6 @@ def simulate(experiment: str, reality, n: int = 4, seed: int = 0, tier: str | No
     unicycle model, what ``rps`` does), so the log shows the layer and nothing else: the known
     truth a fit must recover. ``"unicycle"`` or ``"wheels"``: comat's MuJoCo tiers, whose own
     actuator response (the unicycle tier's ~12 ms servo) then adds to the layer's."""
-    from comat.reality import RealityLayer, resolve_reality
-    from comat.sim.layout import team_layout
-
     if experiment not in EXPERIMENTS:
         raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
     config = resolve_reality(reality)
@@ -77,9 +78,6 @@ def simulate(experiment: str, reality, n: int = 4, seed: int = 0, tier: str | No
 
 
 def _simulate_tier(experiment: str, config, n: int, seed: int, tier: str, log: np.ndarray) -> np.ndarray:
-    from comat.config import SimConfig
-    from comat.control import SafeTeams
-
     teams = SafeTeams((n,), SimConfig(tier=tier), reality=config, reality_seed=seed)
     teams.reset(lane_poses(n))
     overrun = np.zeros(n, dtype=bool)

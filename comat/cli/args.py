@@ -16,7 +16,7 @@ Shared flags, defined here once so their spelling, choices (in one order) and de
                      ``both`` (train and test), ``all`` (every set), or a file (a coalition list ``{"coalitions": [...]}`` or one team);
                      default ``both``
 ``--tier T``         ``wheels`` or ``unicycle``; default the checkpoint's training tier, else
-                     :data:`REFERENCE_TIER`
+                     :data:`comat.config.REFERENCE_TIER`
 ``--seed S``         default :data:`DEFAULT_SEED` (the evaluation seed; never a training seed)
 ``--reality L``      ``off``, ``nominal`` or ``stress``: the reality layer the episodes play at
                      (:mod:`comat.reality`); default ``off``, never the policy's training level
@@ -35,6 +35,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from comat.config import REFERENCE_TIER
 from comat.reality.config import REALITY_LEVELS
 from comat.team import COALITION_SETS
 
@@ -43,7 +44,6 @@ __all__ = [
     "DEFAULT_SEED",
     "DEFAULT_TEAMS",
     "REFERENCE_POLICIES",
-    "REFERENCE_TIER",
     "TASKS",
     "TIERS",
     "PolicyArg",
@@ -69,9 +69,6 @@ TASKS = ("pcp", "hmt")
 TIERS = ("wheels", "unicycle")
 ALGOS = ("comat", "mat", "mappo", "qmix")
 REFERENCE_POLICIES = ("heuristic", "random", "constant")
-REFERENCE_TIER = "unicycle"
-"""Tier of a policy that has no training tier (the reference policies): the presets' training tier,
-so reference numbers sit next to a checkpoint's evaluated in the same dynamics."""
 DEFAULT_SEED = 2_000_003
 """Default ``--seed`` of episodes a command plays (comat.eval.evaluate.EVAL_SEED)."""
 DEFAULT_TEAMS = "both"
@@ -92,7 +89,7 @@ class _Deprecated(argparse.Action):
 
 def comat_version() -> str:
     """The package version and the source commit it runs from (when known)."""
-    from comat import __version__
+    from comat._version import __version__
     from comat.rl.checkpoint import source_commit
 
     commit = source_commit()
@@ -196,7 +193,7 @@ def add_force(p: argparse.ArgumentParser) -> None:
 class PolicyArg:
     """A resolved ``--policy``: a reference policy's name, or a trained policy's file with its run's
     facts. ``checkpoint`` is that file, a ``checkpoint.pt`` or a ``policy.pt`` (``kind`` says which;
-    both load with :func:`comat.rl.runner.load_policy`)."""
+    both load with :func:`comat.rl.policy.load_policy`)."""
 
     name: str
     task: str
@@ -208,7 +205,7 @@ class PolicyArg:
 
     @property
     def tier(self) -> str:
-        """The default tier: the training tier of a checkpoint, else :data:`REFERENCE_TIER`."""
+        """The default tier: the training tier of a checkpoint, else :data:`comat.config.REFERENCE_TIER`."""
         return self.trained_tier or REFERENCE_TIER
 
 
@@ -234,7 +231,7 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
             raise ValueError(f"--task is needed with --policy {policy} (a reference policy has no task of its own)")
         return PolicyArg(policy, task)
     path = Path(policy)
-    if not path.exists() and not policy.startswith("pretrained:"):  # comat.policy_api.PRETRAINED: policy_file_of
+    if not path.exists() and not policy.startswith("pretrained:"):  # comat.rl.policy.PRETRAINED: policy_file_of
         refs = f", or one of {', '.join(references)}" if references else ""
         raise ValueError(f"--policy must be {what}{refs}, got {policy!r} (no such file)")
     path = policy_file_of(path, need_checkpoint)

@@ -1,4 +1,4 @@
-"""Fit the reality layer's parameters to calibration logs (:mod:`comat.reality.calibration`).
+"""Fit the reality layer's parameters to calibration logs (:mod:`comat.calibration.experiments`).
 
 Per robot, then over robots (the robots are the replicated unit: the interval is the 95 %
 Student-t interval over the per-robot estimates; with one robot it is nan):
@@ -34,8 +34,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from comat import constants as C
-from comat.reality.calibration import load_log
-from comat.reality.calibration_schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
+from comat.calibration.experiments import load_log
+from comat.calibration.schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
+from comat.measure.stats import t_interval
 
 FULL_STEP = FULL_FRACTION
 """The ``steps`` experiment's full speed, as a fraction of the top speed."""
@@ -235,8 +236,6 @@ def fit_still(log: np.ndarray) -> list[dict]:
 
 
 def _interval(values: Sequence[float]) -> tuple[float, float, float]:
-    from comat.eval.stats import t_interval
-
     v = [x for x in values if np.isfinite(x)]
     if not v:
         return float("nan"), float("nan"), float("nan")

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +35,12 @@ PARTS = ("all", "physics", "tasks", "pretrained", "train")
 
 def run_demo(
     tier: str = "wheels", robots: int = 8, episodes: int = 4, seed: int = 0, out: str | None = None, part: str = "all",
-    folder: str = "runs/demo",
+    folder: str = "runs/demo", command: Callable[[list[str]], int] | None = None,
 ) -> int:
     """Run the demo and print its summary; returns a process exit code (0 = all safe, and the
-    pretrained policy's files written and checked)."""
+    pretrained policy's files written and checked). ``command(argv) -> exit code`` runs a ``comat``
+    command line (:func:`comat.cli.main`, which passes itself: the pretrained part records, exports
+    and checks the shipped policy exactly as a user would)."""
     if part not in PARTS:
         raise ValueError(f"--part must be one of {list(PARTS)}, got {part!r}")
     summary: dict = {"tier": tier, "seed": seed}
@@ -49,7 +52,9 @@ def run_demo(
         tasks_ok, summary["tasks"] = _tasks(tier, episodes, seed)
         ok &= tasks_ok
     if part in ("all", "pretrained"):
-        pre_ok, summary["pretrained"] = _pretrained(tier, episodes, seed, Path(folder))
+        if command is None:
+            raise ValueError("run_demo: the pretrained part needs command= (comat.cli.main), got None")
+        pre_ok, summary["pretrained"] = _pretrained(tier, episodes, seed, Path(folder), command)
         ok &= pre_ok
     if part == "train":
         summary["train"] = _train(seed)
@@ -115,7 +120,7 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
 def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     from comat.envs import make_vec_env
     from comat.envs.heuristics import heuristic_actions, random_actions
-    from comat.eval.episodes import run_episodes, summarize
+    from comat.measure.episodes import run_episodes, summarize
     from comat.team import generate_coalitions
 
     rng = np.random.default_rng(seed)
@@ -146,12 +151,11 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     return ok, {"episodes": episodes, "rows": rows}
 
 
-def _pretrained(tier: str, episodes: int, seed: int, folder: Path) -> tuple[bool, dict]:
+def _pretrained(tier: str, episodes: int, seed: int, folder: Path, comat: Callable[[list[str]], int]) -> tuple[bool, dict]:
     """The shipped COMAT PCP policy on unseen teams: .rrd, video and a checked Robotarium export."""
     import shutil
 
-    from comat.cli import main as comat
-    from comat.policy_api import PRETRAINED
+    from comat.rl.policy import PRETRAINED
 
     print(f"\npretrained policy: {PRETRAINED['comat-pcp']['what']}\n"
           f"{episodes} unseen U_test team(s), {tier} tier; files in {folder}/")
@@ -173,9 +177,11 @@ def _pretrained(tier: str, episodes: int, seed: int, folder: Path) -> tuple[bool
 def _train(seed: int) -> dict:
     from comat.envs.base import resolve_coalitions
     from comat.envs.heuristics import random_actions
-    from comat.eval.episodes import run_episodes, summarize
+    from comat.measure.episodes import run_episodes, summarize
+    from comat.rl.algos import make_run_env
     from comat.rl.config import load_preset, resolve
-    from comat.rl.runner import EVAL_SEED_OFFSET, _make_env, load_policy, train
+    from comat.rl.policy import load_policy
+    from comat.rl.runner import EVAL_SEED_OFFSET, train
 
     config = resolve(load_preset("quick"), "comat", "pcp", seed=seed)
     out = Path("runs") / f"demo-comat-pcp-{time.strftime('%Y%m%d-%H%M%S')}"
@@ -191,7 +197,7 @@ def _train(seed: int) -> dict:
     print(f"trained in {minutes:.1f} min; one deterministic episode per coalition:\n{head}\n{'-' * len(head)}")
     for split in ("train", "test"):
         teams = resolve_coalitions(split, "pcp")
-        env = _make_env(config, len(teams), seed + EVAL_SEED_OFFSET, split)
+        env = make_run_env(config, len(teams), seed + EVAL_SEED_OFFSET, split)
         trained = summarize(run_episodes(env, act, teams, seed + EVAL_SEED_OFFSET))
         random = summarize(run_episodes(env, lambda obs, mask, state: random_actions(rng, mask), teams,
                                         seed + EVAL_SEED_OFFSET))

@@ -5,7 +5,7 @@ One drawing serves ``env.render()`` (``render_mode="rgb_array"``) and ``comat ro
 * :class:`EpisodeFrames` follows one team of a :class:`comat.envs.core.TaskCore` through an
   episode — ``begin`` after a reset, ``after_step`` after every env step — keeping the robots'
   trails and what the safety filter changed in the last step (through a
-  :class:`comat.viz.tap.TickTap` on the team's control ticks), and ``frame()`` draws the
+  :class:`comat.envs.tap.TickTap` on the team's control ticks), and ``frame()`` draws the
   current state as an (H, W, 3) uint8 array, H × W = :data:`FRAME_SIZE`.
 * :func:`draw_frame` draws a :class:`FrameState` (plain arrays, no env needed).
 
@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from comat import constants as C
+from comat.envs.tap import TickTap
 from comat.task_logic import ZONE1_CENTRE, ZONE1_RADIUS, ZONE2_X
 
 __all__ = [
@@ -321,7 +322,6 @@ class EpisodeFrames:
 
     def begin(self, core, b: int = 0) -> None:
         """Start following env ``b`` of ``core``, just reset (a new team: a new tick tap)."""
-        from comat.viz.tap import TickTap
 
         self.close()
         self._core, self._b = core, b

@@ -1,0 +1,11 @@
+"""Calibration: short system-identification runs on the Robotarium, and the fit of the reality layer to their logs.
+
+* :mod:`comat.calibration.schedule`: the experiments' command schedules (numpy only: shipped
+  verbatim in the calibration export as ``calibration_schedule.py``);
+* :mod:`comat.calibration.experiments`: the same experiments simulated under a known reality
+  layer (:func:`simulate`), and the log format (:func:`load_log`);
+* :mod:`comat.calibration.fit`: the fit of the layer's fields from the logs (:func:`fit_logs`).
+
+A floor above :mod:`comat.control` and :mod:`comat.reality` (the layer it fits) and
+:mod:`comat.measure` (its intervals); ``comat calibrate`` (:mod:`comat.cli.calibrate`) drives it.
+"""
