@@ -6,7 +6,6 @@ import json
 import os
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,11 +13,9 @@ import yaml
 
 from comat.calibration.experiments import run_under_rps, simulate
 from comat.calibration.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still
+from comat.calibration.recovery import check, recover, setting, true_half_gain_diff
 from comat.cli import main
 from comat.reality import RealityConfig, resolve_reality
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "results" / "calibration"))
-from recovery import check, recover, setting
 
 
 def test_known_truth_is_recovered_within_tolerance():
@@ -49,8 +46,6 @@ def test_the_spin_sees_the_wheels_gain_difference_and_its_fit_joins_the_profile(
     """Known per-wheel gains (spread 0.05) with lag, delay and 1 mm noise: each robot's (g_r - g_l)/2
     from the circle its centre draws within 0.005 of the layer's draw; a spin log alone gives the
     delay, the lag and the spread; every log's loop tick is reported (0.033 s in comat)."""
-    from recovery import true_half_gain_diff
-
     truth = {"wheel_gain_spread": 0.05, "pose_noise_xy_m": 0.001, "pose_delay_ticks": 2, "motor_tau_min_s": 0.05,
              "motor_tau_max_s": 0.05}
     log = simulate("spin", truth, n=4, seed=3)

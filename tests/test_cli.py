@@ -1,3 +1,4 @@
+import argparse
 import json
 import subprocess
 import sys
@@ -7,16 +8,30 @@ import pytest
 from comat.cli import build_parser, main
 
 
+def _command_paths(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    """Every command and sub-command the parser knows, found by walking its sub-parsers."""
+    paths = [prefix]
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                paths += _command_paths(sub, (*prefix, name))
+    return paths
+
+
 def test_every_command_has_help(capsys):
+    """Walks the parser, so a new command (or bench) cannot be missed: each prints its help, with a
+    description, and exits 0."""
     parser = build_parser()
-    for argv in (["--help"], ["mjcf", "--help"], ["demo", "--help"], ["bench", "sim", "--help"], ["bench", "fidelity", "--help"],
-                 ["bench", "soak", "--help"], ["bench", "env", "--help"], ["bench", "learn", "--help"], ["bench", "viz", "--help"], ["train", "--help"],
-                 ["eval", "--help"], ["report", "--help"], ["sweep", "--help"], ["rollout", "--help"], ["export", "--help"],
-                 ["coalitions", "--help"], ["policy", "--help"]):
+    paths = _command_paths(parser)
+    assert {("calibrate",), ("probe",), ("bench", "safety"), ("bench", "viz"), ("export",)} <= set(paths)
+    helps = {}
+    for path in paths:
         with pytest.raises(SystemExit) as exc:
-            parser.parse_args(argv)
-        assert exc.value.code == 0
-    assert "barrier filter" in capsys.readouterr().out
+            parser.parse_args([*path, "--help"])
+        assert exc.value.code == 0, path
+        helps[path] = capsys.readouterr().out
+        assert helps[path].startswith("usage: comat"), path
+    assert "barrier filter" in helps[("demo",)] and "Robotarium" in helps[()]
 
 
 def test_mjcf_command_writes_the_golden_files(tmp_path, capsys):

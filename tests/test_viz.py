@@ -512,3 +512,17 @@ def test_the_viewer_hint_works_on_the_machine_it_is_printed_on():
     headless = viewer_hint("x.rrd", {})
     if sys.platform not in ("darwin", "win32"):
         assert "rerun --serve-web x.rrd" in headless and WEB_VIEWER_URL in headless and "ssh -L 9090" in headless
+
+
+def test_a_shipped_policy_is_named_as_such_in_recordings_and_videos(tmp_path):
+    """The header of a recording (and each video frame's caption) names ``pretrained:NAME``, not the
+    file the name resolves to; a copy of that file elsewhere is just a checkpoint file."""
+    import shutil
+
+    from comat.rl.policy import pretrained_path
+    from comat.viz.rollout import resolve_policy
+
+    shipped = pretrained_path("comat-pcp")
+    assert resolve_policy(shipped, "pcp").name == "comat shipped policy pretrained:comat-pcp"
+    copy = shutil.copyfile(shipped, tmp_path / "comat_pcp_s0.pt")
+    assert resolve_policy(copy, "pcp").name == "comat checkpoint comat_pcp_s0.pt"

@@ -4,7 +4,8 @@
   verbatim in the calibration export as ``calibration_schedule.py``);
 * :mod:`comat.calibration.experiments`: the same experiments simulated under a known reality
   layer (:func:`simulate`), and the log format (:func:`load_log`);
-* :mod:`comat.calibration.fit`: the fit of the layer's fields from the logs (:func:`fit_logs`).
+* :mod:`comat.calibration.fit`: the fit of the layer's fields from the logs (:func:`fit_logs`);
+* :mod:`comat.calibration.recovery`: the proof on known truth (simulate at a known layer, fit back, check).
 
 A floor above :mod:`comat.control` and :mod:`comat.reality` (the layer it fits) and
 :mod:`comat.measure` (its intervals); ``comat calibrate`` (:mod:`comat.cli.calibrate`) drives it.

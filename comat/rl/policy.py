@@ -77,6 +77,14 @@ def pretrained_path(name: str, flag: str = "--policy") -> Path:
     return PRETRAINED_DIR / PRETRAINED[key]["file"]
 
 
+def shipped_name(path: str | Path) -> str | None:
+    """``pretrained:NAME`` when ``path`` is the file of a policy that ships with comat, else None
+    (recordings and videos name a shipped policy as such, not by its file)."""
+    resolved = Path(path).resolve()
+    return next((PREFIX + key for key, entry in PRETRAINED.items()
+                 if resolved == (PRETRAINED_DIR / entry["file"]).resolve()), None)
+
+
 def format_size(n_bytes: int) -> str:
     """``371 KB`` / ``2.4 MB`` (1 KB = 1000 bytes)."""
     if n_bytes < 1_000_000:

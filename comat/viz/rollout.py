@@ -35,7 +35,7 @@ from comat.envs.base import resolve_coalitions
 from comat.envs.heuristics import BEST_CONSTANT_ACTION, heuristic_actions, random_actions
 from comat.rl.algos import policy_act, robot_slots
 from comat.rl.config import RunConfig
-from comat.rl.policy import load_policy
+from comat.rl.policy import load_policy, shipped_name
 from comat.rl.runner import EVAL_SEED_OFFSET
 from comat.team import COALITION_SETS, TeamSpec
 from comat.viz.blueprint import rollout_blueprint
@@ -146,8 +146,10 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
     act, config = load_policy(policy, task=task)  # CheckpointError (a ValueError) names a task mismatch
+    shipped = shipped_name(policy)
+    kind = "policy" if Path(policy).name.startswith("policy") else "checkpoint"
     return PolicySpec(
-        f"{config.algo} {'policy' if Path(policy).name.startswith('policy') else 'checkpoint'} {Path(policy).name}",
+        f"{config.algo} shipped policy {shipped}" if shipped else f"{config.algo} {kind} {Path(policy).name}",
         lambda env, seed: act,
         max_robots=robot_slots(config),
         tier=config.tier,
