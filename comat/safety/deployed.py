@@ -490,13 +490,13 @@ class PortableBarrier:
         A, b, u0 = np.vstack(rows), np.concatenate(bounds), u_nom.ravel().astype(float)
         if np.all(A @ u0 <= b):  # the nominal command meets every row: it is the optimum
             return u_nom.reshape(n, 2).astype(float)
-        u, status = self.solve(u0, A, b)
+        u, _ = self.solve(u0, A, b)
         if u is None:  # outside the safe set: relax the pair and wall rows (the last 4n rows are the wheels')
             soft = A.shape[0] - 4 * n
             m = A.shape[0]
             relaxed = np.hstack([A, np.vstack([-np.eye(soft), np.zeros((m - soft, soft))])])
             positive = np.hstack([np.zeros((soft, 2 * n)), -np.eye(soft)])
-            z, status = self.solve(np.concatenate([u0, np.zeros(soft)]), np.vstack([relaxed, positive]),
+            z, _ = self.solve(np.concatenate([u0, np.zeros(soft)]), np.vstack([relaxed, positive]),
                                    np.concatenate([b, np.zeros(soft)]),
                                    np.concatenate([np.ones(2 * n), np.full(soft, SLACK_WEIGHT)]))
             if z is None:

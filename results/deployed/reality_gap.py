@@ -46,8 +46,8 @@ def measure(task: str, k: int, filter_name: str, level: str, repeats: int, scrat
 
 
 def table(rows: list[dict]) -> str:
-    out = ["| task | filter | level | teams | progress %: deployed | comat's loop | steps: deployed | comat's loop | "
-           "runs with collisions | closest (m) | rps errors |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = [("| task | filter | level | teams | progress %: deployed | comat's loop | steps: deployed | comat's loop | "
+            "runs with collisions | closest (m) | rps errors |"), "|---|---|---|---|---|---|---|---|---|---|---|"]
     for task in ("hmt", "pcp"):
         for f in ("robotarium", "comat"):
             for level in ("off", "nominal"):
@@ -55,7 +55,7 @@ def table(rows: list[dict]) -> str:
                 if not sel:
                     continue
 
-                def mean(key: str) -> float:
+                def mean(key: str, sel: list[dict] = sel) -> float:
                     return float(np.mean([float(r[key]) for r in sel]))
 
                 out.append(f"| {task.upper()} | {f} | {level} | {len(sel)} | {100 * mean('deployed_progress'):.1f} | "

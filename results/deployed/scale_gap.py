@@ -77,8 +77,8 @@ def measure(task: str, k: int, filter_name: str, rps: str, scratch: Path) -> dic
 
 
 def table(rows: list[dict]) -> str:
-    out = ["| task | robots | teams | filter | progress %: V2 rps | MuJoCo, deployed loop | MuJoCo, comat's loop | "
-           "rps − comat's loop | of which the loop | steps: V2 rps | deployed | comat's | rps errors |",
+    out = [("| task | robots | teams | filter | progress %: V2 rps | MuJoCo, deployed loop | MuJoCo, comat's loop | "
+            "rps − comat's loop | of which the loop | steps: V2 rps | deployed | comat's | rps errors |"),
            "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for task in ("hmt", "pcp"):
         for n in sorted({r["robots"] for r in rows if r["task"] == task}):
