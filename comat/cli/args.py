@@ -202,6 +202,17 @@ class PolicyArg:
     trained_tier: str | None = None
     kind: str | None = None
     """"checkpoint" or "policy" (a policy file); None for a reference policy."""
+    shipped: str | None = None
+    """``pretrained:NAME`` for a policy that ships with comat, else None."""
+
+    @property
+    def default_out(self) -> Path | None:
+        """Where a command writes when ``--out`` is not given: a trained policy's run folder, but for a
+        shipped policy ``runs/pretrained-NAME`` (nothing is ever written into the installed package,
+        and each shipped policy gets its own folder); None for a reference policy (``--out`` needed)."""
+        if self.shipped is not None:
+            return Path("runs") / self.shipped.replace(":", "-")
+        return None if self.checkpoint is None else self.checkpoint.parent
 
     @property
     def tier(self) -> str:
@@ -216,7 +227,7 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
     ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
     learner's value estimates"); a policy file is then refused with that reason."""
     from comat.rl.checkpoint import POLICY_FORMAT, load_checkpoint, load_trained
-    from comat.rl.policy import policy_file_of
+    from comat.rl.policy import policy_file_of, shipped_name
 
     what = "a checkpoint.pt or a run folder" if need_checkpoint else "a policy.pt, a checkpoint.pt or a run folder"
     if policy is None:
@@ -250,7 +261,7 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
         raise ValueError(f"--policy must be a checkpoint or policy file of {'/'.join(algos)} here, got a "
                          f"{data['algo']} {noun} ({path})")
     tier = (data.get("config") or {}).get("tier")
-    return PolicyArg(f"{data['algo']} {kind}", data["task"], path, data["algo"], tier, kind)
+    return PolicyArg(f"{data['algo']} {kind}", data["task"], path, data["algo"], tier, kind, shipped_name(path))
 
 
 def _read_team_file(value: str, task: str, flag: str):

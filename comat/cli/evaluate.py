@@ -40,7 +40,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     pol = resolve_policy_arg(args.policy, args.task)
     if args.out is None and pol.checkpoint is None:
         raise ValueError(f"--out is needed with --policy {pol.name} (the default is a checkpoint's run folder)")
-    out = Path(args.out) if args.out else pol.checkpoint.parent
+    out = Path(args.out) if args.out else pol.default_out
     named = parse_teams(args.teams, pol.task)
     tier = args.tier or pol.tier
     level = Path(reality).stem if reality.endswith((".yaml", ".yml")) else reality  # a profile: its file's name
@@ -80,7 +80,7 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 
     pol = resolve_policy_arg(args.policy, None, references=(),
                              need_checkpoint="comat probe reads the learner's value estimates (critic, mixer)")
-    out = Path(args.out) if args.out else pol.checkpoint.parent
+    out = Path(args.out) if args.out else pol.default_out
     with new_outputs(out, ["probe.json"], force=args.force):
         print(f"comat probe: {pol.checkpoint}", file=sys.stderr)
         result = probe_checkpoint(pol.checkpoint, seed=args.seed, num_envs=args.envs)
@@ -185,7 +185,7 @@ def add_evaluate_parsers(sub) -> None:
                        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
                        "scripted heuristic, the best constant action and a random policy, on the coalition sets "
                        "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, evaluation_<tier>.json "
-                       "and .csv in --out (default: the checkpoint's run folder); at --reality nominal or stress, "
+                       "and .csv in --out (default: the checkpoint's run folder; runs/pretrained-NAME for a shipped policy); at --reality nominal or stress, "
                        "evaluation_<tier>_<level>.json and .csv. The reality layer defaults to off whatever level "
                        "the policy trained at. --reality-sweep COMPONENT plays at three or more values of one "
                        "component instead (evaluation_<tier>_sweep_<component>.json/.csv; comat report draws them).")
@@ -204,7 +204,7 @@ def add_evaluate_parsers(sub) -> None:
                    "(default: %(default)s)")
     p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
     p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
-                   "folder)")
+                   "folder; for pretrained:NAME, runs/pretrained-NAME: nothing is written into the package)")
     add_force(p)
     p.set_defaults(func=_cmd_eval)
 
