@@ -17,7 +17,7 @@ from comat import constants as C
 from comat.cli.rollout import add_rollout_parser, add_viz_bench_parser
 from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.envs.tap import MIN_CHANGE_MPS
-from comat.team import random_team
+from comat.team import TeamSpec, random_team
 from comat.viz import EpisodeRecorder, check_rrd_path, record_episodes
 from comat.viz.bench import run_viz_bench
 from comat.viz.recorder import SAFETY_ARROW_S
@@ -220,9 +220,9 @@ def test_recording_matches_the_env(tmp_path, task, policy):
     events = np.array([np.any([t[1] for t in ticks], axis=(0, 2)) for ticks in ref.steps])  # (T, n)
     markers = [len(v) for v in column(temporal[f"{w}/events"], "Points2D:positions")]
     assert markers == events.sum(axis=1).tolist()
-    log = temporal.get("/episode_0/events")  # a line per step with events or a braking team
+    log = temporal["/episode_0/events"]  # a line per step with events or a braking team, else one saying so
     expect = int((events.any(axis=1) | (counts[:, names.index("fallbacks")] > 0)).sum())
-    assert (0 if log is None else log.num_rows) == expect
+    assert log.num_rows == max(expect, 1)
 
     # Task state.
     final = kept["state"][-1]
@@ -526,3 +526,19 @@ def test_a_shipped_policy_is_named_as_such_in_recordings_and_videos(tmp_path):
     assert resolve_policy(shipped, "pcp").name == "comat shipped policy pretrained:comat-pcp"
     copy = shutil.copyfile(shipped, tmp_path / "comat_pcp_s0.pt")
     assert resolve_policy(copy, "pcp").name == "comat checkpoint comat_pcp_s0.pt"
+
+
+def test_the_arena_has_a_legend_and_a_quiet_episode_says_it_had_no_events(tmp_path):
+    """Rerun shows what each mark means (as the video's legend does), and an episode with nothing to
+    report logs one line that says so instead of an empty events view."""
+    from comat.viz.recorder import NO_EVENTS
+
+    team = TeamSpec.from_dict({"task": "pcp", "robots": [{"type": "sensing", "capabilities": [0.4, 0.0]},
+                                                         {"type": "capture", "capabilities": [0.0, 0.3]}]})
+    path = tmp_path / "quiet.rrd"
+    record_episodes(path, "pcp", "heuristic", teams=[team], ticks_per_step=2)
+    static, temporal = read(path)
+    labels = [str(x) for x in static["/episode_0/world/legend"]["Points2D:labels"].to_pylist()[0]]
+    assert {"sensing", "capture", "prey free", "prey sensed", "prey captured"} <= set(labels), labels
+    events = [str(x) for row in temporal["/episode_0/events"].column("TextLog:text").to_pylist() for x in row]
+    assert events == [NO_EVENTS]

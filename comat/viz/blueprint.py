@@ -17,6 +17,8 @@ from comat.viz.scene import episode_path
 __all__ = ["episode_view", "rollout_blueprint"]
 
 _MARGIN_M = 0.15
+_LEGEND_M = 0.1
+"""Room below the arena's bottom wall for the legend's row (:func:`comat.viz.scene.log_legend`)."""
 
 
 def _history() -> rrb.VisibleTimeRanges:
@@ -37,7 +39,7 @@ def episode_view(index: int) -> rrb.Horizontal:
         name=f"episode {index}: arena",
         # The scene is mirrored in y at {p}/world (2D views point y down), so y bounds flip too.
         visual_bounds=rrb.VisualBounds2D(
-            x_range=(x0 - _MARGIN_M, x1 + _MARGIN_M), y_range=(-y1 - _MARGIN_M, -y0 + _MARGIN_M)
+            x_range=(x0 - _MARGIN_M, x1 + _MARGIN_M), y_range=(-y1 - _MARGIN_M, -y0 + _MARGIN_M + _LEGEND_M)
         ),
         overrides={f"{p}/world/trails": _history()},
     )

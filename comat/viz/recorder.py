@@ -43,7 +43,8 @@ from comat.viz.scene import (
     meta_markdown,
 )
 
-__all__ = ["CAPABILITY_RING_SEGMENTS", "HEADING_ARROW_M", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP", "EpisodeRecorder"]
+__all__ = ["CAPABILITY_RING_SEGMENTS", "HEADING_ARROW_M", "NO_EVENTS", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP",
+           "EpisodeRecorder"]
 
 TRAIL_POINTS_PER_STEP = 8
 """Path points kept per robot and env step (evenly spaced ticks, the last one always)."""
@@ -302,6 +303,12 @@ class EpisodeRecorder:
         fallback = counts["fallbacks"] > 0
         recovery = counts["recoveries"] > 0
         log_steps = np.flatnonzero(anyev.any(axis=1) | fallback | recovery)
+        if not log_steps.size:  # say so: an empty log view reads like a broken one
+            rec.send_columns(
+                f"{p}/events",
+                [rr.TimeColumn("step", sequence=[0]), rr.TimeColumn("sim_time", duration=[0.0])],
+                rr.TextLog.columns(text=[NO_EVENTS], level=["INFO"]),
+            )
         if log_steps.size:
             by_step = {int(t): [] for t in log_steps}
             for (t, _), text in zip(where, labels):
@@ -323,6 +330,11 @@ class EpisodeRecorder:
                 [rr.TimeColumn("step", sequence=idx), rr.TimeColumn("sim_time", duration=idx * dt)],
                 rr.TextLog.columns(text=text, level=level),
             )
+
+
+NO_EVENTS = ("no events in this episode: no contact, Robotarium collision, boundary exit, wall contact or "
+             "actuator error, and the filter never recovered or braked")
+"""The event log's one line when nothing happened."""
 
 
 def _series(

@@ -45,11 +45,15 @@ __all__ = [
     "TYPE_COLORS",
     "circle_strip",
     "episode_path",
+    "legend_items",
+    "log_legend",
     "log_static_scene",
     "meta_markdown",
     "robot_labels",
 ]
 
+LEGEND_DROP_M = 0.04
+"""How far below the bottom wall's outer face the legend's row sits (inside the arena view's margin)."""
 ACTION_COLORS = ((120, 120, 120), (230, 120, 20), (230, 120, 20), (20, 140, 230), (20, 140, 230))
 """Waypoint arrow colour per action (stay, ±x, ±y)."""
 
@@ -218,6 +222,39 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
         static=True,
     )
     rec.log(f"{w}/events", rr.Points2D.from_fields(radii=[0.09], colors=[(255, 0, 0, 90)]), static=True)
+    log_legend(rec, w, core, b)
+
+
+def legend_items(task: str, types: list[str], measured: bool) -> list[tuple[str, tuple[int, ...]]]:
+    """(label, colour) of each mark an arena shows, as the video's legend lists them: the robot types
+    present, the task's marks, the filter's arrows and, under the reality layer, the measured pose."""
+    items = [(kind, TYPE_COLORS.get(kind, (200, 200, 200))) for kind in dict.fromkeys(types)]
+    if task == "pcp":
+        items += [(f"prey {name}", tuple(int(c) for c in PREY_COLORS[k, :3]))
+                  for k, name in enumerate(("free", "sensed", "captured"))]
+        items.append(("ring: sensing / capture radius", (120, 120, 120)))
+    else:
+        items.append(("bar: load / payload", (230, 170, 20)))
+    items.append(("red arrow: the filter changed the command", (220, 30, 30)))
+    if measured:
+        items.append(("grey ghost: measured pose", (150, 150, 150)))
+    return items
+
+
+def log_legend(rec: rr.RecordingStream, world: str, core, b: int) -> None:
+    """The legend as labelled swatches in a row below the arena's bottom wall (``world/legend``)."""
+    team = core.teams[b]
+    items = legend_items(core.task.name, [r.type for r in team.robots], core.safe.reality is not None)
+    X0, X1, Y0, _ = C.ARENA_BOUNDS_M
+    x = np.linspace(X0 + 0.05, X1 - 0.3, len(items))
+    rec.log(
+        f"{world}/legend",
+        rr.Points2D(
+            np.column_stack([x, np.full(len(items), Y0 - C.WALL_THICKNESS_M * 2 - LEGEND_DROP_M)]),
+            radii=[0.02], colors=[c for _, c in items], labels=[label for label, _ in items], show_labels=True,
+        ),
+        static=True,
+    )
 
 
 def meta_markdown(meta: Mapping[str, Any], team, outcome: Mapping[str, float] | None) -> str:
