@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
-demo: $(STAMP)  ## safety filter, the tasks, then the shipped COMAT policy: .rrd, video, checked export in runs/demo (about 2 minutes)
+demo: $(STAMP)  ## safety filter, the tasks, then the shipped COMAT policy: .rrd, video, checked export in runs/demo (4 min 24 s on a fresh 2-core machine, install included; about 2 min once installed)
 	$(BIN)/comat demo
 
 test: $(STAMP)  ## the fast suite (about 7 minutes on 2 cores)

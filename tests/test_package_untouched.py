@@ -29,5 +29,7 @@ def test_commands_on_shipped_policies_never_write_into_the_package(tmp_path, mon
         assert main(argv) == 0, capsys.readouterr().err
         assert (tmp_path / "runs" / f"pretrained-{name}" / "evaluation_unicycle.json").is_file()
     assert main(["policy", "pretrained:comat-pcp"]) == 0
+    capsys.readouterr()
     assert main(["rollout", "--policy", "pretrained:comat-pcp", "--team", "team.yaml", "--out", "x.rrd"]) == 0
+    assert "policy pretrained:comat-pcp (comat)," in capsys.readouterr().err  # named, not "policy comat policy"
     assert _files(PACKAGE) == before

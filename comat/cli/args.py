@@ -206,6 +206,15 @@ class PolicyArg:
     """``pretrained:NAME`` for a policy that ships with comat, else None."""
 
     @property
+    def label(self) -> str:
+        """How a command's header names the policy: ``pretrained:NAME (comat)``, a file with what it
+        is (``runs/x/policy.pt (comat policy file)``), or a reference policy's name."""
+        if self.checkpoint is None:
+            return self.name
+        noun = "policy file" if self.kind == "policy" else "checkpoint"
+        return f"{self.shipped or self.checkpoint} ({self.algo}{'' if self.shipped else ' ' + noun})"
+
+    @property
     def default_out(self) -> Path | None:
         """Where a command writes when ``--out`` is not given: a trained policy's run folder, but for a
         shipped policy ``runs/pretrained-NAME`` (nothing is ever written into the installed package,

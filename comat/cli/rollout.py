@@ -59,7 +59,7 @@ def cmd_rollout(args: argparse.Namespace) -> int:
         out = check_rrd_path(args.out or f"{task}_{stem}.rrd", "--out", folder=False)
     tier = args.tier or pol.tier
     print(
-        f"comat rollout: {task}, policy {pol.name}, {args.episodes} episode(s) from {source}, {tier} tier, "
+        f"comat rollout: {task}, policy {pol.label}, {args.episodes} episode(s) from {source}, {tier} tier, "
         f"seed {args.seed}, reality {reality} -> {', '.join(str(p) for p in (out, video) if p)}",
         file=sys.stderr,
     )

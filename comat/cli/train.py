@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from comat.cli.args import ALGOS, TASKS, TIERS, add_force
 
@@ -68,7 +69,9 @@ def cmd_train(args: argparse.Namespace) -> int:
                          args.seed, args.tier, args.steps, args.env_workers, resolve_device(args.device or "auto"))
         if args.preset is None and args.steps is None:
             print(paper_budget_note(config), file=sys.stderr)
-    out = Path(args.out or f"runs/{config.algo}_{config.task}_s{config.seed}")
+    # A new folder per run by default, named so it cannot be taken for a kept or shipped policy
+    # (results/policies/comat_pcp_s0, pretrained:comat-pcp).
+    out = Path(args.out or f"runs/train-{config.algo}-{config.task}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}")
     cpus = usable_cpus()
     if config.torch_threads > cpus and not args.resume:  # more threads than usable CPUs only contend (a resumed
         # run keeps its recorded count: the reductions, hence the results, depend on it)
@@ -149,7 +152,7 @@ def add_train_parsers(sub) -> None:
     p.add_argument("--device", choices=["auto", "cpu", "cuda"], default=None,
                    help="where the learner's update runs; acting stays on the CPU (default: auto, cuda where "
                    "PyTorch sees one; a resumed run keeps its own)")
-    p.add_argument("--out", default=None, help="run folder (default: runs/<algo>_<task>_s<seed>)")
+    p.add_argument("--out", default=None, help="run folder (default: a new one, runs/train-<algo>-<task>-seed<seed>-<date>-<time>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.add_argument("--rrd-every", type=int, default=0, metavar="K",
