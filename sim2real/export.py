@@ -4,7 +4,9 @@ and ``check_submission``.
 =====================  ========================================================================
 Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/``, verbatim: the
                        second lets legacy ``rps`` draw under matplotlib >= 3.10), ``runtime.py``
-                       (``sim2real/runtime.py``, verbatim), ``task_logic.py``
+                       (``sim2real/runtime.py``, verbatim) and ``comat_schema.py``
+                       (``comat/models/comat_schema.py``, verbatim: the description of COMAT's
+                       arrays the runtime reads), ``task_logic.py``
                        (``comat/task_logic.py``, verbatim: numpy only, so the very file the
                        MuJoCo envs run is shipped), ``deployed_loop.py``
                        (``comat/safety/deployed.py``, verbatim: the per-iteration loop and
@@ -12,7 +14,8 @@ Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/`
                        ``submission_config.py`` (``CONFIG = {...}``: policy, task, team, start
                        poses, prey, ticks per step, controller constants, the filter and its
                        settings); the scripted
-                       policy's folder has no ``runtime.py`` and ``weights.npy``
+                       policy's folder has no ``runtime.py``, ``comat_schema.py`` and
+                       ``weights.npy``
 File types             ``.py`` and ``.npy`` only (the Robotarium accepts .m .jpg .jpeg .png .gif
                        .tiff .bmp .py .mat .npy .mexa64 and no folders; JSON is not accepted,
                        hence the config as a Python literal)
@@ -53,9 +56,22 @@ import numpy as np
 import comat.safety.deployed as deployed_module
 import comat.task_logic as task_logic_module
 from comat import constants as C
+from comat.config import SafetyConfig
+from comat.control import portable_settings
+from comat.envs import make_env
 from comat.envs.core import WAYPOINT_GAIN
-from comat.eval.metrics import current_names
+from comat.envs.heuristics import heuristic_actions
+from comat.measure.metrics import current_names
+from comat.models import comat_schema
+from comat.models.comat import Comat
+from comat.reality import resolve_reality
+from comat.reality.margin import response_lag_ticks, robust_safety
+from comat.rl.checkpoint import POLICY_FORMAT, load_trained
+from comat.rl.policy import policy_modules
 from comat.team import TeamSpec
+from sim2real.reality_rps import DRIVES
+from sim2real.runtime import ComatRuntime
+from sim2real.weights import export_weights
 
 __all__ = [
     "ACCEPTED_EXTENSIONS",
@@ -78,8 +94,8 @@ ACCEPTED_EXTENSIONS = (".m", ".jpg", ".jpeg", ".png", ".gif", ".tiff", ".bmp", "
 ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps", "cvxopt"})
 """Third-party top-level packages shipped code may import (besides the standard library and the
 folder's own modules)."""
-SHIPPED_FILES = ("main.py", "rps_compat.py", "runtime.py", "task_logic.py", "deployed_loop.py", "submission_config.py",
-                 "weights.npy")
+SHIPPED_FILES = ("main.py", "rps_compat.py", "runtime.py", "comat_schema.py", "task_logic.py", "deployed_loop.py",
+                 "submission_config.py", "weights.npy")
 """The folder of a COMAT policy."""
 HEURISTIC_FILES = ("main.py", "rps_compat.py", "task_logic.py", "deployed_loop.py", "submission_config.py")
 """The folder of the scripted policy."""
@@ -112,8 +128,6 @@ MAX_EPISODE_S = 600.0
 def _comat_model(checkpoint_or_policy, task: str):
     """The torch Comat module of a checkpoint or policy file (``policy.pt``) path or of a Comat instance."""
     if isinstance(checkpoint_or_policy, (str, Path)):
-        from comat.rl.checkpoint import POLICY_FORMAT, load_trained
-        from comat.rl.policy import policy_modules
 
         data = load_trained(checkpoint_or_policy)
         noun = "policy file" if data["format"] == POLICY_FORMAT else "checkpoint"
@@ -124,7 +138,6 @@ def _comat_model(checkpoint_or_policy, task: str):
             raise ValueError(f"{noun} {str(checkpoint_or_policy)!r} is for task {data['task']!r}, expected {task!r}")
         modules, _config = policy_modules(data, checkpoint_or_policy)
         return modules["policy"]
-    from comat.models.comat import Comat
 
     if isinstance(checkpoint_or_policy, Comat):
         return checkpoint_or_policy.eval()
@@ -184,7 +197,6 @@ def mujoco_start(task: str, team: TeamSpec, seed: int, tier: str = "unicycle") -
     Where two of the env's robots start closer than MIN_SPACING_M (the Robotarium's start-up
     drive could not reach them), the robots are placed again in the task's spawn area
     EXPORT_SPACING_M apart (seeded by ``seed``; the prey stay)."""
-    from comat.envs import make_env
 
     env = make_env(f"{task}_v0", team=team, tier=tier)
     env.reset(seed=seed)
@@ -214,10 +226,6 @@ def filter_config(filter_name: str, filter_reality: Any) -> dict:
         raise ValueError(f"--filter must be one of {list(FILTERS)}, got {filter_name!r}")
     if filter_name == "robotarium":
         return {"filter": "robotarium"}
-    from comat.config import SafetyConfig
-    from comat.control import portable_settings
-    from comat.reality import resolve_reality
-    from comat.reality.margin import response_lag_ticks, robust_safety
 
     reality = resolve_reality(filter_reality, "filter_reality")
     profile = C.DEFAULT_PROFILE
@@ -274,7 +282,6 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
     Returns:
         The folder's path.
     """
-    from sim2real.weights import export_weights
 
     task_obj = _task(task)
     team = _team(team, task)
@@ -309,6 +316,7 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         shutil.copyfile(Path(deployed_module.__file__), tmp / "deployed_loop.py")
         if model is not None:
             shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
+            shutil.copyfile(Path(comat_schema.__file__), tmp / "comat_schema.py")
             export_weights(model, tmp / "weights.npy")
         config = _config(policy, task, team, poses, prey, ticks, seed, filters)
         text = ('"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
@@ -410,8 +418,6 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
     """The same policy (the folder's weights through the numpy runtime, or the scripted policy),
     team, start poses and prey in the MuJoCo env, comat's own loop (at ``reality``, its layer
     seeded by ``seed``); its episode metrics."""
-    from comat.envs import make_env
-    from sim2real.runtime import ComatRuntime
 
     folder = Path(folder)
     cfg = _load_config(folder)
@@ -426,7 +432,6 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
     if task == "pcp":
         core.state["prey"][0] = np.array(cfg["prey"], dtype=float)
     if cfg.get("policy", "comat") == "heuristic":
-        from comat.envs.heuristics import heuristic_actions
 
         def act_fn():
             return heuristic_actions(core)
@@ -466,15 +471,16 @@ def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rp
         wanted = _files(config.get("policy", "comat"))
         if "filter" not in config:  # exported before issue 45: main.py had the loop inline
             wanted = tuple(f for f in wanted if f != "deployed_loop.py")
+        runtime_py = folder / "runtime.py"
+        if runtime_py.is_file() and "comat_schema" not in runtime_py.read_text(errors="replace"):
+            wanted = tuple(f for f in wanted if f != "comat_schema.py")  # its runtime describes the arrays itself
         missing = [f for f in wanted if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
-    from sim2real.reality_rps import DRIVES
 
     if drive not in DRIVES:
         raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
     if reality is not None:
-        from comat.reality import resolve_reality
 
         resolve_reality(reality, "--reality")  # a one-line error before anything runs
     runs = [run_rps(folder, timeout_s, rps_path, reality=reality, seed=k, drive=drive) for k in range(repeats)]

@@ -1,7 +1,10 @@
 """COMAT policy in numpy: the deployment forward pass shipped inside a Robotarium submission.
 
-The Robotarium runs plain Python with numpy but no torch, so this module imports numpy and the
-standard library only (a test parses its imports) and is copied verbatim into the submission.
+The Robotarium runs plain Python with numpy but no torch, so this module imports numpy, the
+standard library and ``comat_schema`` only (a test parses its imports) and is copied verbatim into
+the submission, next to ``comat_schema.py`` (``comat/models/comat_schema.py``, verbatim): the one
+description of COMAT's arrays and decision layer, which the torch model and the compiled kernels
+read too. In the repository ``import sim2real`` makes ``comat_schema`` name that module.
 It computes exactly what ``comat.models.comat.Comat.encode`` and its autoregressive decoder
 compute, for one team of real robots (no batch, no padding):
 
@@ -19,7 +22,7 @@ Encoder            edge features from obs (mirror of ``comat.models.features.edg
 Decoder            robot by robot, m = 0..N−1: token (start or a_{m−1}) embedding, causal
                    self-attention over tokens 0..m, action-embedding block, cross-attention of
                    rep_m over embedded actions 0..m, per-type actor head on [h_m ‖ c_m]
-                   (``shared_trunk``: its hidden layer shared by the types)
+                   (``decision``: its hidden layer one per type or shared by the types)
 Output             ``action_probs(obs)`` -> actions (N,) int64 (argmax, deterministic) and the
                    probability vectors (N, A) they were chosen from, A = 5
 Not included       the critic (deployment needs no values); sampling (argmax only)
@@ -29,22 +32,27 @@ Arithmetic         float64 throughout (weights are stored as float32, as trained
 Weights file: ONE ``.npy`` readable with ``np.load(path, allow_pickle=False)``. It holds a 0-d
 structured array with two fields:
 
-* ``manifest``: uint8 (L,), UTF-8 JSON ``{"format": "comat-numpy-weights", "version": 1,
+* ``manifest``: uint8 (L,), UTF-8 JSON ``{"format": "comat-numpy-weights", "version": 2,
   "config": {obs_dim, n_types, n_caps, embed, heads, heat_blocks, edge_embed, root_weight,
-  obs_embed, node_ffn, reference_messages, world_edges, shared_trunk},
-  "arrays": [[name, shape, offset], ...]}``;
+  obs_embed, node_ffn, reference_messages, world_edges, decision},
+  "arrays": [[name, shape, offset], ...]}`` (``comat_schema.CONFIG_KEYS``: the options as 0/1,
+  ``decision`` the ``ComatConfig.decision`` string);
 * ``params``: float32 (P,), every array flattened (C order) and concatenated; array ``name``
   is ``params[offset : offset + prod(shape)].reshape(shape)``.
 
-Names are the torch ``state_dict`` keys (``heat.0.node.1.weight``, ``cross_attn.kv.bias``, ...),
-critic excluded, so every array can be traced back to the module that trained it. The manifest
-lives in the data rather than in the .npy header: the header stays a few hundred bytes, under
-numpy's ``max_header_size`` on every version, and no pickle is ever needed. ``pack_weights`` /
+Names and shapes are ``comat_schema.weight_shapes(config)``: the torch ``state_dict`` keys
+(``heat.0.node.1.weight``, ``cross_attn.kv.bias``, ...), critic excluded, the decision layer in
+acting form (each type's whole output layer), so every array can be traced back to the module
+that trained it. The manifest lives in the data rather than in the .npy header: the header stays
+a few hundred bytes, under numpy's ``max_header_size`` on every version, and no pickle is ever
+needed. ``pack_weights`` /
 ``save_weights`` write the format, ``load_weights`` reads and checks it;
 ``sim2real.weights`` turns a torch model into the arrays.
 
 Version history: v1 — first format; the architecture flags after ``edge_embed`` were added
-later and read as 0 (the paper form) when absent.
+later and read as 0 (the paper form) when absent; its decision layer was the flag
+``shared_trunk`` (1: one hidden layer for all types). v2 — ``decision`` names the mode instead.
+Both are read.
 """
 
 from __future__ import annotations
@@ -54,8 +62,19 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
+from comat_schema import (
+    CONFIG_KEYS,
+    FLAG_KEYS,
+    N_ACTIONS,
+    DecisionMode,
+    check_arrays,
+    normalize_config,
+    weight_shapes,
+)
 
 __all__ = [
+    "CONFIG_KEYS",
+    "FLAG_KEYS",
     "FORMAT",
     "N_ACTIONS",
     "VERSION",
@@ -68,83 +87,37 @@ __all__ = [
     "unpack_weights",
 ]
 
-FORMAT, VERSION = "comat-numpy-weights", 1
-N_ACTIONS = 5
-FLAG_KEYS = ("root_weight", "obs_embed", "node_ffn", "reference_messages", "world_edges", "shared_trunk")
-"""``ComatConfig``'s architecture options as 0/1 (``comat.models.comat``; ``sim2real.weights``)."""
-CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", "edge_embed", *FLAG_KEYS)
+FORMAT, VERSION = "comat-numpy-weights", 2
+READ_VERSIONS = (1, VERSION)
 OPTIONAL_KEYS = dict.fromkeys(FLAG_KEYS, 0)
-"""Config keys added later, with the value files written before them mean."""
+"""Config keys added to version 1 later, with the value files written before them mean."""
 
 
-def _config(config: Mapping[str, int]) -> dict[str, int]:
-    return {k: int(config[k] if k in config or k not in OPTIONAL_KEYS else OPTIONAL_KEYS[k]) for k in CONFIG_KEYS}
+def _config(config: Mapping) -> dict:
+    """``config`` in today's form (``comat_schema.normalize_config``), from any version's: absent
+    flags are 0, and a version-1 config's ``shared_trunk`` flag gives the decision layer's form
+    (in acting form ``adapters`` is ``shared_trunk``: its output layers are stored folded)."""
+    config = {**OPTIONAL_KEYS, **config}
+    if "decision" not in config:
+        shared = config.get("shared_trunk", 0)
+        config["decision"] = (DecisionMode.SHARED_TRUNK if shared else DecisionMode.TYPE_HEADS).value
+    return normalize_config(config)
+
+
 LN_EPS = 1e-5  # torch.nn.LayerNorm's default, which every LayerNorm in COMAT uses
 SLOPE = 0.2  # LeakyReLU negative slope of the HEAT blocks
 
 
 # -- weights file ----------------------------------------------------------------------------------
-def expected_shapes(config: Mapping[str, int]) -> dict[str, tuple[int, ...]]:
-    """Name -> shape of every array the runtime needs, for a COMAT ``config`` (see CONFIG_KEYS)."""
-    missing = [k for k in CONFIG_KEYS if k not in config and k not in OPTIONAL_KEYS]
-    if missing:
-        raise ValueError(f"config must have keys {list(CONFIG_KEYS)}, missing {missing}")
-    D, T, C = config["obs_dim"], config["n_types"], config["n_caps"]
-    E, K, L, de = config["embed"], config["heads"], config["heat_blocks"], config["edge_embed"]
-    A = N_ACTIONS
-    cfg = _config(config)
-    shapes: dict[str, tuple[int, ...]] = {}
-    if cfg["obs_embed"]:
-        shapes.update({"obs_encoder.0.weight": (D,), "obs_encoder.0.bias": (D,),
-                       "obs_encoder.1.weight": (E, D), "obs_encoder.1.bias": (E,)})
-    for k in range(L):
-        p = f"heat.{k}."
-        for t in range(T):
-            shapes[f"{p}node.{t}.weight"] = (E, D if k == 0 and not cfg["obs_embed"] else E)
-        shapes.update({
-            f"{p}edge_attr.weight": (de, 5), f"{p}edge_type.weight": (T * T, de),
-            f"{p}att_i.weight": (K, E), f"{p}att_attr.weight": (K, de),
-            f"{p}att_type.weight": (K, de), f"{p}att_j.weight": (K, E),
-            f"{p}msg_attr.weight": (E, de), f"{p}msg_type.weight": (E, de), f"{p}msg_j.weight": (E, E),
-            f"heat_norm.{k}.weight": (E,), f"heat_norm.{k}.bias": (E,),
-        })
-        if cfg["reference_messages"]:
-            shapes[f"{p}msg_out.weight"] = (E, E)
-        if cfg["node_ffn"]:
-            shapes.update({f"node_ffn.{k}.0.weight": (E, E), f"node_ffn.{k}.0.bias": (E,),
-                           f"node_ffn.{k}.2.weight": (E, E), f"node_ffn.{k}.2.bias": (E,),
-                           f"node_ffn_norm.{k}.weight": (E,), f"node_ffn_norm.{k}.bias": (E,)})
-    shapes["token.0.weight"] = (E, A + 1)
-    for att in ("self_attn", "cross_attn"):
-        shapes.update({
-            f"{att}.q.weight": (E, E), f"{att}.q.bias": (E,), f"{att}.kv.weight": (2 * E, E),
-            f"{att}.kv.bias": (2 * E,), f"{att}.o.weight": (E, E), f"{att}.o.bias": (E,),
-        })
-    for name in ("ln1", "ln2", "ln3", "ln4"):
-        shapes.update({f"{name}.weight": (E,), f"{name}.bias": (E,)})
-    for name in ("fc", "fc2"):
-        shapes.update({f"{name}.0.weight": (E, E), f"{name}.0.bias": (E,),
-                       f"{name}.2.weight": (E, E), f"{name}.2.bias": (E,)})
-    H = E if cfg["shared_trunk"] else T * E
-    shapes.update({"heads.first.weight": (H, E + C), "heads.first.bias": (H,),
-                   "heads.w2": (T, E, A), "heads.b2": (T, A)})
-    return shapes
+def expected_shapes(config: Mapping) -> dict[str, tuple[int, ...]]:
+    """Name -> shape of every array the runtime needs, for a COMAT ``config`` (see CONFIG_KEYS;
+    ``comat_schema.weight_shapes``, in the file's order)."""
+    return weight_shapes(_config(config))
 
 
-def _check_arrays(arrays: Mapping[str, np.ndarray], config: Mapping[str, int], source: str) -> None:
+def _check_arrays(arrays: Mapping[str, np.ndarray], config: Mapping, source: str) -> None:
     """Raise ValueError naming every missing, unexpected or misshapen array."""
-    want = expected_shapes(config)
-    missing = sorted(set(want) - set(arrays))
-    extra = sorted(set(arrays) - set(want))
-    wrong = [f"{n}: expected {want[n]}, got {tuple(np.shape(arrays[n]))}"
-             for n in want if n in arrays and tuple(np.shape(arrays[n])) != want[n]]
-    if missing or extra or wrong:
-        raise ValueError(
-            f"{source} does not match a COMAT model with config {dict(config)}: "
-            f"missing {missing[:5]}{'…' if len(missing) > 5 else ''}, "
-            f"unexpected {extra[:5]}{'…' if len(extra) > 5 else ''}, "
-            f"wrong shapes {wrong[:5]}{'…' if len(wrong) > 5 else ''}"
-        )
+    check_arrays(arrays, expected_shapes(config), f"{source} does not match a COMAT model with config {dict(config)}")
 
 
 def pack_weights(arrays: Mapping[str, np.ndarray], config: Mapping[str, int]) -> np.ndarray:
@@ -175,8 +148,8 @@ def unpack_weights(record: np.ndarray, source: str = "record") -> tuple[dict[str
         manifest = json.loads(record["manifest"].tobytes().decode())
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         raise ValueError(f"{source}: unreadable manifest ({err})") from err
-    if manifest.get("format") != FORMAT or manifest.get("version") != VERSION:
-        raise ValueError(f"{source}: expected format {FORMAT!r} version {VERSION}, "
+    if manifest.get("format") != FORMAT or manifest.get("version") not in READ_VERSIONS:
+        raise ValueError(f"{source}: expected format {FORMAT!r} version {' or '.join(map(str, READ_VERSIONS))}, "
                          f"got {manifest.get('format')!r} version {manifest.get('version')}")
     params = record["params"]
     arrays = {}
@@ -188,7 +161,7 @@ def unpack_weights(record: np.ndarray, source: str = "record") -> tuple[dict[str
         arrays[name] = params[offset : offset + size].reshape(shape)
     config = manifest["config"]
     _check_arrays(arrays, config, source)
-    return config, arrays
+    return _config(config), arrays
 
 
 def save_weights(path, arrays: Mapping[str, np.ndarray], config: Mapping[str, int]) -> None:
@@ -287,6 +260,7 @@ class ComatRuntime:
     def __init__(self, config: Mapping[str, int], arrays: Mapping[str, np.ndarray]) -> None:
         _check_arrays(arrays, config, "arrays")
         self.config = _config(config)
+        self.decision = DecisionMode(self.config["decision"])
         self.w = {k: np.asarray(v, dtype=np.float64) for k, v in arrays.items()}
         self.self_attn = _Attention(self.w, "self_attn", self.config["heads"])
         self.cross_attn = _Attention(self.w, "cross_attn", self.config["heads"])
@@ -348,7 +322,7 @@ class ComatRuntime:
         T, C, E = self.config["n_types"], self.config["n_caps"], self.config["embed"]
         x = np.concatenate([h, obs_m[4 + T : 4 + T + C]])
         hidden = _relu(self.w["heads.first.weight"] @ x + self.w["heads.first.bias"])
-        if self.config["shared_trunk"]:  # one hidden layer, every type's output layer
+        if self.decision.shared_hidden:  # one hidden layer, every type's output layer
             out = np.einsum("h,tha->ta", hidden, self.w["heads.w2"]) + self.w["heads.b2"]
         else:
             out = np.einsum("th,tha->ta", hidden.reshape(T, E), self.w["heads.w2"]) + self.w["heads.b2"]

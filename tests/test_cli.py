@@ -34,6 +34,20 @@ def test_every_command_has_help(capsys):
     assert "barrier filter" in helps[("demo",)] and "Robotarium" in helps[()]
 
 
+def test_the_docs_command_table_has_every_command():
+    """docs/commands.md's table has a row for every command and bench the parser knows."""
+    from pathlib import Path
+
+    table = [line for line in (Path(__file__).parents[1] / "docs" / "commands.md").read_text().splitlines()
+             if line.startswith("| `comat ")]
+    rows = {" ".join(line.split("`")[1].split()[:3]) for line in table}
+    for path in _command_paths(build_parser())[1:]:
+        if path == ("bench",):
+            continue  # the bench family: a row per benchmark
+        assert any(row == " ".join(("comat", *path)) or row.startswith(" ".join(("comat", *path)) + " ")
+                   for row in rows), f"docs/commands.md has no row for comat {' '.join(path)}"
+
+
 def test_mjcf_command_writes_the_golden_files(tmp_path, capsys):
     assert main(["mjcf", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "scene_wheels_n8.xml").exists()

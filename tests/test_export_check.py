@@ -35,3 +35,22 @@ def test_check_refuses_what_is_not_a_submission(tmp_path, capsys, kind, expected
     assert "Traceback" not in err
     last = err.strip().splitlines()[-1]
     assert last.startswith("comat export: error:") and expected in last and str(path) in last
+
+
+def test_a_folder_whose_runtime_reads_the_schema_needs_it_and_older_folders_do_not(tmp_path, capsys):
+    """``runtime.py`` reads COMAT's weight description from ``comat_schema.py`` beside it; a folder
+    exported before that has a runtime that describes the arrays itself and no such file."""
+    from sim2real.export import SHIPPED_FILES, check_submission
+
+    path = tmp_path / "sub"
+    path.mkdir()
+    for name in SHIPPED_FILES:
+        if name != "comat_schema.py":
+            (path / name).write_text("")
+    (path / "submission_config.py").write_text("CONFIG = {'policy': 'comat', 'filter': {'filter': 'robotarium'}}")
+    (path / "runtime.py").write_text("from comat_schema import weight_shapes\n")
+    assert main(["export", "--check", str(path)]) == 2
+    assert "missing ['comat_schema.py']" in capsys.readouterr().err
+    (path / "runtime.py").write_text("def expected_shapes(config): ...\n")  # an older runtime
+    with pytest.raises(ValueError, match="--drive must be one of"):  # past the file check
+        check_submission(path, drive="nowhere")

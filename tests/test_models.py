@@ -359,7 +359,7 @@ def test_adapters_start_as_one_decision_layer_that_every_type_trains():
     from comat.models.layers import TypeHeads
 
     torch.manual_seed(0)
-    heads = TypeHeads(6, 8, 5, 2, adapters=True)
+    heads = TypeHeads(6, 8, 5, 2, mode="adapters")
     x = torch.randn(4, 3, 6)
     one_hot = torch.nn.functional.one_hot(torch.tensor([0, 1, 1]), 2).float().expand(4, 3, 2)
     w2, b2 = heads.output_layer()

@@ -157,14 +157,50 @@ def test_weights_of_another_model_are_refused(tmp_path):
         ComatRuntime(config, arrays).action_probs(np.zeros((3, 15)))
 
 
-def test_runtime_imports_only_numpy_and_stdlib():
-    tree = ast.parse(Path(runtime.__file__).read_text())
+def _imports(path) -> set[str]:
     modules = set()
-    for node in ast.walk(tree):
+    for node in ast.walk(ast.parse(Path(path).read_text())):
         if isinstance(node, ast.Import):
             modules |= {a.name.split(".")[0] for a in node.names}
         elif isinstance(node, ast.ImportFrom):
-            assert node.level == 0, "relative import: the runtime is copied alone into the submission"
+            assert node.level == 0, "relative import: the file is copied into a flat submission folder"
             modules.add(node.module.split(".")[0])
-    assert modules - {"numpy"} <= set(sys.stdlib_module_names) | {"__future__"}, modules
-    assert "numpy" in modules
+    return modules
+
+
+def test_runtime_imports_only_numpy_stdlib_and_the_schema_shipped_beside_it():
+    from comat.models import comat_schema
+
+    stdlib = set(sys.stdlib_module_names) | {"__future__"}
+    modules = _imports(runtime.__file__)
+    assert modules - {"numpy", "comat_schema"} <= stdlib, modules
+    assert {"numpy", "comat_schema"} <= modules
+    schema_modules = _imports(comat_schema.__file__)
+    assert schema_modules - {"numpy"} <= stdlib, schema_modules
+
+
+def test_version_1_files_with_the_shared_trunk_flag_still_load(tmp_path):
+    """Version 1 recorded the decision layer as ``shared_trunk`` (1 for shared_trunk and adapters,
+    whose output layers it stored folded): such a file reads as the same policy."""
+    import json
+
+    for decision in ("type_heads", "shared_trunk", "adapters"):
+        model = make_model("hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=1, edge_embed=8,
+                                                         decision=decision))
+        config, arrays = comat_arrays(model)
+        record = pack_weights(arrays, config)
+        manifest = json.loads(record["manifest"].tobytes())
+        old = {k: v for k, v in manifest["config"].items() if k != "decision"}
+        old["shared_trunk"] = int(decision != "type_heads")
+        manifest.update(version=1, config=old)
+        text = json.dumps(manifest).encode()
+        v1 = np.zeros((), dtype=[("manifest", np.uint8, (len(text),)), ("params", np.float32, record["params"].shape)])
+        v1["manifest"], v1["params"] = np.frombuffer(text, np.uint8), record["params"]
+        np.save(tmp_path / "v1.npy", v1, allow_pickle=False)
+        policy = ComatRuntime.from_file(tmp_path / "v1.npy")
+        assert policy.config["decision"] == ("type_heads" if decision == "type_heads" else "shared_trunk")
+        obs = team_obs("hmt", 4)
+        want = ComatRuntime(config, arrays).action_probs(obs)
+        got = policy.action_probs(obs)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])

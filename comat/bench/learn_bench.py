@@ -24,6 +24,7 @@ import time
 import torch
 
 from comat.bench.sim_bench import finish
+from comat.bench.variants import COMAT_VARIANTS
 from comat.models.autoregressive import AutoregressivePolicy
 from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout
@@ -40,10 +41,6 @@ DECODE_TARGET = 3.0
 """Cached decoding vs a full re-run per robot, 8 robots."""
 WIDE_SLOTS = 20
 """Robot slots of the ``<baseline>_20`` rows (the Robotarium's largest team)."""
-COMAT_VARIANTS = {"comat_type_heads": {"decision": "type_heads"}, "comat_shared_trunk": {"decision": "shared_trunk"},
-                  "comat_adapters": {"decision": "adapters"}, "comat_one_block": {"heat_blocks": 1}}
-"""COMAT rows with one architecture option changed (issue 30's screen), to time a candidate default
-next to today's in one run; ``comat_paper`` is the paper form (``PAPER_FORM``)."""
 
 
 def _best_time(fn, repeats: int) -> float:

@@ -10,6 +10,7 @@ import argparse
 import time
 
 from comat.bench.safety_bench import DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
+from comat.bench.variants import COMAT_VARIANTS
 from comat.cli.args import TASKS, TIERS
 from comat.cli.rollout import add_viz_bench_parser
 from comat.config import LOOPS
@@ -107,12 +108,12 @@ def add_bench_parser(sub) -> None:
                         "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
                         "algorithm on PCP in the unicycle tier with the paper's settings.")
     b.add_argument("--algos", nargs="+",
-                   choices=["comat", "comat_paper", "comat_type_heads", "comat_shared_trunk", "comat_adapters", "comat_one_block", "mat",
-                            "mappo", "qmix", "mat_20", "mappo_20", "qmix_20"],
+                   choices=["comat", "comat_paper", *COMAT_VARIANTS, "mat", "mappo", "qmix", "mat_20", "mappo_20",
+                            "qmix_20"],
                    default=["comat", "comat_paper", "mat", "mappo", "qmix"],
                    help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
-                   "to compare today's default with it in one run; comat_type_heads, comat_shared_trunk, comat_adapters, "
-                   "comat_one_block: COMAT with that decision layer or one HEAT block; mat_20, mappo_20, qmix_20: the baseline with 20 "
+                   f"to compare today's default with it in one run; {', '.join(COMAT_VARIANTS)}: COMAT with that "
+                   "decision layer or one HEAT block; mat_20, mappo_20, qmix_20: the baseline with 20 "
                    "robot slots instead of 8 (default: %(default)s)")
     b.add_argument("--workers", type=int, nargs="+", default=[1, 2],
                    help="environment worker processes to compare (default: %(default)s)")

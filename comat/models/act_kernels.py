@@ -18,21 +18,29 @@ environments'.
 
 Arguments (B batch, N robots, E embedding, A actions, T types):
 
-* ``mats``: 2-D float32 weights as torch stores them, (out, in): views of the parameters, so
-  nothing is copied or cached per call;
+* ``mats``: float32 weights of two or more dimensions as torch stores them, (out, in): views of
+  the parameters, so nothing is copied or cached per call;
 * ``vecs``: 1-D float32 biases and LayerNorm parameters;
 * ``mask`` (B, N) bool; ``noise`` (N, B, A) Gumbel noise, ignored if ``deterministic``;
 * returns actions (B, N) int64 (0 for padded robots) and logits (B, N, A).
+
+COMAT's ``mats`` and ``vecs`` are built by name from its weight description
+(``comat.models.comat_schema``) by :func:`comat_decode_args` and :func:`comat_encode_args`, which
+check every shape first, and its decision layer's form comes as an explicit flag.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 from numba import njit
 
-__all__ = ["comat_decode", "comat_encode", "mat_decode"]
+from comat.models.comat_schema import DecisionMode, check_arrays, decoder_shapes, encoder_shapes
+
+__all__ = ["COMAT_DECODE_MATS", "COMAT_DECODE_VECS", "comat_decode", "comat_decode_args", "comat_encode",
+           "comat_encode_args", "mat_decode"]
 
 _jit = njit(cache=True, nogil=True)
 _EPS = 1e-5  # torch.nn.LayerNorm's default
@@ -122,24 +130,49 @@ def _choose(logits, mask_m, noise_m, deterministic):
     return actions
 
 
+COMAT_DECODE_MATS = ("token.0.weight", "self_attn.q.weight", "self_attn.kv.weight", "self_attn.o.weight",
+                     "fc.0.weight", "fc.2.weight", "cross_attn.q.weight", "cross_attn.kv.weight",
+                     "cross_attn.o.weight", "fc2.0.weight", "fc2.2.weight", "heads.first.weight", "heads.w2",
+                     "heads.b2")
+"""The arrays :func:`comat_decode` unpacks from ``mats``, in its order (names of the schema)."""
+COMAT_DECODE_VECS = ("self_attn.q.bias", "self_attn.kv.bias", "self_attn.o.bias", "fc.0.bias", "fc.2.bias",
+                     "cross_attn.q.bias", "cross_attn.kv.bias", "cross_attn.o.bias", "fc2.0.bias", "fc2.2.bias",
+                     "heads.first.bias", "ln1.weight", "ln1.bias", "ln2.weight", "ln2.bias", "ln3.weight",
+                     "ln3.bias", "ln4.weight", "ln4.bias")
+"""The arrays :func:`comat_decode` unpacks from ``vecs``, in its order."""
+
+
+def comat_decode_args(arrays: Mapping[str, np.ndarray], config: Mapping) -> tuple[tuple, tuple, bool]:
+    """(mats, vecs, shared_hidden) of :func:`comat_decode` from the decoder's arrays in acting form
+    (name -> float32 C-contiguous array, exactly ``decoder_shapes(config)``); ValueError naming any
+    missing, unexpected or misshapen array."""
+    want = decoder_shapes(config)
+    check_arrays(arrays, want, "COMAT decoder weights do not match the compiled kernel's config")
+    if set(want) != set(COMAT_DECODE_MATS) | set(COMAT_DECODE_VECS):  # the schema changed, the kernel did not
+        raise ValueError(f"comat_decode takes {sorted(COMAT_DECODE_MATS + COMAT_DECODE_VECS)}, "
+                         f"the weight description lists {sorted(want)}")
+    mats = tuple(arrays[n] for n in COMAT_DECODE_MATS)
+    vecs = tuple(arrays[n] for n in COMAT_DECODE_VECS)
+    return mats, vecs, DecisionMode(config["decision"]).shared_hidden
+
+
 @_jit
-def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_types):
+def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_types, shared_hidden):
     """COMAT (``Comat.decode_step`` for m = 0..N−1) from its parameters, as stored by torch.
 
-    ``mats`` (out, in): token embedding (E, A+1); θ¹ q, kv (2E, E), out; fc (2); θ² q, kv, out;
-    fc2 (2); the actor's first layer (T·H, E + C), or (H, E + C) when shared by the types; its
-    second layers (T, H, A) as (T·H, A).
-    ``vecs``: the biases in that order (the actor's second as (T·A)), then ln1–ln4 weight and
-    bias. ``rep`` (B, N, E) encoder output; ``obs`` (B, N, D) for type one-hots and capabilities
-    (the task layout: [x, y, cos, sin | types (T) | capabilities (C) | …])."""
-    tok, sa_q, sa_kv, sa_o, fc_a, fc_b, ca_q, ca_kv, ca_o, fc2_a, fc2_b, act1, act2 = mats
-    (sa_qb, sa_kvb, sa_ob, fc_ab, fc_bb, ca_qb, ca_kvb, ca_ob, fc2_ab, fc2_bb, act1b, act2b,
+    ``mats``, ``vecs``: :data:`COMAT_DECODE_MATS`, :data:`COMAT_DECODE_VECS` in acting form
+    (:func:`comat_decode_args`): the actor's first layer (T·H, E + C), or (H, E + C) with
+    ``shared_hidden`` (one hidden layer for every type, ``DecisionMode.shared_hidden``); each
+    type's output layer (T, H, A) and biases (T, A). ``rep`` (B, N, E) encoder output; ``obs``
+    (B, N, D) for type one-hots and capabilities (the task layout: [x, y, cos, sin | types (T) |
+    capabilities (C) | …])."""
+    tok, sa_q, sa_kv, sa_o, fc_a, fc_b, ca_q, ca_kv, ca_o, fc2_a, fc2_b, act1, act2, act2b = mats
+    (sa_qb, sa_kvb, sa_ob, fc_ab, fc_bb, ca_qb, ca_kvb, ca_ob, fc2_ab, fc2_bb, act1b,
      ln1w, ln1b, ln2w, ln2b, ln3w, ln3b, ln4w, ln4b) = vecs
     B, N, E = rep.shape
     T = n_types
-    H = act2.shape[0] // T
-    shared = act1.shape[0] != T * H  # one hidden layer for every type (ComatConfig.decision)
-    A = act2.shape[1]
+    H = act2.shape[1]
+    A = act2.shape[2]
     C = act1.shape[1] - E
     scale = np.float32((E // heads) ** -0.5)
     # θ¹'s embedding, query, key and value depend on the token alone: one row per token.
@@ -181,12 +214,12 @@ def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_type
                 w = obs[i, m, 4 + k]  # the type one-hot: the robot's own head
                 if w == 0.0:
                     continue
-                off = 0 if shared else k * H
+                off = 0 if shared_hidden else k * H
                 for a in range(A):  # loops: a BLAS call per robot costs more than its H·A products
                     s = np.float32(0.0)
                     for j in range(H):
-                        s += hidden[i, off + j] * act2[k * H + j, a]
-                    logits[i, m, a] += w * (s + act2b[k * A + a])
+                        s += hidden[i, off + j] * act2[k, j, a]
+                    logits[i, m, a] += w * (s + act2b[k, a])
         actions[:, m] = _choose(logits[:, m], mask[:, m], noise[m], deterministic)
         token = actions[:, m] + 1
     return actions, logits
@@ -253,10 +286,28 @@ def _layer_norm_rows(x, w, b):
     return _layer_norm(np.ascontiguousarray(x), w, b)
 
 
+def comat_encode_args(arrays: Mapping[str, np.ndarray], config: Mapping) -> tuple[tuple, tuple, tuple, tuple]:
+    """(node_ws, mats, vecs, flags) of :func:`comat_encode` from the encoder's and the critic's
+    arrays (name -> float32 C-contiguous array, exactly ``encoder_shapes(config, critic=True)``),
+    in the schema's order: the HEAT blocks' node transforms into ``node_ws``, the other arrays
+    into ``mats`` or ``vecs`` by dimension; ``flags`` (root, obs_embed, reference, world,
+    node_ffn) from the config. ValueError naming any missing, unexpected or misshapen array."""
+    want = encoder_shapes(config, critic=True)
+    check_arrays(arrays, want, "COMAT encoder weights do not match the compiled kernel's config")
+    node_ws, mats, vecs = [], [], []
+    for name, shape in want.items():
+        node = name.startswith("heat.") and ".node." in name
+        (node_ws if node else mats if len(shape) > 1 else vecs).append(arrays[name])
+    flags = tuple(bool(config[k]) for k in ("root_weight", "obs_embed", "reference_messages", "world_edges",
+                                            "node_ffn"))
+    return tuple(node_ws), tuple(mats), tuple(vecs), flags
+
+
 @_jit
 def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root, obs_embed, reference, world, node_ffn):
     """COMAT's HEAT encoder and critic (``Comat.encode``, every ``ComatConfig`` option): rep
-    (B, N, E) and values (B, N) from obs (B, N, D) and mask (B, N).
+    (B, N, E) and values (B, N) from obs (B, N, D) and mask (B, N). The arrays come in the
+    schema's order (:func:`comat_encode_args`), which the offsets below walk:
 
     ``node_ws``: per block its T type-specific node transforms (E, d_in). ``mats`` (out, in):
     with ``obs_embed`` first the embedding (E, D); then per block the edge-feature embedding

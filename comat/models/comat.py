@@ -39,6 +39,9 @@ material home (``results/stability/``). Every paper-form choice stays available 
 ``ComatConfig`` option.
 
 Shapes: obs (B, N, D_obs), mask (B, N); embedding E; T types; C capabilities; A = 5 actions.
+Every parameter's name and shape, and the decision layer's form, are described once in
+``comat.models.comat_schema``, which the compiled kernels and the export's numpy runtime read too;
+a Comat checks its parameters against it when built.
 """
 
 from __future__ import annotations
@@ -50,8 +53,18 @@ import torch.nn.functional as F
 from torch import nn
 
 from comat.config import check_numbers
-from comat.models.act_kernels import comat_decode, comat_encode
+from comat.models.act_kernels import comat_decode, comat_decode_args, comat_encode, comat_encode_args
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
+from comat.models.comat_schema import (
+    DECISIONS,
+    DecisionMode,
+    check_arrays,
+    decoder_shapes,
+    encoder_shapes,
+    parameter_shapes,
+    weight_shapes,
+    weights_config,
+)
 from comat.models.features import ObsLayout, edge_features
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
 
@@ -64,7 +77,6 @@ PAPER_FORM = {"root_weight": False, "obs_embed": False, "message_gain": 1.0, "no
 ablation, results/ablations/): ``ComatConfig(**PAPER_FORM)``."""
 HEAT_FORMS = ("paper", "reference")
 EDGE_FRAMES = ("heading", "world")
-DECISIONS = ("type_heads", "shared_trunk", "adapters")
 
 
 @dataclass(frozen=True)
@@ -213,8 +225,11 @@ class Comat(AutoregressivePolicy):
         self.ln3, self.ln4 = nn.LayerNorm(E), nn.LayerNorm(E)
         self.fc2 = mlp([E, E, E])
         # Decision layer: type-stratified (ComatConfig.decision), on [h_m ‖ c_m].
-        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, shared_first=cfg.decision == "shared_trunk",
-                               adapters=cfg.decision == "adapters")
+        self.decision = DecisionMode(cfg.decision)
+        self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, mode=self.decision)
+        self.weights_config = weights_config(layout, cfg)  # what fixes every array's shape (comat_schema)
+        check_arrays(self.state_dict(), parameter_shapes(self.weights_config),
+                     "Comat's parameters do not match their description in comat.models.comat_schema")
 
     # -- encoder ------------------------------------------------------------------------------------
     def encode(self, obs, mask):
@@ -272,46 +287,48 @@ class Comat(AutoregressivePolicy):
         h = self.ln4(h + self.fc2(h))[:, 0]
         return self.heads.finish(h, st.caps[:, m], st.types[:, m])
 
+    # -- the arrays acting reads, by name -----------------------------------------------------------
+    def weight_tensors(self, names) -> dict[str, torch.Tensor]:
+        """name -> tensor for names of ``comat_schema`` (``weight_shapes``, ``parameter_shapes``),
+        the decision layer (``heads.*``) in acting form: the parameters themselves, except each
+        type's output layer where adapters add the shared one."""
+        out, heads = {}, None
+        for name in names:
+            if name.startswith("heads."):
+                heads = self.heads.acting_arrays() if heads is None else heads
+                out[name] = heads[name[len("heads."):]]
+                continue
+            # The modules' own dicts: this runs on every compiled call, and nn.Module's attribute
+            # lookup (get_parameter) costs several times more per name.
+            *path, leaf = name.split(".")
+            module = self
+            for part in path:
+                module = module._modules[part]
+            out[name] = module._parameters[leaf]
+        return out
+
+    def acting_arrays(self, critic: bool = False) -> dict[str, torch.Tensor]:
+        """Every array acting reads (``comat_schema.weight_shapes``, in its order), by name; the
+        critic's only with ``critic``. What the compiled kernels and the numpy runtime take."""
+        return self.weight_tensors(weight_shapes(self.weights_config, critic))
+
     @torch.no_grad()
     def encode_compiled(self, obs, mask):
-        cfg = self.config
-        mats, vecs = [], []
-        if cfg.obs_embed:
-            ln, lin = self.obs_encoder[0], self.obs_encoder[1]
-            mats.append(lin.weight)
-            vecs += [ln.weight, ln.bias, lin.bias]
-        for k, block in enumerate(self.heat):
-            mats += [block.edge_attr.weight, block.edge_type.weight, block.att_i.weight, block.att_attr.weight,
-                     block.att_type.weight, block.att_j.weight, block.msg_attr.weight, block.msg_type.weight,
-                     block.msg_j.weight]
-            if cfg.heat_form == "reference":
-                mats.append(block.msg_out.weight)
-            vecs += [self.heat_norm[k].weight, self.heat_norm[k].bias]
-            if cfg.node_ffn:
-                ffn, ffn_norm = self.node_ffn[k], self.node_ffn_norm[k]
-                mats += [ffn[0].weight, ffn[2].weight]
-                vecs += [ffn[0].bias, ffn[2].bias, ffn_norm.weight, ffn_norm.bias]
-        mats += [self.critic[0].weight, self.critic[2].weight]
-        vecs += [self.critic[0].bias, self.critic[2].bias]
-        node_ws = tuple(numpy_view(layer.weight) for block in self.heat for layer in block.node)
-        rep, values = comat_encode(node_ws, tuple(numpy_view(p) for p in mats), tuple(numpy_view(p) for p in vecs),
-                                   numpy_view(obs), mask.contiguous().numpy(), cfg.heads, self.layout.n_types,
-                                   cfg.root_weight, cfg.obs_embed, cfg.heat_form == "reference",
-                                   cfg.edge_frame == "world", cfg.node_ffn)
+        arrays = self.weight_tensors(encoder_shapes(self.weights_config, critic=True))
+        node_ws, mats, vecs, flags = comat_encode_args({n: numpy_view(t) for n, t in arrays.items()},
+                                                       self.weights_config)
+        rep, values = comat_encode(node_ws, mats, vecs, numpy_view(obs), mask.contiguous().numpy(), self.config.heads,
+                                   self.layout.n_types, *flags)
         return torch.from_numpy(rep), torch.from_numpy(values)
 
     @torch.no_grad()
     def decode_compiled(self, rep, obs, mask, noise):
-        sa, ca, heads = self.self_attn, self.cross_attn, self.heads
-        linears = (self.token[0], sa.q, sa.kv, sa.o, self.fc[0], self.fc[2], ca.q, ca.kv, ca.o,
-                   self.fc2[0], self.fc2[2], heads.first)
-        w2, b2 = heads.output_layer()
-        mats = [numpy_view(layer.weight) for layer in linears] + [numpy_view(w2).reshape(-1, self.n_actions)]
-        vecs = [numpy_view(layer.bias) for layer in linears[1:]] + [numpy_view(b2).reshape(-1)]
-        vecs += [numpy_view(p) for ln in (self.ln1, self.ln2, self.ln3, self.ln4) for p in (ln.weight, ln.bias)]
+        arrays = self.weight_tensors(decoder_shapes(self.weights_config))
+        mats, vecs, shared_hidden = comat_decode_args({n: numpy_view(t) for n, t in arrays.items()},
+                                                      self.weights_config)
         noise_np, mask_np = self._compiled_inputs(noise, mask)
-        actions, logits = comat_decode(tuple(mats), tuple(vecs), numpy_view(rep), numpy_view(obs), mask_np, noise_np,
-                                       noise is None, self.config.heads, self.layout.n_types)
+        actions, logits = comat_decode(mats, vecs, numpy_view(rep), numpy_view(obs), mask_np, noise_np,
+                                       noise is None, self.config.heads, self.layout.n_types, shared_hidden)
         return torch.from_numpy(actions), torch.from_numpy(logits)
 
 

@@ -12,6 +12,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from comat.models.comat_schema import DecisionMode, decision_shapes
+
 __all__ = ["Attention", "KVCache", "TypeHeads", "causal", "init_linear", "mlp"]
 
 
@@ -139,43 +141,53 @@ class TypeHeads(nn.Module):
 
     ``forward(x (B, L, in), type_onehot (B, L, T)) -> (B, L, out)``: each robot's output comes
     from the head of its own type (parameters shared by robots of a type, never by position).
-    ``shared_first``: the hidden layer is shared by all types (``first`` is (H, in) instead of
-    (T·H, in)) and only the output layer is per type. ``adapters`` (implies ``shared_first``): the
-    output layer too is shared, and each type adds its own part ``w2[t]``, ``b2[t]``, initialized
-    at zero: the types start with one decision layer and part only as their gradients say.
+    ``mode`` (a :class:`~comat.models.comat_schema.DecisionMode` or its string) fixes the form,
+    and :func:`~comat.models.comat_schema.decision_shapes` the parameters' shapes:
+    ``type_heads`` one hidden layer per type (``first`` (T·H, in)); ``shared_trunk`` the hidden
+    layer shared by all types (``first`` (H, in)) and only the output layer per type;
+    ``adapters`` the output layer shared too, each type adding its own part ``w2[t]``, ``b2[t]``,
+    initialized at zero: the types start with one decision layer and part only as their
+    gradients say.
     """
 
     def __init__(self, d_in: int, hidden: int, d_out: int, n_types: int, out_gain: float = 0.01,
-                 shared_first: bool = False, adapters: bool = False) -> None:
+                 mode: DecisionMode | str = DecisionMode.TYPE_HEADS) -> None:
         super().__init__()
-        shared_first = shared_first or adapters
-        self.n_types, self.hidden, self.shared_first, self.adapters = n_types, hidden, shared_first, adapters
-        self.first = init_linear(nn.Linear(d_in, hidden if shared_first else n_types * hidden), math.sqrt(2))
-        w2 = torch.empty(n_types, hidden, d_out)
+        self.mode = DecisionMode(mode)
+        self.n_types, self.hidden = n_types, hidden
+        shapes = decision_shapes(self.mode, d_in, hidden, d_out, n_types, trained=True)
+        self.first = init_linear(nn.Linear(d_in, shapes["first.weight"][0]), math.sqrt(2))
+        w2 = torch.empty(shapes["w2"])
         for t in range(n_types):
             nn.init.orthogonal_(w2[t], out_gain)
-        if adapters:  # one output layer for all types; each type's own part starts at zero
-            w2_shared = torch.empty(hidden, d_out)
+        if self.mode.adapters:  # one output layer for all types; each type's own part starts at zero
+            w2_shared = torch.empty(shapes["w2_shared"])
             nn.init.orthogonal_(w2_shared, out_gain)
             self.w2_shared = nn.Parameter(w2_shared)
-            self.b2_shared = nn.Parameter(torch.zeros(d_out))
+            self.b2_shared = nn.Parameter(torch.zeros(shapes["b2_shared"]))
             w2.zero_()
         self.w2 = nn.Parameter(w2)
-        self.b2 = nn.Parameter(torch.zeros(n_types, d_out))
+        self.b2 = nn.Parameter(torch.zeros(shapes["b2"]))
 
     def output_layer(self) -> tuple[torch.Tensor, torch.Tensor]:
         """Each type's output weights (T, H, out) and biases (T, out): with adapters, the shared
         layer plus the type's own part (what the compiled kernels and the numpy runtime use)."""
-        if self.adapters:
+        if self.mode.adapters:
             return self.w2 + self.w2_shared, self.b2 + self.b2_shared
         return self.w2, self.b2
+
+    def acting_arrays(self) -> dict[str, torch.Tensor]:
+        """The layer in acting form (``decision_shapes`` without ``trained``): ``first.weight``,
+        ``first.bias``, and each type's whole output layer ``w2`` (T, H, out), ``b2`` (T, out)."""
+        w2, b2 = self.output_layer()
+        return {"first.weight": self.first.weight, "first.bias": self.first.bias, "w2": w2, "b2": b2}
 
     def forward(self, x: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
         return self._second(F.relu(self.first(x)), type_onehot)
 
     def _second(self, h: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
         w2, b2 = self.output_layer()
-        if self.shared_first:
+        if self.mode.shared_hidden:
             out = torch.einsum("...h,tho->...to", h, w2) + b2  # (..., T, out)
         else:
             h = h.unflatten(-1, (self.n_types, self.hidden))  # (..., T, H)

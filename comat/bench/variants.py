@@ -1,0 +1,13 @@
+"""COMAT's rows of ``comat bench learn`` with one architecture option changed: importable without
+torch, so the command line offers the same names the benchmark runs."""
+
+from __future__ import annotations
+
+from comat.models.comat_schema import DECISIONS
+
+__all__ = ["COMAT_VARIANTS"]
+
+COMAT_VARIANTS = {**{f"comat_{d}": {"decision": d} for d in DECISIONS}, "comat_one_block": {"heat_blocks": 1}}
+"""Name -> ``ComatConfig`` options: one row per decision layer mode and one with a single HEAT
+block, to time a candidate default next to today's in one run; ``comat_paper`` (the paper form,
+``PAPER_FORM``) is the learn benchmark's own."""
