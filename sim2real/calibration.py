@@ -81,13 +81,23 @@ def is_calibration(folder) -> bool:
 
 def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
     """Run the folder under rps (:func:`sim2real.export.run_rps`) and fit the log it saved:
-    ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``; the log is left in the folder."""
+    ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``. The run happens in a copy of the folder,
+    so the folder a user uploads stays as exported; the log is kept beside it, as
+    ``calib_<experiment>.rps-<folder name>.npy`` (a log ``comat calibrate`` reads; ``result["rps"]["log"]``
+    names that file)."""
 
     folder = Path(folder)
     missing = [f for f in CALIBRATION_FILES if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not a calibration folder: missing {missing}")
-    result = run_rps(folder, timeout_s, rps_path)
-    experiment, log = load_log(folder / result["log"])
+    with tempfile.TemporaryDirectory(prefix="comat-calibration-check-") as tmp:
+        copy = Path(tmp) / folder.name
+        shutil.copytree(folder, copy)
+        result = run_rps(copy, timeout_s, rps_path)
+        log_name = Path(result["log"])
+        kept = folder.parent / f"{log_name.stem}.rps-{folder.name}{log_name.suffix}"
+        shutil.move(str(copy / result["log"]), kept)
+    result["log"] = str(kept)
+    experiment, log = load_log(kept)
     fit = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}[experiment](log)
     return {"rps": result, "fit": fit}

@@ -142,7 +142,9 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
     assert "delay_ticks 0..0" in printed
     from comat.calibration.experiments import load_log
 
-    _, log = load_log(out / "steps" / "calib_steps.npy")
+    for experiment in ("steps", "still", "ramp", "spin"):  # the uploaded folder stays as exported
+        assert sorted(p.name for p in (out / experiment).iterdir()) == files
+    _, log = load_log(out / "calib_steps.rps-steps.npy")  # the check's log, beside the folder
     fit = fit_steps(log)
     assert all(r["delay_ticks"] == 0 and r["tau_own_s"] <= 0.005 and r["accel_radps2"] == 0 for r in fit)
     assert main(["export", "--calibration", str(out)]) == 2  # an existing folder is refused
