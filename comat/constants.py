@@ -4,7 +4,7 @@ Everything that models the real testbed (MJCF, simulator, safety filter, metrics
 imports its numbers from here. Suffixes carry the unit: ``_m``, ``_s``, ``_mps`` (m/s),
 ``_radps`` (rad/s), ``_kg``, ``_nm`` (N·m).
 
-Provenance (see ``shared/reference/robotarium-marbler.md`` §1):
+Provenance (the Robotarium's public simulator code, read at the commits below):
 
 * Robotarium values are those of the legacy GRITSBot-era simulator
   ``robotarium/robotarium_python_simulator`` ``rps/robotarium_abc.py`` at commit ``5ec16db``

@@ -38,9 +38,6 @@ from comat.calibration.experiments import load_log
 from comat.calibration.schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
 from comat.measure.stats import t_interval
 
-FULL_STEP = FULL_FRACTION
-"""The ``steps`` experiment's full speed, as a fraction of the top speed."""
-
 __all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_spin", "fit_steps", "fit_still", "loop_timing", "profile_fields"]
 
 FIT_RANGES = {"delay_ticks": range(9), "tau_s": np.round(np.arange(0.0, 0.2001, 0.0025), 6),
@@ -130,7 +127,7 @@ def fit_steps(log: np.ndarray) -> list[dict]:
         ds = dist[m, i]
         kappa = float(np.polyfit(ds, dth[m, i], 1)[0]) if np.ptp(ds) > 0.05 else float("nan")
         row["half_gain_diff"] = kappa * C.GRITSBOT.base_length_m / 2.0  # kappa = (g_r - g_l) / l
-        row["full_fraction"] = FULL_STEP
+        row["full_fraction"] = FULL_FRACTION  # the steps experiment's full speed
     return out
 
 
@@ -316,7 +313,8 @@ def fit_logs(paths: Sequence[str]) -> dict:
 
 
 def profile_fields(fit: dict) -> dict:
-    """The RealityConfig fields (level ``off`` plus what the logs identified) a fit writes."""
+    """The RealityConfig fields (level ``off`` plus what the logs identified) a fit writes into a
+    profile file (:func:`comat.reality.config.read_profile` reads them back)."""
     est = {p["name"]: p for p in fit["parameters"] if p["estimate"] is not None and np.isfinite(p["estimate"])}
     fields: dict = {"level": "off"}
     if "pose_delay_ticks" in est:

@@ -1,7 +1,8 @@
 """Robotarium tasks as PettingZoo parallel environments (``pcp_v0``, ``hmt_v0``) and a vector env.
 
 ``make_env(env_id, **options)`` and ``make_vec_env(env_id, num_envs, **options)`` check the
-options and name any unknown one together with the valid ones.
+options and name any unknown one together with the valid ones; the options every env API shares
+are the fields of :class:`EnvOptions`.
 """
 
 from __future__ import annotations
@@ -10,12 +11,14 @@ from typing import Any
 
 from comat.envs.base import TaskEnv
 from comat.envs.hmt import HmtEnv
+from comat.envs.options import EnvOptions
 from comat.envs.pcp import PcpEnv
 from comat.envs.registry import ENV_IDS, make_env, make_local_vec_env
 from comat.envs.sharded import ShardedVectorEnv
 from comat.envs.vector import VectorEnv
 
-__all__ = ["ENV_IDS", "HmtEnv", "PcpEnv", "ShardedVectorEnv", "TaskEnv", "VectorEnv", "make_env", "make_vec_env"]
+__all__ = ["ENV_IDS", "EnvOptions", "HmtEnv", "PcpEnv", "ShardedVectorEnv", "TaskEnv", "VectorEnv", "make_env",
+           "make_vec_env"]
 
 
 

@@ -18,12 +18,12 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from comat.config import SafetyConfig, SimConfig
 from comat.envs.core import TaskCore
+from comat.envs.options import EnvOptions
 from comat.envs.render import EpisodeFrames
 from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coalitions
 
-__all__ = ["COALITION_SEED", "TaskEnv", "resolve_coalitions", "resolve_team", "team_source"]
+__all__ = ["COALITION_SEED", "TaskEnv", "build_core", "resolve_coalitions", "resolve_team", "team_source"]
 
 COALITION_SEED = 0
 """Seed of the paper's composition sets (``comat.team.COALITIONS_DIR`` holds the same teams as YAML)."""
@@ -85,6 +85,24 @@ def team_source(task: Any, coalitions: Any, team: Any, max_robots: Any) -> tuple
     return teams, fixed, max_robots or largest
 
 
+def build_core(task: Any, num_envs: int, options: EnvOptions,
+               state_robots: int | None = None) -> tuple[list[TeamSpec], TeamSpec | None, TaskCore]:
+    """The coalition set, the fixed team (or None) and the engine of ``num_envs`` environments of
+    ``task`` (a task-logic instance) run with ``options``.
+
+    ``state_robots``: the state's robots where ``options`` leaves them open (None: the robot
+    slots, at least 8, as a PettingZoo env has it; a vector env passes 8).
+    """
+    teams, fixed, slots = team_source(task, options.coalitions, options.team, options.max_robots)
+    if options.state_robots is not None:
+        state_robots = options.state_robots
+    elif state_robots is None:
+        state_robots = max(8, slots)
+    core = TaskCore(task, num_envs, slots, options.sim_config(), options.safety, options.ticks_per_step, state_robots,
+                    options.reality)
+    return teams, fixed, core
+
+
 class _SatOut(dict):
     """A reset dict keyed by this episode's team; looking up an agent that sits the episode out gives
     ``blank()`` (a plain ``in`` test and iteration see the team only)."""
@@ -106,20 +124,15 @@ class TaskEnv(ParallelEnv):
     """A Robotarium task as a PettingZoo parallel environment (subclasses set ``task_cls``).
 
     Keyword arguments (all optional):
-        coalitions: a composition set (:data:`comat.team.COALITION_SETS`: "train" (default),
-            "val", "test", "scale", "size", "capability"), a YAML file, or a list of teams; each
-            reset draws one uniformly.
-        team: a fixed team (TeamSpec or dict) used at every reset instead.
-        tier: "wheels" (default) or "unicycle"; or ``sim`` for a full SimConfig.
-        safety: SafetyConfig of the barrier filter.
-        ticks_per_step: control ticks per env step (PCP 29, HMT 74 by default).
-        max_robots: size of ``possible_agents`` (default: the largest team it may get).
-        state_robots: robots covered by ``state()`` (default: 8, or the env's robot slots when its
-            teams are larger, e.g. 20 for "scale" and "size", so every set has a ``state()``).
-        reality: the reality layer between the world and the robots' decisions: "off" (default,
-            the ideal world), "nominal", "stress", a :class:`comat.reality.RealityConfig`, or a
-            mapping of its fields (``{"level": "nominal", "pose_delay_ticks": 2}``). Observations,
-            waypoints, controller and filter then read measured poses; rewards and metrics true ones.
+        coalitions, team, tier, sim, safety, ticks_per_step, max_robots, state_robots, reality: the
+            options every env API shares (:class:`comat.envs.options.EnvOptions`, each described
+            there). ``coalitions`` defaults to "train" (each reset draws one of its teams),
+            ``tier`` to "wheels", ``reality`` to "off" (the ideal world; "nominal", "stress", a
+            profile, a :class:`comat.reality.RealityConfig` or a mapping of its fields, e.g.
+            ``{"level": "nominal", "pose_delay_ticks": 2}``: observations, waypoints, controller
+            and filter then read measured poses; rewards and metrics true ones). ``state_robots``
+            defaults to 8, or the env's robot slots when its teams are larger (e.g. 20 for
+            "scale" and "size"), so every set has a ``state()``.
         render_mode: None (default) or "rgb_array": ``render()`` then returns the arena drawn
             top-down, an (H, W, 3) uint8 frame (:mod:`comat.envs.render`; matplotlib, headless).
         task options: see each task (e.g. PCP ``n_prey``: a fixed prey count instead of the
@@ -130,30 +143,14 @@ class TaskEnv(ParallelEnv):
     metadata: ClassVar[dict] = {"name": "", "render_modes": ["rgb_array"], "is_parallelizable": True}
     task_cls: type = object
 
-    def __init__(
-        self,
-        *,
-        coalitions: Any = "train",
-        team: Any = None,
-        tier: str = "wheels",
-        sim: SimConfig | None = None,
-        safety: SafetyConfig | None = None,
-        ticks_per_step: int | None = None,
-        max_robots: int | None = None,
-        state_robots: int | None = None,
-        reality: Any = "off",
-        render_mode: str | None = None,
-        **task_options: Any,
-    ) -> None:
+    def __init__(self, *, render_mode: str | None = None, **options: Any) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
+        self.env_options, task_options = EnvOptions.split(options)
+        """The env options this environment was made with."""
         self.task = self.task_cls(**task_options)
-        self.coalitions, self.fixed_team, slots = team_source(self.task, coalitions, team, max_robots)
-        sim = sim or SimConfig(tier=tier)
-        if state_robots is None:
-            state_robots = max(8, slots)
-        self.core = TaskCore(self.task, 1, slots, sim, safety, ticks_per_step, state_robots, reality)
+        self.coalitions, self.fixed_team, self.core = build_core(self.task, 1, self.env_options)
         self.possible_agents = [f"robot_{i}" for i in range(self.core.N)]
         self.agents: list[str] = []
         self._np_random = np.random.default_rng()

@@ -26,6 +26,7 @@ from comat import kernels
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, go_to_goal, waypoint_controller
 from comat.envs.diagnostics import EpisodeRecorder
+from comat.envs.options import check_count
 from comat.reality import RealityConfig, episode_key, resolve_reality
 from comat.task_logic import waypoint_goals
 from comat.team import TeamSpec
@@ -80,6 +81,10 @@ class _Stats:
 class TaskCore:
     """B environments of ``task`` (a :mod:`comat.task_logic` task) with up to ``max_robots`` each.
 
+    The env APIs build it from their :class:`comat.envs.options.EnvOptions`
+    (:func:`comat.envs.base.build_core`); its arguments are those options resolved: the robot
+    slots counted, the physics settings made.
+
     Args:
         task: task logic instance (``PCP()`` or ``HMT()``).
         num_envs: B.
@@ -102,9 +107,8 @@ class TaskCore:
         state_robots: int = 8,
         reality: RealityConfig | str | None = None,
     ) -> None:
-        for name, value in (("ticks_per_step", ticks_per_step), ("state_robots", state_robots)):
-            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
-                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        check_count("ticks_per_step", ticks_per_step)
+        check_count("state_robots", state_robots)
         self.task = task
         self.state_robots = state_robots
         self.B, self.N = int(num_envs), int(max_robots)

@@ -11,6 +11,7 @@ from typing import Any
 
 from comat.envs.base import TaskEnv
 from comat.envs.hmt import HmtEnv
+from comat.envs.options import EnvOptions
 from comat.envs.pcp import PcpEnv
 from comat.envs.vector import VectorEnv
 
@@ -27,10 +28,13 @@ def _env_class(env_id: str) -> type[TaskEnv]:
 
 
 def check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] = (), vector: bool = False) -> None:
+    """ValueError naming every option of ``options`` that ``env_id`` does not take, and the valid ones:
+    the env options (:class:`EnvOptions`), the task's own, ``render_mode`` (PettingZoo env only) and
+    ``extra``."""
     cls = _env_class(env_id)
-    # A vector env draws nothing: render_mode belongs to the PettingZoo env alone.
-    skip = ("self", "task_options", "render_mode") if vector else ("self", "task_options")
-    valid = {p for p in inspect.signature(TaskEnv.__init__).parameters if p not in skip}
+    valid = set(EnvOptions.names())
+    if not vector:  # a vector env draws nothing: render_mode belongs to the PettingZoo env alone
+        valid.add("render_mode")
     valid |= {p for p in inspect.signature(cls.task_cls.__init__).parameters if p not in ("self", "args", "kwargs")}
     valid |= set(extra)
     unknown = sorted(set(options) - valid)

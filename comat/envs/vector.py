@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from comat.config import SafetyConfig, SimConfig
-from comat.envs.base import team_source
-from comat.envs.core import EPISODE_METRICS, TaskCore
+from comat.envs.base import build_core
+from comat.envs.core import EPISODE_METRICS
+from comat.envs.options import EnvOptions
 from comat.heap import release_free_heap
 from comat.team import TeamSpec
 
@@ -36,30 +36,17 @@ class VectorEnv:
         task: a :mod:`comat.task_logic` task instance.
         num_envs: B.
         seed: seeds every environment's generator (same seed, same episodes).
-        coalitions, team, tier, sim, safety, ticks_per_step, max_robots, state_robots, reality: as for
-            :class:`comat.envs.base.TaskEnv`.
         shard: ``(first, total)``: these are environments ``first … first + num_envs - 1`` of
             ``total`` seeded from ``seed`` (how :class:`comat.envs.sharded.ShardedVectorEnv`
             splits one seed over worker processes); None: all of them.
+        **options: the env options (:class:`comat.envs.options.EnvOptions`: coalitions, team,
+            tier, sim, safety, ticks_per_step, max_robots, state_robots, reality), as for
+            :class:`comat.envs.base.TaskEnv`, except that the state covers 8 robots unless
+            ``state_robots`` says otherwise.
     """
 
-    def __init__(
-        self,
-        task,
-        num_envs: int,
-        *,
-        seed: int | None = None,
-        coalitions: Any = "train",
-        team: Any = None,
-        tier: str = "wheels",
-        sim: SimConfig | None = None,
-        safety: SafetyConfig | None = None,
-        ticks_per_step: int | None = None,
-        max_robots: int | None = None,
-        state_robots: int = 8,
-        reality: Any = "off",
-        shard: tuple[int, int] | None = None,
-    ) -> None:
+    def __init__(self, task, num_envs: int, *, seed: int | None = None, shard: tuple[int, int] | None = None,
+                 **options: Any) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self.task = task
@@ -68,9 +55,9 @@ class VectorEnv:
         if not (0 <= first and first + num_envs <= total):
             raise ValueError(f"shard must be (first, total) with 0 <= first and first + num_envs <= total, got {shard!r}")
         self._shard = (first, total)
-        self.coalitions, self.fixed_team, slots = team_source(task, coalitions, team, max_robots)
-        self.core = TaskCore(task, num_envs, slots, sim or SimConfig(tier=tier), safety, ticks_per_step, state_robots,
-                             reality)
+        self.env_options = EnvOptions.of(options, "VectorEnv")
+        """The env options these environments were made with."""
+        self.coalitions, self.fixed_team, self.core = build_core(task, num_envs, self.env_options, state_robots=8)
         self.max_robots = self.core.N
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (task.obs_size(),), np.float64)
         self.single_action_space = spaces.Discrete(5)

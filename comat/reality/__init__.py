@@ -1,6 +1,7 @@
 """The reality layer: what separates comat's simulated robots from the Robotarium's real ones.
 
-Spec sheet (defaults and their provenance: :data:`SOURCES`, ``shared/reference/sim2real-anchors.md`` §6):
+Spec sheet (defaults and their provenance, read from the Robotarium's firmware, tracker and
+simulator code: :data:`SOURCES`, :mod:`comat.reality.config`):
 
 * **pose path** — per-robot measurement delay (whole ticks), Gaussian position/heading noise, a
   per-episode position bias, held measurements and tracking freezes that repeat the last
@@ -20,7 +21,8 @@ Levels ``off`` (the ideal world, bit for bit: no layer runs), ``nominal`` and ``
 decides (policy observations, waypoint controller, safety filter) reads measured poses;
 everything that judges (contacts, Robotarium checks, task progress, rewards) reads true ones
 (:class:`comat.control.SafeTeams`, :class:`comat.envs.core.TaskCore`); the filter is made robust
-to the layer's bounds (:mod:`comat.reality.margin`). Not modelled: tick stretch (§6 #11).
+to the layer's bounds (:mod:`comat.reality.margin`). Not modelled: tick stretch (a slow loop
+stretches the 0.033 s iteration: the Robotarium user guide, §2.8).
 """
 
 from comat.reality.config import LEVELS, REALITY_LEVELS, SOURCES, RealityConfig, resolve_reality

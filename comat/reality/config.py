@@ -5,10 +5,17 @@ changed; every field left at None takes the level's value in ``__post_init__`` (
 config, as written next to results, holds concrete numbers and loads back to itself).
 ``resolve_reality`` accepts what the env option ``reality=`` accepts.
 
-Every default carries its provenance (:data:`SOURCES`), in the marks of
-``shared/reference/sim2real-anchors.md``: **measured** (a number read from Robotarium code or
+Each field is declared once, with its value at each level and its provenance: :data:`LEVELS`,
+:data:`SOURCES` and the levels table of docs/reality.md (:func:`levels_markdown`) are made from
+those declarations. A provenance is a mark, **measured** (a number read from Robotarium code or
 firmware), **derived** (arithmetic or a toy model on such numbers) or **assumed** (a proposed
-magnitude with no public measurement behind it).
+magnitude with no public measurement behind it), and a source. The primary sources are the
+Robotarium's public code: the GTernal robot firmware (``robotarium/GTernal``), the Vicon pose
+publisher (``robotarium/vicon_tracker``), the Python simulator and its user guide
+(``robotarium/robotarium_python_simulator``), and CASH-MARBLER's Robotarium runs
+(``shalin-jain/CASH-MARBLER``); the assumed physics ranges scale those of MuJoCo Playground,
+legged_gym and Isaac Lab. The § numbers name sections of the project's Sim2Real anchor notes,
+which read those sources and are not part of this repository.
 """
 
 from __future__ import annotations
@@ -22,11 +29,25 @@ from typing import Any
 from comat import constants as C
 from comat.config import load
 
-__all__ = ["LEVELS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "levels_markdown", "profile_fields",
+__all__ = ["LEVELS", "MARKS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "levels_markdown", "read_profile",
            "resolve_reality"]
 
 REALITY_LEVELS = ("off", "nominal", "stress")
 """The named levels, in order of severity."""
+
+MARKS = ("measured", "derived", "assumed")
+"""How a value is known: read from Robotarium code or firmware, worked out from such numbers, or
+proposed without a public measurement."""
+
+
+def _field(off: Any, nominal: Any, stress: Any, mark: str, source: str) -> Any:
+    """A :class:`RealityConfig` field: None by default (``__post_init__`` puts in the level's
+    value), with its value at each level and its provenance in the field's metadata, which
+    :data:`LEVELS`, :data:`SOURCES` and :func:`levels_markdown` read."""
+    if mark not in MARKS:
+        raise ValueError(f"mark must be one of {MARKS}, got {mark!r}")
+    levels = dict(zip(REALITY_LEVELS, (off, nominal, stress)))
+    return dataclasses.field(default=None, metadata={"levels": levels, "mark": mark, "source": source})
 
 
 @dataclass(frozen=True)
@@ -41,142 +62,165 @@ class RealityConfig:
     level: str = "off"
     """Base level: ``"off"`` (the ideal world, bit for bit), ``"nominal"`` or ``"stress"``."""
 
+    # Each field below is declared by _field(off, nominal, stress, mark, source): its value at each
+    # level and its provenance, stated here alone (LEVELS, SOURCES and docs/reality.md's table are
+    # made from these declarations). Its docstring says what it is and why it has those values.
+
     # -- pose path (true poses -> what controller, filter and policy see) -------------------------
-    pose_delay_ticks: int | None = None
-    """Minimum measurement delay (ticks). nominal 0, stress 1: derived (Vicon->MQTT every 33 ms,
-    no timestamps; sim2real-anchors §1.2, §6 #1)."""
-    pose_delay_spread_ticks: int | None = None
+    pose_delay_ticks: int | None = _field(0, 0, 1, "derived",
+                                          "Vicon->MQTT every 33 ms, no timestamps (§1.1-1.2, §6 #1)")
+    """Minimum measurement delay (ticks): the tracker publishes every 33 ms over MQTT, without
+    timestamps (§1.2, §6 #1)."""
+    pose_delay_spread_ticks: int | None = _field(0, 2, 2, "derived", "{0,1,2} ticks P .25/.5/.25 (§6 #1)")
     """Extra delay per episode ~ Binomial(spread, 1/2) ticks on top of the minimum: spread 2 gives
     {0, 1, 2} with P .25/.5/.25 (§6 #1), common to the team (one message carries every pose) unless
-    ``pose_per_robot``. nominal 2, stress 2: derived."""
-    pose_delay_jitter_prob: float | None = None
+    ``pose_per_robot``."""
+    pose_delay_jitter_prob: float | None = _field(0.0, 0.2, 0.4, "assumed",
+                                                  "two unsynchronised 33 ms clocks, no timestamps (§1.1)")
     """Per tick, probability that this tick's message is one tick older than the episode's delay
     (two unsynchronised 33 ms clocks, the tracker's and the script's, beat between k and k + 1
-    ticks; no timestamps to tell). Common to the team. nominal 0.2, stress 0.4: assumed (§1.1)."""
-    pose_hold_prob: float | None = None
+    ticks; no timestamps to tell). Common to the team (§1.1)."""
+    pose_hold_prob: float | None = _field(0.0, 0.3, 0.3, "assumed", "mjlab-style hold (§6 #1)")
     """Per tick probability that the measurement is not refreshed (the last measured pose repeats;
     mjlab-style hold): common to the team (a message that did not come repeats every pose) unless
-    ``pose_per_robot``. nominal 0.3, stress 0.3: assumed (§6 #1)."""
-    pose_per_robot: bool | None = None
-    """True: each robot's pose delay, jitter and holds are its own (comat's structure before issue
-    45; the results committed before 2026-12-06 used it). False (every level): common to the team,
-    as the testbed's one message per tick with every pose. Structure only: it switches nothing on."""
-    pose_noise_xy_m: float | None = None
-    """SD of Gaussian position noise per axis per tick (m). nominal 0.001 (Vicon class), stress
-    0.005: assumed (§1.4, §6 #8)."""
-    pose_noise_theta_rad: float | None = None
-    """SD of Gaussian heading noise per tick (rad). nominal 0.01, stress 0.05: assumed (§6 #8;
-    V2's onboard orientation noise is 0.31° = 0.0054 rad, measured)."""
-    pose_bias_xy_m: float | None = None
-    """SD of a per-robot, per-episode position offset per axis (m). nominal 0.0005: assumed
-    (§6 #8); stress 0.0025: derived (the older camera tracker's 2.5 mm per pixel, §1.4)."""
-    pose_freeze_prob: float | None = None
+    ``pose_per_robot`` (§6 #1)."""
+    pose_per_robot: bool | None = _field(False, False, False, "measured",
+                                         "structure: one MQTT message with every pose (§1.1)")
+    """True: each robot's pose delay, jitter and holds are its own (the structure of the results
+    committed before 2026-12-06). False (every level): common to the team, as the testbed's one
+    message per tick with every pose. Structure only: it switches nothing on."""
+    pose_noise_xy_m: float | None = _field(0.0, 0.001, 0.005, "assumed", "Vicon class (§1.4, §6 #8)")
+    """SD of Gaussian position noise per axis per tick (m); nominal is of the Vicon class (§1.4,
+    §6 #8)."""
+    pose_noise_theta_rad: float | None = _field(0.0, 0.01, 0.05, "assumed",
+                                                "§6 #8; V2 orientation 0.31° measured")
+    """SD of Gaussian heading noise per tick (rad) (§6 #8; the V2 simulator's onboard orientation
+    noise is 0.31° = 0.0054 rad, measured)."""
+    pose_bias_xy_m: float | None = _field(0.0, 0.0005, 0.0025, "assumed",
+                                          "nominal §6 #8; stress = camera 2.5 mm/px, derived (§1.4)")
+    """SD of a per-robot, per-episode position offset per axis (m): nominal assumed (§6 #8);
+    stress derived, the older camera tracker's 2.5 mm per pixel (§1.4)."""
+    pose_freeze_prob: float | None = _field(0.0, 0.002, 0.02, "assumed", "§6 #9")
     """Per robot-tick probability that tracking freezes (the last measured pose repeats for a
-    run of ticks). nominal 0.002, stress 0.02: assumed (§6 #9)."""
-    pose_freeze_mean_ticks: float | None = None
-    """Mean length of a freeze (geometric, ticks >= 1). nominal 3, stress 10: assumed (§6 #9)."""
-    pose_freeze_max_ticks: int | None = None
-    """Longest freeze (ticks). nominal 150: measured (the tracker drops a marker after 5000 ms,
-    vicon_tracker ``timeout_millis``, §1.1); stress 30: assumed (§6 #9 "bursts up to 30")."""
+    run of ticks) (§6 #9)."""
+    pose_freeze_mean_ticks: float | None = _field(3.0, 3.0, 10.0, "assumed", "§6 #9")
+    """Mean length of a freeze (geometric, ticks >= 1) (§6 #9)."""
+    pose_freeze_max_ticks: int | None = _field(150, 150, 30, "measured",
+                                               "tracker timeout 5000 ms (§1.1); stress 30 assumed (§6 #9)")
+    """Longest freeze (ticks): nominal the tracker's, which drops a marker after 5000 ms
+    (vicon_tracker ``timeout_millis``, §1.1); stress the anchor table's "bursts up to 30" (§6 #9)."""
 
     # -- command path (filtered command -> what reaches the robot) --------------------------------
-    command_delay_ticks: int | None = None
-    """Minimum command delay (ticks). nominal 0, stress 1: derived (Pi 16 ms poll + ISR 10 ms +
-    execute-then-sense 10 ms, §1.2, §6 #2)."""
-    command_delay_spread_ticks: int | None = None
+    command_delay_ticks: int | None = _field(0, 0, 1, "derived",
+                                             "Pi poll + ISR + execute-then-sense (§1.2, §6 #2)")
+    """Minimum command delay (ticks): the Pi's 16 ms poll + the ISR's 10 ms + execute-then-sense
+    10 ms (§1.2, §6 #2)."""
+    command_delay_spread_ticks: int | None = _field(0, 1, 1, "derived", "{0,1} / {1,2} ticks (§6 #2)")
     """Extra command delay per robot and episode ~ Binomial(spread, 1/2): spread 1 gives {0, 1}
-    (nominal) or {1, 2} (stress) with equal odds (§6 #2). nominal 1, stress 1: derived."""
-    command_loss_prob: float | None = None
+    (nominal) or {1, 2} (stress) with equal odds (§6 #2)."""
+    command_loss_prob: float | None = _field(0.0, 0.01, 0.05, "assumed", "§6 #10")
     """Per robot-tick probability that a run of lost commands starts: the robot keeps its last
-    received command. nominal 0.01, stress 0.05: assumed (§6 #10)."""
-    command_loss_mean_ticks: float | None = None
-    """Mean length of a run of losses (geometric, ticks >= 1). nominal 1, stress 5 (bursts):
-    assumed (§6 #10)."""
-    script_miss_prob: float | None = None
+    received command (§6 #10)."""
+    command_loss_mean_ticks: float | None = _field(1.0, 1.0, 5.0, "assumed", "§6 #10 (stress: bursts)")
+    """Mean length of a run of losses (geometric, ticks >= 1); stress has bursts (§6 #10)."""
+    script_miss_prob: float | None = _field(0.0, 0.002, 0.02, "derived",
+                                            "the deployed loop's measured compute time; server speed assumed")
     """Per tick probability that the script's iteration overruns the 0.033 s tick (a long QP, the
     policy's inference at a step boundary): that tick no command goes out to any robot of the team
     (each keeps its last; it counts toward the brake) and the pose it reads next is one tick
-    staler (a hold). nominal 0.002, stress 0.02: derived from the deployed loop's measured
-    compute time (docs/reality.md) with the server's speed assumed."""
-    script_stall_prob: float | None = None
+    staler (a hold). Derived from the deployed loop's measured compute time (docs/reality.md)
+    with the server's speed assumed."""
+    script_stall_prob: float | None = _field(0.0, 0.0, 0.001, "assumed",
+                                             "stalls and interrupts of the user's script (§1.1)")
     """Per tick probability that the script stalls (garbage collection, I/O, the server's load):
     no command to any robot of the team for a run of ticks; a run past the brake time stops every
-    robot. nominal 0, stress 0.001: assumed (§1.1; CASH's server logs end in interrupts)."""
-    script_stall_mean_ticks: float | None = None
-    """Mean length of a stall (geometric, ticks >= 1). 10 (0.33 s) at both levels: assumed."""
-    command_brake_after_s: float | None = None
+    robot (§1.1; CASH's server logs end in interrupts)."""
+    script_stall_mean_ticks: float | None = _field(10.0, 10.0, 10.0, "assumed", "—")
+    """Mean length of a stall (geometric, ticks >= 1; 10 ticks = 0.33 s)."""
+    command_brake_after_s: float | None = _field(0.5, 0.5, 0.5, "measured",
+                                                 "GTernal communicationCheck(500) (§1.1)")
     """A robot without a command for this long brakes (v = ω = 0) until one arrives: it brakes
-    from the tick during which the timeout expires (15 lost ticks at 0.033 s). 0.5 s at both
-    levels: measured (GTernal ``communicationCheck(500)``, §1.1)."""
+    from the tick during which the timeout expires (15 lost ticks at 0.5 s). The GTernal firmware's
+    ``communicationCheck(500)`` (§1.1)."""
 
     # -- motors (wheel speeds the robot asks for -> wheel speeds it gets) -------------------------
-    motor_tau_min_s: float | None = None
+    motor_tau_min_s: float | None = _field(0.0, 0.04, 0.08, "derived",
+                                           "firmware PI + slew toy model (§1.2, §6 #3)")
     """First-order wheel-speed lag: time constant per wheel and episode ~ U(min, max) (s); 0 =
-    no lag. nominal 0.04–0.08, stress 0.08–0.12: derived (firmware PI + slew, toy model 60–80
-    ms to 63 %, §1.2, §6 #3)."""
-    motor_tau_max_s: float | None = None
+    no lag. Derived from the firmware's PI loop and slew (a toy model: 60–80 ms to 63 %, §1.2,
+    §6 #3)."""
+    motor_tau_max_s: float | None = _field(0.0, 0.08, 0.12, "derived",
+                                           "firmware PI + slew toy model (§1.2, §6 #3)")
     """Upper end of the lag's time constant (s); see ``motor_tau_min_s``."""
-    motor_accel_limit_radps2: float | None = None
-    """Largest change of a wheel's speed (rad/s per s); 0 = no limit. 200 at both levels:
-    derived (PWM slew 50/255 per 10 ms: 12.5 rad/s in ~60 ms, §1.1, §6 #3)."""
-    motor_dead_zone_radps: float | None = None
-    """A wheel asked for less than this speed (rad/s) does not turn. nominal 1.9 (0.03 m/s at
-    the rim): derived (guide minimum speed 0.03 m/s, §1.1, §6 #4); stress 3.0: assumed."""
-    wheel_gain_spread: float | None = None
+    motor_accel_limit_radps2: float | None = _field(0.0, 200.0, 200.0, "derived",
+                                                    "PWM slew 50/255 per 10 ms (§1.1, §6 #3)")
+    """Largest change of a wheel's speed (rad/s per s); 0 = no limit. The firmware's PWM slew of
+    50/255 per 10 ms: 12.5 rad/s in ~60 ms (§1.1, §6 #3)."""
+    motor_dead_zone_radps: float | None = _field(
+        0.0, 1.9, 3.0, "derived", "guide minimum speed 0.03 m/s (§1.1, §6 #4); stress assumed")
+    """A wheel asked for less than this speed (rad/s) does not turn. Nominal: 0.03 m/s at the
+    rim, the user guide's minimum speed (§1.1, §6 #4); stress assumed."""
+    wheel_gain_spread: float | None = _field(0.0, 0.03, 0.07, "assumed",
+                                             "guide Fig. 13 curved open-loop path (§6 #5)")
     """Per wheel and episode, speed gain ~ U(1 - spread, 1 + spread) (radius, calibration):
-    a straight command drives a curve. nominal 0.03, stress 0.07: assumed (guide Fig. 13, §6 #5)."""
-    top_speed_derate_min: float | None = None
+    a straight command drives a curve, as in the user guide's Fig. 13 (§6 #5)."""
+    top_speed_derate_min: float | None = _field(1.0, 0.9, 0.75, "assumed",
+                                                "battery thresholds, PID saturation (§1.1, §6 #6)")
     """Per robot and episode, the reachable wheel speed is 12.5 rad/s × U(min, 1) (battery,
-    wear); 1 = none. nominal 0.9, stress 0.75: assumed (battery thresholds, PID saturation,
-    §1.1, §6 #6)."""
-    wheel_disturbance_radps: float | None = None
+    wear); 1 = none (the firmware's battery thresholds, PID saturation: §1.1, §6 #6)."""
+    wheel_disturbance_radps: float | None = _field(0.0, 0.5, 2.0, "assumed", "§6 #7")
     """Stationary SD of a per-wheel Ornstein–Uhlenbeck speed disturbance on a turning wheel
-    (rad/s). nominal 0.5, stress 2.0: assumed (§6 #7)."""
-    wheel_disturbance_corr_s: float | None = None
-    """Correlation time of that disturbance (s). 0.2 at both levels: assumed (§6 #7)."""
-    wheel_disturbance_bound_radps: float | None = None
-    """The disturbance is clipped to ± this (rad/s). 5.0 at both levels: measured as a design
-    bound (the Robotarium's robust barrier, ``disturbance=5``, §1.1, §6 #7)."""
+    (rad/s) (§6 #7)."""
+    wheel_disturbance_corr_s: float | None = _field(0.2, 0.2, 0.2, "assumed", "§6 #7")
+    """Correlation time of that disturbance (s) (§6 #7)."""
+    wheel_disturbance_bound_radps: float | None = _field(
+        5.0, 5.0, 5.0, "measured", "robust barrier disturbance=5 rad/s, a design bound (§1.1)")
+    """The disturbance is clipped to ± this (rad/s): measured as a design bound (the Robotarium's
+    robust barrier, ``disturbance=5``, §1.1, §6 #7)."""
 
     # -- faults -----------------------------------------------------------------------------------
-    fault_prob: float | None = None
+    fault_prob: float | None = _field(0.0, 0.0, 0.0, "assumed", "opt-in; CASH-MARBLER motor_failure (§2.3)")
     """Probability that an episode has one faulty robot (drawn uniformly from the team). 0 at
-    both levels: faults change the team under the policy, an experiment of its own (set it to
+    every level: faults change the team under the policy, an experiment of its own (set it to
     1 to run CASH-MARBLER's ``motor_failure``, §2.3)."""
-    fault_speed_fraction: float | None = None
+    fault_speed_fraction: float | None = _field(0.25, 0.25, 0.25, "measured",
+                                                "CASH-MARBLER motor_failure setting (§2.3)")
     """The faulty robot's wheels turn at this fraction of their speed from the fault on (0 =
-    the motors fail). 0.25 at both levels: measured setting (CASH-MARBLER ``motor_failure``, §2.3)."""
-    fault_start_min_s: float | None = None
-    """The fault begins at a time ~ U(min, max) after the episode's start (s). 0: assumed."""
-    fault_start_max_s: float | None = None
-    """Upper end of the fault's start time (s). 60 (within the first minute: both tasks'
-    horizons are longer, PCP 77 s, HMT 171 s): assumed."""
-    fault_known: bool | None = None
+    the motors fail): CASH-MARBLER's ``motor_failure`` setting (§2.3)."""
+    fault_start_min_s: float | None = _field(0.0, 0.0, 0.0, "assumed", "—")
+    """The fault begins at a time ~ U(min, max) after the episode's start (s)."""
+    fault_start_max_s: float | None = _field(60.0, 60.0, 60.0, "assumed", "within the first minute")
+    """Upper end of the fault's start time (s): within the first minute (both tasks' horizons are
+    longer, PCP 77 s, HMT 171 s)."""
+    fault_known: bool | None = _field(False, False, False, "assumed", "—")
     """Whether the faulty robot's capability vector reports its new speed (known) or not
     (hidden). The layer only carries the flag (:attr:`RealityLayer.speed_fraction` holds the
-    factor); the env decides what a capability vector says. False at both levels: assumed."""
+    factor); the env decides what a capability vector says."""
 
     # -- start ------------------------------------------------------------------------------------
-    start_xy_m: float | None = None
+    start_xy_m: float | None = _field(0.0, 0.05, 0.05, "measured",
+                                      "V2 initializer at_pose radial tolerance (§1.3, §6 #12)")
     """A robot starts up to this far from its requested position (uniform in the disc of this
-    radius, m: the start-up drive's radial tolerance). 0.05 at both levels: measured (V2
-    initializer ``at_pose`` tolerance, a norm, §1.3, §6 #12)."""
-    start_theta_rad: float | None = None
-    """Heading start error, uniform ± this (rad). 0.2 at both levels: measured (§1.3)."""
+    radius, m: the start-up drive's radial tolerance, the V2 initializer's ``at_pose``, a norm,
+    §1.3, §6 #12)."""
+    start_theta_rad: float | None = _field(0.0, 0.2, 0.2, "measured",
+                                           "V2 initializer at_pose tolerance (§1.3, §6 #12)")
+    """Heading start error, uniform ± this (rad): the V2 initializer's ``at_pose`` tolerance (§1.3)."""
 
     # -- physics (wheels tier only: the unicycle tier has no contacts or masses to vary) ----------
-    floor_friction_min: float | None = None
+    floor_friction_min: float | None = _field(0.0, 0.6, 0.4, "assumed",
+                                              "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)")
     """Per robot and episode, the friction between its wheels and the floor ~ U(min, max) (the
-    model's own is 1.5); max 0 = unchanged. nominal 0.6–1.5, stress 0.4–1.5: assumed (§6 #13:
-    Playground, legged_gym and Isaac ranges scaled to a 0.1 kg robot)."""
-    floor_friction_max: float | None = None
+    model's own is 1.5); max 0 = unchanged. MuJoCo Playground's, legged_gym's and Isaac Lab's
+    ranges scaled to a 0.1 kg robot (§3.8, §6 #13)."""
+    floor_friction_max: float | None = _field(0.0, 1.5, 1.5, "assumed",
+                                              "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)")
     """Upper end of the floor friction (see ``floor_friction_min``)."""
-    chassis_mass_spread: float | None = None
-    """Per robot and episode, the chassis mass × U(1 - spread, 1 + spread). 0.1 at both levels:
-    assumed (§6 #13)."""
-    com_offset_m: float | None = None
-    """Per robot and episode, the chassis centre of mass moves U(-c, c) along x and y (m). 0.005
-    at both levels: assumed (§6 #13)."""
+    chassis_mass_spread: float | None = _field(0.0, 0.1, 0.1, "assumed", "peers' ×U(0.9, 1.1) (§3.8, §6 #13)")
+    """Per robot and episode, the chassis mass × U(1 - spread, 1 + spread) (§6 #13)."""
+    com_offset_m: float | None = _field(0.0, 0.005, 0.005, "assumed",
+                                        "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)")
+    """Per robot and episode, the chassis centre of mass moves U(-c, c) along x and y (m) (§6 #13)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.level, str) or self.level not in LEVELS:
@@ -235,8 +279,8 @@ _INERT = ("fault_speed_fraction", "fault_start_min_s", "fault_start_max_s", "fau
           "wheel_disturbance_bound_radps", "pose_per_robot", "script_stall_mean_ticks")
 """Fields that shape a component without switching it on (a component is on through its
 probability, SD, delay or range). The upper ends of ranges are not among them: a lag drawn from
-[0, motor_tau_max_s] or a delay from [0, spread] ticks is on with its lower end at 0 (they were,
-until 2026-12-04, and such a setting ran the ideal world: the layer's own switches disagreed)."""
+[0, motor_tau_max_s] or a delay from [0, spread] ticks is on with its lower end at 0 (were they
+inert, such a setting would run the ideal world while the layer's own switches said it was on)."""
 
 
 def _check(c: RealityConfig) -> None:
@@ -286,88 +330,22 @@ def _check(c: RealityConfig) -> None:
             raise TypeError(f"RealityConfig.{name} must be a bool, got {getattr(c, name)!r}")
 
 
-_OFF = {
-    "pose_delay_ticks": 0, "pose_delay_spread_ticks": 0, "pose_hold_prob": 0.0, "pose_noise_xy_m": 0.0, "pose_noise_theta_rad": 0.0,
-    "pose_bias_xy_m": 0.0, "pose_freeze_prob": 0.0, "pose_freeze_mean_ticks": 3.0, "pose_freeze_max_ticks": 150,
-    "pose_delay_jitter_prob": 0.0, "pose_per_robot": False, "script_miss_prob": 0.0, "script_stall_prob": 0.0,
-    "script_stall_mean_ticks": 10.0, "command_delay_ticks": 0, "command_delay_spread_ticks": 0, "command_loss_prob": 0.0, "command_loss_mean_ticks": 1.0,
-    "command_brake_after_s": 0.5, "motor_tau_min_s": 0.0, "motor_tau_max_s": 0.0, "motor_accel_limit_radps2": 0.0,
-    "motor_dead_zone_radps": 0.0, "wheel_gain_spread": 0.0, "top_speed_derate_min": 1.0, "wheel_disturbance_radps": 0.0,
-    "wheel_disturbance_corr_s": 0.2, "wheel_disturbance_bound_radps": 5.0, "fault_prob": 0.0, "fault_speed_fraction": 0.25,
-    "fault_start_min_s": 0.0, "fault_start_max_s": 60.0, "fault_known": False, "start_xy_m": 0.0, "start_theta_rad": 0.0,
-    "floor_friction_min": 0.0, "floor_friction_max": 0.0, "chassis_mass_spread": 0.0, "com_offset_m": 0.0,
-}
-LEVELS: dict[str, dict[str, Any]] = {
-    "off": _OFF,
-    "nominal": {**_OFF, 
-        "pose_delay_ticks": 0, "pose_delay_spread_ticks": 2, "pose_hold_prob": 0.3, "pose_noise_xy_m": 0.001,
-        "pose_noise_theta_rad": 0.01, "pose_bias_xy_m": 0.0005, "pose_freeze_prob": 0.002, "pose_freeze_mean_ticks": 3.0,
-        "pose_freeze_max_ticks": 150, "command_delay_ticks": 0, "command_delay_spread_ticks": 1, "command_loss_prob": 0.01,
-        "command_loss_mean_ticks": 1.0, "motor_tau_min_s": 0.04, "motor_tau_max_s": 0.08, "motor_accel_limit_radps2": 200.0,
-        "motor_dead_zone_radps": 1.9, "wheel_gain_spread": 0.03, "top_speed_derate_min": 0.9, "wheel_disturbance_radps": 0.5,
-        "start_xy_m": 0.05, "start_theta_rad": 0.2, "floor_friction_min": 0.6, "floor_friction_max": 1.5,
-        "chassis_mass_spread": 0.1, "com_offset_m": 0.005, "pose_delay_jitter_prob": 0.2, "script_miss_prob": 0.002,
-    },
-    "stress": {**_OFF, 
-        "pose_delay_ticks": 1, "pose_delay_spread_ticks": 2, "pose_hold_prob": 0.3, "pose_noise_xy_m": 0.005,
-        "pose_noise_theta_rad": 0.05, "pose_bias_xy_m": 0.0025, "pose_freeze_prob": 0.02, "pose_freeze_mean_ticks": 10.0,
-        "pose_freeze_max_ticks": 30, "command_delay_ticks": 1, "command_delay_spread_ticks": 1, "command_loss_prob": 0.05,
-        "command_loss_mean_ticks": 5.0, "motor_tau_min_s": 0.08, "motor_tau_max_s": 0.12, "motor_accel_limit_radps2": 200.0,
-        "motor_dead_zone_radps": 3.0, "wheel_gain_spread": 0.07, "top_speed_derate_min": 0.75, "wheel_disturbance_radps": 2.0,
-        "start_xy_m": 0.05, "start_theta_rad": 0.2, "floor_friction_min": 0.4, "floor_friction_max": 1.5,
-        "chassis_mass_spread": 0.1, "com_offset_m": 0.005, "pose_delay_jitter_prob": 0.4, "script_miss_prob": 0.02,
-        "script_stall_prob": 0.001,
-    },
-}
-"""Each level's value of every field (the ``off`` values switch every component off)."""
+_FIELDS = tuple(f for f in dataclasses.fields(RealityConfig) if f.name != "level")
 
-SOURCES: dict[str, tuple[str, str]] = {
-    "pose_delay_ticks": ("derived", "Vicon->MQTT every 33 ms, no timestamps (§1.1-1.2, §6 #1)"),
-    "pose_delay_spread_ticks": ("derived", "{0,1,2} ticks P .25/.5/.25 (§6 #1)"),
-    "pose_hold_prob": ("assumed", "mjlab-style hold (§6 #1)"),
-    "pose_noise_xy_m": ("assumed", "Vicon class (§1.4, §6 #8)"),
-    "pose_noise_theta_rad": ("assumed", "§6 #8; V2 orientation 0.31° measured"),
-    "pose_bias_xy_m": ("assumed", "nominal §6 #8; stress = camera 2.5 mm/px, derived (§1.4)"),
-    "pose_freeze_prob": ("assumed", "§6 #9"),
-    "pose_freeze_mean_ticks": ("assumed", "§6 #9"),
-    "pose_freeze_max_ticks": ("measured", "tracker timeout 5000 ms (§1.1); stress 30 assumed (§6 #9)"),
-    "pose_delay_jitter_prob": ("assumed", "two unsynchronised 33 ms clocks, no timestamps (§1.1)"),
-    "pose_per_robot": ("measured", "structure: one MQTT message with every pose (§1.1)"),
-    "script_miss_prob": ("derived", "the deployed loop's measured compute time; server speed assumed"),
-    "script_stall_prob": ("assumed", "stalls and interrupts of the user's script (§1.1)"),
-    "script_stall_mean_ticks": ("assumed", "—"),
-    "command_delay_ticks": ("derived", "Pi poll + ISR + execute-then-sense (§1.2, §6 #2)"),
-    "command_delay_spread_ticks": ("derived", "{0,1} / {1,2} ticks (§6 #2)"),
-    "command_loss_prob": ("assumed", "§6 #10"),
-    "command_loss_mean_ticks": ("assumed", "§6 #10 (stress: bursts)"),
-    "command_brake_after_s": ("measured", "GTernal communicationCheck(500) (§1.1)"),
-    "motor_tau_min_s": ("derived", "firmware PI + slew toy model (§1.2, §6 #3)"),
-    "motor_tau_max_s": ("derived", "firmware PI + slew toy model (§1.2, §6 #3)"),
-    "motor_accel_limit_radps2": ("derived", "PWM slew 50/255 per 10 ms (§1.1, §6 #3)"),
-    "motor_dead_zone_radps": ("derived", "guide minimum speed 0.03 m/s (§1.1, §6 #4); stress assumed"),
-    "wheel_gain_spread": ("assumed", "guide Fig. 13 curved open-loop path (§6 #5)"),
-    "top_speed_derate_min": ("assumed", "battery thresholds, PID saturation (§1.1, §6 #6)"),
-    "wheel_disturbance_radps": ("assumed", "§6 #7"),
-    "wheel_disturbance_corr_s": ("assumed", "§6 #7"),
-    "wheel_disturbance_bound_radps": ("measured", "robust barrier disturbance=5 rad/s, a design bound (§1.1)"),
-    "fault_prob": ("assumed", "opt-in; CASH-MARBLER motor_failure (§2.3)"),
-    "fault_speed_fraction": ("measured", "CASH-MARBLER motor_failure setting (§2.3)"),
-    "fault_start_min_s": ("assumed", "—"),
-    "fault_start_max_s": ("assumed", "within the first minute"),
-    "fault_known": ("assumed", "—"),
-    "start_xy_m": ("measured", "V2 initializer at_pose radial tolerance (§1.3, §6 #12)"),
-    "start_theta_rad": ("measured", "V2 initializer at_pose tolerance (§1.3, §6 #12)"),
-    "floor_friction_min": ("assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"),
-    "floor_friction_max": ("assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"),
-    "chassis_mass_spread": ("assumed", "peers' ×U(0.9, 1.1) (§3.8, §6 #13)"),
-    "com_offset_m": ("assumed", "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)"),
+LEVELS: dict[str, dict[str, Any]] = {
+    level: {f.name: f.metadata["levels"][level] for f in _FIELDS} for level in REALITY_LEVELS
 }
-"""Per field: (mark, source) for the documentation and the levels table of docs/reality.md."""
+"""Each level's value of every field, in the fields' order (the ``off`` values switch every
+component off); made from the fields' declarations."""
+
+SOURCES: dict[str, tuple[str, str]] = {f.name: (f.metadata["mark"], f.metadata["source"]) for f in _FIELDS}
+"""Per field: (mark, source) for the documentation and the levels table of docs/reality.md; made
+from the fields' declarations."""
 
 
 def levels_markdown() -> str:
-    """The levels table of docs/reality.md (field, nominal, stress, mark, source), made from
-    :data:`LEVELS` and :data:`SOURCES`: a test keeps the page equal to it."""
+    """The levels table of docs/reality.md (field, nominal, stress, mark, source), made from the
+    fields' declarations (:data:`LEVELS`, :data:`SOURCES`): a test keeps the page equal to it."""
     rows = ["| field | nominal | stress | mark | source |", "|---|---|---|---|---|"]
     for name in LEVELS["off"]:
         mark, source = SOURCES[name]
@@ -375,9 +353,10 @@ def levels_markdown() -> str:
     return "\n".join(rows) + "\n"
 
 
-def profile_fields(path: str, name: str = "reality") -> dict[str, Any]:
-    """The RealityConfig fields of a profile file (``comat calibrate --out PROFILE.yaml``: a
-    mapping with a ``reality`` mapping of fields); one-line errors for a missing or foreign file."""
+def read_profile(path: str, name: str = "reality") -> dict[str, Any]:
+    """The RealityConfig fields a profile file holds (``comat calibrate --out PROFILE.yaml``: a
+    mapping with a ``reality`` mapping of fields); one-line errors for a missing or foreign file.
+    (:func:`comat.calibration.fit.profile_fields` makes those fields from a fit.)"""
     from pathlib import Path
 
     import yaml
@@ -407,7 +386,7 @@ def resolve_reality(value: Any, name: str = "reality") -> RealityConfig:
     if isinstance(value, RealityConfig):
         return value
     if isinstance(value, str) and value.endswith((".yaml", ".yml")):
-        return load(RealityConfig, profile_fields(value, name), prefix=name)
+        return load(RealityConfig, read_profile(value, name), prefix=name)
     if isinstance(value, str):
         if value not in LEVELS:
             raise ValueError(f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its "

@@ -31,7 +31,7 @@ from comat.models.mappo import MappoConfig
 from comat.models.mat import MatConfig
 from comat.models.qmix import QmixNetConfig
 from comat.reality import RealityConfig, resolve_reality
-from comat.reality.config import profile_fields
+from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 
@@ -211,7 +211,7 @@ def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
         return data
     if isinstance(value, str) and value.endswith((".yaml", ".yml")):  # a calibrated profile: its fields
 
-        return {**data, "reality": profile_fields(value)}
+        return {**data, "reality": read_profile(value)}
     return {**data, "reality": {"level": value}}
 
 
