@@ -71,12 +71,18 @@ def heading_features(poses: np.ndarray) -> np.ndarray:
     return np.concatenate([poses[..., :2], np.cos(poses[..., 2:3]), np.sin(poses[..., 2:3])], axis=-1)
 
 
+def _cells(box: tuple[float, float, float, float], spacing: float) -> int:
+    """Points a box holds ``spacing`` apart on a grid (what :func:`_spread` can always place)."""
+    x0, x1, y0, y1 = box
+    return int(np.floor((x1 - x0) / spacing) + 1) * int(np.floor((y1 - y0) / spacing) + 1)
+
+
 def _spread(
     rng: np.random.Generator, n: int, box: tuple[float, float, float, float], spacing: float, what: str, noun: str
 ) -> np.ndarray:
     """n points (n, 2) uniform in box, pairwise >= spacing apart (bounded rejection sampling)."""
     x0, x1, y0, y1 = box
-    cells = int(np.floor((x1 - x0) / spacing) + 1) * int(np.floor((y1 - y0) / spacing) + 1)
+    cells = _cells(box, spacing)
     if n > cells:
         raise ValueError(
             f"{what}: {n} {noun} do not fit {spacing} m apart in x [{x0}, {x1}], y [{y0}, {y1}] (at most {cells})"
@@ -115,6 +121,30 @@ class _Task:
 
     def obs_size(self) -> int:
         return 4 + len(self.types) + len(self.capabilities) + self.n_task_features
+
+    def spawn_capacity(self) -> int:
+        """The most robots the spawn area holds :attr:`spawn_spacing` apart, widened as far as
+        :meth:`spawn` widens it (to :data:`SPAWN_X_LIMIT`)."""
+        x0, x1, y0, y1 = self.spawn_box
+        s = self.spawn_spacing
+        while x1 + s <= SPAWN_X_LIMIT:
+            x1 += s
+        return _cells((x0, x1, y0, y1), s)
+
+    def max_team_size(self) -> int:
+        """The largest team this task takes (its robots must fit the spawn area)."""
+        return self.spawn_capacity()
+
+    def check_team_size(self, n_robots: int) -> None:
+        """ValueError saying the largest team this task takes, why, and how to change it."""
+        if n_robots > self.max_team_size():
+            raise ValueError(self._too_large(int(n_robots)))
+
+    def _too_large(self, n: int) -> str:
+        return (f"{self.name} takes teams of at most {self.max_team_size()} robots, got {n}: robots start "
+                f"{self.spawn_spacing} m apart in the spawn area (x from {self.spawn_box[0]} m, widened up to "
+                f"{SPAWN_X_LIMIT} m; y [{self.spawn_box[2]}, {self.spawn_box[3]}] m), which holds "
+                f"{self.spawn_capacity()}; a bigger team needs a smaller spawn_spacing (class {type(self).__name__})")
 
     def spawn(self, rng: np.random.Generator, n: int, spacing: float | None = None) -> np.ndarray:
         """Start poses (n, 3): spread in the spawn area, random headings, centres at least
@@ -209,6 +239,9 @@ class PredatorCapturePrey(_Task):
             raise ValueError(f"n_prey must be a positive integer (that many prey for every team) or None "
                              f"(the rule K(N) of PredatorCapturePrey.prey_for), got {n_prey!r}")
         self.n_prey = None if n_prey is None else int(n_prey)
+        if self.n_prey is not None and self.n_prey > self.prey_capacity():
+            raise ValueError(f"n_prey must be at most {self.prey_capacity()} (the prey that fit {self.prey_spacing} m "
+                             f"apart in the prey area {self.prey_box} m), got {n_prey!r}")
         self.largest_team: int | None = None
 
     @classmethod
@@ -219,6 +252,29 @@ class PredatorCapturePrey(_Task):
             return cls.base_prey
         # 1.2 N in integers: 12 N is even, so 12 N / 10 is never halfway and +5 // 10 rounds it.
         return (round(10 * cls.prey_per_robot) * int(n_robots) + 5) // 10
+
+    def prey_capacity(self) -> int:
+        """The most prey the prey area holds :attr:`prey_spacing` apart."""
+        return _cells(self.prey_box, self.prey_spacing)
+
+    def max_team_size(self) -> int:
+        """The largest team PCP takes: its robots fit the spawn area and its prey K(N) the prey area."""
+        n = self.spawn_capacity()
+        while n > 0 and self.team_prey(n) > self.prey_capacity():
+            n -= 1
+        return n
+
+    def _too_large(self, n: int) -> str:
+        if self.team_prey(n) <= self.prey_capacity():
+            return super()._too_large(n)
+        x0, x1, y0, y1 = self.prey_box
+        rule = (f"every team has n_prey={self.n_prey}" if self.n_prey is not None else
+                f"prey grow with the team, K(N) = round({self.prey_per_robot}·N) above {self.base_team} robots")
+        return (f"pcp takes teams of at most {self.max_team_size()} robots, got {n}: {rule}, so {self.team_prey(n)} "
+                f"prey for {n}, and at most {self.prey_capacity()} fit {self.prey_spacing} m apart in the prey area "
+                f"x [{x0}, {x1}] m, y [{y0}, {y1}] m; for a bigger team give every team fewer prey "
+                f"(make_env(..., n_prey=K) with K <= {self.prey_capacity()}) or lower "
+                f"PredatorCapturePrey.prey_per_robot")
 
     def team_prey(self, n_robots: int) -> int:
         """Prey of a team of ``n_robots`` in this task: ``n_prey`` if fixed, else :meth:`prey_for`."""

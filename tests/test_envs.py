@@ -174,9 +174,28 @@ def test_large_teams_widen_the_spawn_area_until_the_arena_is_full():
     d = np.hypot(*(poses[:, None, :2] - poses[None, :, :2]).transpose(2, 0, 1)) + np.eye(30)
     assert d.min() >= task.spawn_spacing - 1e-9
     team = random_team(np.random.default_rng(0), "hmt", "train", 61)
-    env = make_env("hmt_v0", team=team, tier="unicycle")
-    with pytest.raises(ValueError, match=r"hmt spawn area: 61 robots do not fit 0.3 m apart .* \(at most 60\)"):
-        env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"hmt takes teams of at most 60 robots, got 61: robots start 0.3 m apart"):
+        make_env("hmt_v0", team=team, tier="unicycle")  # said when the env is made, not at its first reset
+
+
+def test_the_largest_team_each_task_takes_is_said_as_a_limit():
+    """PCP's prey grow with the team (K(N) = round(1.2 N) above 8 robots): 37 robots take 44 prey of
+    the 45 that fit the prey area, 38 would take 46. The message says the limit, why, and the way out
+    (n_prey), and n_prey lifts the limit to the spawn area's."""
+    from comat.task_logic import MaterialTransport, PredatorCapturePrey
+
+    assert PredatorCapturePrey().max_team_size() == 37 and MaterialTransport().max_team_size() == 60
+    assert PredatorCapturePrey().prey_capacity() == 45 and PredatorCapturePrey(n_prey=6).max_team_size() == 60
+    make_env("pcp_v0", team=random_team(np.random.default_rng(0), "pcp", "train", 37), tier="unicycle").reset(seed=0)
+    team = random_team(np.random.default_rng(0), "pcp", "train", 40)
+    with pytest.raises(ValueError, match=r"pcp takes teams of at most 37 robots, got 40: prey grow with the team, "
+                       r"K\(N\) = round\(1.2·N\) above 8 robots, so 48 prey for 40, and at most 45 fit .* n_prey=K"):
+        make_env("pcp_v0", team=team, tier="unicycle")
+    env = make_env("pcp_v0", tier="unicycle", max_robots=40)  # a larger team passed to a reset: the same
+    with pytest.raises(ValueError, match="pcp takes teams of at most 37 robots, got 40"):
+        env.reset(seed=0, options={"team": team})
+    with pytest.raises(ValueError, match="n_prey must be at most 45"):
+        PredatorCapturePrey(n_prey=46)
 
 
 def test_bad_actions():

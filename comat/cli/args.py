@@ -236,9 +236,11 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
     ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
     learner's value estimates"); a policy file is then refused with that reason."""
     from comat.rl.checkpoint import POLICY_FORMAT, load_checkpoint, load_trained
-    from comat.rl.policy import policy_file_of, shipped_name
+    from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, shipped_name
 
-    what = "a checkpoint.pt or a run folder" if need_checkpoint else "a policy.pt, a checkpoint.pt or a run folder"
+    shipped = ", ".join(PREFIX + name for name in PRETRAINED)
+    what = ("a checkpoint.pt or a run folder" if need_checkpoint
+            else f"a policy.pt, a checkpoint.pt, a run folder, a shipped policy ({shipped})")
     if policy is None:
         raise ValueError(f"--policy is required: {what}"
                          + (f", or one of {', '.join(references)}" if references else ""))

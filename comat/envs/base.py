@@ -80,6 +80,8 @@ def team_source(task: Any, coalitions: Any, team: Any, max_robots: Any) -> tuple
     largest = max([t.size for t in teams] + ([fixed.size] if fixed else []))
     if max_robots is not None and (isinstance(max_robots, bool) or not isinstance(max_robots, int) or max_robots < largest):
         raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
+    if not isinstance(task, str):
+        task.check_team_size(largest)  # the largest team the task takes, said as a limit
     if not isinstance(task, str) and hasattr(task, "fit_teams"):
         task.fit_teams(largest)
     return teams, fixed, max_robots or largest

@@ -162,6 +162,8 @@ class TaskCore:
         # The layer's keys come from each env's generator without advancing it: the same teams
         # and starts are drawn at every reality level (paired comparisons).
         keys = None if self.reality_config.is_off else [episode_key(rng) for rng in rngs]
+        for team in teams:
+            self.task.check_team_size(team.size)
         if hasattr(self.task, "reserve") and len(teams):  # PCP: prey slots for the largest team here
             self.task.reserve(self.state, max(t.size for t in teams))
         for b, team, rng in zip(envs, teams, rngs):
