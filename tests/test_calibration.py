@@ -80,6 +80,19 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
                  "--out", str(profile)]) == 0
     out = capsys.readouterr().out
     assert "pose_bias_xy_m" in out and "not identified" in out
+    assert "[nan" not in out  # no '[nan, nan]': a spread with no interval shows none
+    delay = next(line for line in out.splitlines() if line.startswith("pose_delay_ticks"))
+    assert "robots' range" in delay and "95 % t, robots" in next(line for line in out.splitlines()
+                                                                  if line.startswith("motor_tau_s"))
+    # the profile says what each field it sets means, and what 0 means where 0 is special
+    header = [line for line in profile.read_text().splitlines() if line.startswith("#")]
+    assert any(line.startswith("# motor_accel_limit_radps2:") for line in header)
+    assert "0 = no limit" in " ".join(header)
+    # --simulate wrote the truth beside the logs; --truth puts it beside the fit
+    assert main(["calibrate", str(logs / "calib_steps.npy"), "--truth", str(logs / "truth.yaml"),
+                 "--out", str(tmp_path / "again.yaml")]) == 0
+    head, delay = (line.split() for line in capsys.readouterr().out.splitlines()[:2])
+    assert "truth" in head and delay[0] == "pose_delay_ticks" and "1" in delay
     data = yaml.safe_load(profile.read_text())
     fields = data["reality"]
     assert fields["pose_delay_ticks"] == 1 and abs(fields["motor_tau_max_s"] - 0.05) <= 0.01

@@ -38,7 +38,8 @@ from comat.calibration.experiments import load_log
 from comat.calibration.schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
 from comat.measure.stats import t_interval
 
-__all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_spin", "fit_steps", "fit_still", "loop_timing", "profile_fields"]
+__all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_spin", "fit_steps", "fit_still", "loop_timing", "profile_fields",
+           "truth_of"]
 
 FIT_RANGES = {"delay_ticks": range(9), "tau_s": np.round(np.arange(0.0, 0.2001, 0.0025), 6),
               "cap_fraction": np.round(np.arange(0.70, 1.0001, 0.01), 4), "accel_radps2": (0.0, 200.0)}
@@ -242,7 +243,11 @@ def _interval(values: Sequence[float]) -> tuple[float, float, float]:
 
 def fit_logs(paths: Sequence[str]) -> dict:
     """Fit every log (one or many runs of each experiment) and return
-    ``{"parameters": [{name, estimate, lo, hi, robots, runs, note}], "per_robot": {...}, "timing": [...]}``.
+    ``{"parameters": [{name, estimate, lo, hi, interval, robots, runs, note}], "per_robot": {...}, "timing": [...]}``;
+    ``interval`` says what [lo, hi] is: ``"t95"`` the 95 % t-interval over robots (``"t95_runs"``: over
+    runs, the loop's tick), ``"range"`` the
+    per-robot range (the delay, whose spread the profile keeps), None no interval (one robot, or a
+    spread estimated from all robots at once; lo and hi None).
     ``steps`` and ``spin`` measure the same wheels: the delay and the lag come from ``steps`` (from
     ``spin`` without it), the gain difference from ``spin`` (from ``steps`` without it), the reachable
     speed from both."""
@@ -259,10 +264,12 @@ def fit_logs(paths: Sequence[str]) -> dict:
         timing.append(loop_timing(log))
     params = []
 
-    def add(name, values, n_runs, note="", robots=None):
+    def add(name, values, n_runs, note="", robots=None, over="t95"):
         est, lo, hi = _interval(values)
-        params.append({"name": name, "estimate": est, "lo": lo, "hi": hi,
-                       "robots": len(values) if robots is None else robots, "runs": n_runs, "note": note})
+        kind = over if np.isfinite(lo) and np.isfinite(hi) else None  # one value: no interval, not [nan, nan]
+        params.append({"name": name, "estimate": est, "lo": lo if kind else None, "hi": hi if kind else None,
+                       "interval": kind, "robots": len(values) if robots is None else robots, "runs": n_runs,
+                       "note": note})
 
     # The delay and the lag from ``steps`` (the experiment built for them; with wheels of unequal lag
     # a spin can read one tick more and a shorter lag), from ``spin`` only without it; the gain
@@ -274,8 +281,8 @@ def fit_logs(paths: Sequence[str]) -> dict:
     if moving:
         delays = [r["delay_ticks"] for r in timed]
         params.append({"name": "pose_delay_ticks", "estimate": int(min(delays)), "lo": int(min(delays)),
-                       "hi": int(max(delays)), "robots": len(delays), "runs": timed_runs,
-                       "note": "pose + command delay (not separable); lo-hi: per-robot range"})
+                       "hi": int(max(delays)), "interval": "range", "robots": len(delays), "runs": timed_runs,
+                       "note": "pose + command delay (not separable); the profile's minimum and spread"})
         add("motor_tau_s", [r["tau_s"] for r in timed], timed_runs, "per-robot mean")
         if per["steps"]:
             add("speed_gain", [r["gain"] for r in per["steps"]], runs["steps"], "forward speed gain (mean of the wheels)")
@@ -288,7 +295,7 @@ def fit_logs(paths: Sequence[str]) -> dict:
             "reachable / 12.5 rad/s")
         diffs = [r["half_gain_diff"] for r in paired if np.isfinite(r["half_gain_diff"])]
         spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
-        params.append({"name": "wheel_gain_spread", "estimate": spread, "lo": float("nan"), "hi": float("nan"),
+        params.append({"name": "wheel_gain_spread", "estimate": spread, "lo": None, "hi": None, "interval": None,
                        "robots": len(diffs), "runs": paired_runs,
                        "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"
                                + (", from spin" if per["spin"] else ", from steps")})
@@ -303,12 +310,12 @@ def fit_logs(paths: Sequence[str]) -> dict:
             "wheel speed below which a robot does not move (0.05 rad/s grid)")
     add("loop_tick_s", [t["tick_s"] for t in timing], len(paths),
         "median iteration (s), over runs; not in the layer: a longer tick moves the robots further per tick, "
-        "which the gains hold", robots=0)
+        "which the gains hold", robots=0, over="t95_runs")
     unknown = ("pose_bias_xy_m", "command_delay_ticks", "command_loss_prob",
                *(() if per["ramp"] else ("motor_dead_zone_radps",)), "wheel_disturbance_radps", "fault_prob")
     for name in unknown:
-        params.append({"name": name, "estimate": None, "lo": None, "hi": None, "robots": 0, "runs": 0,
-                       "note": "not identified by these experiments"})
+        params.append({"name": name, "estimate": None, "lo": None, "hi": None, "interval": None, "robots": 0,
+                       "runs": 0, "note": "not identified by these experiments"})
     return {"parameters": params, "per_robot": per, "timing": timing}
 
 
@@ -337,3 +344,25 @@ def profile_fields(fit: dict) -> dict:
         if name in est:
             fields[name] = float(max(0.0, est[name]["estimate"]))
     return fields
+
+
+def truth_of(config) -> dict[str, str]:
+    """What each fitted parameter should come out as for logs simulated at the known layer ``config``
+    (a :class:`~comat.reality.RealityConfig`), as text: a value, or ``lo..hi`` where the layer draws it
+    per robot (``comat calibrate --truth``)."""
+    c = config
+    delay = c.pose_delay_ticks + c.command_delay_ticks
+    spread = c.pose_delay_spread_ticks + c.command_delay_spread_ticks
+    return {
+        "pose_delay_ticks": f"{delay}..{delay + spread}" if spread else f"{delay}",
+        "motor_tau_s": f"{c.motor_tau_min_s:.4g}..{c.motor_tau_max_s:.4g}" if c.motor_tau_max_s != c.motor_tau_min_s
+        else f"{c.motor_tau_min_s:.4g}",
+        "speed_gain": "1", "turn_gain": "1", "tracked_ahead_m": "0",
+        "top_speed_fraction": f"{c.top_speed_derate_min:.4g}..1" if c.top_speed_derate_min < 1 else "1",
+        "wheel_gain_spread": f"{c.wheel_gain_spread:.4g}",
+        "pose_noise_xy_m": f"{c.pose_noise_xy_m:.4g}", "pose_noise_theta_rad": f"{c.pose_noise_theta_rad:.4g}",
+        "pose_hold_prob": f"{c.pose_hold_prob:.4g}", "motor_dead_zone_radps": f"{c.motor_dead_zone_radps:.4g}",
+        "loop_tick_s": "0.033", "pose_bias_xy_m": f"{c.pose_bias_xy_m:.4g}",
+        "command_delay_ticks": f"{c.command_delay_ticks}", "command_loss_prob": f"{c.command_loss_prob:.4g}",
+        "wheel_disturbance_radps": f"{c.wheel_disturbance_radps:.4g}", "fault_prob": f"{c.fault_prob:.4g}",
+    }

@@ -2,12 +2,15 @@
 
 Reads ``calib_<experiment>.npy`` logs (:mod:`comat.calibration.experiments`; one or many runs),
 fits each parameter the logs identify (:mod:`comat.calibration.fit`), prints a table (parameter,
-estimate, 95 % interval over robots, robots and runs used, a note) and writes a profile that
+estimate, its interval and what kind it is: the 95 % t-interval over robots, or for the delay the
+robots' range; robots and runs used; with ``--truth``, the known value; a note) and writes a
+profile, with a comment header saying what each field it sets means, that
 ``comat train ... reality=PROFILE.yaml`` and ``comat eval --reality PROFILE.yaml`` take: the
 layer at ``off`` with the identified fields set (what the logs cannot show stays off and is
 listed under ``not_identified``). ``--simulate REALITY`` instead writes the logs of the
-experiments run in comat with the layer at a level, profile or field mapping: the known truth a
-fit can be checked against.
+experiments run in comat with the layer at a level, profile or field mapping, and the layer's
+resolved fields as ``truth.yaml`` beside them: the known truth a fit is checked against
+(``--truth``).
 """
 
 from __future__ import annotations
@@ -16,9 +19,42 @@ import argparse
 import io
 import json
 import math
+import dataclasses
+import textwrap
 from pathlib import Path
 
 __all__ = ["add_calibrate_parser"]
+
+INTERVAL_KINDS = {"t95": "95 % t, robots", "t95_runs": "95 % t, runs", "range": "robots' range", None: ""}
+"""How the table names each kind of interval (:func:`comat.calibration.fit.fit_logs`)."""
+
+
+def _table(parameters: list[dict], truth: dict[str, str] | None) -> str:
+    """The fit as a table with columns sized to their cells: an interval says what kind it is."""
+    head = ["parameter", "estimate", "interval", "kind", *(["truth"] if truth else []), "robots", "runs", "note"]
+    rows = []
+    for p in parameters:
+        interval = "" if p["lo"] is None else f"[{_fmt(p['lo'])}, {_fmt(p['hi'])}]"
+        rows.append([p["name"], _fmt(p["estimate"]), interval, INTERVAL_KINDS[p.get("interval")],
+                     *([truth.get(p["name"], "")] if truth else []), str(p["robots"]), str(p["runs"]), p["note"]])
+    widths = [max(len(r[k]) for r in [head, *rows]) for k in range(len(head) - 1)]
+    right = {1, 2, len(head) - 3, len(head) - 2}  # numbers right-aligned
+    return "\n".join("  ".join(c.rjust(w) if k in right else c.ljust(w) for k, (c, w) in enumerate(zip(r, widths)))
+                     + "  " + r[-1] for r in [head, *rows])
+
+
+def _header(fields: dict, logs: list[str]) -> str:
+    """The profile's comment header: where it comes from and what each field it sets means."""
+    from comat.reality.config import field_docs
+
+    docs = field_docs()
+    lines = textwrap.wrap(f"comat calibrate: a reality profile fitted to {len(logs)} calibration log(s): the "
+                          "layer at 'off' with the fields below set (fit: the estimates behind them; "
+                          "not_identified: what stays off). The fields:", 100) + [""]
+    for name in fields:
+        if name in docs and name != "level":
+            lines += textwrap.wrap(f"{name}: {docs[name]}", 100, subsequent_indent="    ")
+    return "".join(f"# {line}\n" if line else "#\n" for line in lines)
 
 
 def _fmt(v) -> str:
@@ -38,12 +74,14 @@ def _cmd(args: argparse.Namespace) -> int:
         import numpy as np
 
         from comat.calibration.experiments import EXPERIMENTS, simulate
+        from comat.reality import resolve_reality
 
         reality = args.simulate
         if reality.startswith("{"):
             reality = json.loads(reality)
         names = [f"calib_{e}.npy" for e in EXPERIMENTS]
-        with new_outputs(args.out, names, force=args.force) as out:
+        truth = dataclasses.asdict(resolve_reality(reality))
+        with new_outputs(args.out, [*names, "truth.yaml"], force=args.force) as out:
             for e in EXPERIMENTS:
                 log = simulate(e, reality, n=args.robots, seed=args.seed)
                 buf_path = out / f"calib_{e}.npy"
@@ -51,21 +89,20 @@ def _cmd(args: argparse.Namespace) -> int:
                 np.save(buf, log)
                 write_atomic(buf_path, buf.getvalue())
                 print(f"wrote {buf_path} ({log.shape[0]} iterations, {log.shape[1]} robots)")
+            write_atomic(out / "truth.yaml", yaml.safe_dump({"reality": truth}, sort_keys=False))
+        print(f"wrote {out / 'truth.yaml'} (the layer the logs were simulated at); fit them with: comat calibrate "
+              f"{out}/calib_*.npy --truth {out / 'truth.yaml'} --out PROFILE.yaml")
         return 0
-    from comat.calibration.fit import fit_logs, profile_fields
-    from comat.reality import RealityConfig
+    from comat.calibration.fit import fit_logs, profile_fields, truth_of
+    from comat.reality import RealityConfig, resolve_reality
 
     if not args.logs:
         raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
+    truth = None if args.truth is None else truth_of(resolve_reality(args.truth))
     fit = fit_logs(args.logs)
     fields = profile_fields(fit)
     config = RealityConfig(**fields)  # the profile is a valid layer before anything is written
-    print(f"{'parameter':<24}{'estimate':>10}{'95 % interval':>22}{'robots':>8}{'runs':>6}  note")
-    for p in fit["parameters"]:
-        interval = "" if p["lo"] is None else f"[{_fmt(p['lo'])}, {_fmt(p['hi'])}]"
-        print(f"{p['name']:<24}{_fmt(p['estimate']):>10}{interval:>22}{p['robots']:>8}{p['runs']:>6}  {p['note']}")
-    import dataclasses
-
+    print(_table(fit["parameters"], truth))
     profile = {
         "reality": {k: v for k, v in dataclasses.asdict(config).items() if k in fields},
         "not_identified": [p["name"] for p in fit["parameters"] if p["estimate"] is None],
@@ -76,7 +113,8 @@ def _cmd(args: argparse.Namespace) -> int:
     if out.suffix not in (".yaml", ".yml"):
         raise ValueError(f"--out must be a .yaml file (the profile), got {args.out!r}")
     with new_outputs(out.parent, [out.name], force=args.force):
-        write_atomic(out, yaml.safe_dump(json.loads(json.dumps(profile)), sort_keys=False))
+        write_atomic(out, _header(profile["reality"], args.logs)
+                     + yaml.safe_dump(json.loads(json.dumps(profile)), sort_keys=False))
     print(f"wrote {out}: train with `comat train ... reality={out}`, evaluate with `comat eval --reality {out}`")
     return 0
 
@@ -93,6 +131,9 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--simulate", default=None, metavar="REALITY",
                    help="write the experiments' logs from comat's simulator at this layer (a level, a profile "
                    "PROFILE.yaml or a JSON mapping of fields) into the folder --out, instead of fitting")
+    p.add_argument("--truth", default=None, metavar="PROFILE",
+                   help="the layer the logs were simulated at (the truth.yaml --simulate writes, or a level): a "
+                   "truth column beside the fit")
     p.add_argument("--robots", type=int, default=4, help="robots of a simulated run (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of a simulated run (default: %(default)s)")
     add_force(p)

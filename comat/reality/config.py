@@ -20,6 +20,10 @@ which read those sources and are not part of this repository.
 
 from __future__ import annotations
 
+import ast
+import inspect
+import textwrap
+
 import dataclasses
 import math
 from collections.abc import Mapping
@@ -30,7 +34,7 @@ from comat import constants as C
 from comat.config import load
 
 __all__ = ["LEVELS", "MARKS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "levels_markdown", "read_profile",
-           "resolve_reality"]
+           "resolve_reality", "field_docs"]
 
 REALITY_LEVELS = ("off", "nominal", "stress")
 """The named levels, in order of severity."""
@@ -397,3 +401,16 @@ def resolve_reality(value: Any, name: str = "reality") -> RealityConfig:
         return load(RealityConfig, fields, prefix=name)
     raise TypeError(f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its fields, "
                     f"got {type(value).__name__}")
+
+
+def field_docs() -> dict[str, str]:
+    """Each :class:`RealityConfig` field's docstring, on one line (what a profile file's header says
+    of the fields it sets)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(RealityConfig)))
+    body = tree.body[0].body
+    docs = {}
+    for node, after in zip(body, body[1:]):
+        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
+                and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)):
+            docs[node.target.id] = " ".join(after.value.value.split())
+    return docs
