@@ -16,10 +16,10 @@ resolved fields as ``truth.yaml`` beside them: the known truth a fit is checked 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import io
 import json
 import math
-import dataclasses
 import textwrap
 from pathlib import Path
 

@@ -21,11 +21,11 @@ which read those sources and are not part of this repository.
 from __future__ import annotations
 
 import ast
-import inspect
-import textwrap
-
 import dataclasses
+import inspect
+import itertools
 import math
+import textwrap
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -33,8 +33,17 @@ from typing import Any
 from comat import constants as C
 from comat.config import load
 
-__all__ = ["LEVELS", "MARKS", "REALITY_LEVELS", "SOURCES", "RealityConfig", "levels_markdown", "read_profile",
-           "resolve_reality", "field_docs"]
+__all__ = [
+    "LEVELS",
+    "MARKS",
+    "REALITY_LEVELS",
+    "SOURCES",
+    "RealityConfig",
+    "field_docs",
+    "levels_markdown",
+    "read_profile",
+    "resolve_reality",
+]
 
 REALITY_LEVELS = ("off", "nominal", "stress")
 """The named levels, in order of severity."""
@@ -409,7 +418,7 @@ def field_docs() -> dict[str, str]:
     tree = ast.parse(textwrap.dedent(inspect.getsource(RealityConfig)))
     body = tree.body[0].body
     docs = {}
-    for node, after in zip(body, body[1:]):
+    for node, after in itertools.pairwise(body):
         if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
                 and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)):
             docs[node.target.id] = " ".join(after.value.value.split())
