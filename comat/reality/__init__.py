@@ -1,7 +1,8 @@
 """The reality layer: what separates comat's simulated robots from the Robotarium's real ones.
 
 Spec sheet (defaults and their provenance, read from the Robotarium's firmware, tracker and
-simulator code: :data:`SOURCES`, :mod:`comat.reality.config`):
+simulator code: :data:`SOURCES`, :mod:`comat.reality.config`; the § numbers there name sections of
+docs/reality-sources.md, which gives each fact with its public source):
 
 * **pose path** — per-robot measurement delay (whole ticks), Gaussian position/heading noise, a
   per-episode position bias, held measurements and tracking freezes that repeat the last
@@ -22,7 +23,8 @@ decides (policy observations, waypoint controller, safety filter) reads measured
 everything that judges (contacts, Robotarium checks, task progress, rewards) reads true ones
 (:class:`comat.control.SafeTeams`, :class:`comat.envs.core.TaskCore`); the filter is made robust
 to the layer's bounds (:mod:`comat.reality.margin`). Not modelled: tick stretch (a slow loop
-stretches the 0.033 s iteration: the Robotarium user guide, §2.8).
+stretches the 0.033 s iteration: the Robotarium user guide's section 2.8, docs/reality-sources.md
+§6 #11).
 """
 
 from comat.reality.config import LEVELS, REALITY_LEVELS, SOURCES, RealityConfig, resolve_reality

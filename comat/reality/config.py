@@ -14,8 +14,8 @@ Robotarium's public code: the GTernal robot firmware (``robotarium/GTernal``), t
 publisher (``robotarium/vicon_tracker``), the Python simulator and its user guide
 (``robotarium/robotarium_python_simulator``), and CASH-MARBLER's Robotarium runs
 (``shalin-jain/CASH-MARBLER``); the assumed physics ranges scale those of MuJoCo Playground,
-legged_gym and Isaac Lab. The § numbers name sections of the project's Sim2Real anchor notes,
-which read those sources and are not part of this repository.
+legged_gym and Isaac Lab. The § numbers ("§1.2", "§6 #3") name sections of
+docs/reality-sources.md, which states the facts each value rests on with its public source.
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ class RealityConfig:
     pose_freeze_max_ticks: int | None = _field(150, 150, 30, "measured",
                                                "tracker timeout 5000 ms (§1.1); stress 30 assumed (§6 #9)")
     """Longest freeze (ticks): nominal the tracker's, which drops a marker after 5000 ms
-    (vicon_tracker ``timeout_millis``, §1.1); stress the anchor table's "bursts up to 30" (§6 #9)."""
+    (vicon_tracker ``timeout_millis``, §1.1); stress the proposal's "bursts up to 30" (§6 #9)."""
 
     # -- command path (filtered command -> what reaches the robot) --------------------------------
     command_delay_ticks: int | None = _field(0, 0, 1, "derived",
@@ -136,19 +136,20 @@ class RealityConfig:
     received command (§6 #10)."""
     command_loss_mean_ticks: float | None = _field(1.0, 1.0, 5.0, "assumed", "§6 #10 (stress: bursts)")
     """Mean length of a run of losses (geometric, ticks >= 1); stress has bursts (§6 #10)."""
-    script_miss_prob: float | None = _field(0.0, 0.002, 0.02, "derived",
-                                            "the deployed loop's measured compute time; server speed assumed")
+    script_miss_prob: float | None = _field(
+        0.0, 0.002, 0.02, "derived", "the deployed loop's measured compute time (§6 #11); server speed assumed")
     """Per tick probability that the script's iteration overruns the 0.033 s tick (a long QP, the
     policy's inference at a step boundary): that tick no command goes out to any robot of the team
     (each keeps its last; it counts toward the brake) and the pose it reads next is one tick
     staler (a hold). Derived from the deployed loop's measured compute time (docs/reality.md)
     with the server's speed assumed."""
     script_stall_prob: float | None = _field(0.0, 0.0, 0.001, "assumed",
-                                             "stalls and interrupts of the user's script (§1.1)")
+                                             "stalls and interrupts of the user's script (§1.1, §6 #11)")
     """Per tick probability that the script stalls (garbage collection, I/O, the server's load):
     no command to any robot of the team for a run of ticks; a run past the brake time stops every
     robot (§1.1; CASH's server logs end in interrupts)."""
-    script_stall_mean_ticks: float | None = _field(10.0, 10.0, 10.0, "assumed", "—")
+    script_stall_mean_ticks: float | None = _field(10.0, 10.0, 10.0, "assumed",
+                                                   "shorter than the brake (§6 #11)")
     """Mean length of a stall (geometric, ticks >= 1; 10 ticks = 0.33 s)."""
     command_brake_after_s: float | None = _field(0.5, 0.5, 0.5, "measured",
                                                  "GTernal communicationCheck(500) (§1.1)")
@@ -192,7 +193,8 @@ class RealityConfig:
     robust barrier, ``disturbance=5``, §1.1, §6 #7)."""
 
     # -- faults -----------------------------------------------------------------------------------
-    fault_prob: float | None = _field(0.0, 0.0, 0.0, "assumed", "opt-in; CASH-MARBLER motor_failure (§2.3)")
+    fault_prob: float | None = _field(0.0, 0.0, 0.0, "assumed",
+                                      "opt-in; CASH-MARBLER motor_failure (§2.3, §6 #6)")
     """Probability that an episode has one faulty robot (drawn uniformly from the team). 0 at
     every level: faults change the team under the policy, an experiment of its own (set it to
     1 to run CASH-MARBLER's ``motor_failure``, §2.3)."""
@@ -200,12 +202,12 @@ class RealityConfig:
                                                 "CASH-MARBLER motor_failure setting (§2.3)")
     """The faulty robot's wheels turn at this fraction of their speed from the fault on (0 =
     the motors fail): CASH-MARBLER's ``motor_failure`` setting (§2.3)."""
-    fault_start_min_s: float | None = _field(0.0, 0.0, 0.0, "assumed", "—")
+    fault_start_min_s: float | None = _field(0.0, 0.0, 0.0, "assumed", "comat's choice (§6 #6)")
     """The fault begins at a time ~ U(min, max) after the episode's start (s)."""
-    fault_start_max_s: float | None = _field(60.0, 60.0, 60.0, "assumed", "within the first minute")
+    fault_start_max_s: float | None = _field(60.0, 60.0, 60.0, "assumed", "within the first minute (§6 #6)")
     """Upper end of the fault's start time (s): within the first minute (both tasks' horizons are
     longer, PCP 77 s, HMT 171 s)."""
-    fault_known: bool | None = _field(False, False, False, "assumed", "—")
+    fault_known: bool | None = _field(False, False, False, "assumed", "comat's choice (§6 #6)")
     """Whether the faulty robot's capability vector reports its new speed (known) or not
     (hidden). The layer only carries the flag (:attr:`RealityLayer.speed_fraction` holds the
     factor); the env decides what a capability vector says."""
