@@ -2,7 +2,6 @@
 (issue 28): ``comat eval --policy <its folder> --teams capability``. CI runs the suite on a fresh
 clone, so the file read here is the one git holds, not one a training run left behind."""
 
-import json
 import shutil
 import subprocess
 from pathlib import Path
@@ -10,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from comat.cli import main
+from comat.measure.metrics import read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 KEPT = ROOT / "results" / "policies" / "comat_pcp_s0"
@@ -31,7 +31,7 @@ def test_a_committed_policy_evaluates_on_the_capability_set_with_one_command(tmp
     out = tmp_path / "cap"
     assert main(["eval", "--policy", str(KEPT), "--teams", "capability", "--episodes", "1", "--no-references",
                  "--out", str(out)]) == 0
-    result = json.loads((out / "evaluation_unicycle.json").read_text())
+    result = read_results(out / "evaluation_unicycle.json")
     (row,) = result["rows"]
     assert (row["policy"], row["task"], row["set"], row["episodes"]) == ("comat", "pcp", "capability", 20)
     assert [e["coalition"] for e in row["per_episode"]] == list(range(20))

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from comat.cli import main
-from comat.measure.metrics import REPORTED, mean_ci, summarize_ci, violations
+from comat.measure.metrics import REPORTED, mean_ci, read_results, summarize_ci, violations
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
@@ -99,9 +99,9 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     assert head[head.index("finished") + 1 : head.index("finished") + 3] == ["AUC", "t90"]
     assert "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first" in lines[-2]
     assert lines[-1].startswith(f"start states: drawn from seed {result['seed']}")
-    json_path, csv_path = write_results(result, tmp_path)
-    assert json.loads(json_path.read_text()) == result
-    assert len(json_path.read_text().splitlines()) < 200  # each episode row on one line
+    json_path, detail_path, csv_path = write_results(result, tmp_path)
+    assert read_results(json_path) == result  # the summary with its per-episode detail put back
+    assert detail_path.name == "eval.episodes.json.gz" and '"per_episode":' not in json_path.read_text()
     assert "constant,pcp,two,unicycle,4,progress_auc," in csv_path.read_text()
 
 
@@ -116,7 +116,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     assert main(["eval", "--policy", str(tmp_path / "run"), "--teams", "test"]) == 0  # a run folder: its checkpoint
     out = capsys.readouterr().out
     assert "comat" in out and "heuristic" in out and "constant" in out and "random" in out and "±" in out
-    result = json.loads((tmp_path / "run" / "evaluation_unicycle.json").read_text())
+    result = read_results(tmp_path / "run" / "evaluation_unicycle.json")
     rows = {r["policy"]: r for r in result["rows"]}
     assert set(rows) == {"comat", "heuristic", "constant", "random"} and all(r["set"] == "test" for r in rows.values())
     assert all(r["episodes"] == 20 for r in rows.values())  # the 20 unseen coalitions, one episode each
@@ -148,7 +148,7 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     assert main(["eval", "--policy", "constant", "--task", "pcp", "--teams", str(teams), "--no-references",
                  "--out", str(fresh)]) == 0
     capsys.readouterr()
-    mine = json.loads((fresh / "evaluation_unicycle.json").read_text())["rows"]
+    mine = read_results(fresh / "evaluation_unicycle.json")["rows"]
     assert [(r["policy"], r["set"], r["episodes"]) for r in mine] == [("constant", str(teams), 2)]
     env = make_vec_env("pcp_v0", 2, seed=2_000_003, tier="unicycle", coalitions=own)
     direct = run_episodes(env, lambda o, m, s: np.where(m, 1, 0), own, seed=2_000_003)

@@ -100,7 +100,9 @@ def test_eval_from_a_folder_holding_only_policy_and_config(comat_run, tmp_path, 
     assert main(["eval", "--policy", str(kept), "--teams", "test", "--no-references", "--out",
                  str(tmp_path / "from_policy")]) == 0
     assert "comat eval: " + str(kept / POLICY_FILE) in capsys.readouterr().err
-    a, b = (json.loads((tmp_path / f / "evaluation_unicycle.json").read_text()) for f in ("from_ckpt", "from_policy"))
+    from comat.measure.metrics import read_results
+
+    a, b = (read_results(tmp_path / f / "evaluation_unicycle.json") for f in ("from_ckpt", "from_policy"))
     assert a["rows"] and [r["metrics"] for r in a["rows"]] == [r["metrics"] for r in b["rows"]]
     assert [r["per_episode"] for r in a["rows"]] == [r["per_episode"] for r in b["rows"]]
 

@@ -25,6 +25,20 @@ def _section() -> str:
     return text[text.index(start): text.index(end)]
 
 
+def test_five_minutes_with_a_shipped_policy_run_as_written(tmp_path, monkeypatch):
+    """The README's first section after the front page: a shipped policy measured and watched."""
+    text = README.read_text()
+    section = text[text.index("<!-- --8<-- [start:quickstart] -->"): text.index("<!-- --8<-- [end:quickstart] -->")]
+    commands = [line.split("  #")[0] for block in re.findall(r"```bash\n(.*?)```", section, flags=re.DOTALL)
+                for line in block.splitlines() if line.startswith("comat ")]
+    assert [c.split()[1] for c in commands] == ["eval", "rollout"]
+    monkeypatch.chdir(tmp_path)
+    for command in commands:
+        assert main(shlex.split(command)[1:]) == 0, command
+    assert (tmp_path / "runs" / "pretrained-comat-pcp" / "evaluation_unicycle.json").is_file()
+    assert (tmp_path / "comat_pcp.rrd").is_file() and iio.imread("comat_pcp.mp4", index=None).shape[0] >= 2
+
+
 def test_common_tasks_run_as_written(tmp_path, monkeypatch, capsys):
     section = _section()
     files = re.findall(r"```yaml\n# (\S+)\n(.*?)```", section, flags=re.DOTALL)
@@ -55,9 +69,9 @@ def test_common_tasks_run_as_written(tmp_path, monkeypatch, capsys):
     # the report holds both algorithms; the own-team evaluation names the file; the video decodes
     md = Path("runs/cmp/report/table1.md").read_text()
     assert "COMAT (ours)" in md and "MAT (ours)" in md and "Env-step budget per run | 20 | 4,000,000" in md
-    import json
+    from comat.measure.metrics import read_results
 
-    rows = json.loads(Path("runs/mine/evaluation_unicycle.json").read_text())["rows"]
+    rows = read_results("runs/mine/evaluation_unicycle.json")["rows"]
     assert {r["set"] for r in rows} == {"my_team.yaml"} and all(r["episodes"] == 2 for r in rows)
     assert {r["per_episode"][0]["team_size"] for r in rows} == {4}
     frames = iio.imread("my_team.mp4", index=None)

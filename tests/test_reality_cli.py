@@ -5,7 +5,6 @@ files, rows that say their level, ``off`` unchanged)."""
 
 import csv
 import dataclasses
-import json
 
 import pytest
 import torch
@@ -14,6 +13,7 @@ from test_rl import TINY_MODELS, assert_same, tiny
 
 from comat.cli import main
 from comat.envs.base import resolve_coalitions
+from comat.measure.metrics import read_results
 from comat.reality import RealityConfig
 from comat.rl.checkpoint import load_checkpoint, with_earlier_defaults
 from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
@@ -144,7 +144,7 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     assert main([*ev, "--reality", "nominal"]) == 0
     out = capsys.readouterr()
     assert "reality layer nominal" in out.out and "reality nominal" in out.err
-    nominal = json.loads((tmp_path / "run" / "evaluation_unicycle_nominal.json").read_text())
+    nominal = read_results(tmp_path / "run" / "evaluation_unicycle_nominal.json")
     assert (tmp_path / "run" / "evaluation_unicycle_nominal.csv").is_file()
     assert not (tmp_path / "run" / "evaluation_unicycle.json").exists()  # the off file is another one
     assert [r["reality"] for r in nominal["rows"]] == ["nominal"] and nominal["reality"] == "nominal"
@@ -154,9 +154,11 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     assert main([*ev, "--out", str(tmp_path / "plain")]) == 0
     assert "reality layer off" in capsys.readouterr().out
     assert main([*ev, "--reality", "off", "--out", str(tmp_path / "flag")]) == 0
-    plain = {s: (tmp_path / "plain" / f"evaluation_unicycle.{s}").read_bytes() for s in ("json", "csv")}
-    assert plain == {s: (tmp_path / "flag" / f"evaluation_unicycle.{s}").read_bytes() for s in ("json", "csv")}
-    off = json.loads((tmp_path / "plain" / "evaluation_unicycle.json").read_text())
+    kinds = ("json", "episodes.json.gz", "csv")
+    plain = {s: (tmp_path / "plain" / f"evaluation_unicycle.{s}").read_bytes() for s in kinds}
+    assert plain == {s: (tmp_path / "flag" / f"evaluation_unicycle.{s}").read_bytes() for s in kinds}
+    off = read_results(tmp_path / "plain" / "evaluation_unicycle.json")
+    assert off["checkpoint"] == "../run/checkpoint.pt"  # relative to the file's folder
     assert [r["reality"] for r in off["rows"]] == ["off"] and off["reality_config"]["level"] == "off"
     # paired episodes (same teams and starts), played under the layer: the filter works harder
     a, b = off["rows"][0]["per_episode"], nominal["rows"][0]["per_episode"]
@@ -164,8 +166,8 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     assert [e["interventions"] for e in a] != [e["interventions"] for e in b]
     # an off evaluation next to the nominal one: neither replaces the other
     assert main([*ev]) == 0
-    assert (tmp_path / "run" / "evaluation_unicycle.json").read_bytes() == plain["json"]
-    assert json.loads((tmp_path / "run" / "evaluation_unicycle_nominal.json").read_text()) == nominal
+    assert read_results(tmp_path / "run" / "evaluation_unicycle.json") == {**off, "checkpoint": "checkpoint.pt"}
+    assert read_results(tmp_path / "run" / "evaluation_unicycle_nominal.json") == nominal
     # the report's robustness table reads the two levels as one component, in the levels' order
     from comat.eval.robustness import robustness_figure, robustness_rows
     from comat.eval.runs import load_run
@@ -211,14 +213,14 @@ def test_reality_sweep_writes_its_file_and_the_report_draws_it(tmp_path, capsys)
         runs.append(str(run))
     out = capsys.readouterr()
     assert "command_delay_ticks at [0, 3, 6] (others at off)" in out.err
-    sweep = json.loads((run / "evaluation_unicycle_sweep_command_delay_ticks.json").read_text())
+    sweep = read_results(run / "evaluation_unicycle_sweep_command_delay_ticks.json")
     assert sweep["values"] == [0, 3, 6] and sweep["base"] == "off"
     assert [[r["policy"] for r in p["rows"]] for p in sweep["points"]] == [["comat", "heuristic"]] * 3
     heur = [next(r for r in p["rows"] if r["policy"] == "heuristic") for p in sweep["points"]]
     steps = [r["metrics"]["steps"]["mean"] for r in heur]
     assert steps[2] > steps[0]  # six ticks of command delay slow the scripted policy down
     # the value-0 point is the off evaluation's episodes (paired), in fewer fields
-    off = json.loads((run / "evaluation_unicycle.json").read_text())["rows"][0]["per_episode"]
+    off = read_results(run / "evaluation_unicycle.json")["rows"][0]["per_episode"]
     assert [e["steps"] for e in sweep["points"][0]["rows"][0]["per_episode"]] == [e["steps"] for e in off]
     assert main(["report", *runs, "--out", str(tmp_path / "report")]) == 0
     rows = list(csv.DictReader((tmp_path / "report" / "robustness.csv").read_text().splitlines()))

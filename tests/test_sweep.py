@@ -76,7 +76,8 @@ def test_swept_runs_equal_comat_train_runs_and_a_second_sitting_skips_them(tmp_p
     assert record["root"] == str(root) and record["seeds"] == [0] and record["seeds_from"] == "preset"
     for algo in ("comat", "mat"):
         run = root / f"{algo}_pcp_s0"
-        assert yaml.safe_load((run / "config.yaml").read_text())["command"] == ["comat", *argv]
+        recorded = yaml.safe_load((run / "config.yaml").read_text())["command"]  # paths as typed where it ran
+        assert recorded == ["comat", *argv[:2], "../tiny.yaml", *argv[3:]] and argv[2] == str(tmp_path / "tiny.yaml")
         assert json.loads((run / "evaluation_unicycle.json").read_text())
         swept, straight = load_checkpoint(run / "checkpoint.pt"), _straight(preset, algo, 0, tmp_path / algo)
         assert swept["progress"]["env_steps"] == straight["progress"]["env_steps"] == 12

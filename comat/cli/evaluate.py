@@ -33,7 +33,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.cli.args import parse_teams, reality_arg, resolve_policy_arg
-    from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, write_results
+    from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, result_files, write_results
     from comat.files import new_outputs
 
     reality = reality_arg(args.reality)
@@ -55,8 +55,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
         return eval_sweep_command(args, pol, named, tier, out, refs if pol.checkpoint is None else
                                   (() if args.no_references else ("heuristic",)), reality)
-    with new_outputs(out, [f"{stem}.json", f"{stem}.csv"], force=args.force):
-        print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} "
+    with new_outputs(out, result_files(stem), force=args.force):
+        print(f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} "
               f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}, loop {args.loop}",
               file=sys.stderr)
         from comat.config import SafetyConfig
@@ -185,7 +185,7 @@ def add_evaluate_parsers(sub) -> None:
                        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
                        "scripted heuristic, the best constant action and a random policy, on the coalition sets "
                        "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, evaluation_<tier>.json "
-                       "and .csv in --out (default: the checkpoint's run folder; runs/pretrained-NAME for a shipped policy); at --reality nominal or stress, "
+                       "(the summary), .episodes.json.gz (per-episode detail) and .csv in --out (default: the checkpoint's run folder; runs/pretrained-NAME for a shipped policy); at --reality nominal or stress, "
                        "evaluation_<tier>_<level>.json and .csv. The reality layer defaults to off whatever level "
                        "the policy trained at. --reality-sweep COMPONENT plays at three or more values of one "
                        "component instead (evaluation_<tier>_sweep_<component>.json/.csv; comat report draws them).")

@@ -14,15 +14,16 @@ ideal world, whatever level the policy trained at), the same teams and starts at
 (paired episodes). Rows say it (``"reality"``: the level's name, or ``"custom"`` for a level with
 fields changed); the result holds the resolved layer (``"reality_config"``).
 
-Outputs (``--out``): ``eval.json`` (every row with means, intervals and the per-episode
-metrics) and ``eval.csv`` (one line per row and metric), both written atomically.
+Outputs (``--out``, :func:`write_results`): ``<stem>.json`` (every row with means and intervals),
+``<stem>.episodes.json.gz`` (the rows' per-episode metrics, gzipped: read both with
+:func:`comat.measure.metrics.read_results`) and ``<stem>.csv`` (one line per row and metric), all
+written atomically.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -32,7 +33,7 @@ import numpy as np
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
 from comat.envs.heuristics import BEST_CONSTANT_ACTION, heuristic_actions, random_actions
-from comat.files import write_atomic
+from comat.files import detail_name, relative_path, write_atomic, write_json_detail
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
 from comat.reality import resolve_reality
@@ -40,8 +41,8 @@ from comat.rl.algos import BASELINE_ROBOTS, robot_slots
 from comat.rl.policy import load_policy
 from comat.team import COALITION_SETS
 
-__all__ = ["EVAL_SEED", "REFERENCES", "TABLE_NAMES", "evaluate_policies", "print_table",
-           "result_json", "write_results"]
+__all__ = ["EVAL_SEED", "REFERENCES", "TABLE_NAMES", "evaluate_policies", "print_table", "result_files",
+           "table_lines", "write_results"]
 
 EVAL_SEED = 2_000_003
 """Default seed of evaluation episodes (never a training seed of the presets)."""
@@ -144,18 +145,39 @@ TABLE_NAMES = {"return": "return", "steps": "steps", "progress": "progress", "fi
 """Column name of each metric of :data:`REPORTED` in :func:`print_table`."""
 
 
-def print_table(result: dict, out=print) -> None:
-    """The rows as a fixed-width table, ``mean ± 95 % CI`` (over coalitions); "n/a" for a metric
-    a row lacks (a file written before the metric existed)."""
-    width = max([6] + [len(str(r["set"])) + 1 for r in result["rows"]])
-    head = f"{'policy':<10}{'set':<{width}}{'n':>4}" + "".join(f"{TABLE_NAMES[m]:>17}" for m in REPORTED)
-    out(head + "\n" + "-" * len(head))
+TABLE_GAP = "  "
+"""What separates two columns of :func:`table_lines`."""
+
+
+def table_lines(result: dict) -> list[str]:
+    """The rows as a fixed-width table (:func:`print_table`): each column as wide as its widest
+    cell (header included), columns two spaces apart, so none ever touch (an interval written
+    ``mean [low, high]`` is wider than ``mean ± half``)."""
+    heads = ["policy", "set", "n", *(TABLE_NAMES[m] for m in REPORTED)]
+    left = (True, True, False, *(False for _ in REPORTED))
+    rows = []
     for r in result["rows"]:
-        cells = []
+        cells = [str(r["policy"]), str(r["set"]), str(r["episodes"])]
         for m in REPORTED:
             v = r["metrics"].get(m)
-            cells.append(("n/a" if v is None else interval_text(v["mean"], v["ci95"], share=m in SHARES, unit=None)).rjust(17))
-        out(f"{r['policy']:<10}{r['set']:<{width}}{r['episodes']:>4}" + "".join(cells))
+            cells.append("n/a" if v is None else interval_text(v["mean"], v["ci95"], share=m in SHARES, unit=None))
+        rows.append(cells)
+    widths = [max(len(c[j]) for c in [heads, *rows]) for j in range(len(heads))]
+
+    def line(cells: list[str]) -> str:
+        return TABLE_GAP.join(c.ljust(w) if lj else c.rjust(w) for c, w, lj in zip(cells, widths, left)).rstrip()
+
+    head = line(heads)
+    return [head, "-" * len(head), *(line(c) for c in rows)]
+
+
+def print_table(result: dict, out=print) -> None:
+    """The rows as a fixed-width table (:func:`table_lines`), ``mean ± 95 % CI`` (over coalitions);
+    "n/a" for a metric a row lacks (a file written before the metric existed)."""
+    lines = table_lines(result)
+    out("\n".join(lines[:2]))
+    for text in lines[2:]:
+        out(text)
     k = result.get("episodes_per_coalition", 1)
     # Old result files predate the layer (their episodes were all in the ideal world).
     level = f"reality layer {result['reality']} (comat eval --reality); " if "reality" in result else ""
@@ -171,22 +193,17 @@ def print_table(result: dict, out=print) -> None:
             "states, so other numbers for the same policy.")
 
 
-def result_json(result: dict) -> str:
-    """``result`` as JSON: indented, except that each per-episode row is one compact line (rows
-    carry a progress curve and per-robot lists: indented, one number per line, they made an
-    HMT U_train evaluation's file 6.5x larger; on one line each, 3.7x)."""
-    shell = {**result, "rows": [{**r, "per_episode": f"\0{i}"} if "per_episode" in r else r
-                                for i, r in enumerate(result["rows"])]}
-    text = json.dumps(shell, indent=1)
-    for i, r in enumerate(result["rows"]):
-        if "per_episode" in r:
-            lines = ",\n    ".join(json.dumps(e, separators=(",", ":")) for e in r["per_episode"])
-            text = text.replace(json.dumps(f"\0{i}"), f"[\n    {lines}\n   ]" if lines else "[]", 1)
-    return text
+def result_files(stem: str) -> list[str]:
+    """The files :func:`write_results` writes for ``stem`` (what ``--out`` checks before a run)."""
+    return [f"{stem}.json", detail_name(f"{stem}.json"), f"{stem}.csv"]
 
 
 def write_results(result: dict, out_dir: str | Path, stem: str = "eval") -> list[Path]:
-    """``<stem>.json`` (:func:`result_json`) and ``<stem>.csv`` in ``out_dir`` (which must exist)."""
+    """:func:`result_files` in ``out_dir`` (which must exist), atomically: ``<stem>.json`` the
+    summary (every row with its metrics and intervals), ``<stem>.episodes.json.gz`` the rows'
+    per-episode detail (:func:`comat.files.write_json_detail`; read both back with
+    :func:`comat.measure.metrics.read_results`) and ``<stem>.csv`` one line per row and metric.
+    ``"checkpoint"`` is written relative to ``out_dir``."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise FileNotFoundError(f"output folder {str(out_dir)!r} does not exist")
@@ -197,7 +214,8 @@ def write_results(result: dict, out_dir: str | Path, stem: str = "eval") -> list
         for m in (m for m in REPORTED if m in r["metrics"]):
             writer.writerow([r["policy"], r["task"], r["set"], r["tier"], r["episodes"], m,
                              r["metrics"][m]["mean"], r["metrics"][m]["ci95"]])
-    paths = [out_dir / f"{stem}.json", out_dir / f"{stem}.csv"]
-    write_atomic(paths[0], result_json(result))
-    write_atomic(paths[1], buf.getvalue())
-    return paths
+    if result.get("checkpoint") is not None:
+        result = {**result, "checkpoint": relative_path(result["checkpoint"], out_dir)}
+    paths = write_json_detail(out_dir / f"{stem}.json", result)
+    write_atomic(out_dir / f"{stem}.csv", buf.getvalue())
+    return [*paths, out_dir / f"{stem}.csv"]

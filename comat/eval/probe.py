@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from comat.files import write_atomic
+from comat.files import relative_path, write_atomic
 from comat.rl.algos import Dims, make_learner, make_run_env
 from comat.rl.checkpoint import load_checkpoint
 from comat.rl.config import RunConfig
@@ -188,7 +188,9 @@ def print_probe(result: dict) -> None:
 
 
 def write_probe(result: dict, out: str | Path) -> Path:
-    """``out/probe.json``, atomically."""
+    """``out/probe.json``, atomically (``"checkpoint"`` relative to ``out``)."""
     path = Path(out) / "probe.json"
+    if result.get("checkpoint") is not None:
+        result = {**result, "checkpoint": relative_path(result["checkpoint"], out)}
     write_atomic(path, json.dumps(result, indent=2))
     return path

@@ -5,8 +5,9 @@ A sweep plays a policy (and, unless told not to, the scripted heuristic) at thre
 of one field of :class:`~comat.reality.RealityConfig`, every other field at the base level
 (``--reality``, default ``off``: the component alone), on the same teams and starts at every
 value (paired episodes). The file ``evaluation_<tier>_sweep_<component>.json`` holds, per value,
-each policy's metrics per set (means over the set's episodes, and the per-episode table for the
-coalition-first averaging of :mod:`comat.measure.stats`).
+each policy's metrics per set (means over the set's episodes); the per-episode table for the
+coalition-first averaging of :mod:`comat.measure.stats` is in ``<that stem>.episodes.json.gz``
+(:func:`comat.measure.metrics.read_results` reads both).
 
 ``comat report`` also reads a run's evaluations at the named levels (``evaluation_<tier>.json`` at
 ``off``, ``evaluation_<tier>_nominal.json``, ``evaluation_<tier>_stress.json``: ``comat eval
@@ -25,7 +26,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -33,14 +33,14 @@ import numpy as np
 
 from comat.eval.evaluate import evaluate_policies
 from comat.eval.figures import ALGO_LABELS, _plt, clipped_err, empty_figure, save
-from comat.files import new_outputs, write_atomic
-from comat.measure.metrics import current_names
+from comat.files import detail_name, new_outputs, write_atomic, write_json_detail
+from comat.measure.metrics import read_results
 from comat.measure.stats import per_seed_means, t_interval
 from comat.reality.config import LEVELS, RealityConfig
 
 __all__ = ["LEVEL_COMPONENT", "LEVEL_ORDER", "ROBUSTNESS_ENDPOINTS", "ROBUSTNESS_FILES", "SWEEP_VALUES", "load_levels",
            "load_sweeps", "print_sweep", "robustness_csv", "robustness_figure", "robustness_rows", "run_reality_sweep",
-           "sweep_values", "write_sweep"]
+           "sweep_files", "sweep_values", "write_sweep"]
 
 ROBUSTNESS_FILES = ("robustness.csv", "fig7_robustness.png", "fig7_robustness.pdf")
 """What ``comat report`` adds when its runs hold reality sweeps."""
@@ -126,8 +126,7 @@ def run_reality_sweep(checkpoint, task: str, sets, episodes: int, tier: str, see
 
 def load_sweeps(folder: str | Path, tier: str) -> list[dict]:
     """The sweep files of a run folder in ``tier`` (none: [])."""
-    return [current_names(json.loads(p.read_text()))  # old files: today's metric names
-            for p in sorted(Path(folder).glob(f"evaluation_{tier}_sweep_*.json"))]
+    return [read_results(p) for p in sorted(Path(folder).glob(f"evaluation_{tier}_sweep_*.json"))]
 
 
 LEVEL_COMPONENT = "level"
@@ -142,7 +141,7 @@ def load_levels(folder: str | Path, tier: str) -> list[dict]:
     for level in LEVEL_ORDER:
         path = Path(folder) / (f"evaluation_{tier}.json" if level == "off" else f"evaluation_{tier}_{level}.json")
         if path.is_file():
-            points.append({"value": level, "rows": current_names(json.loads(path.read_text()))["rows"]})
+            points.append({"value": level, "rows": read_results(path)["rows"]})
     return [{"component": LEVEL_COMPONENT, "points": points}] if len(points) >= 2 else []
 
 
@@ -246,8 +245,14 @@ _EPISODE_KEYS = ("coalition", "team_size", "return", "progress", "finished", "st
 """What a sweep file keeps of each episode (not the progress curve or the per-robot tables)."""
 
 
+def sweep_files(stem: str) -> list[str]:
+    """The files :func:`write_sweep` writes for ``stem``."""
+    return [f"{stem}.json", detail_name(f"{stem}.json"), f"{stem}.csv"]
+
+
 def write_sweep(sweep: dict, out_dir: Path, stem: str) -> list[Path]:
-    """``<stem>.json`` (the sweep) and ``<stem>.csv`` (value, policy, set, metric, mean, ci95)."""
+    """:func:`sweep_files`: ``<stem>.json`` (the sweep; its episodes in ``<stem>.episodes.json.gz``,
+    :func:`comat.files.write_json_detail`) and ``<stem>.csv`` (value, policy, set, metric, mean, ci95)."""
 
     buf = io.StringIO()
     w = csv.writer(buf)
@@ -258,13 +263,12 @@ def write_sweep(sweep: dict, out_dir: Path, stem: str) -> list[Path]:
                 m = row["metrics"].get(metric)
                 if m is not None:
                     w.writerow([point["value"], row["policy"], row["set"], metric, m["mean"], m["ci95"]])
-    paths = [out_dir / f"{stem}.json", out_dir / f"{stem}.csv"]
     points = [{"value": p["value"], "rows": [{**r, "per_episode": [{k: e[k] for k in _EPISODE_KEYS if k in e}
                                                                    for e in r.get("per_episode", [])]}
                                              for r in p["rows"]]} for p in sweep["points"]]
-    write_atomic(paths[0], json.dumps({**sweep, "points": points}, indent=1) + "\n")
-    write_atomic(paths[1], buf.getvalue())
-    return paths
+    paths = write_json_detail(out_dir / f"{stem}.json", {**sweep, "points": points})
+    write_atomic(out_dir / f"{stem}.csv", buf.getvalue())
+    return [*paths, out_dir / f"{stem}.csv"]
 
 
 def print_sweep(sweep: dict, out=print) -> None:
@@ -287,7 +291,7 @@ def eval_sweep_command(args, pol, named, tier: str, out: Path, refs: tuple, base
     for v in values:
         _config(args.reality_sweep, v, base)  # every value checked before the first episode
     stem = f"evaluation_{tier}_sweep_{args.reality_sweep}"
-    with new_outputs(out, [f"{stem}.json", f"{stem}.csv"], force=args.force):
+    with new_outputs(out, sweep_files(stem), force=args.force):
         print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, "
               f"{args.episodes} episode(s) per coalition, {tier} tier, {args.reality_sweep} at {values} (others at "
               f"{base})", file=sys.stderr)

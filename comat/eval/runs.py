@@ -8,14 +8,13 @@ set, :func:`seed_means` one value per seed; :func:`method_text` states the inter
 from __future__ import annotations
 
 import csv
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from comat.measure.metrics import current_names, mean_ci, violations
+from comat.measure.metrics import mean_ci, read_results, violations
 from comat.measure.stats import cell_means
 
 __all__ = ["ALGO_ORDER", "ALPHA", "COMPARED", "ENDPOINTS", "PAPER_BUDGET", "PAPER_RETENTION", "REFERENCES", "SETS",
@@ -61,8 +60,8 @@ def load_run(folder: str | Path, tier: str | None = None) -> dict:
                     curve["return"].append(float(row["episode_return"]))
     tier = tier or config["tier"]
     eval_path = folder / f"evaluation_{tier}.json"
-    # Files written before issue 32 name the metrics the old way: read them under today's names.
-    evaluation = current_names(json.loads(eval_path.read_text())) if eval_path.is_file() else None
+    # The summary with its per-episode detail; files written before issue 32: today's metric names.
+    evaluation = read_results(eval_path) if eval_path.is_file() else None
     return {"folder": str(folder), "algo": config["algo"], "task": config["task"], "seed": config["seed"],
             "tier": tier, "env_steps": curve["env_steps"][-1] if curve["env_steps"] else 0, "curve": curve,
             "budget": int(config.get("total_env_steps") or 0), "evaluation": evaluation}

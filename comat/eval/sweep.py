@@ -41,7 +41,7 @@ from pathlib import Path
 import comat
 import sim2real
 from comat.eval.evaluate import evaluate_policies, write_results
-from comat.files import write_atomic
+from comat.files import portable_command, write_atomic
 from comat.rl.checkpoint import versions
 from comat.rl.config import ALGOS, TASKS, apply_overrides, load_preset, resolve
 from comat.rl.device import DEVICES, resolve_device
@@ -237,7 +237,7 @@ def run_job(params: dict) -> dict:
     _set_aside_partial(folder)
     resume = (folder / "checkpoint.pt").is_file()
     summary = train(config, folder, resume=resume, quiet=True, overrides=tuple(record["overrides"]),
-                    command=record["command"],
+                    command=portable_command(record["command"], record.get("cwd")),  # as typed where it ran
                     on_update=lambda p: tune.report({"env_steps": p["env_steps"], "wall_s": p["wall_s"],
                                                      "checkpoint_env_steps": p["checkpoint_env_steps"],
                                                      "done": False}))

@@ -21,8 +21,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from comat.files import read_json_detail
+
 __all__ = ["PROGRESS_MARK", "REPORTED", "RETIRED_NAMES", "SHARES", "current_names", "curve_endpoints", "interval_text",
-           "mean_ci", "summarize_ci", "violations"]
+           "mean_ci", "read_results", "summarize_ci", "violations"]
 
 SHARES = ("progress", "finished", "progress_auc")
 """Metrics that are shares in [0, 1]: their intervals are cut to that range (the true value lies
@@ -61,6 +63,14 @@ def current_names(data):
     if isinstance(data, str):
         return RETIRED_NAMES.get(data, data)
     return data
+
+
+def read_results(path, detail: bool = True):
+    """A stored result file as every reader takes it: an evaluation (``evaluation_<tier>.json``) or
+    sweep file with its per-episode detail put back from the gzipped side file
+    (:func:`comat.files.read_json_detail`; ``detail=False``: the summary alone, no ``per_episode``),
+    an older plain JSON file as it is, metric names today's (:func:`current_names`)."""
+    return current_names(read_json_detail(path, detail=detail))
 
 REPORTED = ("return", "steps", "progress", "finished", "progress_auc", "time_to_90", "collisions", "violations",
             "interventions", "fallbacks", "recoveries")

@@ -83,22 +83,47 @@ class CheckpointError(ValueError):
     task, or a policy file where the whole learner is needed."""
 
 
-@functools.cache
-def source_commit() -> str:
-    """The git commit of the comat source in use (``-dirty`` with uncommitted changes to tracked
-    files), or ``"unknown"`` outside a git checkout: which code made a run."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        def git(*args: str) -> str:
-            return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True,
-                                  timeout=10).stdout.strip()
+SOURCE_COMMIT_ENV = "COMAT_SOURCE_COMMIT"
+"""The commit of a copy of the source without its ``.git`` (a snapshot that runs a long grid while
+the checkout moves on): whoever makes the copy sets it, e.g. ``COMAT_SOURCE_COMMIT=$(git describe
+--always --dirty --abbrev=40)``; :func:`source_commit` records it as ``<value> (snapshot)``."""
 
-        if Path(git("rev-parse", "--show-toplevel")).resolve() != root:
-            return "unknown"  # installed somewhere inside another repository (e.g. a venv in one)
-        commit = git("rev-parse", "HEAD")
-        return commit + ("-dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
+
+@functools.cache
+def source_commit(root: str | Path | None = None) -> str:
+    """Which code made a run: the git commit of the comat source in use (``root``, default the
+    folder holding the ``comat`` package), with ``-dirty`` where tracked files have uncommitted
+    changes. Where that folder is not a git checkout of its own (an installed wheel, a copy
+    without ``.git``): :data:`SOURCE_COMMIT_ENV`'s value where it is set, else ``unknown (...)``
+    with the reason. Never raises: a missing git does not stop a run.
+
+    The grid runs of December 2026 say ``unknown``: they ran from a snapshot without ``.git``, and
+    this function said no more than that."""
+    root = Path(root) if root is not None else Path(__file__).resolve().parents[2]
+    root = root.resolve()
+
+    def git(*args: str) -> str:
+        # safe.directory: a checkout owned by another user (a shared or mounted tree) is still read
+        return subprocess.run(["git", "-c", f"safe.directory={root}", "-C", str(root), *args], capture_output=True,
+                              text=True, check=True, timeout=10, env={**os.environ, "GIT_OPTIONAL_LOCKS": "0"}
+                              ).stdout.strip()
+
+    reason = "not a git checkout"
+    try:
+        top = git("rev-parse", "--show-toplevel")
+        if Path(top).resolve() == root:  # else installed somewhere inside another repository (a venv in one)
+            commit = git("rev-parse", "HEAD")
+            return commit + ("-dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
+    except FileNotFoundError:
+        reason = "git not found"
+    except subprocess.CalledProcessError as exc:
+        first = (exc.stderr or "").strip().splitlines()
+        if not first or "not a git repository" not in first[0]:
+            reason = f"git failed: {first[0] if first else f'exit status {exc.returncode}'}"
+    except (OSError, subprocess.SubprocessError) as exc:
+        reason = f"git failed: {exc}"
+    snapshot = os.environ.get(SOURCE_COMMIT_ENV, "").strip()
+    return f"{snapshot} (snapshot)" if snapshot else f"unknown ({reason})"
 
 
 def cpu_model() -> str:

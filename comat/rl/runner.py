@@ -31,7 +31,7 @@ from pathlib import Path
 import torch
 
 from comat.envs.base import resolve_coalitions
-from comat.files import write_atomic
+from comat.files import portable_command, write_atomic
 from comat.machine import RunRegistry, busy_warning, usable_cpus
 from comat.measure.episodes import run_episodes, summarize
 from comat.rl.algos import Dims, make_learner, make_run_env, policy_act
@@ -53,11 +53,12 @@ _SUMMARY_KEYS = ("return", "steps", "progress", "finished", "collisions", "inter
 
 def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = (),
                   command: list[str] | None = None) -> None:
-    """``config.yaml``: the resolved config, versions and command line of this sitting; a resumed
-    run keeps those of its earlier sittings under ``earlier_sittings`` (which code trained what)."""
+    """``config.yaml``: the resolved config, versions (the source's commit among them) and command
+    line of this sitting (no absolute paths: :func:`comat.files.portable_command`); a
+    resumed run keeps those of its earlier sittings under ``earlier_sittings`` (which code trained what)."""
     import yaml
 
-    doc = {"config": config.to_dict(), "versions": versions(), "command": list(command or sys.argv),
+    doc = {"config": config.to_dict(), "versions": versions(), "command": portable_command(command or sys.argv),
            "overrides": list(overrides), "resumed_at_env_steps": resumed_at}
     path = out / "config.yaml"
     if resumed_at is not None and path.is_file():

@@ -20,5 +20,5 @@ echo "start: $name $(date -u +%FT%TZ)"
 # Deterministic evaluation on U_train and U_test (one episode per coalition), as the sweep's runs.
 "$comat" eval --checkpoint "$run/checkpoint.pt" --set both --no-references >> "runs/ablations/$name.log" 2>&1
 mkdir -p "$keep"
-cp "$run"/{config.yaml,progress.csv,eval.csv,summary.json,evaluation_unicycle.json,evaluation_unicycle.csv} "$keep"/
+cp "$run"/{config.yaml,progress.csv,eval.csv,summary.json,evaluation_unicycle.json,evaluation_unicycle.episodes.json.gz,evaluation_unicycle.csv} "$keep"/
 echo "end: $name $(date -u +%FT%TZ)"

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import re
 import sys
@@ -34,6 +33,7 @@ sys.path.insert(0, str(ROOT))
 from comat.measure.metrics import (
     current_names,  # files written before issue 32: today's names
     mean_ci,
+    read_results,  # an evaluation with its per-episode detail
 )
 
 HERE = ROOT / "results" / "ablations"
@@ -66,7 +66,7 @@ def _final_eval(folder: Path, algo: str) -> dict[str, dict[str, float]] | None:
     path = folder / "evaluation_unicycle.json"
     if not path.is_file():
         return None
-    rows = current_names(json.loads(path.read_text()))["rows"]
+    rows = read_results(path)["rows"]
     return {r["set"]: {m: r["metrics"][m]["mean"] for m in ("finished", "progress", "return")}
             for r in rows if r["policy"] == algo}
 

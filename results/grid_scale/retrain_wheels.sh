@@ -40,11 +40,11 @@ print(f"{new} vs {old}: {'equal bit for bit' if same else 'NOT equal'}")
 sys.exit(0 if same else 1)
 EOF
   then
-    cp "$out"/evaluation_wheels.{json,csv} "$HERE/runs/$name/"
+    cp "$out"/evaluation_wheels.{json,episodes.json.gz,csv} "$HERE/runs/$name/"
   else
     [ -f "$out/evaluation_unicycle.json" ] || comat eval --policy "$out" --teams all --tier unicycle --no-references
     mkdir -p "$HERE/comat_wheels/runs/$name"
-    cp "$out"/{config.yaml,progress.csv,eval.csv,summary.json} "$out"/evaluation_*.{json,csv} "$HERE/comat_wheels/runs/$name/"
+    cp "$out"/{config.yaml,progress.csv,eval.csv,summary.json} "$out"/evaluation_*.{json,json.gz,csv} "$HERE/comat_wheels/runs/$name/"
   fi
 done
 # the wheels report and the gap over one checkpoint per run: the retrain where it is kept, else the grid's run

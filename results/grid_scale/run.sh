@@ -14,7 +14,7 @@ collect() {  # the small files of every finished run and its policy.pt (checkpoi
     [ -f "$run/policy.pt" ] || comat policy "$run"  # a run trained before policy files: from its checkpoint
     dst="$HERE/runs/$(basename "$run")"
     mkdir -p "$dst"
-    cp "$run"/{config.yaml,progress.csv,eval.csv,summary.json,policy.pt} "$run"/evaluation_*.{json,csv} "$dst/"
+    cp "$run"/{config.yaml,progress.csv,eval.csv,summary.json,policy.pt} "$run"/evaluation_*.{json,json.gz,csv} "$dst/"
   done
 }
 

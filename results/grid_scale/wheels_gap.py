@@ -19,6 +19,7 @@ from pathlib import Path
 from comat.measure.metrics import (
     current_names,  # files written before issue 32: today's names
     mean_ci,
+    read_results,  # an evaluation with its per-episode detail
 )
 
 HERE = Path(__file__).resolve().parent
@@ -26,7 +27,7 @@ SETS = ("train", "test", "scale")
 
 
 def _rows(run: Path, tier: str) -> dict[str, dict]:
-    data = current_names(json.loads((run / f"evaluation_{tier}.json").read_text()))
+    data = read_results(run / f"evaluation_{tier}.json")
     return {r["set"]: r["metrics"] for r in data["rows"] if r["policy"] == data["algo"]}
 
 

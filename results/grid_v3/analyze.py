@@ -12,7 +12,6 @@ skipped silently.
 
 from __future__ import annotations
 
-import json
 import math
 import re
 import sys
@@ -23,7 +22,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
-from comat.measure.metrics import current_names
+from comat.measure.metrics import read_results
 from comat.measure.stats import per_seed_means, t_interval, welch
 
 NAME = re.compile(r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
@@ -63,7 +62,7 @@ def load(folder: Path) -> dict:
         for level, file in LEVELS.items():
             if not (run / file).is_file():
                 continue
-            data = current_names(json.loads((run / file).read_text()))
+            data = read_results(run / file)
             for row in data["rows"]:
                 if row["policy"] != m["algo"]:
                     continue

@@ -15,11 +15,12 @@ Welch's df.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 from scipy import stats
+
+from comat.measure.metrics import read_results  # an evaluation with its per-episode detail
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIRM = ROOT / "results" / "stability" / "confirm" / "runs"
@@ -31,7 +32,7 @@ def confirmation_sd(task: str, learner: str) -> tuple[float, int]:
     """Per-seed SD of U_val progress (points) and the number of seeds, from the kept runs."""
     values = []
     for folder in sorted(CONFIRM.glob(f"{'mat_control' if learner == 'mat' else 'adapters'}_{task}_s*")):
-        data = json.loads((folder / "evaluation_unicycle.json").read_text())
+        data = read_results(folder / "evaluation_unicycle.json")
         row = next(r for r in data["rows"] if r["set"] == "val" and r["policy"] not in ("heuristic", "constant", "random"))
         values.append(100 * np.mean([e["progress"] for e in row["per_episode"]]))
     return float(np.std(values, ddof=1)), len(values)

@@ -51,6 +51,6 @@ for level in "${levels[@]}"; do
     --no-references --out "$run" >> "$log" 2>&1
 done
 mkdir -p "$keep.partial"
-cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json} "$run"/evaluation_unicycle*.{json,csv} "$keep.partial"/
+cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json} "$run"/evaluation_unicycle*.{json,json.gz,csv} "$keep.partial"/
 rm -rf "$keep" && mv "$keep.partial" "$keep"
 echo "end: $name $(date -u +%FT%TZ)"

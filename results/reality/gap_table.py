@@ -15,13 +15,12 @@ seed's own value beside it: the seed is the replicated unit, and with two seeds 
 drawn (a t-interval on 1 degree of freedom is 12.7 half-spreads wide).
 """
 
-import json
 import re
 import sys
 from collections import defaultdict
 from pathlib import Path
 
-from comat.measure.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import read_results  # per-episode detail included; today's names
 
 LEVELS = ("off", "nominal", "stress")
 SETS = {"train": "U_train", "test": "U_test"}
@@ -33,7 +32,7 @@ def rows(folder: Path) -> dict:
         path = folder / ("evaluation_unicycle.json" if level == "off" else f"evaluation_unicycle_{level}.json")
         if not path.is_file():
             continue
-        data = current_names(json.loads(path.read_text()))
+        data = read_results(path)
         for r in data["rows"]:
             if r["set"] in SETS and r["policy"] not in ("heuristic", "constant", "random"):
                 out[(r["policy"], r["task"], r["set"], level)] = r["metrics"]
@@ -49,7 +48,7 @@ def main(folders: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for folder in map(Path, folders):
         got = rows(folder)
-        trained = current_names(json.loads((folder / "evaluation_unicycle.json").read_text())).get("trained_reality", "off") or "off"
+        trained = read_results(folder / "evaluation_unicycle.json", detail=False).get("trained_reality", "off") or "off"
         for (policy, task, split, level), m in sorted(got.items(), key=lambda kv: (kv[0][1], kv[0][2], LEVELS.index(kv[0][3]))):
             off = got.get((policy, task, split, "off"))
             delta = "" if off is None or level == "off" else \

@@ -25,5 +25,5 @@ for lv in nominal stress; do
   comat eval --policy "$run" --teams both --episodes 5 --no-references --reality $lv --out "$run" --force
 done
 keep=$root/results/policies/$name; mkdir -p "$keep"
-cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json} "$run"/evaluation_unicycle*.{json,csv} "$keep"/
+cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json} "$run"/evaluation_unicycle*.{json,json.gz,csv} "$keep"/
 echo "kept $keep"

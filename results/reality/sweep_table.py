@@ -10,20 +10,19 @@ at the last, the change in steps, and contact steps and Robotarium violations pe
 over the values; the mean over seeds with each seed's own value in brackets (two seeds: no interval).
 """
 
-import json
 import re
 import sys
 from collections import defaultdict
 from pathlib import Path
 
-from comat.measure.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import read_results  # per-episode detail included; today's names
 
 
 def _seed_rows(folder: Path) -> dict:
     """(task, component) -> {"values", "progress", "steps", "collisions", "violations"} of one policy."""
     out = {}
     for path in sorted(folder.glob("evaluation_unicycle_sweep_*.json")):
-        sweep = current_names(json.loads(path.read_text()))
+        sweep = read_results(path)
         points = [(p["value"], p["rows"][0]["metrics"]) for p in sweep["points"]]
         out[(sweep["task"], sweep["component"])] = {
             "values": [v for v, _ in points],

@@ -2,7 +2,7 @@
 # Issue 28: the reference policies (scripted heuristic, best constant action, random) on every
 # composition set of both tasks, 5 episodes per coalition, unicycle tier, from the repository root.
 #   results/sets/run.sh          evaluate (about 30 min on one core) and write the table
-# Outputs: results/sets/references_<task>/evaluation_unicycle.{json,csv} and results/sets/README.md's table
+# Outputs: results/sets/references_<task>/evaluation_unicycle.{json,episodes.json.gz,csv} and results/sets/README.md's table
 # (written by results/sets/table.py).
 set -euo pipefail
 HERE=results/sets

@@ -1,11 +1,10 @@
 """The reference policies on every composition set: results/sets/references.md from the two
 evaluation files that run.sh writes (no numbers typed by hand)."""
 
-import json
 from pathlib import Path
 
 from comat.eval.runs import SET_NAMES
-from comat.measure.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import read_results  # per-episode detail included; today's names
 
 HERE = Path(__file__).resolve().parent
 COLUMNS = (("finished", "finished %", 100), ("progress", "progress %", 100), ("progress_auc", "progress AUC %", 100),
@@ -24,7 +23,7 @@ def main() -> None:
              "± = 95 % t-interval over the 20 coalitions' means (each coalition's 5 episodes averaged first). "
              "Steps to 90 %: the horizon (PCP 80, HMT 70) for an episode that never reached 90 % progress."), ""]
     for task in ("pcp", "hmt"):
-        result = current_names(json.loads((HERE / f"references_{task}" / "evaluation_unicycle.json").read_text()))
+        result = read_results(HERE / f"references_{task}" / "evaluation_unicycle.json", detail=False)
         lines += [f"## {task.upper()}", "", "| set | policy | " + " | ".join(c[1] for c in COLUMNS) + " |",
                   "|---|---|" + "---:|" * len(COLUMNS)]
         for row in result["rows"]:

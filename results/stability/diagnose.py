@@ -19,14 +19,13 @@ that share (least squares over the set's episodes), as in ``science-turn3.md`` Â
 policy per folder, episodes are not independent seeds.
 """
 
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from comat.envs.base import resolve_coalitions
-from comat.measure.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import read_results  # per-episode detail included; today's names
 
 SETS = ("train", "val", "test", "scale", "size", "capability")
 
@@ -61,7 +60,7 @@ def main(folders: list[str]) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     slopes = []
     for folder in map(Path, folders):
-        data = current_names(json.loads((folder / "evaluation_unicycle.json").read_text()))
+        data = read_results(folder / "evaluation_unicycle.json")
         for row in data["rows"]:
             if row["task"] != "hmt" or row["policy"] in ("heuristic", "constant", "random"):
                 continue

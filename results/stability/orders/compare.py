@@ -9,19 +9,18 @@ coalitions in every order; the robots' start positions follow their slots, so th
 the order too). One policy per learner: this says what the order does to these two policies.
 """
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from comat.measure.metrics import current_names  # files written before issue 32: today's names
+from comat.measure.metrics import read_results  # per-episode detail included; today's names
 from comat.measure.stats import t_interval
 
 ROOT = Path(__file__).resolve().parents[3]
 
 
 def per_coalition(path: Path, split: str, policy: str, metric: str) -> np.ndarray:
-    rows = current_names(json.loads(path.read_text()))["rows"]
+    rows = read_results(path)["rows"]
     row = next(r for r in rows if r["set"] == split and r["policy"] == policy)
     by: dict[int, list[float]] = {}
     for e in row["per_episode"]:

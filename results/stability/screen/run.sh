@@ -28,5 +28,5 @@ if [[ ! -f "$run/policy.pt" ]]; then
 fi
 comat eval --policy "$run" --teams val --episodes 5 --no-references --out "$run" --force >> "runs/$study/$name.log" 2>&1
 mkdir -p "$keep"
-cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json,evaluation_unicycle.json,evaluation_unicycle.csv} "$keep"/
+cp "$run"/{policy.pt,config.yaml,progress.csv,eval.csv,summary.json,evaluation_unicycle.json,evaluation_unicycle.episodes.json.gz,evaluation_unicycle.csv} "$keep"/
 echo "end: $name $(date -u +%FT%TZ)"

@@ -8,7 +8,6 @@ selection rule applied. Reads only U_val (the final evaluation) and U_train (the
 from __future__ import annotations
 
 import csv
-import json
 import re
 import sys
 from pathlib import Path
@@ -19,7 +18,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 from diagnose import _team_slow_payload
 
-from comat.measure.metrics import current_names
+from comat.measure.metrics import read_results
 from comat.measure.stats import t_interval
 
 NAME = re.compile(r"^(?:(?P<algo>mat)_)?(?P<variant>[a-z_]+?)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
@@ -33,7 +32,7 @@ def first_at(path: Path, level: float = 0.95) -> str:
 
 def one_run(folder: Path) -> dict:
     m = NAME.match(folder.name)
-    data = current_names(json.loads((folder / "evaluation_unicycle.json").read_text()))
+    data = read_results(folder / "evaluation_unicycle.json")
     row = next(r for r in data["rows"] if r["set"] == "val" and r["policy"] not in ("heuristic", "constant", "random"))
     eps = row["per_episode"]
     y = np.array([100 * e["progress"] for e in eps])
