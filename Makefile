@@ -31,6 +31,7 @@ docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warni
 lint: $(STAMP)  ## ruff (lint + format check) and the import-layering contracts of pyproject.toml (import-linter)
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[lint]"
 	$(BIN)/ruff check comat sim2real tests benchmarks results
+	$(BIN)/ruff format --check comat sim2real tests benchmarks results
 	$(BIN)/lint-imports
 
 test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, two nodes on loopback, ray job submit (about 7 minutes)

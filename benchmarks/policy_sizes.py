@@ -21,14 +21,24 @@ def table(rows: list[dict]) -> str:
     keeps (in brackets: all of the learner's, critic or mixer included)."""
     tasks = list(dict.fromkeys(r["task"] for r in rows))
     by = {(r["algo"], r["task"]): r for r in rows}
-    kept = {"comat": "policy (encoder, decoder, value head)", "mat": "policy (encoder, decoder, value head)",
-            "mappo": "actors (no critic)", "qmix": "agent network (no mixer)"}
-    lines = ["| algorithm | kept to act | " + " | ".join(f"{t.upper()} policy.pt | {t.upper()} parameters (learner)"
-                                                    for t in tasks) + " |",
-             "|---|---|" + "---:|---:|" * len(tasks)]
+    kept = {
+        "comat": "policy (encoder, decoder, value head)",
+        "mat": "policy (encoder, decoder, value head)",
+        "mappo": "actors (no critic)",
+        "qmix": "agent network (no mixer)",
+    }
+    lines = [
+        "| algorithm | kept to act | "
+        + " | ".join(f"{t.upper()} policy.pt | {t.upper()} parameters (learner)" for t in tasks)
+        + " |",
+        "|---|---|" + "---:|---:|" * len(tasks),
+    ]
     for algo in dict.fromkeys(r["algo"] for r in rows):
-        cells = [f"{format_size(by[algo, t]['bytes'])} | {by[algo, t]['parameters']:,} "
-                 f"({by[algo, t]['learner_parameters']:,})" for t in tasks]
+        cells = [
+            f"{format_size(by[algo, t]['bytes'])} | {by[algo, t]['parameters']:,} "
+            f"({by[algo, t]['learner_parameters']:,})"
+            for t in tasks
+        ]
         name = "COMAT" if algo == "comat" else algo.upper()
         lines.append(f"| {name} | {kept[algo]} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -36,10 +46,12 @@ def table(rows: list[dict]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--preset", default="sweep",
-                        help="preset whose model config is measured (default: %(default)s)")
-    parser.add_argument("--out", default="benchmarks/results/policy_sizes.json",
-                        help="JSON output (default: %(default)s)")
+    parser.add_argument(
+        "--preset", default="sweep", help="preset whose model config is measured (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--out", default="benchmarks/results/policy_sizes.json", help="JSON output (default: %(default)s)"
+    )
     args = parser.parse_args()
     rows = policy_weights(args.preset)
     write_atomic(args.out, json.dumps({"preset": args.preset, "rows": rows}, indent=2))

@@ -34,16 +34,36 @@ def _rate(folder: Path) -> float:
 
 
 def _start(out: Path, steps: int, env: dict[str, str]) -> subprocess.Popen:
-    argv = [sys.executable, "-m", "comat.cli", "train", "--algo", "comat", "--task", "pcp", "--preset", "quick",
-            "--steps", str(steps), "--quiet", "--out", str(out), "eval_episodes_per_team=0"]
-    return subprocess.Popen(argv, env={**os.environ, **env}, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    argv = [
+        sys.executable,
+        "-m",
+        "comat.cli",
+        "train",
+        "--algo",
+        "comat",
+        "--task",
+        "pcp",
+        "--preset",
+        "quick",
+        "--steps",
+        str(steps),
+        "--quiet",
+        "--out",
+        str(out),
+        "eval_episodes_per_team=0",
+    ]
+    return subprocess.Popen(
+        argv, env={**os.environ, **env}, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=15360, help="env steps per run (default: %(default)s)")
     parser.add_argument("--env", nargs="*", default=[], metavar="KEY=VALUE", help="environment of every run")
-    parser.add_argument("--out", default="benchmarks/results/side_by_side.json", help="JSON output (default: %(default)s)")
+    parser.add_argument(
+        "--out", default="benchmarks/results/side_by_side.json", help="JSON output (default: %(default)s)"
+    )
     args = parser.parse_args()
     env = dict(e.split("=", 1) for e in args.env)
     with tempfile.TemporaryDirectory() as tmp:
@@ -59,9 +79,17 @@ def main() -> int:
             raise SystemExit("a side-by-side run failed:\n" + "\n".join(o[-2000:] for o in outputs))
         rates = {"alone": _rate(root / "alone"), "pair": [_rate(root / f"pair{k}") for k in range(2)]}
         notes = [line for o in outputs for line in o.splitlines() if "warning" in line.lower()]
-    result = {"steps": args.steps, "env": env, "cpus": len(os.sched_getaffinity(0)), "alone_env_steps_per_s": rates["alone"],
-              "side_by_side_env_steps_per_s": rates["pair"], "ratios": [r / rates["alone"] for r in rates["pair"]],
-              "target_ratio": 0.40, "warnings": notes, "wall_s": time.perf_counter() - t0}
+    result = {
+        "steps": args.steps,
+        "env": env,
+        "cpus": len(os.sched_getaffinity(0)),
+        "alone_env_steps_per_s": rates["alone"],
+        "side_by_side_env_steps_per_s": rates["pair"],
+        "ratios": [r / rates["alone"] for r in rates["pair"]],
+        "target_ratio": 0.40,
+        "warnings": notes,
+        "wall_s": time.perf_counter() - t0,
+    }
     result["pass"] = all(r >= 0.40 for r in result["ratios"])
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result, indent=2) + "\n")

@@ -4,7 +4,8 @@
 ``"hmt_v0"``; see :data:`ENV_IDS`) and ``comat.make_vec_env(env_id, num_envs, **options)`` the
 batched one; ``comat.load_policy(path_or_name)`` a trained policy that acts on their observation
 dicts (:mod:`comat.policy_api`; ``"pretrained:comat-pcp"`` and the others of
-:data:`comat.rl.policy.PRETRAINED` ship with the package). Subpackages: :mod:`comat.mjcf` (MJCF generation), :mod:`comat.sim` (MuJoCo
+:data:`comat.rl.policy.PRETRAINED` ship with the package). Subpackages: :mod:`comat.mjcf` (MJCF generation),
+:mod:`comat.sim` (MuJoCo
 worlds), :mod:`comat.safety` (barrier filter), :mod:`comat.envs` (tasks). Importing ``comat``
 itself is light: the envs load on first use, and nothing here imports torch or rerun.
 """

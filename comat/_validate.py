@@ -32,9 +32,7 @@ def as_float_array(name: str, value: Any, shape: tuple[int | str, ...], finite: 
         raise ValueError(f"{name} must have shape {_fmt(shape)}, got shape {arr.shape}")
     if finite and not np.all(np.isfinite(arr)):
         bad = np.argwhere(~np.isfinite(arr))[0]
-        raise ValueError(
-            f"{name} must be finite, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}"
-        )
+        raise ValueError(f"{name} must be finite, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}")
     return arr
 
 

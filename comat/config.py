@@ -133,9 +133,7 @@ class SafetyConfig:
         if not 0 <= self.boundary_margin_m < 0.9:
             raise ValueError(f"SafetyConfig.boundary_margin_m must be in [0, 0.9) m, got {self.boundary_margin_m!r}")
         if not 0 < self.wheel_speed_fraction <= 1:
-            raise ValueError(
-                f"SafetyConfig.wheel_speed_fraction must be in (0, 1], got {self.wheel_speed_fraction!r}"
-            )
+            raise ValueError(f"SafetyConfig.wheel_speed_fraction must be in (0, 1], got {self.wheel_speed_fraction!r}")
         if self.loop not in LOOPS:
             raise ValueError(f"SafetyConfig.loop must be one of {list(LOOPS)}, got {self.loop!r}")
         if self.barrier_gain * C.CONTROL_DT_S >= 1 or self.boundary_gain * C.CONTROL_DT_S >= 1:

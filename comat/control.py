@@ -100,10 +100,16 @@ def portable_settings(filter_config: SafetyConfig, profile: C.RobotProfile) -> d
     """A filter's settings as :class:`~comat.safety.deployed.PortableBarrier` (and an export's
     config) take them."""
     cfg, p = filter_config, profile
-    return {"safety_distance_m": cfg.safety_distance_m, "projection_distance_m": cfg.projection_distance_m,
-            "boundary_margin_m": cfg.boundary_margin_m, "barrier_gain": cfg.barrier_gain,
-            "boundary_gain": cfg.boundary_gain, "axle_m": p.base_length_m, "wheel_radius_m": p.wheel_radius_m,
-            "wheel_limit_radps": p.max_wheel_velocity_radps * cfg.wheel_speed_fraction}
+    return {
+        "safety_distance_m": cfg.safety_distance_m,
+        "projection_distance_m": cfg.projection_distance_m,
+        "boundary_margin_m": cfg.boundary_margin_m,
+        "barrier_gain": cfg.barrier_gain,
+        "boundary_gain": cfg.boundary_gain,
+        "axle_m": p.base_length_m,
+        "wheel_radius_m": p.wheel_radius_m,
+        "wheel_limit_radps": p.max_wheel_velocity_radps * cfg.wheel_speed_fraction,
+    }
 
 
 @dataclass
@@ -188,8 +194,11 @@ class SafeTeams:
     def _new_watch(self) -> RobotWatch | None:
         if self.reality is None or not self.safety_config.robust or self.safety_config.loop != "comat":
             return None
-        return RobotWatch(self.world.layout.n_robots, self.safety_config.projection_distance_m,
-                          response_lag_ticks(self.reality.config, self.world.profile))
+        return RobotWatch(
+            self.world.layout.n_robots,
+            self.safety_config.projection_distance_m,
+            response_lag_ticks(self.reality.config, self.world.profile),
+        )
 
     def _deployed_loops(self, sizes: Sequence[int]) -> list[DeployedLoop] | None:
         """One deployed loop per team of ``sizes`` (None for comat's own filter)."""
@@ -240,7 +249,9 @@ class SafeTeams:
             return self.world._poses, self.world.cos_sin()
         return self.reality.estimated, self.reality.estimated_cos_sin()
 
-    def reset(self, poses: np.ndarray, teams: Sequence[int] | None = None, reality_keys: Sequence[int] | None = None) -> None:
+    def reset(
+        self, poses: np.ndarray, teams: Sequence[int] | None = None, reality_keys: Sequence[int] | None = None
+    ) -> None:
         """Place robots at poses (R, 3) and zero their counters; only ``teams`` if given.
 
         With a reality layer the robots start at the requested poses plus the start error, and
@@ -248,8 +259,9 @@ class SafeTeams:
         of each env's generator) seed their episodes; None: keys from ``reality_seed``."""
         if self.reality is not None:
             team_ids = np.arange(self.world.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
-            poses = self.reality.start(as_float_array("poses", poses, (self.world.layout.n_robots, 3)), team_ids,
-                                       reality_keys)
+            poses = self.reality.start(
+                as_float_array("poses", poses, (self.world.layout.n_robots, 3)), team_ids, reality_keys
+            )
             if self.reality.physics_on and self.sim_config.tier == "wheels":
                 if isinstance(self.world, BatchWorld):
                     self.world.set_robot_physics(*self.reality.physics(), teams=team_ids)
@@ -371,8 +383,10 @@ class SafeTeams:
         the commands then pass the reality layer (if any) into the world, as ``set_velocities``
         does on the testbed. Judging (contacts, Robotarium checks) stays on true poses."""
         if self.deployed is None:
-            raise RuntimeError(f"tick_deployed needs a deployed SafetyConfig.loop (one of {list(LOOPS[1:])}), "
-                               f"got {self.safety_config.loop!r}")
+            raise RuntimeError(
+                f"tick_deployed needs a deployed SafetyConfig.loop (one of {list(LOOPS[1:])}), "
+                f"got {self.safety_config.loop!r}"
+            )
         t0 = time.perf_counter()
         dxi = as_float_array("dxi", dxi, (self.world.layout.n_robots, 2))
         lay, d = self.world.layout, self.safety_config.projection_distance_m
@@ -396,8 +410,12 @@ class SafeTeams:
             self.reality.observe(self.world._poses)
         u_nom, u = uni_to_si(nominal.T, x.T, d).T, uni_to_si(sent.T, x.T, d).T
         change = np.linalg.norm(u - u_nom, axis=1)
-        info = DeployedInfo(intervention=np.sqrt(np.bincount(lay.robot_team, weights=change**2, minlength=lay.n_teams)),
-                            robot_intervened=change > 1e-9, fallback=fallback, recovery=recovery)
+        info = DeployedInfo(
+            intervention=np.sqrt(np.bincount(lay.robot_team, weights=change**2, minlength=lay.n_teams)),
+            robot_intervened=change > 1e-9,
+            fallback=fallback,
+            recovery=recovery,
+        )
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.recoveries += info.recovery

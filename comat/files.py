@@ -24,8 +24,18 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["DETAIL_KEY", "DETAIL_SUFFIX", "detail_name", "encode_json_detail", "new_outputs", "portable_command",
-           "read_json_detail", "relative_path", "write_atomic", "write_json_detail"]
+__all__ = [
+    "DETAIL_KEY",
+    "DETAIL_SUFFIX",
+    "detail_name",
+    "encode_json_detail",
+    "new_outputs",
+    "portable_command",
+    "read_json_detail",
+    "relative_path",
+    "write_atomic",
+    "write_json_detail",
+]
 
 DETAIL_KEY = "per_episode"
 """The key whose values a result document keeps in its detail file."""
@@ -45,7 +55,9 @@ def write_atomic(path: str | Path, data: str | bytes) -> None:
 
 
 @contextlib.contextmanager
-def new_outputs(folder: str | Path, names: Iterable[str], *, force: bool = False, flag: str = "--out") -> Iterator[Path]:
+def new_outputs(
+    folder: str | Path, names: Iterable[str], *, force: bool = False, flag: str = "--out"
+) -> Iterator[Path]:
     """The one rule of every command's ``--out``: a context manager around writing ``names`` in ``folder``.
 
     * ``folder`` is created (with its parents) if it is missing;
@@ -63,8 +75,10 @@ def new_outputs(folder: str | Path, names: Iterable[str], *, force: bool = False
     existing = [n for n in names if (folder / n).exists()]
     if existing and not force:
         shown = ", ".join(repr(str(folder / n)) for n in existing[:3]) + (" ..." if len(existing) > 3 else "")
-        raise FileExistsError(f"{flag}: {shown} already exist{'s' if len(existing) == 1 else ''}; pass --force to "
-                              f"replace, or choose another {flag}")
+        raise FileExistsError(
+            f"{flag}: {shown} already exist{'s' if len(existing) == 1 else ''}; pass --force to "
+            f"replace, or choose another {flag}"
+        )
     created = []  # folders made here, outermost first
     probe = folder
     while not probe.exists():
@@ -136,8 +150,12 @@ def encode_json_detail(name: str, doc: dict, *, key: str = DETAIL_KEY) -> tuple[
             raise ValueError(f"{name}: a result document with detail cannot hold a key 'detail' of its own")
         raw = json.dumps({"key": key, "items": items}, separators=(",", ":")).encode()
         blob = gzip.compress(raw, compresslevel=9, mtime=0)
-        summary["detail"] = {"file": detail_name(name), "key": key, "items": len(items),
-                             "sha256": hashlib.sha256(raw).hexdigest()}
+        summary["detail"] = {
+            "file": detail_name(name),
+            "key": key,
+            "items": len(items),
+            "sha256": hashlib.sha256(raw).hexdigest(),
+        }
     return json.dumps(summary, indent=1) + "\n", blob
 
 
@@ -178,8 +196,9 @@ def read_json_detail(path: str | Path, *, detail: bool = True) -> Any:
         return doc
     side = path.with_name(ref["file"])
     if not side.is_file():
-        raise FileNotFoundError(f"{str(path)!r} keeps its {ref['key']} in {ref['file']!r}, which is missing (copy it "
-                                "with the summary)")
+        raise FileNotFoundError(
+            f"{str(path)!r} keeps its {ref['key']} in {ref['file']!r}, which is missing (copy it with the summary)"
+        )
     data, raw = _read_json(side)
     if hashlib.sha256(raw).hexdigest() != ref.get("sha256") or len(data["items"]) != ref.get("items"):
         raise ValueError(f"{str(side)!r} does not belong to {str(path)!r} (another evaluation's detail?)")

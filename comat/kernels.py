@@ -211,7 +211,9 @@ def group_read(record, qpos, sims, qadr, sensor_all, sensor_wall, rows, unicycle
 
 # -- safety filter rows --------------------------------------------------------------------------
 @_jit
-def row_bounds_into(points, pair_i, pair_j, safety_d2, barrier_gain, neg_boundary_gain, boundary_gain, lo, hi, speed, e, lower, upper):
+def row_bounds_into(
+    points, pair_i, pair_j, safety_d2, barrier_gain, neg_boundary_gain, boundary_gain, lo, hi, speed, e, lower, upper
+):
     """:func:`comat.safety.constraints.row_values`: pair differences e (P, 2) and bounds (rows,)."""
     P, R = pair_i.size, points.shape[0]
     for p in range(P):
@@ -277,7 +279,9 @@ def interventions(out, u_nom, robot_team, n_teams, robot_norm2, per_team):
 
 # -- checks and counters -------------------------------------------------------------------------
 @_jit
-def check_tick_into(poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, collision, collision_pairs, boundary):
+def check_tick_into(
+    poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, collision, collision_pairs, boundary
+):
     """:func:`comat.sim.violations.check_tick`'s arrays, written into the given outputs."""
     collision[:] = False
     collision_pairs[:] = 0
@@ -295,8 +299,21 @@ def check_tick_into(poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, b
 
 
 @_jit
-def violations_add(robot_team, collision, boundary, actuator, robot_contact, wall_contact, last_contact,
-                   collision_ticks, boundary_ticks, actuator_ticks, contact_ticks, contact_onsets, wall_ticks):
+def violations_add(
+    robot_team,
+    collision,
+    boundary,
+    actuator,
+    robot_contact,
+    wall_contact,
+    last_contact,
+    collision_ticks,
+    boundary_ticks,
+    actuator_ticks,
+    contact_ticks,
+    contact_onsets,
+    wall_ticks,
+):
     """:meth:`comat.sim.violations.Violations.add`'s per-robot and per-team counters."""
     B = actuator_ticks.size
     any_act = np.zeros(B, dtype=np.bool_)
@@ -314,22 +331,73 @@ def violations_add(robot_team, collision, boundary, actuator, robot_contact, wal
 
 
 @_jit
-def check_and_count(poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, robot_team, actuator,
-                    robot_contact, wall_contact, collision, collision_pairs, boundary, last_contact, pair_total,
-                    collision_ticks, boundary_ticks, actuator_ticks, contact_ticks, contact_onsets, wall_ticks):
+def check_and_count(
+    poses,
+    c,
+    s,
+    offset,
+    diameter2,
+    pair_i,
+    pair_j,
+    pair_team,
+    bounds,
+    robot_team,
+    actuator,
+    robot_contact,
+    wall_contact,
+    collision,
+    collision_pairs,
+    boundary,
+    last_contact,
+    pair_total,
+    collision_ticks,
+    boundary_ticks,
+    actuator_ticks,
+    contact_ticks,
+    contact_onsets,
+    wall_ticks,
+):
     """:func:`check_tick_into` then :func:`violations_add`, and the pair counts added to
     ``pair_total`` (B,): a tick's checks and counters in one call."""
-    check_tick_into(poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, collision, collision_pairs, boundary)
-    violations_add(robot_team, collision, boundary, actuator, robot_contact, wall_contact, last_contact,
-                   collision_ticks, boundary_ticks, actuator_ticks, contact_ticks, contact_onsets, wall_ticks)
+    check_tick_into(
+        poses, c, s, offset, diameter2, pair_i, pair_j, pair_team, bounds, collision, collision_pairs, boundary
+    )
+    violations_add(
+        robot_team,
+        collision,
+        boundary,
+        actuator,
+        robot_contact,
+        wall_contact,
+        last_contact,
+        collision_ticks,
+        boundary_ticks,
+        actuator_ticks,
+        contact_ticks,
+        contact_onsets,
+        wall_ticks,
+    )
     for b in range(pair_total.size):
         pair_total[b] += collision_pairs[b]
 
 
 @_jit
 def episode_stats_add(
-    starts, robot_contact, last_contact, boundary, actuator, collision_pairs, intervention, fallback,
-    collisions, boundary_exits, actuator_errors, robotarium_collisions, interventions, fallbacks, violations,
+    starts,
+    robot_contact,
+    last_contact,
+    boundary,
+    actuator,
+    collision_pairs,
+    intervention,
+    fallback,
+    collisions,
+    boundary_exits,
+    actuator_errors,
+    robotarium_collisions,
+    interventions,
+    fallbacks,
+    violations,
 ):
     """:meth:`comat.envs.core.TaskCore.step`'s per-tick episode counters, per team (B,).
 
@@ -399,9 +467,36 @@ def take_teams(teams, robot_team, row_team, out, u, Au, Au_new):
 
 
 @_jit
-def filter_stages(poses, c, s, u_nom, distance, pair_i, pair_j, safety_d2, barrier_gain, neg_boundary_gain,
-                  boundary_gain, lo, hi, speed, k, tol, wheel_factor, row_team, robot_team,
-                  points, e, lower, upper, out, Au, u_wheel, Au_wheel, need):
+def filter_stages(
+    poses,
+    c,
+    s,
+    u_nom,
+    distance,
+    pair_i,
+    pair_j,
+    safety_d2,
+    barrier_gain,
+    neg_boundary_gain,
+    boundary_gain,
+    lo,
+    hi,
+    speed,
+    k,
+    tol,
+    wheel_factor,
+    row_team,
+    robot_team,
+    points,
+    e,
+    lower,
+    upper,
+    out,
+    Au,
+    u_wheel,
+    Au_wheel,
+    need,
+):
     """:meth:`comat.safety.filter.SafetyFilter._filter`'s rows and stages 1–2 in one call.
 
     Projected points (R, 2), rows (e, lower, upper), ``out`` (2R,) = the stage-1/2 answer with
@@ -412,8 +507,21 @@ def filter_stages(poses, c, s, u_nom, distance, pair_i, pair_j, safety_d2, barri
     for r in range(R):
         points[r, 0] = poses[r, 0] + distance * c[r]
         points[r, 1] = poses[r, 1] + distance * s[r]
-    row_bounds_into(points, pair_i, pair_j, safety_d2, barrier_gain, neg_boundary_gain, boundary_gain, lo, hi,
-                    speed, e, lower, upper)
+    row_bounds_into(
+        points,
+        pair_i,
+        pair_j,
+        safety_d2,
+        barrier_gain,
+        neg_boundary_gain,
+        boundary_gain,
+        lo,
+        hi,
+        speed,
+        e,
+        lower,
+        upper,
+    )
     out[:] = u_nom
     row_products(e, c, s, k, pair_i, pair_j, u_nom, Au)
     ok = team_violations(Au, lower, upper, tol, P + 2 * R, wheel_factor, row_team, B)
@@ -501,7 +609,9 @@ def qp_teams(need, sizes, block):
 
 
 @_jit
-def sub_problem_gather(rows, cols, nnz, perm, data, lower, upper, u_nom, x0, duals, A_data, lower_s, upper_s, u_s, x0_s, y0_s):
+def sub_problem_gather(
+    rows, cols, nnz, perm, data, lower, upper, u_nom, x0, duals, A_data, lower_s, upper_s, u_s, x0_s, y0_s
+):
     """A sub-problem's inputs from the full problem's: its matrix's nonzeros in CSC order
     (A_data[i] = data[nnz[perm[i]]]), row bounds and duals at ``rows``, velocities at ``cols``."""
     for i in range(perm.size):

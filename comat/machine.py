@@ -84,9 +84,11 @@ def busy_warning(others: list[dict], cpus: int) -> str | None:
     parts = []
     if others:
         who = ", ".join(f"pid {o['pid']} ({o['out']})" for o in others[:3]) + (" ..." if len(others) > 3 else "")
-        parts.append(f"{len(others)} other comat training(s) on this machine: {who}; the {cpus} CPU(s) are shared, "
-                     f"so expect about 1/{len(others) + 1} of this run's speed alone (run grids with comat sweep "
-                     "--jobs, which gives each run its own cores)")
+        parts.append(
+            f"{len(others)} other comat training(s) on this machine: {who}; the {cpus} CPU(s) are shared, "
+            f"so expect about 1/{len(others) + 1} of this run's speed alone (run grids with comat sweep "
+            "--jobs, which gives each run its own cores)"
+        )
     try:
         load = os.getloadavg()[0]
     except (AttributeError, OSError):

@@ -30,6 +30,7 @@ from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, policy_modules, 
 
 __all__ = ["PRETRAINED", "Policy", "load_policy", "pretrained_path"]
 
+
 class Policy:
     """A trained policy: ``policy(observations) -> actions`` on PettingZoo dicts, ``act`` on batches.
 
@@ -44,8 +45,10 @@ class Policy:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
             raise TypeError(f"seed must be an integer, got {seed!r} ({type(seed).__name__})")
         if not deterministic and config.algo == "qmix":
-            raise ValueError("deterministic=False: QMIX acts greedily (it explores epsilon-greedily only while it "
-                             "trains), so it has no policy to sample from; use deterministic=True")
+            raise ValueError(
+                "deterministic=False: QMIX acts greedily (it explores epsilon-greedily only while it "
+                "trains), so it has no policy to sample from; use deterministic=True"
+            )
         self.modules, self.config, self.path = modules, config, Path(path)
         self.algo, self.task, self.slots = config.algo, config.task, robot_slots(config)
         self.deterministic = deterministic
@@ -65,14 +68,18 @@ class Policy:
         if single:
             obs = obs[None]
         if obs.ndim != 3 or obs.shape[-1] != self._obs_dim:
-            raise ValueError(f"obs must be (B, N, {self._obs_dim}) or (N, {self._obs_dim}) for a {self.task} "
-                             f"policy, got shape {obs.shape if not single else obs.shape[1:]}")
+            raise ValueError(
+                f"obs must be (B, N, {self._obs_dim}) or (N, {self._obs_dim}) for a {self.task} "
+                f"policy, got shape {obs.shape if not single else obs.shape[1:]}"
+            )
         B, N, _ = obs.shape
         mask = np.ones((B, N), bool) if mask is None else np.asarray(mask, dtype=bool).reshape(B, N)
         if self.slots is not None:
             if N > self.slots:
-                raise ValueError(f"this {self.algo} policy acts for at most {self.slots} robots (its max_robots), "
-                                 f"got a team of {N}; COMAT policies take any size")
+                raise ValueError(
+                    f"this {self.algo} policy acts for at most {self.slots} robots (its max_robots), "
+                    f"got a team of {N}; COMAT policies take any size"
+                )
             obs = np.concatenate([obs, np.zeros((B, self.slots - N, obs.shape[-1]), np.float32)], 1)
             mask = np.concatenate([mask, np.zeros((B, self.slots - N), bool)], 1)
         o, m = torch.as_tensor(obs), torch.as_tensor(mask)
@@ -80,8 +87,13 @@ class Policy:
             if self.algo == "qmix":
                 a = torch.where(m, self.modules["agents"](o, m).argmax(-1), 0)
             else:
-                a = self.modules["policy"].act(o, m, None, deterministic=self.deterministic,
-                                               generator=None if self.deterministic else self._generator)[0]
+                a = self.modules["policy"].act(
+                    o,
+                    m,
+                    None,
+                    deterministic=self.deterministic,
+                    generator=None if self.deterministic else self._generator,
+                )[0]
         actions = a.numpy()[:, :N].astype(np.int64)
         return actions[0] if single else actions
 
@@ -89,8 +101,10 @@ class Policy:
         """One env's actions: ``{agent: action}`` for the agents in ``observations`` (a PettingZoo
         parallel env's dict, agents named ``robot_<i>``), robots ordered by their index."""
         if not isinstance(observations, dict) or not observations:
-            raise ValueError(f"observations must be a non-empty dict {{agent: observation}} (a PettingZoo parallel "
-                             f"env's), got {type(observations).__name__} {observations!r:.80}")
+            raise ValueError(
+                f"observations must be a non-empty dict {{agent: observation}} (a PettingZoo parallel "
+                f"env's), got {type(observations).__name__} {observations!r:.80}"
+            )
         agents = sorted(observations, key=_robot_index)
         obs = np.stack([np.asarray(observations[a], dtype=np.float32) for a in agents])
         return {agent: int(action) for agent, action in zip(agents, self.act(obs))}
@@ -103,7 +117,9 @@ def _robot_index(agent: str) -> int:
     return int(index)
 
 
-def load_policy(path_or_name: str | Path, *, deterministic: bool = True, seed: int = 0, task: str | None = None) -> Policy:
+def load_policy(
+    path_or_name: str | Path, *, deterministic: bool = True, seed: int = 0, task: str | None = None
+) -> Policy:
     """A trained policy from a policy file, checkpoint, run folder or ``pretrained:NAME``.
 
     Args:
@@ -119,8 +135,10 @@ def load_policy(path_or_name: str | Path, *, deterministic: bool = True, seed: i
     text, flag = str(path_or_name), "load_policy: path_or_name"
     path = pretrained_path(text, flag) if text.startswith(PREFIX) else Path(text)
     if not path.exists():
-        raise ValueError(f"load_policy: path_or_name must be a policy file, checkpoint, run folder or one of "
-                         f"{[PREFIX + k for k in PRETRAINED]}, got {text!r} (no such file)")
+        raise ValueError(
+            f"load_policy: path_or_name must be a policy file, checkpoint, run folder or one of "
+            f"{[PREFIX + k for k in PRETRAINED]}, got {text!r} (no such file)"
+        )
     path = policy_file_of(path, None, flag=flag)
     modules, config = policy_modules(load_trained(path, task=task), path)
     return Policy(modules, config, path, deterministic=deterministic, seed=seed)

@@ -141,10 +141,12 @@ class _Task:
             raise ValueError(self._too_large(int(n_robots)))
 
     def _too_large(self, n: int) -> str:
-        return (f"{self.name} takes teams of at most {self.max_team_size()} robots, got {n}: robots start "
-                f"{self.spawn_spacing} m apart in the spawn area (x from {self.spawn_box[0]} m, widened up to "
-                f"{SPAWN_X_LIMIT} m; y [{self.spawn_box[2]}, {self.spawn_box[3]}] m), which holds "
-                f"{self.spawn_capacity()}; a bigger team needs a smaller spawn_spacing (class {type(self).__name__})")
+        return (
+            f"{self.name} takes teams of at most {self.max_team_size()} robots, got {n}: robots start "
+            f"{self.spawn_spacing} m apart in the spawn area (x from {self.spawn_box[0]} m, widened up to "
+            f"{SPAWN_X_LIMIT} m; y [{self.spawn_box[2]}, {self.spawn_box[3]}] m), which holds "
+            f"{self.spawn_capacity()}; a bigger team needs a smaller spawn_spacing (class {type(self).__name__})"
+        )
 
     def spawn(self, rng: np.random.Generator, n: int, spacing: float | None = None) -> np.ndarray:
         """Start poses (n, 3): spread in the spawn area, random headings, centres at least
@@ -161,14 +163,21 @@ class _Task:
         pts = _spread(rng, n, (x0, x1, y0, y1), s, f"{self.name} spawn area", "robots")
         return np.column_stack([pts, rng.uniform(-np.pi, np.pi, n)])
 
-    def observe(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    def observe(
+        self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray
+    ) -> np.ndarray:
         """Per-robot observations (B, N, D); padded slots are zeros.
 
         Layout: [x, y, cos θ, sin θ | type one-hot | capabilities / scale | task features].
         """
         onehot = np.eye(len(self.types))[type_ids]
         obs = np.concatenate(
-            [heading_features(poses), onehot, caps / self.capability_scale, self.task_features(state, poses, type_ids, caps, mask)],
+            [
+                heading_features(poses),
+                onehot,
+                caps / self.capability_scale,
+                self.task_features(state, poses, type_ids, caps, mask),
+            ],
             axis=-1,
         )
         return obs * mask[..., None]
@@ -180,8 +189,9 @@ class _Task:
         """The scripted policy's target per robot (B, N, 2) and whether it has one (B, N)."""
         raise NotImplementedError
 
-    def scripted_actions(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray,
-                         mask: np.ndarray) -> np.ndarray:
+    def scripted_actions(
+        self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray
+    ) -> np.ndarray:
         """Actions (B, N) of the scripted reference policy (padded slots: stay).
 
         It reads the full task state (prey positions, material left), which the learners do not
@@ -236,12 +246,16 @@ class PredatorCapturePrey(_Task):
     def __init__(self, n_prey: int | None = None):
         bad = isinstance(n_prey, bool) or not isinstance(n_prey, (int, np.integer)) or n_prey < 1
         if n_prey is not None and bad:
-            raise ValueError(f"n_prey must be a positive integer (that many prey for every team) or None "
-                             f"(the rule K(N) of PredatorCapturePrey.prey_for), got {n_prey!r}")
+            raise ValueError(
+                f"n_prey must be a positive integer (that many prey for every team) or None "
+                f"(the rule K(N) of PredatorCapturePrey.prey_for), got {n_prey!r}"
+            )
         self.n_prey = None if n_prey is None else int(n_prey)
         if self.n_prey is not None and self.n_prey > self.prey_capacity():
-            raise ValueError(f"n_prey must be at most {self.prey_capacity()} (the prey that fit {self.prey_spacing} m "
-                             f"apart in the prey area {self.prey_box} m), got {n_prey!r}")
+            raise ValueError(
+                f"n_prey must be at most {self.prey_capacity()} (the prey that fit {self.prey_spacing} m "
+                f"apart in the prey area {self.prey_box} m), got {n_prey!r}"
+            )
         self.largest_team: int | None = None
 
     @classmethod
@@ -268,13 +282,18 @@ class PredatorCapturePrey(_Task):
         if self.team_prey(n) <= self.prey_capacity():
             return super()._too_large(n)
         x0, x1, y0, y1 = self.prey_box
-        rule = (f"every team has n_prey={self.n_prey}" if self.n_prey is not None else
-                f"prey grow with the team, K(N) = round({self.prey_per_robot}·N) above {self.base_team} robots")
-        return (f"pcp takes teams of at most {self.max_team_size()} robots, got {n}: {rule}, so {self.team_prey(n)} "
-                f"prey for {n}, and at most {self.prey_capacity()} fit {self.prey_spacing} m apart in the prey area "
-                f"x [{x0}, {x1}] m, y [{y0}, {y1}] m; for a bigger team give every team fewer prey "
-                f"(make_env(..., n_prey=K) with K <= {self.prey_capacity()}) or lower "
-                f"PredatorCapturePrey.prey_per_robot")
+        rule = (
+            f"every team has n_prey={self.n_prey}"
+            if self.n_prey is not None
+            else f"prey grow with the team, K(N) = round({self.prey_per_robot}·N) above {self.base_team} robots"
+        )
+        return (
+            f"pcp takes teams of at most {self.max_team_size()} robots, got {n}: {rule}, so {self.team_prey(n)} "
+            f"prey for {n}, and at most {self.prey_capacity()} fit {self.prey_spacing} m apart in the prey area "
+            f"x [{x0}, {x1}] m, y [{y0}, {y1}] m; for a bigger team give every team fewer prey "
+            f"(make_env(..., n_prey=K) with K <= {self.prey_capacity()}) or lower "
+            f"PredatorCapturePrey.prey_per_robot"
+        )
 
     def team_prey(self, n_robots: int) -> int:
         """Prey of a team of ``n_robots`` in this task: ``n_prey`` if fixed, else :meth:`prey_for`."""
@@ -292,8 +311,12 @@ class PredatorCapturePrey(_Task):
     def new_state(self, B: int, N: int) -> dict:
         """Task state of B environments with N robot slots: K_max prey slots each."""
         K = self.team_prey(self.largest_team if self.largest_team is not None else N)
-        return {"prey": np.zeros((B, K, 2)), "sensed": np.zeros((B, K), bool),
-                "captured": np.zeros((B, K), bool), "active": np.ones((B, K), bool)}
+        return {
+            "prey": np.zeros((B, K, 2)),
+            "sensed": np.zeros((B, K), bool),
+            "captured": np.zeros((B, K), bool),
+            "active": np.ones((B, K), bool),
+        }
 
     def reserve(self, state: dict, n_robots: int) -> None:
         """Grow every environment's prey slots, in place in ``state``, to fit a team of
@@ -359,8 +382,9 @@ class PredatorCapturePrey(_Task):
         seen = np.isfinite(np.take_along_axis(dist2, k[..., None], -1))[..., 0]
         near = np.take_along_axis(d, k[..., None, None], 2)[..., 0, :] * seen[..., None]
         _B, N = mask.shape
-        progress = np.stack([self._fraction(state["sensed"], state), self._fraction(state["captured"], state)],
-                            -1)[:, None, :].repeat(N, 1)
+        progress = np.stack([self._fraction(state["sensed"], state), self._fraction(state["captured"], state)], -1)[
+            :, None, :
+        ].repeat(N, 1)
         return np.concatenate([seen[..., None].astype(float), near, progress], axis=-1)
 
     def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -371,11 +395,16 @@ class PredatorCapturePrey(_Task):
         K = state["prey"].shape[1]
         open_prey = ~state["captured"]
         sensing = (type_ids == 0)[..., None]
-        t_sense, ok_sense = _nearest(centres, state["prey"], np.broadcast_to((~state["sensed"] & open_prey)[:, None], (B, N, K)))
-        t_capture, ok_capture = _nearest(centres, state["prey"], np.broadcast_to((state["sensed"] & open_prey)[:, None], (B, N, K)))
+        t_sense, ok_sense = _nearest(
+            centres, state["prey"], np.broadcast_to((~state["sensed"] & open_prey)[:, None], (B, N, K))
+        )
+        t_capture, ok_capture = _nearest(
+            centres, state["prey"], np.broadcast_to((state["sensed"] & open_prey)[:, None], (B, N, K))
+        )
         t_any, ok_any = _nearest(centres, state["prey"], np.broadcast_to(open_prey[:, None], (B, N, K)))
-        target = np.where(sensing, np.where(ok_sense[..., None], t_sense, t_any),
-                          np.where(ok_capture[..., None], t_capture, t_any))
+        target = np.where(
+            sensing, np.where(ok_sense[..., None], t_sense, t_any), np.where(ok_capture[..., None], t_capture, t_any)
+        )
         ok = np.where(sensing[..., 0], ok_sense | ok_any, ok_capture | ok_any)
         return target, ok
 
@@ -383,7 +412,11 @@ class PredatorCapturePrey(_Task):
         """(B, 4 K_max) prey positions, sensed and captured flags of every slot (inactive slots:
         parked, sensed and captured; K_max = 6 for teams of up to 8 robots, as before the rule)."""
         return np.concatenate(
-            [state["prey"].reshape(state["prey"].shape[0], -1), state["sensed"].astype(float), state["captured"].astype(float)],
+            [
+                state["prey"].reshape(state["prey"].shape[0], -1),
+                state["sensed"].astype(float),
+                state["captured"].astype(float),
+            ],
             axis=-1,
         )
 
@@ -422,7 +455,12 @@ class MaterialTransport(_Task):
         return caps[..., 0]
 
     def new_state(self, B: int, N: int) -> dict:
-        return {"left": np.zeros((B, 2)), "initial": np.ones((B, 2)), "load": np.zeros((B, N)), "delivered": np.zeros(B)}
+        return {
+            "left": np.zeros((B, 2)),
+            "initial": np.ones((B, 2)),
+            "load": np.zeros((B, N)),
+            "delivered": np.zeros(B),
+        }
 
     def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
         total = float(caps[:, 1].sum())
@@ -472,8 +510,14 @@ class MaterialTransport(_Task):
         load = state["load"] / np.maximum(caps[..., 1], 1e-9)
         x, y = poses[..., 0], poses[..., 1]
         return np.stack(
-            [load, *np.broadcast_to(frac[:, None, :], (B, N, 2)).transpose(2, 0, 1),
-             ZONE1_CENTRE[0] - x, ZONE1_CENTRE[1] - y, ZONE2_X - x, -ZONE2_X - x],
+            [
+                load,
+                *np.broadcast_to(frac[:, None, :], (B, N, 2)).transpose(2, 0, 1),
+                ZONE1_CENTRE[0] - x,
+                ZONE1_CENTRE[1] - y,
+                ZONE2_X - x,
+                -ZONE2_X - x,
+            ],
             axis=-1,
         )
 

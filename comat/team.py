@@ -88,14 +88,25 @@ class TaskTypes:
 
 TASK_TYPES: dict[str, TaskTypes] = {
     # Radii beyond 1 m would see or reach most of the 3.2 x 2 m arena from anywhere.
-    "pcp": TaskTypes(("sensing", "capture"), ("sensing_radius_m", "capture_radius_m"), ((0.0, 1.0), (0.0, 1.0)), ((0,), (1,)),
-                     ((1,), (0,))),
+    "pcp": TaskTypes(
+        ("sensing", "capture"),
+        ("sensing_radius_m", "capture_radius_m"),
+        ((0.0, 1.0), (0.0, 1.0)),
+        ((0,), (1,)),
+        ((1,), (0,)),
+    ),
     # Step lengths are limited by 0.2 m/s over one 74-tick step (2.44 s): 0.488 m.
     "hmt": TaskTypes(("fast", "slow"), ("speed_m", "payload"), ((0.0, 0.488), (0.0, 100.0)), ((0, 1), (0, 1))),
 }
 
-SIZES = {"train": (3, 5, 7), "val": (3, 5, 7), "test": (2, 4, 6, 8), "scale": (10, 12, 16, 20),
-         "size": tuple(range(2, 21, 2)), "capability": (3, 5, 7)}
+SIZES = {
+    "train": (3, 5, 7),
+    "val": (3, 5, 7),
+    "test": (2, 4, 6, 8),
+    "scale": (10, 12, 16, 20),
+    "size": tuple(range(2, 21, 2)),
+    "capability": (3, 5, 7),
+}
 """Team sizes of each composition set. U_scale goes past the 8 slots of the paper's baselines up to the
 Robotarium's 20 robots, with U_test's capability ranges: the sizes where fixed-slot methods stop.
 U_size lists each of its sizes equally often instead of drawing them (see :func:`generate_coalitions`)."""
@@ -103,8 +114,14 @@ U_size lists each of its sizes equally often instead of drawing them (see :func:
 COALITION_SETS = ("train", "val", "test", "scale", "size", "capability")
 """The named composition sets, in the order commands list them (module docstring)."""
 
-SET_LABELS = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
-              "capability": "U_cap"}
+SET_LABELS = {
+    "train": "U_train",
+    "val": "U_val",
+    "test": "U_test",
+    "scale": "U_scale",
+    "size": "U_size",
+    "capability": "U_cap",
+}
 """Report and display name of each set."""
 
 Band = tuple[float, float]
@@ -124,7 +141,7 @@ _NONE = _one(0.0, 0.0)
 def _outside(train: tuple[Band, ...], low: float, high: float) -> tuple[Band, ...]:
     """Bands [low, train low) and (train high, high] around a one-band training range, each
     ending one rounding step short of it (so a rounded draw is never on the range's edge)."""
-    (lo, hi), = train
+    ((lo, hi),) = train
     return ((low, round(lo - _GRAIN, 6)), (round(hi + _GRAIN, 6), high))
 
 
@@ -157,9 +174,20 @@ del _task, _PT, _HT
 
 # Random stream of each set. Fixed numbers, not positions in a sorted list, so that adding a set
 # never changes the teams of another (the first four are the sets' original sorted positions).
-_STREAMS = {("hmt", "test"): 0, ("hmt", "train"): 1, ("pcp", "test"): 2, ("pcp", "train"): 3,
-            ("hmt", "scale"): 4, ("pcp", "scale"): 5, ("hmt", "val"): 6, ("pcp", "val"): 7,
-            ("hmt", "size"): 8, ("pcp", "size"): 9, ("hmt", "capability"): 10, ("pcp", "capability"): 11}
+_STREAMS = {
+    ("hmt", "test"): 0,
+    ("hmt", "train"): 1,
+    ("pcp", "test"): 2,
+    ("pcp", "train"): 3,
+    ("hmt", "scale"): 4,
+    ("pcp", "scale"): 5,
+    ("hmt", "val"): 6,
+    ("pcp", "val"): 7,
+    ("hmt", "size"): 8,
+    ("pcp", "size"): 9,
+    ("hmt", "capability"): 10,
+    ("pcp", "capability"): 11,
+}
 
 
 @dataclass(frozen=True)
@@ -209,7 +237,7 @@ class TeamSpec:
                     raise ValueError(
                         f"robot {i}: a {r.type} robot needs {tt.capabilities[k]} > 0, got {r.capabilities[k]}"
                     )
-            for k in (tt.ignored[tt.types.index(r.type)] if tt.ignored else ()):
+            for k in tt.ignored[tt.types.index(r.type)] if tt.ignored else ():
                 if r.capabilities[k] != 0:
                     raise ValueError(
                         f"robot {i}: a {r.type} robot has no {tt.capabilities[k]} (the {self.task} rules ignore it); "

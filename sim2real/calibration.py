@@ -30,12 +30,12 @@ __all__ = ["CALIBRATION_FILES", "MEASURES", "check_calibration", "export_calibra
 CALIBRATION_FILES = ("main.py", "calibration_schedule.py", "rps_compat.py", "submission_config.py")
 MEASURES = {
     "steps": "forward-speed steps 0 -> 1/2 -> full -> 0 and back: delay from command to observed motion (pose + "
-             "command), wheel lag and slew, reachable speed, wheel gain difference (heading drift per metre)",
+    "command), wheel lag and slew, reachable speed, wheel gain difference (heading drift per metre)",
     "still": "robots standing still: pose noise (x, y, theta) and the share of repeated poses (holds)",
     "ramp": "forward speed ramped slowly from standstill to 40 % of the top speed and back: the dead zone (the "
-            "wheel speed below which a robot does not move)",
+    "wheel speed below which a robot does not move)",
     "spin": "turn-rate steps 0 -> 1/2 -> 95 % of 3.64 rad/s -> 0 and back, turning in place: delay, lag, turn-rate "
-            "gain, reachable wheel speed, wheel gain difference (the circle the robot's centre draws)",
+    "gain, reachable wheel speed, wheel gain difference (the circle the robot's centre draws)",
 }
 _TEMPLATE = Path(__file__).parent / "templates" / "calibration_main.py"
 
@@ -57,15 +57,25 @@ def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
             # The template with its first line naming this experiment, what it measures and its length.
             body = _TEMPLATE.read_text().split("\n", 1)[1]
             (folder / "main.py").write_text(
-                f'"""Calibration run on the Robotarium, experiment {experiment!r}: {iterations} iterations, {duration} s.\n'
-                f"Measures: {MEASURES[experiment]}.\n" + body)
+                f'"""Calibration run on the Robotarium, experiment {experiment!r}: {iterations} iterations, '
+                f"{duration} s.\n"
+                f"Measures: {MEASURES[experiment]}.\n" + body
+            )
             shutil.copyfile(schedule_module.__file__, folder / "calibration_schedule.py")
             shutil.copyfile(_TEMPLATE.parent / "rps_compat.py", folder / "rps_compat.py")
-            config = {"kind": "calibration", "experiment": experiment, "robots": robots, "iterations": iterations,
-                      "duration_s": duration, "measures": MEASURES[experiment]}
+            config = {
+                "kind": "calibration",
+                "experiment": experiment,
+                "robots": robots,
+                "iterations": iterations,
+                "duration_s": duration,
+                "measures": MEASURES[experiment],
+            }
             (folder / "submission_config.py").write_text(
                 f'"""Calibration experiment {experiment!r} (comat export --calibration)."""\n\nCONFIG = '
-                + pprint.pformat(config, sort_dicts=False, width=100) + "\n")
+                + pprint.pformat(config, sort_dicts=False, width=100)
+                + "\n"
+            )
         tmp.rename(out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

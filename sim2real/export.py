@@ -94,8 +94,16 @@ ACCEPTED_EXTENSIONS = (".m", ".jpg", ".jpeg", ".png", ".gif", ".tiff", ".bmp", "
 ALLOWED_IMPORTS = frozenset({"numpy", "scipy", "matplotlib", "rps", "cvxopt"})
 """Third-party top-level packages shipped code may import (besides the standard library and the
 folder's own modules)."""
-SHIPPED_FILES = ("main.py", "rps_compat.py", "runtime.py", "comat_schema.py", "task_logic.py", "deployed_loop.py",
-                 "submission_config.py", "weights.npy")
+SHIPPED_FILES = (
+    "main.py",
+    "rps_compat.py",
+    "runtime.py",
+    "comat_schema.py",
+    "task_logic.py",
+    "deployed_loop.py",
+    "submission_config.py",
+    "weights.npy",
+)
 """The folder of a COMAT policy."""
 HEURISTIC_FILES = ("main.py", "rps_compat.py", "task_logic.py", "deployed_loop.py", "submission_config.py")
 """The folder of the scripted policy."""
@@ -107,6 +115,8 @@ safety battery at ``nominal`` with faults, docs/safety.md) or the installed rps'
 def _files(policy: str) -> tuple[str, ...]:
     """The files of a folder whose CONFIG["policy"] is ``policy`` ("comat" or "heuristic")."""
     return HEURISTIC_FILES if policy == "heuristic" else SHIPPED_FILES
+
+
 MIN_SPACING_M = 0.40
 """Start-pose centres at least this far apart. The V2 simulator (and the Robotarium) first drives
 the robots from their chargers to the start poses under ``create_uni_barrier_certificate``: points
@@ -128,12 +138,13 @@ MAX_EPISODE_S = 600.0
 def _comat_model(checkpoint_or_policy, task: str):
     """The torch Comat module of a checkpoint or policy file (``policy.pt``) path or of a Comat instance."""
     if isinstance(checkpoint_or_policy, (str, Path)):
-
         data = load_trained(checkpoint_or_policy)
         noun = "policy file" if data["format"] == POLICY_FORMAT else "checkpoint"
         if data["algo"] != "comat":
-            raise ValueError(f"export supports COMAT checkpoints and policy files (and the scripted 'heuristic') only: "
-                             f"{str(checkpoint_or_policy)!r} is a {data['algo']!r} {noun} (expected algo 'comat')")
+            raise ValueError(
+                f"export supports COMAT checkpoints and policy files (and the scripted 'heuristic') only: "
+                f"{str(checkpoint_or_policy)!r} is a {data['algo']!r} {noun} (expected algo 'comat')"
+            )
         if data["task"] != task:
             raise ValueError(f"{noun} {str(checkpoint_or_policy)!r} is for task {data['task']!r}, expected {task!r}")
         modules, _config = policy_modules(data, checkpoint_or_policy)
@@ -141,8 +152,10 @@ def _comat_model(checkpoint_or_policy, task: str):
 
     if isinstance(checkpoint_or_policy, Comat):
         return checkpoint_or_policy.eval()
-    raise TypeError(f"checkpoint_or_policy must be a COMAT checkpoint path, a Comat model or 'heuristic', "
-                    f"got {type(checkpoint_or_policy).__name__} (export supports COMAT and the scripted policy only)")
+    raise TypeError(
+        f"checkpoint_or_policy must be a COMAT checkpoint path, a Comat model or 'heuristic', "
+        f"got {type(checkpoint_or_policy).__name__} (export supports COMAT and the scripted policy only)"
+    )
 
 
 def _team(team: Any, task: str) -> TeamSpec:
@@ -172,21 +185,26 @@ def check_start_poses(poses: Any, n: int) -> np.ndarray:
     except (TypeError, ValueError) as err:
         raise ValueError(f"start_poses must be a numeric (3, {n}) array, got {poses!r}") from err
     if p.shape != (3, n) or not np.isfinite(p).all():
-        raise ValueError(f"start_poses must be a finite (3, {n}) array (x, y, θ rows, one column per robot), "
-                         f"got shape {p.shape}")
+        raise ValueError(
+            f"start_poses must be a finite (3, {n}) array (x, y, θ rows, one column per robot), got shape {p.shape}"
+        )
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
     m = WALL_MARGIN_M
     outside = (p[0] < x0 + m) | (p[0] > x1 - m) | (p[1] < y0 + m) | (p[1] > y1 - m)
     if outside.any():
         i = int(np.flatnonzero(outside)[0])
-        raise ValueError(f"start_poses: robot {i} at ({p[0, i]:.3f}, {p[1, i]:.3f}) must be >= {m} m inside the "
-                         f"arena x [{x0}, {x1}], y [{y0}, {y1}]")
+        raise ValueError(
+            f"start_poses: robot {i} at ({p[0, i]:.3f}, {p[1, i]:.3f}) must be >= {m} m inside the "
+            f"arena x [{x0}, {x1}], y [{y0}, {y1}]"
+        )
     if n > 1:
         d = np.hypot(p[0][:, None] - p[0][None], p[1][:, None] - p[1][None]) + np.eye(n) * 1e9
         i, j = np.unravel_index(np.argmin(d), d.shape)
         if d[i, j] < MIN_SPACING_M - SPACING_TOL_M:
-            raise ValueError(f"start_poses: robots {min(i, j)} and {max(i, j)} are {d[i, j]:.3f} m apart, "
-                             f"expected >= {MIN_SPACING_M} m")
+            raise ValueError(
+                f"start_poses: robots {min(i, j)} and {max(i, j)} are {d[i, j]:.3f} m apart, "
+                f"expected >= {MIN_SPACING_M} m"
+            )
     p[2] = np.arctan2(np.sin(p[2]), np.cos(p[2]))
     return p
 
@@ -232,12 +250,17 @@ def filter_config(filter_name: str, filter_reality: Any) -> dict:
     cfg = robust_safety(SafetyConfig(), reality, profile)
     lag = response_lag_ticks(reality, profile)
     level = filter_reality if isinstance(filter_reality, str) else reality.level
-    return {"filter": "comat", "filter_reality": level, "filter_lag_ticks": lag,
-            "filter_settings": {k: float(v) for k, v in portable_settings(cfg, profile).items()}}
+    return {
+        "filter": "comat",
+        "filter_reality": level,
+        "filter_lag_ticks": lag,
+        "filter_settings": {k: float(v) for k, v in portable_settings(cfg, profile).items()},
+    }
 
 
-def _config(policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int,
-            seed: int, filters: dict) -> dict:
+def _config(
+    policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int, seed: int, filters: dict
+) -> dict:
     return {
         "policy": policy,
         "task": task,
@@ -261,9 +284,17 @@ def _config(policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.
     }
 
 
-def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start_poses: Any = None,
-                      seed: int = 0, ticks_per_step: int | None = None, filter_name: str = "comat",
-                      filter_reality: Any = "nominal") -> Path:
+def export_submission(
+    checkpoint_or_policy,
+    task: str,
+    team: Any,
+    out_dir,
+    start_poses: Any = None,
+    seed: int = 0,
+    ticks_per_step: int | None = None,
+    filter_name: str = "comat",
+    filter_reality: Any = "nominal",
+) -> Path:
     """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
 
     Args:
@@ -294,9 +325,11 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
         raise ValueError(f"ticks_per_step must be a positive integer, got {ticks!r}")
     episode_s = task_obj.horizon * ticks * C.CONTROL_DT_S
     if episode_s > MAX_EPISODE_S:
-        raise ValueError(f"ticks_per_step={ticks}: a {task_obj.horizon}-step episode would take {episode_s:.0f} s on "
-                         f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
-                         f"with the drive to the start poses)")
+        raise ValueError(
+            f"ticks_per_step={ticks}: a {task_obj.horizon}-step episode would take {episode_s:.0f} s on "
+            f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
+            f"with the drive to the start poses)"
+        )
     policy = "heuristic" if isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic" else "comat"
     model = None if policy == "heuristic" else _comat_model(checkpoint_or_policy, task)
     want_dim = task_obj.obs_size()
@@ -319,8 +352,10 @@ def export_submission(checkpoint_or_policy, task: str, team: Any, out_dir, start
             shutil.copyfile(Path(comat_schema.__file__), tmp / "comat_schema.py")
             export_weights(model, tmp / "weights.npy")
         config = _config(policy, task, team, poses, prey, ticks, seed, filters)
-        text = ('"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
-                f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n")
+        text = (
+            '"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
+            f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n"
+        )
         (tmp / "submission_config.py").write_text(text)
         names = sorted(p.name for p in tmp.iterdir())
         assert names == sorted(_files(policy)), names
@@ -347,8 +382,10 @@ def _load_config(folder: Path) -> dict:
                 return config
     except (SyntaxError, UnicodeDecodeError, ValueError) as err:
         where = f" (line {err.lineno})" if getattr(err, "lineno", None) else ""
-        raise ValueError(f"{path} is not an exported submission config{where}: "
-                         f"{getattr(err, 'msg', None) or err}; export the folder again") from err
+        raise ValueError(
+            f"{path} is not an exported submission config{where}: "
+            f"{getattr(err, 'msg', None) or err}; export the folder again"
+        ) from err
     raise ValueError(f"{path} has no CONFIG literal; export the folder again")
 
 
@@ -364,8 +401,16 @@ def _tail(stderr) -> str:
     return f"; its stderr ends: {lines[-1].strip()[:300]}" if lines else ""
 
 
-def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool = False,
-            max_steps: int | None = None, reality: str | None = None, seed: int = 0, drive: str = "rps") -> dict:
+def run_rps(
+    folder,
+    timeout_s: float = 1800.0,
+    rps_path=None,
+    show_figure: bool = False,
+    max_steps: int | None = None,
+    reality: str | None = None,
+    seed: int = 0,
+    drive: str = "rps",
+) -> dict:
     """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
     backend); its COMAT_RESULT dict + output.
 
@@ -377,39 +422,56 @@ def run_rps(folder, timeout_s: float = 1800.0, rps_path=None, show_figure: bool 
     true-pose record.
     """
     folder = Path(folder)
-    env = {**os.environ, "COMAT_SHOW_FIGURE": "1" if show_figure else "0", "MPLBACKEND": "Agg",
-           "PYTHONDONTWRITEBYTECODE": "1"}
+    env = {
+        **os.environ,
+        "COMAT_SHOW_FIGURE": "1" if show_figure else "0",
+        "MPLBACKEND": "Agg",
+        "PYTHONDONTWRITEBYTECODE": "1",
+    }
     env.pop("PYTHONPATH", None)  # only the folder's own modules and the installed packages
     if rps_path is not None:
         rps_path = Path(rps_path).resolve()
         if not (rps_path / "rps" / "__init__.py").is_file():
-            raise FileNotFoundError(f"rps_path {str(rps_path)!r} must be a folder holding the rps package "
-                                    f"(rps/__init__.py), e.g. a robotarium_python_simulator checkout")
+            raise FileNotFoundError(
+                f"rps_path {str(rps_path)!r} must be a folder holding the rps package "
+                f"(rps/__init__.py), e.g. a robotarium_python_simulator checkout"
+            )
         env["PYTHONPATH"] = str(rps_path)
     if max_steps is not None:
         env["COMAT_MAX_STEPS"] = str(int(max_steps))
     argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
     if reality is not None:
-        argv = [sys.executable, "-m", "sim2real.reality_rps", "--reality", str(reality), "--seed", str(int(seed)),
-                "--drive", drive, "main.py"] + argv[2:]
+        argv = [
+            sys.executable,
+            "-m",
+            "sim2real.reality_rps",
+            "--reality",
+            str(reality),
+            "--seed",
+            str(int(seed)),
+            "--drive",
+            drive,
+            "main.py",
+        ] + argv[2:]
     try:
-        proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True,
-                              text=True, timeout=timeout_s, check=False)
+        proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True, text=True, timeout=timeout_s, check=False)
     except subprocess.TimeoutExpired as err:
-        raise CheckError(f"{folder / 'main.py'} did not finish under rps within --timeout {timeout_s:g} s"
-                         + _tail(err.stderr)) from None
+        raise CheckError(
+            f"{folder / 'main.py'} did not finish under rps within --timeout {timeout_s:g} s" + _tail(err.stderr)
+        ) from None
     if proc.returncode != 0:
         raise CheckError(f"{folder / 'main.py'} failed under rps (exit {proc.returncode})" + _tail(proc.stderr))
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_RESULT ")]
     if not lines:
         raise CheckError(f"{folder / 'main.py'} printed no COMAT_RESULT line" + _tail(proc.stdout))
-    result = current_names(json.loads(lines[-1][len("COMAT_RESULT "):]))  # folders exported before issue 32
+    result = current_names(json.loads(lines[-1][len("COMAT_RESULT ") :]))  # folders exported before issue 32
     if reality is not None:
         records = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_REALITY ")]
         if not records:
-            raise CheckError(f"{folder / 'main.py'} under the reality layer printed no COMAT_REALITY line"
-                             + _tail(proc.stderr))
-        result["reality"] = json.loads(records[-1][len("COMAT_REALITY "):])
+            raise CheckError(
+                f"{folder / 'main.py'} under the reality layer printed no COMAT_REALITY line" + _tail(proc.stderr)
+            )
+        result["reality"] = json.loads(records[-1][len("COMAT_REALITY ") :])
     result["stdout"] = "\n".join(ln for ln in proc.stdout.splitlines() if not ln.startswith("COMAT_REALITY "))
     return result
 
@@ -422,10 +484,16 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
     folder = Path(folder)
     cfg = _load_config(folder)
     task = cfg["task"]
-    team = TeamSpec.from_dict({"task": task, "robots": [{"type": t, "capabilities": c}
-                                                         for t, c in zip(cfg["types"], cfg["capabilities"])]})
-    env = make_env(f"{task}_v0", team=team, tier=tier, ticks_per_step=cfg["ticks_per_step"],
-                   reality="off" if reality is None else reality)
+    team = TeamSpec.from_dict(
+        {"task": task, "robots": [{"type": t, "capabilities": c} for t, c in zip(cfg["types"], cfg["capabilities"])]}
+    )
+    env = make_env(
+        f"{task}_v0",
+        team=team,
+        tier=tier,
+        ticks_per_step=cfg["ticks_per_step"],
+        reality="off" if reality is None else reality,
+    )
     env.reset(seed=cfg["seed"])
     core = env.core
     core.safe.reset(np.array(cfg["start_poses"], dtype=float).T, reality_keys=None if reality is None else [seed])
@@ -442,14 +510,22 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
             act = np.zeros((1, core.N), dtype=np.int64)
             act[0, : team.size] = policy.action_probs(core.observe()[0, : team.size])[0]
             return act
+
     while True:
         res = core.step(act_fn())
         if res.terminated[0] or res.truncated[0]:
             return core.episode_metrics(0)
 
 
-def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rps_path=None, repeats: int = 1,
-                     reality: str | None = None, drive: str = "rps") -> dict:
+def check_submission(
+    folder,
+    tier: str = "wheels",
+    timeout_s: float = 1800.0,
+    rps_path=None,
+    repeats: int = 1,
+    reality: str | None = None,
+    drive: str = "rps",
+) -> dict:
     """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
     see :func:`run_rps`).
 
@@ -481,7 +557,6 @@ def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rp
     if drive not in DRIVES:
         raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
     if reality is not None:
-
         resolve_reality(reality, "--reality")  # a one-line error before anything runs
     runs = [run_rps(folder, timeout_s, rps_path, reality=reality, seed=k, drive=drive) for k in range(repeats)]
     rps = dict(runs[0])
@@ -489,16 +564,23 @@ def check_submission(folder, tier: str = "wheels", timeout_s: float = 1800.0, rp
     for key in keys:
         rps[key] = float(np.mean([r[key] for r in runs]))
     rps["rps_errors"] = {k: max(r["rps_errors"].get(k, 0) for r in runs) for k in runs[0]["rps_errors"]}
-    rps["runs"] = [{**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"], **({"reality": r["reality"]} if reality
-                                                                               else {})} for r in runs]
+    rps["runs"] = [
+        {**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"], **({"reality": r["reality"]} if reality else {})}
+        for r in runs
+    ]
     if reality is not None:
         records = [r["reality"] for r in runs]
         hits = [dict(rec["first_collision"], run=k) for k, rec in enumerate(records) if rec["first_collision"]]
-        closest = [rec["min_offset_centre_distance_m"] for rec in records if rec["min_offset_centre_distance_m"] is not None]
+        closest = [
+            rec["min_offset_centre_distance_m"] for rec in records if rec["min_offset_centre_distance_m"] is not None
+        ]
         rps["reality"] = {
-            "level": reality, "drive": drive, "runs": len(runs),
+            "level": reality,
+            "drive": drive,
+            "runs": len(runs),
             "collision_pair_iterations": sum(rec["collision_pair_iterations"] for rec in records),
-            "runs_with_collisions": len(hits), "first_collision": hits[0] if hits else None,
+            "runs_with_collisions": len(hits),
+            "first_collision": hits[0] if hits else None,
             "min_offset_centre_distance_m": min(closest) if closest else None,
             "mujoco_contact_ticks": None if drive == "rps" else sum(rec["mujoco_contact_ticks"] for rec in records),
             "boundary_iterations": sum(rec["boundary_iterations"] for rec in records),

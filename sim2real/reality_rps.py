@@ -65,13 +65,20 @@ class _Run:
         self.boundary_iterations = 0
 
     def report(self) -> dict:
-        return {"reality": self.reality.level, "overrides": self.reality.overrides(), "seed": self.seed,
-                "drive": self.drive, "iterations": self.iterations,
-                "min_offset_centre_distance_m": None if not np.isfinite(self.min_offset_distance)
-                else self.min_offset_distance,
-                "collision_pair_iterations": self.collision_pair_iterations, "first_collision": self.first_collision,
-                "mujoco_contact_ticks": self.contact_ticks if self.drive != "rps" else None,
-                "boundary_iterations": self.boundary_iterations}
+        return {
+            "reality": self.reality.level,
+            "overrides": self.reality.overrides(),
+            "seed": self.seed,
+            "drive": self.drive,
+            "iterations": self.iterations,
+            "min_offset_centre_distance_m": None
+            if not np.isfinite(self.min_offset_distance)
+            else self.min_offset_distance,
+            "collision_pair_iterations": self.collision_pair_iterations,
+            "first_collision": self.first_collision,
+            "mujoco_contact_ticks": self.contact_ticks if self.drive != "rps" else None,
+            "boundary_iterations": self.boundary_iterations,
+        }
 
 
 def install(reality: RealityConfig, seed: int, drive: str = "rps") -> _Run:
@@ -103,7 +110,6 @@ def install(reality: RealityConfig, seed: int, drive: str = "rps") -> _Run:
             start = run.layer.start(np.array(self._true(), dtype=float).T, np.array([0]), None)
             self._set_true(start.T)
             if run.drive != "rps":
-
                 run.world = World(n, SimConfig(tier=run.drive, profile=profile.name))
                 run.world.reset(start)
             run.layer.begin_measuring(np.array(self._true(), dtype=float).T.copy(), np.array([0]))
@@ -165,8 +171,7 @@ def _judge(run: _Run, true: np.ndarray) -> None:
     run.collision_pair_iterations += int(hit.sum())
     if hit.any() and run.first_collision is None:
         k = int(np.flatnonzero(hit)[0])
-        run.first_collision = {"iteration": run.iterations, "robots": [int(i[k]), int(j[k])],
-                               "distance_m": float(d[k])}
+        run.first_collision = {"iteration": run.iterations, "robots": [int(i[k]), int(j[k])], "distance_m": float(d[k])}
 
 
 def main(argv: list[str] | None = None) -> None:

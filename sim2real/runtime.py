@@ -130,8 +130,9 @@ def pack_weights(arrays: Mapping[str, np.ndarray], config: Mapping[str, int]) ->
         entries.append([n, list(np.shape(arrays[n])), offset])
         offset += int(np.size(arrays[n]))
     params = np.concatenate([np.asarray(arrays[n], dtype=np.float32).ravel() for n in names])
-    manifest = json.dumps({"format": FORMAT, "version": VERSION, "config": config, "arrays": entries},
-                          separators=(",", ":")).encode()
+    manifest = json.dumps(
+        {"format": FORMAT, "version": VERSION, "config": config, "arrays": entries}, separators=(",", ":")
+    ).encode()
     record = np.zeros((), dtype=[("manifest", np.uint8, (len(manifest),)), ("params", np.float32, (offset,))])
     record["manifest"] = np.frombuffer(manifest, dtype=np.uint8)
     record["params"] = params
@@ -142,22 +143,28 @@ def unpack_weights(record: np.ndarray, source: str = "record") -> tuple[dict[str
     """(config, name -> float32 array) from a structured array made by :func:`pack_weights`."""
     names = record.dtype.names or ()
     if record.shape != () or set(names) != {"manifest", "params"}:
-        raise ValueError(f"{source} is not a {FORMAT} file: expected a 0-d record with fields "
-                         f"('manifest', 'params'), got shape {record.shape} and fields {names}")
+        raise ValueError(
+            f"{source} is not a {FORMAT} file: expected a 0-d record with fields "
+            f"('manifest', 'params'), got shape {record.shape} and fields {names}"
+        )
     try:
         manifest = json.loads(record["manifest"].tobytes().decode())
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         raise ValueError(f"{source}: unreadable manifest ({err})") from err
     if manifest.get("format") != FORMAT or manifest.get("version") not in READ_VERSIONS:
-        raise ValueError(f"{source}: expected format {FORMAT!r} version {' or '.join(map(str, READ_VERSIONS))}, "
-                         f"got {manifest.get('format')!r} version {manifest.get('version')}")
+        raise ValueError(
+            f"{source}: expected format {FORMAT!r} version {' or '.join(map(str, READ_VERSIONS))}, "
+            f"got {manifest.get('format')!r} version {manifest.get('version')}"
+        )
     params = record["params"]
     arrays = {}
     for name, shape, offset in manifest["arrays"]:
         size = math.prod(shape)
         if offset + size > params.size:
-            raise ValueError(f"{source}: array {name} {tuple(shape)} at offset {offset} runs past "
-                             f"the {params.size} stored parameters")
+            raise ValueError(
+                f"{source}: array {name} {tuple(shape)} at offset {offset} runs past "
+                f"the {params.size} stored parameters"
+            )
         arrays[name] = params[offset : offset + size].reshape(shape)
     config = manifest["config"]
     _check_arrays(arrays, config, source)
@@ -277,21 +284,31 @@ class ComatRuntime:
         xt = _leaky(np.einsum("ni,nei->ne", x, node[types]))  # each robot through its type's W
         ea = _leaky(attr @ w[f"{p}edge_attr.weight"].T)  # (N, N, de)
         et = _leaky(w[f"{p}edge_type.weight"])  # (T², de): one row per ordered type pair
-        score = ((xt @ w[f"{p}att_i.weight"].T)[:, None] + ea @ w[f"{p}att_attr.weight"].T
-                 + (et @ w[f"{p}att_type.weight"].T)[etype] + (xt @ w[f"{p}att_j.weight"].T)[None])
+        score = (
+            (xt @ w[f"{p}att_i.weight"].T)[:, None]
+            + ea @ w[f"{p}att_attr.weight"].T
+            + (et @ w[f"{p}att_type.weight"].T)[etype]
+            + (xt @ w[f"{p}att_j.weight"].T)[None]
+        )
         # All robots are real and every robot has its self-loop, so no edge is masked.
         alpha = _softmax(_leaky(score), axis=1)  # (N, N, K): softmax over j per head
         root = xt if self.config["root_weight"] else 0.0
         if self.config["reference_messages"]:
-            msg = _leaky(ea @ w[f"{p}msg_attr.weight"].T + (et @ w[f"{p}msg_type.weight"].T)[etype]
-                         + (xt @ w[f"{p}msg_j.weight"].T)[None])  # (N, N, E): one message per edge
+            msg = _leaky(
+                ea @ w[f"{p}msg_attr.weight"].T
+                + (et @ w[f"{p}msg_type.weight"].T)[etype]
+                + (xt @ w[f"{p}msg_j.weight"].T)[None]
+            )  # (N, N, E): one message per edge
             N, K = len(x), alpha.shape[-1]
             out = np.einsum("ijk,ijkd->ikd", alpha, msg.reshape(N, N, K, -1)).reshape(N, -1)  # heads concatenated
             return out @ w[f"{p}msg_out.weight"].T + root
         alpha = alpha.mean(-1)  # (N, N): heads averaged
-        return ((alpha[..., None] * ea).sum(1) @ w[f"{p}msg_attr.weight"].T
-                + (alpha[..., None] * et[etype]).sum(1) @ w[f"{p}msg_type.weight"].T
-                + (alpha @ xt) @ w[f"{p}msg_j.weight"].T + root)
+        return (
+            (alpha[..., None] * ea).sum(1) @ w[f"{p}msg_attr.weight"].T
+            + (alpha[..., None] * et[etype]).sum(1) @ w[f"{p}msg_type.weight"].T
+            + (alpha @ xt) @ w[f"{p}msg_j.weight"].T
+            + root
+        )
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
         """Robot representations rep (N, E) from obs (N, D)."""

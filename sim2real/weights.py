@@ -22,8 +22,10 @@ def comat_arrays(model) -> tuple[dict, dict[str, np.ndarray]]:
     """(config, name -> float32 array) of a ``comat.models.comat.Comat``, critic excluded."""
     layout, cfg = getattr(model, "layout", None), getattr(model, "config", None)
     if layout is None or cfg is None or not hasattr(model, "state_dict") or not hasattr(model, "acting_arrays"):
-        raise TypeError(f"model must be a comat Comat (with .layout, .config, .state_dict, .acting_arrays), "
-                        f"got {type(model).__name__}")
+        raise TypeError(
+            f"model must be a comat Comat (with .layout, .config, .state_dict, .acting_arrays), "
+            f"got {type(model).__name__}"
+        )
     config = weights_config(layout, cfg)
     # Only the critic is dropped: any other entry the description does not know (a changed model)
     # must fail here rather than vanish from the export.

@@ -37,9 +37,7 @@ def test_batched_physics_equals_single_worlds_bit_for_bit(tier, rng):
         np.testing.assert_array_equal(ev.actuator, np.concatenate([e.actuator for e in single_ev]))
         np.testing.assert_array_equal(ev.robot_contact, np.concatenate([e.robot_contact for e in single_ev]))
     np.testing.assert_array_equal(batch.poses, np.concatenate([w.poses for w in singles]))
-    np.testing.assert_array_equal(
-        batch.violations.actuator_ticks, [w.violations.actuator_ticks[0] for w in singles]
-    )
+    np.testing.assert_array_equal(batch.violations.actuator_ticks, [w.violations.actuator_ticks[0] for w in singles])
 
 
 def test_batched_contacts_equal_single_world_contacts():
@@ -158,8 +156,9 @@ def test_physics_threads_do_not_change_results(rng):
 
 
 @pytest.mark.parametrize("tier", TIERS)
-@pytest.mark.parametrize("sizes, resized", [([3, 5, 3, 4, 2, 5], [3, 3, 5, 4, 5, 2]), ([4, 4, 4], [4, 4, 4])],
-                         ids=["mixed", "one-size"])
+@pytest.mark.parametrize(
+    "sizes, resized", [([3, 5, 3, 4, 2, 5], [3, 3, 5, 4, 5, 2]), ([4, 4, 4], [4, 4, 4])], ids=["mixed", "one-size"]
+)
 def test_direct_rollout_equals_the_public_wrapper(tier, sizes, resized, rng, monkeypatch):
     """The compiled path's direct call of MuJoCo's batch rollout (mujoco 4.0) and the public
     wrapper step the same simulations: same poses and contact flags, bit for bit — with ids

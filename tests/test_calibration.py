@@ -32,7 +32,9 @@ def test_the_robotarium_simulator_shows_no_gap():
         steps, still = fit_steps(run_under_rps("steps", 3)), fit_still(run_under_rps("still", 2))
     assert all(r["delay_ticks"] == 0 and r["tau_own_s"] == 0 and r["accel_radps2"] == 0 for r in steps)
     # gain 1; the cap is not below the fastest commanded speed (95 % of the top: nothing above it is seen)
-    assert all(abs(r["gain"] - 1) < 1e-3 and r["cap_fraction"] >= 0.95 and abs(r["half_gain_diff"]) < 1e-9 for r in steps)
+    assert all(
+        abs(r["gain"] - 1) < 1e-3 and r["cap_fraction"] >= 0.95 and abs(r["half_gain_diff"]) < 1e-9 for r in steps
+    )
     assert all(r["noise_xy_m"] == 0 and r["noise_theta_rad"] == 0 for r in still)
     ramp = fit_ramp(run_under_rps("ramp", 2))
     assert all(r["dead_zone_radps"] == 0 and r["delay_ticks"] == 0 and abs(r["gain"] - 1) < 1e-6 for r in ramp)
@@ -46,8 +48,13 @@ def test_the_spin_sees_the_wheels_gain_difference_and_its_fit_joins_the_profile(
     """Known per-wheel gains (spread 0.05) with lag, delay and 1 mm noise: each robot's (g_r - g_l)/2
     from the circle its centre draws within 0.005 of the layer's draw; a spin log alone gives the
     delay, the lag and the spread; every log's loop tick is reported (0.033 s in comat)."""
-    truth = {"wheel_gain_spread": 0.05, "pose_noise_xy_m": 0.001, "pose_delay_ticks": 2, "motor_tau_min_s": 0.05,
-             "motor_tau_max_s": 0.05}
+    truth = {
+        "wheel_gain_spread": 0.05,
+        "pose_noise_xy_m": 0.001,
+        "pose_delay_ticks": 2,
+        "motor_tau_min_s": 0.05,
+        "motor_tau_max_s": 0.05,
+    }
     log = simulate("spin", truth, n=4, seed=3)
     got = np.array([r["half_gain_diff"] for r in fit_spin(log)])
     assert np.abs(got - true_half_gain_diff(truth, 3)).max() <= 0.005, got
@@ -63,34 +70,71 @@ def test_the_ramp_recovers_the_dead_zone(dead_zone):
     """Known truth: the layer's dead zone with the nominal lag, delay and noise around it (kinematic
     robots); the estimate is within 0.4 rad/s for the median robot (the lag reads as up to ~0.35 when
     there is none)."""
-    truth = {"level": "off", "motor_dead_zone_radps": dead_zone, "pose_noise_xy_m": 0.001, "pose_delay_ticks": 3,
-             "motor_tau_min_s": 0.04, "motor_tau_max_s": 0.08}
+    truth = {
+        "level": "off",
+        "motor_dead_zone_radps": dead_zone,
+        "pose_noise_xy_m": 0.001,
+        "pose_delay_ticks": 3,
+        "motor_tau_min_s": 0.04,
+        "motor_tau_max_s": 0.08,
+    }
     got = np.median([r["dead_zone_radps"] for r in fit_ramp(simulate("ramp", truth, n=4, seed=1))])
     assert abs(got - dead_zone) <= 0.4, got
 
 
 def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
-    truth = json.dumps({"pose_delay_ticks": 1, "motor_tau_min_s": 0.05, "motor_tau_max_s": 0.05,
-                        "motor_accel_limit_radps2": 200.0, "pose_noise_xy_m": 0.002, "pose_hold_prob": 0.2,
-                        "motor_dead_zone_radps": 1.9})
+    truth = json.dumps(
+        {
+            "pose_delay_ticks": 1,
+            "motor_tau_min_s": 0.05,
+            "motor_tau_max_s": 0.05,
+            "motor_accel_limit_radps2": 200.0,
+            "pose_noise_xy_m": 0.002,
+            "pose_hold_prob": 0.2,
+            "motor_dead_zone_radps": 1.9,
+        }
+    )
     logs = tmp_path / "logs"
     assert main(["calibrate", "--simulate", truth, "--robots", "3", "--out", str(logs)]) == 0
     profile = tmp_path / "mine.yaml"
-    assert main(["calibrate", str(logs / "calib_steps.npy"), str(logs / "calib_still.npy"), str(logs / "calib_ramp.npy"),
-                 "--out", str(profile)]) == 0
+    assert (
+        main(
+            [
+                "calibrate",
+                str(logs / "calib_steps.npy"),
+                str(logs / "calib_still.npy"),
+                str(logs / "calib_ramp.npy"),
+                "--out",
+                str(profile),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "pose_bias_xy_m" in out and "not identified" in out
     assert "[nan" not in out  # no '[nan, nan]': a spread with no interval shows none
     delay = next(line for line in out.splitlines() if line.startswith("pose_delay_ticks"))
-    assert "robots' range" in delay and "95 % t, robots" in next(line for line in out.splitlines()
-                                                                  if line.startswith("motor_tau_s"))
+    assert "robots' range" in delay and "95 % t, robots" in next(
+        line for line in out.splitlines() if line.startswith("motor_tau_s")
+    )
     # the profile says what each field it sets means, and what 0 means where 0 is special
     header = [line for line in profile.read_text().splitlines() if line.startswith("#")]
     assert any(line.startswith("# motor_accel_limit_radps2:") for line in header)
     assert "0 = no limit" in " ".join(header)
     # --simulate wrote the truth beside the logs; --truth puts it beside the fit
-    assert main(["calibrate", str(logs / "calib_steps.npy"), "--truth", str(logs / "truth.yaml"),
-                 "--out", str(tmp_path / "again.yaml")]) == 0
+    assert (
+        main(
+            [
+                "calibrate",
+                str(logs / "calib_steps.npy"),
+                "--truth",
+                str(logs / "truth.yaml"),
+                "--out",
+                str(tmp_path / "again.yaml"),
+            ]
+        )
+        == 0
+    )
     head, delay = (line.split() for line in capsys.readouterr().out.splitlines()[:2])
     assert "truth" in head and delay[0] == "pose_delay_ticks" and "1" in delay
     data = yaml.safe_load(profile.read_text())
@@ -104,13 +148,38 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
     from test_rl import TINY_MODELS
 
     preset = tmp_path / "tiny.yaml"
-    preset.write_text(yaml.safe_dump({"eval_every_steps": 10**9, "eval_episodes_per_team": 0,
-                                      "checkpoint_every_steps": 6, "ppo": {"num_envs": 2, "rollout_steps": 3,
-                                                                           "epochs": 1, "minibatches": 1},
-                                      "models": TINY_MODELS}))
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                "eval_every_steps": 10**9,
+                "eval_episodes_per_team": 0,
+                "checkpoint_every_steps": 6,
+                "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1},
+                "models": TINY_MODELS,
+            }
+        )
+    )
     run = tmp_path / "run"
-    assert main(["train", "--algo", "comat", "--task", "pcp", "--preset", str(preset), "--steps", "6", "--out", str(run),
-                 f"reality={profile}", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "train",
+                "--algo",
+                "comat",
+                "--task",
+                "pcp",
+                "--preset",
+                str(preset),
+                "--steps",
+                "6",
+                "--out",
+                str(run),
+                f"reality={profile}",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     stored = yaml.safe_load((run / "config.yaml").read_text())["config"]["reality"]
     assert {k: stored[k] for k in fields} == fields
     # and eval plays at it, writing a file named after the profile
@@ -118,10 +187,13 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
     assert (run / "evaluation_unicycle_mine.json").is_file()
 
 
-@pytest.mark.parametrize("make, message", [
-    (lambda d: d / "steps.npy", "must be calibration logs calib_<ramp|spin|steps|still>"),
-    (lambda d: d / "calib_steps.npy", "does not exist"),
-])
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda d: d / "steps.npy", "must be calibration logs calib_<ramp|spin|steps|still>"),
+        (lambda d: d / "calib_steps.npy", "does not exist"),
+    ],
+)
 def test_bad_logs_get_one_line_errors(tmp_path, capsys, make, message):
     assert main(["calibrate", str(make(tmp_path)), "--out", str(tmp_path / "p.yaml")]) == 2
     err = capsys.readouterr().err
@@ -165,7 +237,9 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
     assert not (tmp_path / "x").exists()
 
 
-@pytest.mark.skipif(not os.environ.get("COMAT_RPS_V2"), reason="set COMAT_RPS_V2 to a robotarium_python_simulator (V2) checkout")
+@pytest.mark.skipif(
+    not os.environ.get("COMAT_RPS_V2"), reason="set COMAT_RPS_V2 to a robotarium_python_simulator (V2) checkout"
+)
 def test_calibration_folders_under_rps_v2_show_no_gap(tmp_path, capsys):
     """All four experiments under V2: 0 simulator errors; no delay, lag, noise or dead zone; gains 1
     (V2's barrier steers a little: gain differences <= 0.01 in steps)."""

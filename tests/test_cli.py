@@ -38,14 +38,18 @@ def test_the_docs_command_table_has_every_command():
     """docs/commands.md's table has a row for every command and bench the parser knows."""
     from pathlib import Path
 
-    table = [line for line in (Path(__file__).parents[1] / "docs" / "commands.md").read_text().splitlines()
-             if line.startswith("| `comat ")]
+    table = [
+        line
+        for line in (Path(__file__).parents[1] / "docs" / "commands.md").read_text().splitlines()
+        if line.startswith("| `comat ")
+    ]
     rows = {" ".join(line.split("`")[1].split()[:3]) for line in table}
     for path in _command_paths(build_parser())[1:]:
         if path == ("bench",):
             continue  # the bench family: a row per benchmark
-        assert any(row == " ".join(("comat", *path)) or row.startswith(" ".join(("comat", *path)) + " ")
-                   for row in rows), f"docs/commands.md has no row for comat {' '.join(path)}"
+        assert any(
+            row == " ".join(("comat", *path)) or row.startswith(" ".join(("comat", *path)) + " ") for row in rows
+        ), f"docs/commands.md has no row for comat {' '.join(path)}"
 
 
 def test_mjcf_command_writes_the_golden_files(tmp_path, capsys):
@@ -68,10 +72,30 @@ def test_demo_shows_the_pretrained_policy_finishing_with_its_files(tmp_path, cap
     """make demo's last part, in a fast form (one unicycle episode): the shipped policy finishes
     an unseen team and leaves a recording, a video and an export that passes --check (issue 32)."""
     out, folder = tmp_path / "demo.json", tmp_path / "demo"
-    assert main(["demo", "--tier", "unicycle", "--episodes", "1", "--part", "pretrained", "--folder", str(folder),
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "demo",
+                "--tier",
+                "unicycle",
+                "--episodes",
+                "1",
+                "--part",
+                "pretrained",
+                "--folder",
+                str(folder),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     summary = json.loads(out.read_text())["pretrained"]
-    assert summary["ok"] and (folder / "comat_pcp.rrd").stat().st_size > 0 and (folder / "comat_pcp.mp4").stat().st_size > 0
+    assert (
+        summary["ok"]
+        and (folder / "comat_pcp.rrd").stat().st_size > 0
+        and (folder / "comat_pcp.mp4").stat().st_size > 0
+    )
     assert (folder / "robotarium_pcp" / "main.py").is_file()
     printed = capsys.readouterr().out
     assert "progress 100%" in printed and "all written and the export checked" in printed
@@ -92,8 +116,26 @@ def test_bad_arguments_get_a_clear_error(capsys):
 
 def test_bench_sim_small_grid_writes_json(tmp_path):
     out = tmp_path / "sim.json"
-    cmd = [sys.executable, "-m", "comat.cli", "bench", "sim", "--sizes", "2", "--batches", "1", "2",
-           "--tiers", "unicycle", "--ticks", "5", "--rps-ticks", "5", "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "comat.cli",
+        "bench",
+        "sim",
+        "--sizes",
+        "2",
+        "--batches",
+        "1",
+        "2",
+        "--tiers",
+        "unicycle",
+        "--ticks",
+        "5",
+        "--rps-ticks",
+        "5",
+        "--out",
+        str(out),
+    ]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     data = json.loads(out.read_text())
     rows = {(r["system"], r["batch"]) for r in data["rows"]}
@@ -103,8 +145,26 @@ def test_bench_sim_small_grid_writes_json(tmp_path):
 
 def test_bench_env_rollout_split_adds_up(tmp_path, capsys):
     out = tmp_path / "rollout.json"
-    assert main(["bench", "env", "--rollout", "--tasks", "pcp", "--tiers", "unicycle", "--rollout-batch", "4",
-                 "--steps", "2", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "env",
+                "--rollout",
+                "--tasks",
+                "pcp",
+                "--tiers",
+                "unicycle",
+                "--rollout-batch",
+                "4",
+                "--steps",
+                "2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     data = json.loads(out.read_text())
     whole, shards = data["whole"], data["shards"]
     assert [s["envs"] for s in shards] == [[0, 1], [2, 3]] and data["single_env"]["envs"] == [0, 0]
@@ -139,9 +199,23 @@ def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
     from comat.models.comat import PAPER_FORM
 
     preset = tmp_path / "tiny.yaml"
-    preset.write_text(yaml.safe_dump({"ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1},
-                                      "models": {"comat": {"embed": 16, "heads": 2, "heat_blocks": 1, "edge_embed": 8,
-                                                           "obs_embed": True, "node_ffn": True}}}))
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                "ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1},
+                "models": {
+                    "comat": {
+                        "embed": 16,
+                        "heads": 2,
+                        "heat_blocks": 1,
+                        "edge_embed": 8,
+                        "obs_embed": True,
+                        "node_ffn": True,
+                    }
+                },
+            }
+        )
+    )
     seen = []
     real = learn_bench.make_learner
     with mock.patch.object(learn_bench, "make_learner", side_effect=lambda c, *a: seen.append(c.model) or real(c, *a)):

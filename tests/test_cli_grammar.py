@@ -113,8 +113,10 @@ def test_old_spellings_work_with_a_one_line_note(capsys):
     args = build_parser().parse_args(["eval", "--checkpoint", "r/checkpoint.pt", "--set", "test"])
     assert args.policy == "r/checkpoint.pt" and args.teams == "test"
     err = capsys.readouterr().err.splitlines()
-    assert err == ["comat: --checkpoint is deprecated and will be removed; use --policy r/checkpoint.pt",
-                   "comat: --set is deprecated and will be removed; use --teams test"]
+    assert err == [
+        "comat: --checkpoint is deprecated and will be removed; use --policy r/checkpoint.pt",
+        "comat: --set is deprecated and will be removed; use --teams test",
+    ]
     args = build_parser().parse_args(["rollout", "--set", "scale", "--task", "pcp"])
     assert args.teams == "scale"
 

@@ -19,8 +19,9 @@ MAX_POLICY_BYTES = 1_000_000
 
 @pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(), reason="not a git checkout")
 def test_the_kept_policy_is_committed_and_small():
-    tracked = subprocess.run(["git", "-C", str(ROOT), "ls-files", str(KEPT.relative_to(ROOT))], capture_output=True,
-                             text=True, check=True).stdout.split()
+    tracked = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", str(KEPT.relative_to(ROOT))], capture_output=True, text=True, check=True
+    ).stdout.split()
     names = {Path(p).name for p in tracked}
     assert {"policy.pt", "config.yaml", "evaluation_unicycle.json"} <= names, names
     assert "checkpoint.pt" not in names  # optimizer state is not what a reader needs
@@ -29,8 +30,23 @@ def test_the_kept_policy_is_committed_and_small():
 
 def test_a_committed_policy_evaluates_on_the_capability_set_with_one_command(tmp_path, capsys):
     out = tmp_path / "cap"
-    assert main(["eval", "--policy", str(KEPT), "--teams", "capability", "--episodes", "1", "--no-references",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--policy",
+                str(KEPT),
+                "--teams",
+                "capability",
+                "--episodes",
+                "1",
+                "--no-references",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     result = read_results(out / "evaluation_unicycle.json")
     (row,) = result["rows"]
     assert (row["policy"], row["task"], row["set"], row["episodes"]) == ("comat", "pcp", "capability", 20)

@@ -51,8 +51,9 @@ def _compare(generation: str, rps_path: str | None) -> tuple[float, float, int]:
     env.pop("PYTHONPATH", None)
     if rps_path:
         env["PYTHONPATH"] = rps_path
-    out = subprocess.run([sys.executable, "-c", COMPARE, generation], env=env, capture_output=True, text=True,
-                         check=True, timeout=600).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", COMPARE, generation], env=env, capture_output=True, text=True, check=True, timeout=600
+    ).stdout.split()
     return float(out[0]), float(out[1]), int(out[2])
 
 

@@ -22,7 +22,9 @@ def _learner(config, device):
     if config.algo == "qmix":
         trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, config.seed, device=device)
     else:
-        trainer = PPOTrainer(modules["policy"], env, config.trainer, config.seed, uses_state(config.algo), device=device)
+        trainer = PPOTrainer(
+            modules["policy"], env, config.trainer, config.seed, uses_state(config.algo), device=device
+        )
     return Learner(config.algo, modules, trainer), env
 
 
@@ -57,12 +59,30 @@ def test_device_cuda_without_a_gpu_is_one_line_and_auto_falls_back(tmp_path, cap
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # as on a machine without one
     assert resolve_device("auto") == "cpu"
     out = tmp_path / "run"
-    assert main(["train", "--algo", "comat", "--task", "pcp", "--preset", "quick", "--device", "cuda", "--out",
-                 str(out)]) == 2
+    assert (
+        main(["train", "--algo", "comat", "--task", "pcp", "--preset", "quick", "--device", "cuda", "--out", str(out)])
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--device cuda: PyTorch" in err[0] and "sees no CUDA device" in err[0], err
-    assert main(["sweep", "--preset", "quick", "--algos", "comat", "--tasks", "pcp", "--device", "cuda",
-                 "--out", str(tmp_path / "sw")]) == 2
+    assert (
+        main(
+            [
+                "sweep",
+                "--preset",
+                "quick",
+                "--algos",
+                "comat",
+                "--tasks",
+                "pcp",
+                "--device",
+                "cuda",
+                "--out",
+                str(tmp_path / "sw"),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--device cuda" in err[0], err
     assert not out.exists() and not (tmp_path / "sw").exists()

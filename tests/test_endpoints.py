@@ -27,7 +27,8 @@ def _hand_endpoints(curve, horizon):
 
 def test_curve_endpoints_by_hand():
     assert curve_endpoints([0.0, 0.5, 0.95], 5) == pytest.approx(
-        {"progress_auc": (0 + 0.5 + 0.95 * 3) / 5, "time_to_90": 3.0, "reached_90": 1.0})
+        {"progress_auc": (0 + 0.5 + 0.95 * 3) / 5, "time_to_90": 3.0, "reached_90": 1.0}
+    )
     never = curve_endpoints([0.1, 0.2], 4)  # censored at the horizon
     assert never == pytest.approx({"progress_auc": (0.1 + 0.2 * 3) / 4, "time_to_90": 4.0, "reached_90": 0.0})
     assert curve_endpoints([0.9], 1) == {"progress_auc": 0.9, "time_to_90": 1.0, "reached_90": 1.0}
@@ -48,8 +49,9 @@ def _core(task, team: TeamSpec, poses: np.ndarray) -> TaskCore:
     return core
 
 
-PCP_TEAM = TeamSpec("pcp", (RobotSpec("sensing", (0.4, 0.0)), RobotSpec("capture", (0.0, 0.4)),
-                            RobotSpec("capture", (0.0, 0.4))))
+PCP_TEAM = TeamSpec(
+    "pcp", (RobotSpec("sensing", (0.4, 0.0)), RobotSpec("capture", (0.0, 0.4)), RobotSpec("capture", (0.0, 0.4)))
+)
 
 
 def test_idle_robot_is_all_idle_and_robots_held_by_a_wall_and_each_other():
@@ -123,11 +125,15 @@ def _loaded_run(task: str, teams, policy, steps_cap=None):
         for b in np.flatnonzero(info.get("_episode", np.zeros(len(teams), bool))):
             if out[b] is None:
                 steps = int(info["episode"]["steps"][b])
-                out[b] = {"steps": steps, "progress": info["episode"]["progress"][b], "loaded": loaded[b],
-                          "stays": stays[b, : teams[b].size],
-                          "curve": info["episode_curve"][b, :steps],
-                          "robots": {k: v[b, : teams[b].size] for k, v in info["episode_robots"].items()},
-                          "end": {k: v[b] for k, v in info["episode_end"].items()}}
+                out[b] = {
+                    "steps": steps,
+                    "progress": info["episode"]["progress"][b],
+                    "loaded": loaded[b],
+                    "stays": stays[b, : teams[b].size],
+                    "curve": info["episode_curve"][b, :steps],
+                    "robots": {k: v[b, : teams[b].size] for k, v in info["episode_robots"].items()},
+                    "end": {k: v[b] for k, v in info["episode_end"].items()},
+                }
     return out
 
 
@@ -135,8 +141,10 @@ def test_hmt_delivered_and_on_board_add_up():
     """Heuristic for 25 steps, then everyone stays: material is loaded but not all delivered.
     The robots' deliveries sum to the team's; what is on board at the end is loaded − delivered."""
     teams = generate_coalitions("hmt", "train")[:4]
+
     def policy(env, t):
         return heuristic_actions(env.core) if t < 25 else np.zeros_like(env.agent_mask, dtype=int)
+
     out = _loaded_run("hmt", teams, policy)
     for team, o in zip(teams, out):
         total = sum(HMT.zone_factors) * sum(r.capabilities[1] for r in team.robots)
@@ -158,7 +166,8 @@ def test_hmt_heuristic_rows_with_known_answers():
     for team, row in zip(teams, rows):
         total = sum(HMT.zone_factors) * sum(r.capabilities[1] for r in team.robots)
         assert len(row["progress_curve"]) == row["steps"] and row["progress_curve"][-1] == pytest.approx(
-            row["progress"], abs=5e-5)
+            row["progress"], abs=5e-5
+        )
         assert sum(r["delivered"] for r in row["robots"]) / total == pytest.approx(row["progress"], abs=1e-6)
         assert row["finished"] == 1.0 and row["on_board_end"] == 0.0  # all delivered, nothing left on board
         auc, t90, reached = _hand_endpoints(row["progress_curve"], HMT.horizon)
@@ -177,11 +186,14 @@ def test_pcp_rows_deterministic_and_episodes_per_coalition():
     """Two coalitions, two episodes each: coalition i % 2, start i // 2; the same seed gives the
     same rows; sensed-not-captured counts real prey only."""
     teams = generate_coalitions("pcp", "train")[:2]
+
     def rows():
         env = make_vec_env("pcp_v0", 3, seed=0, tier="unicycle", coalitions=teams, ticks_per_step=6)
         rng = np.random.default_rng(1)
-        return run_episodes(env, lambda o, m, s: np.where(m, rng.integers(0, 5, m.shape), 0), teams * 2, seed=9,
-                            n_coalitions=2)
+        return run_episodes(
+            env, lambda o, m, s: np.where(m, rng.integers(0, 5, m.shape), 0), teams * 2, seed=9, n_coalitions=2
+        )
+
     first = rows()
     assert rows() == first
     assert [(r["coalition"], r["episode_in_coalition"]) for r in first] == [(0, 0), (1, 0), (0, 1), (1, 1)]
@@ -193,7 +205,12 @@ def test_pcp_rows_deterministic_and_episodes_per_coalition():
         assert set(row["by_type"]) == {"sensing", "capture"}
         json.dumps(row)  # plain Python numbers only
     with pytest.raises(ValueError, match=r"teams must be 2 coalitions repeated 2 times"):
-        run_episodes(make_vec_env("pcp_v0", 2, seed=0, tier="unicycle", coalitions=teams), lambda o, m, s: m * 0,
-                     [teams[0], teams[1], teams[1], teams[0]], seed=0, n_coalitions=2)
+        run_episodes(
+            make_vec_env("pcp_v0", 2, seed=0, tier="unicycle", coalitions=teams),
+            lambda o, m, s: m * 0,
+            [teams[0], teams[1], teams[1], teams[0]],
+            seed=0,
+            n_coalitions=2,
+        )
     with pytest.raises(ValueError, match="n_coalitions must be a positive integer dividing the 4 teams, got 3"):
         run_episodes(None, None, teams * 2, seed=0, n_coalitions=3)

@@ -19,7 +19,9 @@ def _pick(task, split):
     return {"smallest": teams[int(np.argmin(sizes))], "largest": teams[int(np.argmax(sizes))], "mixed": mixed}
 
 
-CASES = [(task, split, kind) for task in TASKS for split in ("train", "test") for kind in ("smallest", "largest", "mixed")]
+CASES = [
+    (task, split, kind) for task in TASKS for split in ("train", "test") for kind in ("smallest", "largest", "mixed")
+]
 
 
 @pytest.mark.parametrize("task,split,kind", CASES)
@@ -100,7 +102,9 @@ def test_episode_metrics_at_the_end():
 
 
 def test_reset_with_an_explicit_team_and_observation_layout():
-    team = {"robots": [{"type": "capture", "capabilities": [0.0, 0.4]}, {"type": "sensing", "capabilities": [0.5, 0.0]}]}
+    team = {
+        "robots": [{"type": "capture", "capabilities": [0.0, 0.4]}, {"type": "sensing", "capabilities": [0.5, 0.0]}]
+    }
     env = make_env("pcp_v0", tier="unicycle")
     obs, _ = env.reset(seed=0, options={"team": team})
     assert env.agents == ["robot_0", "robot_1"]
@@ -117,8 +121,9 @@ def test_global_state_is_order_one_for_the_largest_teams(task, split, slots):
     # Centralized critics and QMIX's mixer take the state as it is: no entry may carry raw
     # amounts (HMT's material reached ~155 before it was scaled, and MAPPO's critic diverged);
     # PCP's parked prey slots (x = 2.6 m) included.
-    env = comat.make_vec_env(f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=slots, state_robots=slots,
-                             coalitions=split)
+    env = comat.make_vec_env(
+        f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=slots, state_robots=slots, coalitions=split
+    )
     _, info = env.reset()
     rng = np.random.default_rng(0)
     for _ in range(5):
@@ -148,11 +153,26 @@ def test_graph_inputs_any_size():
     [
         ({"colour": "red"}, r"unknown option\(s\) \['colour'\] for pcp_v0; valid options:"),
         ({"tier": "legs"}, r"SimConfig.tier must be one of"),
-        ({"coalitions": "validation"}, (r"coalitions must be one of 'train', 'val', 'test', 'scale', 'size', 'capability', "
-                                        r"a YAML path or a non-empty list")),
+        (
+            {"coalitions": "validation"},
+            (
+                r"coalitions must be one of 'train', 'val', 'test', 'scale', 'size', 'capability', "
+                r"a YAML path or a non-empty list"
+            ),
+        ),
         ({"team": {"robots": []}}, r"needs at least one robot of each type"),
         ({"team": {"robots": [{"type": "sensing", "capabilities": [0.4, 0.0]}]}}, r"missing \['capture'\]"),
-        ({"team": {"robots": [{"type": "sensing", "capabilities": [2.0, 0.0]}, {"type": "capture", "capabilities": [0.0, 0.3]}]}}, r"sensing_radius_m must be in \[0.0, 1.0\]"),
+        (
+            {
+                "team": {
+                    "robots": [
+                        {"type": "sensing", "capabilities": [2.0, 0.0]},
+                        {"type": "capture", "capabilities": [0.0, 0.3]},
+                    ]
+                }
+            },
+            r"sensing_radius_m must be in \[0.0, 1.0\]",
+        ),
         ({"n_prey": 0}, r"n_prey must be a positive integer \(that many prey for every team\) or None .*, got 0"),
         ({"n_prey": True}, r"n_prey must be a positive integer .*, got True"),
     ],
@@ -188,8 +208,11 @@ def test_the_largest_team_each_task_takes_is_said_as_a_limit():
     assert PredatorCapturePrey().prey_capacity() == 45 and PredatorCapturePrey(n_prey=6).max_team_size() == 60
     make_env("pcp_v0", team=random_team(np.random.default_rng(0), "pcp", "train", 37), tier="unicycle").reset(seed=0)
     team = random_team(np.random.default_rng(0), "pcp", "train", 40)
-    with pytest.raises(ValueError, match=r"pcp takes teams of at most 37 robots, got 40: prey grow with the team, "
-                       r"K\(N\) = round\(1.2·N\) above 8 robots, so 48 prey for 40, and at most 45 fit .* n_prey=K"):
+    with pytest.raises(
+        ValueError,
+        match=r"pcp takes teams of at most 37 robots, got 40: prey grow with the team, "
+        r"K\(N\) = round\(1.2·N\) above 8 robots, so 48 prey for 40, and at most 45 fit .* n_prey=K",
+    ):
         make_env("pcp_v0", team=team, tier="unicycle")
     env = make_env("pcp_v0", tier="unicycle", max_robots=40)  # a larger team passed to a reset: the same
     with pytest.raises(ValueError, match="pcp takes teams of at most 37 robots, got 40"):

@@ -15,9 +15,19 @@ T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
 
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
-    return {"return": ret, "steps": steps, "progress": completion, "finished": success, "collisions": collisions,
-            "robotarium_collisions": rc, "boundary_exits": be, "actuator_errors": ae, "interventions": 3.0,
-            "fallbacks": 0.0, "recoveries": 1.0}
+    return {
+        "return": ret,
+        "steps": steps,
+        "progress": completion,
+        "finished": success,
+        "collisions": collisions,
+        "robotarium_collisions": rc,
+        "boundary_exits": be,
+        "actuator_errors": ae,
+        "interventions": 3.0,
+        "fallbacks": 0.0,
+        "recoveries": 1.0,
+    }
 
 
 # -- metrics ---------------------------------------------------------------------------------------
@@ -36,8 +46,12 @@ def test_mean_ci_by_hand():
 
 
 def test_summarize_ci_by_hand():
-    eps = [_episode(10.0, success=1.0, rc=1.0, be=2.0), _episode(20.0, ae=1.0), _episode(30.0, collisions=3.0),
-           _episode(40.0, success=1.0)]
+    eps = [
+        _episode(10.0, success=1.0, rc=1.0, be=2.0),
+        _episode(20.0, ae=1.0),
+        _episode(30.0, collisions=3.0),
+        _episode(40.0, success=1.0),
+    ]
     assert [violations(e) for e in eps] == [3.0, 1.0, 0.0, 0.0]
     table = summarize_ci(eps)
     # rows from before the progress curve (older files) have no AUC or t90: left out, not made up
@@ -84,15 +98,29 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     from comat.eval.evaluate import evaluate_policies, print_table, write_results
 
     own = resolve_coalitions("train", "pcp")[:2]
-    result = evaluate_policies(None, task="pcp", sets=[("two", own)], episodes=2, tier="unicycle",
-                               references=("constant",), progress=lambda s: None)
+    result = evaluate_policies(
+        None,
+        task="pcp",
+        sets=[("two", own)],
+        episodes=2,
+        tier="unicycle",
+        references=("constant",),
+        progress=lambda s: None,
+    )
     row = result["rows"][0]
     eps = row["per_episode"]
     assert [(e["coalition"], e["episode_in_coalition"]) for e in eps] == [(0, 0), (1, 0), (0, 1), (1, 1)]
     assert row["metrics"]["progress_auc"]["n"] == 2 and row["episodes"] == 4
     for e in eps:
-        assert {"progress_curve", "progress_auc", "time_to_90", "reached_90", "robots", "by_type",
-                "sensed_not_captured"} <= set(e)
+        assert {
+            "progress_curve",
+            "progress_auc",
+            "time_to_90",
+            "reached_90",
+            "robots",
+            "by_type",
+            "sensed_not_captured",
+        } <= set(e)
     lines = []
     print_table(result, out=lines.append)
     head = lines[0].split()
@@ -145,8 +173,23 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     own = resolve_coalitions("train", "pcp")[:2]
     teams.write_text(yaml.safe_dump({"coalitions": [{"robots": [r.to_dict() for r in t.robots]} for t in own]}))
     fresh = tmp_path / "new" / "deeper"
-    assert main(["eval", "--policy", "constant", "--task", "pcp", "--teams", str(teams), "--no-references",
-                 "--out", str(fresh)]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--policy",
+                "constant",
+                "--task",
+                "pcp",
+                "--teams",
+                str(teams),
+                "--no-references",
+                "--out",
+                str(fresh),
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     mine = read_results(fresh / "evaluation_unicycle.json")["rows"]
     assert [(r["policy"], r["set"], r["episodes"]) for r in mine] == [("constant", str(teams), 2)]
@@ -237,8 +280,10 @@ def test_best_constant_action_is_the_best_of_the_five(task):
 
     teams = resolve_coalitions("train", task)
     env = make_vec_env(f"{task}_v0", 20, seed=0, tier="unicycle", coalitions="train")
-    returns = [np.mean([e["return"] for e in run_episodes(env, lambda o, m, s, a=a: np.where(m, a, 0), teams, EVAL_SEED)])
-               for a in range(5)]
+    returns = [
+        np.mean([e["return"] for e in run_episodes(env, lambda o, m, s, a=a: np.where(m, a, 0), teams, EVAL_SEED)])
+        for a in range(5)
+    ]
     assert int(np.argmax(returns)) == BEST_CONSTANT_ACTION[task], returns
 
 

@@ -36,9 +36,14 @@ TINY = {"comat": {"embed": 16, "heads": 2, "heat_blocks": 1, "edge_embed": 8}}
 
 
 def tiny_checkpoint(tmp: Path, task: str) -> Path:
-    preset = {"total_env_steps": 12, "eval_every_steps": 10**9, "eval_episodes_per_team": 0,
-              "checkpoint_every_steps": 6, "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2},
-              "models": TINY}
+    preset = {
+        "total_env_steps": 12,
+        "eval_every_steps": 10**9,
+        "eval_episodes_per_team": 0,
+        "checkpoint_every_steps": 6,
+        "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2},
+        "models": TINY,
+    }
     train(resolve(preset, "comat", task, seed=3), tmp / f"run_{task}", quiet=True)
     return tmp / f"run_{task}" / "checkpoint.pt"
 
@@ -222,8 +227,14 @@ def test_task_is_drawn_on_the_figure(scripted, task):
     import matplotlib.colors as mcolors
 
     folder = scripted[task][0]
-    proc = subprocess.run([sys.executable, "-c", _DRAW], cwd=folder, capture_output=True, text=True, check=True,
-                          env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    proc = subprocess.run(
+        [sys.executable, "-c", _DRAW],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+    )
     out = __import__("json").loads(proc.stdout.strip().splitlines()[-1])
     assert (folder / "frame.png").stat().st_size > 1000
     (folder / "frame.png").unlink()
@@ -276,8 +287,24 @@ def test_figure_under_rps_v2(scripted, tmp_path):
 def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tmp_path, capsys):
     from comat.cli import main
 
-    assert main(["export", "--policy", "heuristic", "--task", "pcp", "--team", "test:3", "--seed", "1",
-                 "--out", str(tmp_path / "cli_pcp")]) == 0
+    assert (
+        main(
+            [
+                "export",
+                "--policy",
+                "heuristic",
+                "--task",
+                "pcp",
+                "--team",
+                "test:3",
+                "--seed",
+                "1",
+                "--out",
+                str(tmp_path / "cli_pcp"),
+            ]
+        )
+        == 0
+    )
     assert sorted(p.name for p in (tmp_path / "cli_pcp").iterdir()) == sorted(HEURISTIC_FILES)
     capsys.readouterr()
     assert main(["export", "--check", str(tmp_path / "cli_pcp"), str(scripted["pcp"][0]), "--tier", "unicycle"]) == 0
@@ -285,14 +312,34 @@ def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tm
     assert "cli_pcp" in out and "sub_pcp" in out
     assert "mean over 2 folders (rps legacy, MuJoCo unicycle): progress 100.0 % vs 100.0 %" in out
     # the old spelling --checkpoint still names the policy (with a note); a missing file is refused
-    assert main(["export", "--policy", "heuristic", "--checkpoint", "x.pt", "--task", "pcp", "--team", "test:3",
-                 "--out", str(tmp_path / "new" / "y")]) == 2
+    assert (
+        main(
+            [
+                "export",
+                "--policy",
+                "heuristic",
+                "--checkpoint",
+                "x.pt",
+                "--task",
+                "pcp",
+                "--team",
+                "test:3",
+                "--out",
+                str(tmp_path / "new" / "y"),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.splitlines()
     assert err[0] == "comat: --checkpoint is deprecated and will be removed; use --policy x.pt"
     assert "got 'x.pt' (no such file)" in err[1] and not (tmp_path / "new").exists()
-    assert main(["export", "--policy", "random", "--team", "test:3", "--task", "pcp", "--out", str(tmp_path / "z")]) == 2
-    assert "--policy must be a policy file, checkpoint or run folder or one of ['heuristic'] here, got 'random'" in \
-        capsys.readouterr().err
+    assert (
+        main(["export", "--policy", "random", "--team", "test:3", "--task", "pcp", "--out", str(tmp_path / "z")]) == 2
+    )
+    assert (
+        "--policy must be a policy file, checkpoint or run folder or one of ['heuristic'] here, got 'random'"
+        in capsys.readouterr().err
+    )
 
 
 # -- large teams: start poses the Robotarium's start-up drive can reach ------------------------------
@@ -370,8 +417,20 @@ def test_export_killed_at_random_moments_leaves_no_folder(tmp_path):
 
     ckpt = tiny_checkpoint(tmp_path, "pcp")
     out = tmp_path / "subs" / "pcp"
-    cmd = [sys.executable, "-m", "comat.cli", "export", "--policy", str(ckpt), "--task", "pcp", "--team", "test:3",
-           "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "comat.cli",
+        "export",
+        "--policy",
+        str(ckpt),
+        "--task",
+        "pcp",
+        "--team",
+        "test:3",
+        "--out",
+        str(out),
+    ]
     for delay in np.random.default_rng(0).uniform(0.5, 3.0, size=4):
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         time.sleep(delay)

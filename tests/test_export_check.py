@@ -20,14 +20,17 @@ def _folder(tmp_path, kind):
     return path
 
 
-@pytest.mark.parametrize("kind, expected", [
-    ("missing", "is not an exported submission: missing"),
-    ("file", "is not an exported submission: missing"),
-    ("empty", "is not an exported submission: missing"),
-    ("syntax", "is not an exported submission config (line 1)"),
-    ("not-a-dict", "CONFIG must be a dict, got list"),
-    ("no-config", "has no CONFIG literal"),
-])
+@pytest.mark.parametrize(
+    "kind, expected",
+    [
+        ("missing", "is not an exported submission: missing"),
+        ("file", "is not an exported submission: missing"),
+        ("empty", "is not an exported submission: missing"),
+        ("syntax", "is not an exported submission config (line 1)"),
+        ("not-a-dict", "CONFIG must be a dict, got list"),
+        ("no-config", "has no CONFIG literal"),
+    ],
+)
 def test_check_refuses_what_is_not_a_submission(tmp_path, capsys, kind, expected):
     path = _folder(tmp_path, kind)
     assert main(["export", "--check", str(path)]) == 2

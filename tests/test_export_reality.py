@@ -19,8 +19,10 @@ V2 = os.environ.get("COMAT_RPS_V2")
 def folders(tmp_path_factory):
     """filter -> the scripted PCP policy's folder for U_test team 3 (4 robots), with that filter."""
     tmp = tmp_path_factory.mktemp("reality_export")
-    return {f: export_submission("heuristic", "pcp", parse_team("test:3", "pcp"), tmp / f"pcp_{f}", seed=1,
-                                 filter_name=f) for f in ("comat", "robotarium")}
+    return {
+        f: export_submission("heuristic", "pcp", parse_team("test:3", "pcp"), tmp / f"pcp_{f}", seed=1, filter_name=f)
+        for f in ("comat", "robotarium")
+    }
 
 
 @pytest.mark.parametrize("drive", ["rps", "unicycle"])
@@ -51,13 +53,23 @@ def test_check_reports_the_deployed_loop_next_to_comats(folders, capsys):
 
 def test_a_collision_is_named_and_fails_the_check(capsys):
     """What --check prints and returns when a run collided (a report as check_submission makes it)."""
-    report = {"rps": {"filter": "robotarium", "progress": 0.5,
-                      "reality": {"level": "stress", "drive": "rps", "runs": 3, "runs_with_collisions": 1,
-                                  "collision_pair_iterations": 12, "mujoco_contact_ticks": None,
-                                  "min_offset_centre_distance_m": 0.11,
-                                  "first_collision": {"run": 2, "robots": [1, 3], "iteration": 417,
-                                                      "distance_m": 0.12}}},
-              "mujoco": {"progress": 0.9}}
+    report = {
+        "rps": {
+            "filter": "robotarium",
+            "progress": 0.5,
+            "reality": {
+                "level": "stress",
+                "drive": "rps",
+                "runs": 3,
+                "runs_with_collisions": 1,
+                "collision_pair_iterations": 12,
+                "mujoco_contact_ticks": None,
+                "min_offset_centre_distance_m": 0.11,
+                "first_collision": {"run": 2, "robots": [1, 3], "iteration": 417, "distance_m": 0.12},
+            },
+        },
+        "mujoco": {"progress": 0.9},
+    }
     assert _print_reality(["subs/pcp_3"], [report], "unicycle") == 1
     out = capsys.readouterr().out
     assert "COLLISION in subs/pcp_3: run 2 (layer seed 2), robots 1 and 3 at iteration 417" in out
@@ -80,8 +92,24 @@ def test_main_py_runs_under_the_layer_with_v2(folders):
 
 
 def test_a_bad_filter_is_a_one_line_error(tmp_path, capsys):
-    assert main(["export", "--policy", "heuristic", "--task", "pcp", "--team", "test:3", "--out", str(tmp_path / "x"),
-                 "--filter", "osqp"]) == 2
+    assert (
+        main(
+            [
+                "export",
+                "--policy",
+                "heuristic",
+                "--task",
+                "pcp",
+                "--team",
+                "test:3",
+                "--out",
+                str(tmp_path / "x"),
+                "--filter",
+                "osqp",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--filter must be one of ['comat', 'robotarium'], got 'osqp'" in err[0]
     assert not (tmp_path / "x").exists()

@@ -23,8 +23,9 @@ def test_torchrl_rollout_across_team_changes_passes_the_spec_check():
     env = comat.make_env("pcp_v0", coalitions=teams, tier="unicycle", ticks_per_step=1)
     # done_on_any=False: the episode ends when every agent is done; the agents outside this episode's
     # team are done from its start (the spec sheet's "Team changes").
-    wrapped = PettingZooWrapper(env, use_mask=True, categorical_actions=True, return_state=True,
-                                done_on_any=False, seed=0)
+    wrapped = PettingZooWrapper(
+        env, use_mask=True, categorical_actions=True, return_state=True, done_on_any=False, seed=0
+    )
     check_env_specs(wrapped)
     td = wrapped.rollout(12 * 80, break_when_any_done=False)
     mask = td["robot", "mask"]  # (T, 8): this step's team
@@ -32,7 +33,7 @@ def test_torchrl_rollout_across_team_changes_passes_the_spec_check():
     assert (mask == (np.arange(8)[None, :] < sizes[:, None].numpy())).all()  # the first n robots
     ends = td["next", "done"][:, 0].nonzero()[:, 0].tolist()
     starts = [0, *[e + 1 for e in ends[:-1]]]
-    episodes = [sizes[s:e + 1] for s, e in zip(starts, ends)]
+    episodes = [sizes[s : e + 1] for s, e in zip(starts, ends)]
     assert len(episodes) >= 5
     assert all(len(ep) > 1 and (ep == ep[0]).all() for ep in episodes)  # one team per episode, no early done
     assert len({int(ep[0]) for ep in episodes}) >= 5 and {int(ep[0]) for ep in episodes} <= set(SIZES)

@@ -121,7 +121,9 @@ def test_filter_sub_problems(rng):
         f = SafetyFilter(sizes)
         out = []
         for _ in range(12):
-            poses = np.concatenate([np.stack([np.linspace(-1.2, 1.2, n), r.uniform(-0.7, 0.7, n), r.uniform(-3, 3, n)], 1) for n in sizes])
+            poses = np.concatenate(
+                [np.stack([np.linspace(-1.2, 1.2, n), r.uniform(-0.7, 0.7, n), r.uniform(-3, 3, n)], 1) for n in sizes]
+            )
             for b in r.choice(t.n_teams, 3, replace=False):  # in three teams, a pair facing each other
                 i = t.offsets[b]
                 poses[i, 2], poses[i + 1, 2] = 0.0, np.pi
@@ -150,11 +152,26 @@ def test_reality_draws_twin(rng):
 _REALITY_CASES = [
     RealityConfig(level="nominal"),
     RealityConfig(level="stress"),
-    RealityConfig(level="stress", pose_delay_ticks=0, pose_delay_spread_ticks=0, command_delay_ticks=0,
-                  command_delay_spread_ticks=0, motor_accel_limit_radps2=0.0, wheel_disturbance_radps=0.0),
-    RealityConfig(level="nominal", pose_noise_xy_m=0.0, pose_noise_theta_rad=0.0, command_loss_prob=0.0,
-                  pose_freeze_prob=0.2, pose_hold_prob=0.0, fault_prob=1.0, fault_start_min_s=0.0,
-                  fault_start_max_s=0.1),
+    RealityConfig(
+        level="stress",
+        pose_delay_ticks=0,
+        pose_delay_spread_ticks=0,
+        command_delay_ticks=0,
+        command_delay_spread_ticks=0,
+        motor_accel_limit_radps2=0.0,
+        wheel_disturbance_radps=0.0,
+    ),
+    RealityConfig(
+        level="nominal",
+        pose_noise_xy_m=0.0,
+        pose_noise_theta_rad=0.0,
+        command_loss_prob=0.0,
+        pose_freeze_prob=0.2,
+        pose_hold_prob=0.0,
+        fault_prob=1.0,
+        fault_start_min_s=0.0,
+        fault_start_max_s=0.1,
+    ),
 ]
 
 
@@ -163,12 +180,23 @@ def test_reality_paths_and_motors_twins(cfg, rng):
     """Many ticks of the pose path, command path and motors, state included, with and without kernels."""
     R = 200
     true = np.column_stack([rng.uniform(-1, 1, (R, 2)), rng.uniform(-np.pi, np.pi, R)])
-    episode = (rng.uniform(size=(R, cfg.pose_delay_spread_ticks)), rng.normal(size=(R, 2)),
-               rng.uniform(size=(R, cfg.command_delay_spread_ticks)), rng.uniform(size=(R, 5)), rng.normal(size=(R, 2)),
-               rng.integers(0, 20, R))
-    ticks = [(true + rng.normal(0, 0.02, (R, 3)) * t, rng.normal(size=(R, 5)), rng.uniform(size=(R, 5)),
-              np.column_stack([rng.normal(0, 0.15, R), rng.normal(0, 3, R)]) * (1e-3 if t % 7 == 0 else 1.0))
-             for t in range(1, 60)]
+    episode = (
+        rng.uniform(size=(R, cfg.pose_delay_spread_ticks)),
+        rng.normal(size=(R, 2)),
+        rng.uniform(size=(R, cfg.command_delay_spread_ticks)),
+        rng.uniform(size=(R, 5)),
+        rng.normal(size=(R, 2)),
+        rng.integers(0, 20, R),
+    )
+    ticks = [
+        (
+            true + rng.normal(0, 0.02, (R, 3)) * t,
+            rng.normal(size=(R, 5)),
+            rng.uniform(size=(R, 5)),
+            np.column_stack([rng.normal(0, 0.15, R), rng.normal(0, 3, R)]) * (1e-3 if t % 7 == 0 else 1.0),
+        )
+        for t in range(1, 60)
+    ]
     ticks[4][0][:4, 2] = [np.pi, -np.pi, 3 * np.pi, 0.0]  # heading wrap edge cases
 
     def run():
@@ -180,8 +208,9 @@ def test_reality_paths_and_motors_twins(cfg, rng):
         out, froze, lost = [], False, False
         for t, (p, normal, u, dxu) in enumerate(ticks, start=1):
             pose.update(p, np.full(R, t), normal[:, 2:5] if pose.noisy else None, u[:, 2:5])
-            executed = motors.update_unicycle(command.update(dxu, np.full(R, t - 1), u[:, 0:2]), np.full(R, t - 1),
-                                              normal[:, 0:2])
+            executed = motors.update_unicycle(
+                command.update(dxu, np.full(R, t - 1), u[:, 0:2]), np.full(R, t - 1), normal[:, 0:2]
+            )
             out += [executed] + [getattr(part, a).copy() for part in (pose, command, motors) for a in part.ROW_STATE]
             froze, lost = froze or pose.freeze_left.any(), lost or command.lost_run.any()
         # freezes and losses happened (their lengths are drawn in numpy after the kernels)
@@ -213,7 +242,15 @@ def test_checks_and_counters(rng):
         if tick == 10:
             for v in violations:
                 v.reset(np.array([1]))
-    for name in ("collision_pairs", "collision_ticks", "boundary_ticks", "actuator_ticks", "contact_ticks", "contact_onsets", "wall_ticks"):
+    for name in (
+        "collision_pairs",
+        "collision_ticks",
+        "boundary_ticks",
+        "actuator_ticks",
+        "contact_ticks",
+        "contact_onsets",
+        "wall_ticks",
+    ):
         _equal(getattr(violations[0], name), getattr(violations[1], name))
 
 
@@ -253,7 +290,9 @@ def test_batch_world_ticks_equal(tier, rng):
         out = []
         for sizes in ((3, 5, 3, 2), (2, 5, 4, 2)):
             world.set_team_sizes(sizes)
-            starts = np.concatenate([np.stack([np.linspace(-1.2, 1.2, n), r.uniform(-0.6, 0.6, n), r.uniform(-3, 3, n)], 1) for n in sizes])
+            starts = np.concatenate(
+                [np.stack([np.linspace(-1.2, 1.2, n), r.uniform(-0.6, 0.6, n), r.uniform(-3, 3, n)], 1) for n in sizes]
+            )
             world.reset(starts)
             for _ in range(15):
                 ev = world.step(r.uniform([-0.3, -5], [0.3, 5], (sum(sizes), 2)))

@@ -21,6 +21,7 @@ def test_linear_schedule_decays_with_the_run_and_resumes_exactly(tmp_path):
     train(tiny("comat", steps=12, ppo=ppo), straight, quiet=True)
     a = load_checkpoint(straight / "checkpoint.pt")
     assert a["trainer"]["optimizer"]["param_groups"][0]["lr"] == pytest.approx(1e-3 * (1 - 10 / 12))
+
     def stop_at_6(progress):
         if progress["checkpoint_env_steps"] == 6:
             raise _Stopped

@@ -37,8 +37,14 @@ def test_golden_scenes_load_and_match_counts(tier, n):
 @pytest.mark.parametrize("tier", ["wheels", "unicycle"])
 def test_every_element_is_named_and_prefixed(tier):
     model = scene_spec(3, tier).compile()
-    for kind, count in (("geom", model.ngeom), ("body", model.nbody), ("joint", model.njnt),
-                        ("actuator", model.nu), ("site", model.nsite), ("sensor", model.nsensor)):
+    for kind, count in (
+        ("geom", model.ngeom),
+        ("body", model.nbody),
+        ("joint", model.njnt),
+        ("actuator", model.nu),
+        ("site", model.nsite),
+        ("sensor", model.nsensor),
+    ):
         for i in range(count):
             name = getattr(model, kind)(i).name
             if kind == "body" and i == 0:
@@ -55,7 +61,9 @@ def test_collision_bits_allow_robot_robot_and_robot_wall_contacts_only(tier):
 
     def collide(a, b):
         ga, gb = model.geom(a).id, model.geom(b).id
-        return bool(model.geom_contype[ga] & model.geom_conaffinity[gb] or model.geom_contype[gb] & model.geom_conaffinity[ga])
+        return bool(
+            model.geom_contype[ga] & model.geom_conaffinity[gb] or model.geom_contype[gb] & model.geom_conaffinity[ga]
+        )
 
     assert collide("robot_0/chassis", "robot_1/chassis")
     assert collide("robot_0/chassis", "wall_east")

@@ -35,16 +35,20 @@ def fake_obs(B: int, N: int, layout: ObsLayout = LAYOUT, seed: int = 0, n_real=N
 
 def models():
     torch.manual_seed(0)
-    return {"comat": Comat(LAYOUT), "comat_paper": Comat(LAYOUT, ComatConfig(**PAPER_FORM)),
-            "mat": Mat(LAYOUT, MatConfig(max_robots=64)),
-            # the encoder options (HEAT root term, per-robot feed-forward sublayer)
-            "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True)),
-            # the audit's options: observation embedding with residual blocks, small messages,
-            # a shared decision trunk; HEAT's reference message form with world-frame edges
-            "comat_embed": Comat(LAYOUT, ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True,
-                                                     decision="shared_trunk")),
-            "comat_reference": Comat(LAYOUT, ComatConfig(obs_embed=True, heat_form="reference", edge_frame="world")),
-            "comat_adapters": Comat(LAYOUT, ComatConfig(decision="adapters"))}
+    return {
+        "comat": Comat(LAYOUT),
+        "comat_paper": Comat(LAYOUT, ComatConfig(**PAPER_FORM)),
+        "mat": Mat(LAYOUT, MatConfig(max_robots=64)),
+        # the encoder options (HEAT root term, per-robot feed-forward sublayer)
+        "comat_options": Comat(LAYOUT, ComatConfig(root_weight=True, node_ffn=True)),
+        # the audit's options: observation embedding with residual blocks, small messages,
+        # a shared decision trunk; HEAT's reference message form with world-frame edges
+        "comat_embed": Comat(
+            LAYOUT, ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True, decision="shared_trunk")
+        ),
+        "comat_reference": Comat(LAYOUT, ComatConfig(obs_embed=True, heat_form="reference", edge_frame="world")),
+        "comat_adapters": Comat(LAYOUT, ComatConfig(decision="adapters")),
+    }
 
 
 def decoding(path: str):
@@ -57,8 +61,9 @@ PATHS = ["loop", "compiled"]
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference",
-                                  "comat_adapters", "mat"])
+@pytest.mark.parametrize(
+    "name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference", "comat_adapters", "mat"]
+)
 @pytest.mark.parametrize("n", list(range(1, 17)))
 def test_autoregressive_logps_equal_teacher_forced(name, n, path):
     model = models()[name]
@@ -76,8 +81,9 @@ def test_autoregressive_logps_equal_teacher_forced(name, n, path):
 
 
 @pytest.mark.parametrize("path", PATHS)
-@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference",
-                                  "comat_adapters", "mat"])
+@pytest.mark.parametrize(
+    "name", ["comat", "comat_paper", "comat_options", "comat_embed", "comat_reference", "comat_adapters", "mat"]
+)
 @pytest.mark.parametrize("n", [1, 3, 8, 16])
 def test_cached_decoding_equals_uncached(name, n, path):
     model = models()[name]
@@ -85,7 +91,9 @@ def test_cached_decoding_equals_uncached(name, n, path):
     for deterministic in (True, False):
         with decoding(path):
             a1, l1, v1 = model.act(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
-        a2, l2, v2 = model.act_uncached(obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3))
+        a2, l2, v2 = model.act_uncached(
+            obs, mask, deterministic=deterministic, generator=torch.Generator().manual_seed(3)
+        )
         assert torch.equal(a1, a2)
         torch.testing.assert_close(l1, l2, atol=1e-5, rtol=0)
         torch.testing.assert_close(v1, v2, atol=0 if path == "loop" else 1e-5, rtol=0)
@@ -125,13 +133,28 @@ def test_padding_slots_change_nothing(name):
 
 
 @pytest.mark.parametrize("task", [PredatorCapturePrey(), MaterialTransport()], ids=["pcp", "hmt"])
-@pytest.mark.parametrize("config", [
-    ComatConfig(), ComatConfig(**PAPER_FORM),
-    ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, **{**PAPER_FORM, "root_weight": True}),
-    ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True, decision="shared_trunk"),
-    ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, obs_embed=True, heat_form="reference",
-                edge_frame="world", node_ffn=True, root_weight=True),
-    ComatConfig(heat_form="reference", edge_frame="world")], ids=["default", "paper", "paper_other", "embed", "reference", "raw_reference"])
+@pytest.mark.parametrize(
+    "config",
+    [
+        ComatConfig(),
+        ComatConfig(**PAPER_FORM),
+        ComatConfig(embed=32, heads=2, heat_blocks=3, edge_embed=16, **{**PAPER_FORM, "root_weight": True}),
+        ComatConfig(obs_embed=True, message_gain=0.01, node_ffn=True, decision="shared_trunk"),
+        ComatConfig(
+            embed=32,
+            heads=2,
+            heat_blocks=3,
+            edge_embed=16,
+            obs_embed=True,
+            heat_form="reference",
+            edge_frame="world",
+            node_ffn=True,
+            root_weight=True,
+        ),
+        ComatConfig(heat_form="reference", edge_frame="world"),
+    ],
+    ids=["default", "paper", "paper_other", "embed", "reference", "raw_reference"],
+)
 def test_compiled_encoder_equals_torch(task, config):
     """COMAT's compiled HEAT encoder and critic (used by ``act``) against ``encode``: teams of
     every size 1–7 padded to 7, weights moved off their initialisation."""
@@ -149,20 +172,24 @@ def test_compiled_encoder_equals_torch(task, config):
     torch.testing.assert_close(values_c[mask], values[mask], atol=2e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("name", ["comat", "comat_paper", "comat_heads", "comat_shared", "comat_adapters", "mat",
-                                  "mat_deep"])
+@pytest.mark.parametrize(
+    "name", ["comat", "comat_paper", "comat_heads", "comat_shared", "comat_adapters", "mat", "mat_deep"]
+)
 @pytest.mark.parametrize("batch", [1, 7, 64])
 def test_compiled_decoding_equals_the_torch_loop(name, batch):
     """Same actions and logits (to float32 rounding) as the step-by-step torch reference, for
     greedy and sampled decoding, teams of mixed sizes with padding, other head/block counts."""
     torch.manual_seed(1)
     layout = ObsLayout.for_task(MaterialTransport())  # three robot types
-    model = {"comat": lambda: Comat(layout), "comat_heads": lambda: Comat(layout, ComatConfig(embed=48, heads=3)),
-             "comat_shared": lambda: Comat(layout, ComatConfig(decision="shared_trunk")),
-             "comat_adapters": lambda: Comat(layout, ComatConfig(decision="adapters")),
-             "comat_paper": lambda: Comat(layout, ComatConfig(**PAPER_FORM)),
-             "mat": lambda: Mat(layout, MatConfig(max_robots=64)),
-             "mat_deep": lambda: Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64))}[name]()
+    model = {
+        "comat": lambda: Comat(layout),
+        "comat_heads": lambda: Comat(layout, ComatConfig(embed=48, heads=3)),
+        "comat_shared": lambda: Comat(layout, ComatConfig(decision="shared_trunk")),
+        "comat_adapters": lambda: Comat(layout, ComatConfig(decision="adapters")),
+        "comat_paper": lambda: Comat(layout, ComatConfig(**PAPER_FORM)),
+        "mat": lambda: Mat(layout, MatConfig(max_robots=64)),
+        "mat_deep": lambda: Mat(layout, MatConfig(embed=32, heads=2, blocks=2, max_robots=64)),
+    }[name]()
     for p in model.parameters():  # away from the near-zero initial heads: logits of order 1
         p.data.add_(0.3 * torch.randn_like(p))
     n_real = torch.randint(1, 10, (batch,), generator=torch.Generator().manual_seed(batch))
@@ -193,7 +220,9 @@ def test_padded_robots_get_zero_gradient(name):
     grads = {k: p.grad.clone() for k, p in model.named_parameters() if p.grad is not None}
     obs_p, mask_p = _with_padding(obs.detach(), mask, 2)
     model.zero_grad()
-    lp, en, va = model.evaluate_actions(obs_p, mask_p, torch.cat([actions, torch.zeros(4, 2, dtype=torch.long)], 1), state)
+    lp, en, va = model.evaluate_actions(
+        obs_p, mask_p, torch.cat([actions, torch.zeros(4, 2, dtype=torch.long)], 1), state
+    )
     (lp.sum() + en.sum() + va.sum()).backward()
     for k, p in model.named_parameters():
         if k in grads:
@@ -224,7 +253,9 @@ def test_comat_uses_capabilities_and_types():
     for p in model.heads.parameters():  # the default init makes the heads near-zero
         torch.nn.init.normal_(p, std=0.5)
     obs, mask = fake_obs(1, 4, seed=3)
-    logp_all = lambda o: torch.log_softmax(model.decode_all(model.encode(o, mask)[0], model._start(1, None).repeat(1, 4, 1), o, mask), -1)
+    logp_all = lambda o: torch.log_softmax(
+        model.decode_all(model.encode(o, mask)[0], model._start(1, None).repeat(1, 4, 1), o, mask), -1
+    )
     base = logp_all(obs)
     changed = obs.clone()
     changed[0, 2, 4 + LAYOUT.n_types] += 0.5  # robot 2's first capability
@@ -307,15 +338,18 @@ def test_default_comat_keeps_each_robots_own_observation(task):
     assert max(ratio(ComatConfig(**PAPER_FORM))) < 20
 
 
-@pytest.mark.parametrize("override, message", [
-    ("models.comat.heads=0", "models.comat.heads must be an integer >= 1, got 0"),
-    ("models.comat.embed=0", "models.comat.embed must be an integer >= 1, got 0"),
-    ("models.comat.heads=-2", "models.comat.heads must be an integer >= 1, got -2"),
-    ("models.comat.heat_blocks=0", "models.comat.heat_blocks must be an integer >= 1, got 0"),
-    ("models.mat.embed=6", "models.mat.embed must be divisible by models.mat.heads"),
-    ("models.mappo.hidden=0", "models.mappo.hidden must be an integer >= 1, got 0"),
-    ("models.qmix.mixing_embed=0", "models.qmix.mixing_embed must be an integer >= 1, got 0"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("models.comat.heads=0", "models.comat.heads must be an integer >= 1, got 0"),
+        ("models.comat.embed=0", "models.comat.embed must be an integer >= 1, got 0"),
+        ("models.comat.heads=-2", "models.comat.heads must be an integer >= 1, got -2"),
+        ("models.comat.heat_blocks=0", "models.comat.heat_blocks must be an integer >= 1, got 0"),
+        ("models.mat.embed=6", "models.mat.embed must be divisible by models.mat.heads"),
+        ("models.mappo.hidden=0", "models.mappo.hidden must be an integer >= 1, got 0"),
+        ("models.qmix.mixing_embed=0", "models.qmix.mixing_embed must be an integer >= 1, got 0"),
+    ],
+)
 def test_model_sizes_out_of_range_get_one_line_errors_and_leave_nothing(tmp_path, capsys, override, message):
     from comat.cli import main
 
@@ -328,10 +362,13 @@ def test_model_sizes_out_of_range_get_one_line_errors_and_leave_nothing(tmp_path
     assert not out.exists()
 
 
-@pytest.mark.parametrize("override, message", [
-    ("ppo.lr=abc", "ppo.lr must be float, got 'abc'"),
-    ("ppo.clip=-1", "ppo.clip must be"),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("ppo.lr=abc", "ppo.lr must be float, got 'abc'"),
+        ("ppo.clip=-1", "ppo.clip must be"),
+    ],
+)
 def test_trainer_errors_name_the_key_as_overrides_spell_it(tmp_path, capsys, override, message):
     """``ppo.lr=abc`` was reported as ``trainer.lr`` (issue 32 item 9)."""
     from comat.cli import main

@@ -15,8 +15,11 @@ TEAM = """robots:
 
 def _files(root: Path) -> dict[str, tuple[int, int]]:
     """Every file under ``root`` but bytecode caches, with its size and modification time."""
-    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in root.rglob("*")
-            if p.is_file() and "__pycache__" not in p.parts}
+    return {
+        str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns)
+        for p in root.rglob("*")
+        if p.is_file() and "__pycache__" not in p.parts
+    }
 
 
 def test_commands_on_shipped_policies_never_write_into_the_package(tmp_path, monkeypatch, capsys):
@@ -24,8 +27,7 @@ def test_commands_on_shipped_policies_never_write_into_the_package(tmp_path, mon
     (tmp_path / "team.yaml").write_text(TEAM)
     before = _files(PACKAGE)
     for name in ("comat-pcp", "mat-pcp"):
-        argv = ["eval", "--policy", f"pretrained:{name}", "--teams", "team.yaml", "--episodes", "1",
-                "--no-references"]
+        argv = ["eval", "--policy", f"pretrained:{name}", "--teams", "team.yaml", "--episodes", "1", "--no-references"]
         assert main(argv) == 0, capsys.readouterr().err
         assert (tmp_path / "runs" / f"pretrained-{name}" / "evaluation_unicycle.json").is_file()
     assert main(["policy", "pretrained:comat-pcp"]) == 0

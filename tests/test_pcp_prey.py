@@ -12,8 +12,19 @@ from comat.measure.metrics import RETIRED_NAMES
 from comat.task_logic import PCP
 from comat.team import generate_coalitions, random_team
 
-OLD_METRICS = ("return", "steps", "completion", "success", "collisions", "robotarium_collisions", "boundary_exits",
-               "actuator_errors", "interventions", "fallbacks", "recoveries")
+OLD_METRICS = (
+    "return",
+    "steps",
+    "completion",
+    "success",
+    "collisions",
+    "robotarium_collisions",
+    "boundary_exits",
+    "actuator_errors",
+    "interventions",
+    "fallbacks",
+    "recoveries",
+)
 """The episode metrics when the digests below were recorded, by their names then (later metrics are
 not hashed; issue 32 renamed completion/success to progress/finished: :data:`RETIRED_NAMES`)."""
 
@@ -22,8 +33,17 @@ def _vector_digest(split, max_robots=None, state_robots=8, steps=150, n_prey=Non
     """Digest of a PCP vector env's observations, states, rewards, reward terms, flags, masks and
     finished episodes' metrics, final observations and states: 4 envs, seed 0, 10-tick steps,
     actions mixing the scripted policy with random ones (every prey event and a few episode ends)."""
-    env = comat.make_vec_env("pcp_v0", 4, seed=0, tier="unicycle", ticks_per_step=10, coalitions=split,
-                             max_robots=max_robots, state_robots=state_robots, n_prey=n_prey)
+    env = comat.make_vec_env(
+        "pcp_v0",
+        4,
+        seed=0,
+        tier="unicycle",
+        ticks_per_step=10,
+        coalitions=split,
+        max_robots=max_robots,
+        state_robots=state_robots,
+        n_prey=n_prey,
+    )
     rng = np.random.default_rng(7)
     h = hashlib.sha256()
     obs, info = env.reset()
@@ -94,8 +114,10 @@ def test_the_rule():
 
 
 def _two_teams(big=20):
-    small, large = random_team(np.random.default_rng(1), "pcp", "train", 3), random_team(
-        np.random.default_rng(2), "pcp", "train", big)
+    small, large = (
+        random_team(np.random.default_rng(1), "pcp", "train", 3),
+        random_team(np.random.default_rng(2), "pcp", "train", big),
+    )
     task = PCP()
     task.fit_teams(big)
     state = task.new_state(2, big)
@@ -123,7 +145,7 @@ def test_padded_prey_are_parked_sensed_and_captured_and_count_nowhere():
     # Robots on every slot: the parked ones give no reward, the team's own prey do.
     N = 20
     type_ids = np.zeros((2, N), np.int64)
-    type_ids[:, N // 2:] = 1
+    type_ids[:, N // 2 :] = 1
     caps = np.where(type_ids[..., None] == 0, [0.01, 0.0], [0.0, 0.01])  # radii: each robot reaches its own prey
     poses = np.zeros((2, N, 3))
     poses[0, :, :2] = task.parked  # env 0: every robot on the parked slots

@@ -14,12 +14,12 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 
 def test_the_readme_example_runs_as_written(capsys):
     text = README.read_text()
-    block = text[text.index("<!-- python-api:start"): text.index("<!-- python-api:end -->")]
+    block = text[text.index("<!-- python-api:start") : text.index("<!-- python-api:end -->")]
     (code,) = re.findall(r"```python\n(.*?)```", block, flags=re.DOTALL)
     scope: dict = {}
     exec(compile(code, "README python-api", "exec"), scope)  # noqa: S102 -- the README example, as written
     steps = scope["infos"]["robot_0"]["episode/steps"]
-    assert scope["env"].agents == [] and 0 < steps < 80                  # the shipped policy finished it
+    assert scope["env"].agents == [] and 0 < steps < 80  # the shipped policy finished it
     assert scope["actions"].shape == scope["info"]["agent_mask"].shape
     assert "Policy(comat on pcp, any team size, deterministic" in capsys.readouterr().out
 
@@ -53,15 +53,18 @@ def test_a_baseline_pads_to_its_slots_and_refuses_larger_teams():
         policy.act(np.zeros((1, 21, 13)))
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda: comat.load_policy("pretrained:nope"), "path_or_name must be one of ['pretrained:comat-pcp'"),
-    (lambda: comat.load_policy("no/such/file.pt"), "got 'no/such/file.pt' (no such file)"),
-    (lambda: comat.load_policy("pretrained:comat-pcp", task="hmt"), "hmt"),
-    (lambda: comat.load_policy("pretrained:comat-pcp")(np.zeros(3)), "observations must be a non-empty dict"),
-    (lambda: comat.load_policy("pretrained:comat-pcp")({"a": np.zeros(13)}), "robot_<i>, got 'a'"),
-    (lambda: comat.load_policy("pretrained:comat-pcp").act(np.zeros((1, 3, 15))), "obs must be (B, N, 13)"),
-    (lambda: comat.load_policy("pretrained:mat-pcp", deterministic="yes"), "deterministic must be True or False"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: comat.load_policy("pretrained:nope"), "path_or_name must be one of ['pretrained:comat-pcp'"),
+        (lambda: comat.load_policy("no/such/file.pt"), "got 'no/such/file.pt' (no such file)"),
+        (lambda: comat.load_policy("pretrained:comat-pcp", task="hmt"), "hmt"),
+        (lambda: comat.load_policy("pretrained:comat-pcp")(np.zeros(3)), "observations must be a non-empty dict"),
+        (lambda: comat.load_policy("pretrained:comat-pcp")({"a": np.zeros(13)}), "robot_<i>, got 'a'"),
+        (lambda: comat.load_policy("pretrained:comat-pcp").act(np.zeros((1, 3, 15))), "obs must be (B, N, 13)"),
+        (lambda: comat.load_policy("pretrained:mat-pcp", deterministic="yes"), "deterministic must be True or False"),
+    ],
+)
 def test_bad_inputs_name_what_was_expected(call, message):
     with pytest.raises((ValueError, TypeError), match=re.escape(message)):
         call()

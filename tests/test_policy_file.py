@@ -29,9 +29,19 @@ sys.path.insert(0, str(Path(__file__).parent))
 from test_rl import tiny
 
 README = Path(__file__).resolve().parents[1] / "docs" / "policies.md"  # the table moved from the README
-TINY_CLI = ["--steps", "20", "ppo.num_envs=2", "ppo.rollout_steps=8", "ppo.epochs=1", "ppo.minibatches=1",
-            "eval_episodes_per_team=0", "models.comat.embed=16", "models.comat.heads=2", "models.comat.heat_blocks=1",
-            "models.comat.edge_embed=8"]
+TINY_CLI = [
+    "--steps",
+    "20",
+    "ppo.num_envs=2",
+    "ppo.rollout_steps=8",
+    "ppo.epochs=1",
+    "ppo.minibatches=1",
+    "eval_episodes_per_team=0",
+    "models.comat.embed=16",
+    "models.comat.heads=2",
+    "models.comat.heat_blocks=1",
+    "models.comat.edge_embed=8",
+]
 
 
 @pytest.fixture(scope="module")
@@ -88,8 +98,21 @@ def test_the_policy_file_keeps_only_the_acting_weights_and_acts_exactly_as_the_c
 def test_eval_from_a_folder_holding_only_policy_and_config(comat_run, tmp_path, capsys):
     """The committed form of a run (policy.pt + config.yaml, its checkpoint.pt deleted) evaluates
     with one command, to the same numbers as its checkpoint; probe and resume refuse it."""
-    assert main(["eval", "--policy", str(comat_run), "--teams", "test", "--no-references", "--out",
-                 str(tmp_path / "from_ckpt")]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--policy",
+                str(comat_run),
+                "--teams",
+                "test",
+                "--no-references",
+                "--out",
+                str(tmp_path / "from_ckpt"),
+            ]
+        )
+        == 0
+    )
     kept = tmp_path / "kept"
     shutil.copytree(comat_run, kept)
     for extra in kept.iterdir():
@@ -97,8 +120,21 @@ def test_eval_from_a_folder_holding_only_policy_and_config(comat_run, tmp_path, 
             shutil.rmtree(extra) if extra.is_dir() else extra.unlink()
     assert sorted(p.name for p in kept.iterdir()) == ["config.yaml", POLICY_FILE]
     capsys.readouterr()
-    assert main(["eval", "--policy", str(kept), "--teams", "test", "--no-references", "--out",
-                 str(tmp_path / "from_policy")]) == 0
+    assert (
+        main(
+            [
+                "eval",
+                "--policy",
+                str(kept),
+                "--teams",
+                "test",
+                "--no-references",
+                "--out",
+                str(tmp_path / "from_policy"),
+            ]
+        )
+        == 0
+    )
     assert "comat eval: " + str(kept / POLICY_FILE) in capsys.readouterr().err
     from comat.measure.metrics import read_results
 
@@ -111,8 +147,10 @@ def test_eval_from_a_folder_holding_only_policy_and_config(comat_run, tmp_path, 
         (["probe", "--policy", str(kept)], "holds a policy.pt but no checkpoint.pt: comat probe reads"),
         (["probe", "--policy", str(kept / POLICY_FILE)], "is a policy file (the weights to act only): comat probe"),
         (["train", "--resume", "--out", str(kept), "--quiet"], "holds a finished run's policy.pt but no checkpoint.pt"),
-        (["train", "--algo", "comat", "--task", "pcp", "--out", str(kept), *TINY_CLI],
-         "holds a finished run's policy.pt but no checkpoint.pt: it is not trained into again"),
+        (
+            ["train", "--algo", "comat", "--task", "pcp", "--out", str(kept), *TINY_CLI],
+            "holds a finished run's policy.pt but no checkpoint.pt: it is not trained into again",
+        ),
     ):
         assert main(argv) == 2, argv
         err = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
@@ -130,8 +168,9 @@ def test_export_from_a_policy_file_ships_the_checkpoints_weights(comat_run, tmp_
     for name in ("weights.npy", "submission_config.py", "main.py"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
     with pytest.raises(ValueError, match="for task 'pcp', expected 'hmt'"):
-        export_submission(comat_run / POLICY_FILE, "hmt", random_team(np.random.default_rng(2), "hmt", "test", 3),
-                          tmp_path / "c")
+        export_submission(
+            comat_run / POLICY_FILE, "hmt", random_team(np.random.default_rng(2), "hmt", "test", 3), tmp_path / "c"
+        )
 
 
 def test_train_prints_its_policy_file_and_comat_policy_makes_one_from_a_checkpoint(tmp_path, capsys):
@@ -139,8 +178,10 @@ def test_train_prints_its_policy_file_and_comat_policy_makes_one_from_a_checkpoi
     assert main(["train", "--algo", "mappo", "--task", "pcp", "--out", str(run), "--quiet", *TINY_CLI]) == 0
     out = capsys.readouterr().out
     size = (run / POLICY_FILE).stat().st_size
-    assert f"{run / POLICY_FILE} ({max(size / 1000, 1):.0f} KB): weights and config to act; evaluate with comat eval " \
-           f"--policy {run / POLICY_FILE}" in out
+    assert (
+        f"{run / POLICY_FILE} ({max(size / 1000, 1):.0f} KB): weights and config to act; evaluate with comat eval "
+        f"--policy {run / POLICY_FILE}" in out
+    )
     made = load_policy_file(run / POLICY_FILE)
 
     # a run from before policy files: `comat policy RUN` makes it from the checkpoint, the same weights
@@ -195,8 +236,10 @@ def test_bad_policy_files_are_refused_naming_the_file_and_the_fault(comat_run, t
         ({"dims": {"obs_dim": 3}}, "dims lack"),
         ({"weights": {"policy": {"w": "not a tensor"}}}, r"weights\['policy'\] must map parameter names to tensors"),
         ({"weights": {"agents": data["weights"]["policy"]}}, "has no weights for the comat 'policy' module"),
-        ({"config": {**data["config"], "model": {**data["config"]["model"], "embed": 32}}},
-         "the 'policy' weights do not fit the comat model its config builds"),
+        (
+            {"config": {**data["config"], "model": {**data["config"]["model"], "embed": 32}}},
+            "the 'policy' weights do not fit the comat model its config builds",
+        ),
     ):
         torch.save({**data, **change}, bad)
         with pytest.raises(CheckpointError, match=expected):
@@ -208,11 +251,12 @@ def test_bad_policy_files_are_refused_naming_the_file_and_the_fault(comat_run, t
 def _readme_table() -> dict[tuple[str, str], tuple[int, int, int]]:
     """(algo, task) -> (KB, parameters kept, learner's parameters) from the docs' table."""
     text = README.read_text()
-    section = text[text.index("## What one policy weighs"):]
+    section = text[text.index("## What one policy weighs") :]
     rows = {}
     cell = r" (\d+) KB \| ([\d,]+) \(([\d,]+)\) \|"  # size | kept (learner's)
     for algo, kb_pcp, p_pcp, l_pcp, kb_hmt, p_hmt, l_hmt in re.findall(
-            r"^\| (COMAT|MAT|MAPPO|QMIX) \| [^|]+ \|" + cell + cell, section, flags=re.MULTILINE):
+        r"^\| (COMAT|MAT|MAPPO|QMIX) \| [^|]+ \|" + cell + cell, section, flags=re.MULTILINE
+    ):
         n = [int(x.replace(",", "")) for x in (kb_pcp, p_pcp, l_pcp, kb_hmt, p_hmt, l_hmt)]
         rows[algo.lower(), "pcp"], rows[algo.lower(), "hmt"] = tuple(n[:3]), tuple(n[3:])
     return rows
@@ -243,8 +287,9 @@ def test_a_finished_sweep_keeps_a_policy_file_in_every_run_folder(comat_run, tmp
     assert main(["eval", "--policy", str(run), "--teams", "train", "--no-references", "--out", str(run)]) == 0
     expected = load_policy_file(run / POLICY_FILE)
     (run / POLICY_FILE).unlink()
-    record, _ = prepare_sweep(root, {"algos": ["comat"], "tasks": ["pcp"], "seeds": [3], "preset": "quick",
-                                     "eval_sets": ["train"]})
+    record, _ = prepare_sweep(
+        root, {"algos": ["comat"], "tasks": ["pcp"], "seeds": [3], "preset": "quick", "eval_sets": ["train"]}
+    )
     (root / RECORD).write_text(json.dumps(record))
     rows = run_sweep(record, progress=lambda m: None)
     assert [r["state"] for r in rows] == ["done"] and "error" not in rows[0]

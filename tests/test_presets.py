@@ -12,8 +12,10 @@ def test_a_preset_may_set_a_task_of_its_own_and_an_override_beats_it(tmp_path):
     forced = apply_overrides(quick, ["total_env_steps=640"])
     assert {resolve(forced, "mat", t).total_env_steps for t in ("hmt", "pcp")} == {640}
     bad = tmp_path / "bad.yaml"
-    for text, message in (("by_task: {xyz: {total_env_steps: 5}}\n", "by_task in preset"),
-                          ("by_task: {hmt: {seeds: [1]}}\n", "by_task.hmt in preset")):
+    for text, message in (
+        ("by_task: {xyz: {total_env_steps: 5}}\n", "by_task in preset"),
+        ("by_task: {hmt: {seeds: [1]}}\n", "by_task.hmt in preset"),
+    ):
         bad.write_text(text)
         with pytest.raises(ValueError, match=message):
             load_preset(bad)

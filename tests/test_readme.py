@@ -13,24 +13,39 @@ from comat.cli import main
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 # Appended after the README's own overrides: 2 updates of one minibatch, small models.
-TINY = ["ppo.num_envs=2", "ppo.rollout_steps=8", "ppo.epochs=1", "ppo.minibatches=1", "eval_episodes_per_team=0",
-        "models.comat.embed=16", "models.comat.heads=2", "models.comat.heat_blocks=1", "models.comat.edge_embed=8",
-        "models.mat.embed=16", "models.mat.heads=1", "models.mat.blocks=1"]
+TINY = [
+    "ppo.num_envs=2",
+    "ppo.rollout_steps=8",
+    "ppo.epochs=1",
+    "ppo.minibatches=1",
+    "eval_episodes_per_team=0",
+    "models.comat.embed=16",
+    "models.comat.heads=2",
+    "models.comat.heat_blocks=1",
+    "models.comat.edge_embed=8",
+    "models.mat.embed=16",
+    "models.mat.heads=1",
+    "models.mat.blocks=1",
+]
 
 
 def _section() -> str:
     """The README's "Common tasks": between the snippet markers docs/getting-started.md splices in."""
     text = README.read_text()
     start, end = "<!-- --8<-- [start:common-tasks] -->", "<!-- --8<-- [end:common-tasks] -->"
-    return text[text.index(start): text.index(end)]
+    return text[text.index(start) : text.index(end)]
 
 
 def test_five_minutes_with_a_shipped_policy_run_as_written(tmp_path, monkeypatch):
     """The README's first section after the front page: a shipped policy measured and watched."""
     text = README.read_text()
-    section = text[text.index("<!-- --8<-- [start:quickstart] -->"): text.index("<!-- --8<-- [end:quickstart] -->")]
-    commands = [line.split("  #")[0] for block in re.findall(r"```bash\n(.*?)```", section, flags=re.DOTALL)
-                for line in block.splitlines() if line.startswith("comat ")]
+    section = text[text.index("<!-- --8<-- [start:quickstart] -->") : text.index("<!-- --8<-- [end:quickstart] -->")]
+    commands = [
+        line.split("  #")[0]
+        for block in re.findall(r"```bash\n(.*?)```", section, flags=re.DOTALL)
+        for line in block.splitlines()
+        if line.startswith("comat ")
+    ]
     assert [c.split()[1] for c in commands] == ["eval", "rollout"]
     monkeypatch.chdir(tmp_path)
     for command in commands:
@@ -42,8 +57,12 @@ def test_five_minutes_with_a_shipped_policy_run_as_written(tmp_path, monkeypatch
 def test_common_tasks_run_as_written(tmp_path, monkeypatch, capsys):
     section = _section()
     files = re.findall(r"```yaml\n# (\S+)\n(.*?)```", section, flags=re.DOTALL)
-    commands = [line for block in re.findall(r"```bash\n(.*?)```", section, flags=re.DOTALL)
-                for line in block.splitlines() if line.startswith("comat ")]
+    commands = [
+        line
+        for block in re.findall(r"```bash\n(.*?)```", section, flags=re.DOTALL)
+        for line in block.splitlines()
+        if line.startswith("comat ")
+    ]
     kinds = {c.split()[1] for c in commands}
     assert kinds == {"train", "eval", "report", "rollout"} and len(commands) >= 8
     monkeypatch.chdir(tmp_path)
@@ -60,8 +79,10 @@ def test_common_tasks_run_as_written(tmp_path, monkeypatch, capsys):
         print(f"{time.perf_counter() - t0:.1f} s: {command}", file=sys.__stderr__)
         notes.append(capsys.readouterr())
     # PPO trains whole rollouts: 20 steps of 2 envs x 8 run as 32, and it says so
-    assert "note: PPO trains in whole rollouts of 16 env steps (2 environments × 8 steps): 20 env steps run as 32" \
+    assert (
+        "note: PPO trains in whole rollouts of 16 env steps (2 environments × 8 steps): 20 env steps run as 32"
         in notes[0].err
+    )
     # the overrides went into the run's config, as given and as resolved
     lr = yaml.safe_load(Path("runs/lr/config.yaml").read_text())
     assert lr["config"]["trainer"]["lr"] == 1e-4 and lr["config"]["trainer"]["clip"] == 0.1

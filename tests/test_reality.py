@@ -147,16 +147,19 @@ def test_levels_carry_their_sources_and_overrides():
     assert RealityConfig(level="stress").command_brake_after_ticks == 15
 
 
-@pytest.mark.parametrize("value,match", [
-    ({"pose_delay_ticks": -1}, r"RealityConfig.pose_delay_ticks must be an integer >= 0.*got -1"),
-    ({"pose_noise_xy_m": -0.1}, r"RealityConfig.pose_noise_xy_m must be a number >= 0, got -0.1"),
-    ({"command_loss_prob": 1.5}, r"RealityConfig.command_loss_prob must be a probability in \[0, 1\], got 1.5"),
-    ({"pose_hold_prob": -0.01}, r"pose_hold_prob must be a probability in \[0, 1\]"),
-    ({"motor_tau_min_s": 0.1, "motor_tau_max_s": 0.05}, r"motor_tau_max_s must be a number >= motor_tau_min_s"),
-    ({"bogus_delay": 1}, r"unknown key\(s\) \['bogus_delay'\] for reality; valid keys: \[.*'pose_delay_ticks'"),
-    ({"level": "harsh"}, r"RealityConfig.level must be one of \['off', 'nominal', 'stress'\], got 'harsh'"),
-    ("harsh", r"reality must be one of \['off', 'nominal', 'stress'\].*got 'harsh'"),
-])
+@pytest.mark.parametrize(
+    "value,match",
+    [
+        ({"pose_delay_ticks": -1}, r"RealityConfig.pose_delay_ticks must be an integer >= 0.*got -1"),
+        ({"pose_noise_xy_m": -0.1}, r"RealityConfig.pose_noise_xy_m must be a number >= 0, got -0.1"),
+        ({"command_loss_prob": 1.5}, r"RealityConfig.command_loss_prob must be a probability in \[0, 1\], got 1.5"),
+        ({"pose_hold_prob": -0.01}, r"pose_hold_prob must be a probability in \[0, 1\]"),
+        ({"motor_tau_min_s": 0.1, "motor_tau_max_s": 0.05}, r"motor_tau_max_s must be a number >= motor_tau_min_s"),
+        ({"bogus_delay": 1}, r"unknown key\(s\) \['bogus_delay'\] for reality; valid keys: \[.*'pose_delay_ticks'"),
+        ({"level": "harsh"}, r"RealityConfig.level must be one of \['off', 'nominal', 'stress'\], got 'harsh'"),
+        ("harsh", r"reality must be one of \['off', 'nominal', 'stress'\].*got 'harsh'"),
+    ],
+)
 def test_bad_values_get_one_line_errors(value, match):
     with pytest.raises(ValueError, match=match):
         resolve_reality(value)
@@ -201,8 +204,9 @@ def test_pose_delay_shifts_a_step_by_k_ticks(k):
 
 
 def test_pose_delay_spread_draws_per_robot_from_the_binomial():
-    layer = RealityLayer(RealityConfig(pose_delay_spread_ticks=2, pose_per_robot=True), PROFILE, team_layout((400,)),
-                         seed=2)
+    layer = RealityLayer(
+        RealityConfig(pose_delay_spread_ticks=2, pose_per_robot=True), PROFILE, team_layout((400,)), seed=2
+    )
     layer.start(np.zeros((400, 3)), np.array([0]), None)
     counts = np.bincount(layer.pose.delay, minlength=3) / 400
     assert np.allclose(counts, [0.25, 0.5, 0.25], atol=0.07)
@@ -297,8 +301,12 @@ def test_a_frozen_pose_repeats_exactly_while_the_robot_moves():
 
 def test_pose_noise_and_bias_have_the_configured_sd():
     n = 2000
-    layer = RealityLayer(RealityConfig(pose_noise_xy_m=0.004, pose_noise_theta_rad=0.02, pose_bias_xy_m=0.003),
-                         PROFILE, team_layout((n,)), seed=4)
+    layer = RealityLayer(
+        RealityConfig(pose_noise_xy_m=0.004, pose_noise_theta_rad=0.02, pose_bias_xy_m=0.003),
+        PROFILE,
+        team_layout((n,)),
+        seed=4,
+    )
     true = np.zeros((n, 3))
     layer.start(true, np.array([0]), None)
     layer.begin_measuring(true, np.array([0]))
@@ -373,8 +381,12 @@ def test_motor_lag_is_a_first_order_rise_and_the_slew_is_limited():
 def test_gain_mismatch_curves_an_open_loop_straight_line():
     """A constant straight command through mismatched wheels turns the real (MuJoCo) robot."""
     for spread, turns in ((0.0, False), (0.07, True)):
-        teams = SafeTeams([1], SimConfig(tier="unicycle"), reality=RealityConfig(wheel_gain_spread=spread,
-                          pose_noise_xy_m=1e-9), batched=False)
+        teams = SafeTeams(
+            [1],
+            SimConfig(tier="unicycle"),
+            reality=RealityConfig(wheel_gain_spread=spread, pose_noise_xy_m=1e-9),
+            batched=False,
+        )
         teams.reset(np.array([[-1.0, 0.0, 0.0]]))
         layer = teams.reality
         g = layer.motors.gain[0]
@@ -468,7 +480,12 @@ def test_teams_that_keep_their_size_keep_their_layer_state_across_a_relayout():
     for _ in range(5):
         teams.tick(np.full((7, 2), [0.05, 0.0]))
     layer = teams.reality
-    before = (layer.keys[:3].copy(), layer.ticks[:3].copy(), layer.pose.measured[:3].copy(), layer.motors.speed[:3].copy())
+    before = (
+        layer.keys[:3].copy(),
+        layer.ticks[:3].copy(),
+        layer.pose.measured[:3].copy(),
+        layer.motors.speed[:3].copy(),
+    )
     teams.set_team_sizes([3, 5])
     new = np.concatenate([teams.poses[:3], np.column_stack([np.linspace(-1.2, 1.2, 5), np.full(5, 0.5), np.zeros(5)])])
     teams.reset(new, teams=[1])
@@ -479,8 +496,9 @@ def test_teams_that_keep_their_size_keep_their_layer_state_across_a_relayout():
     teams.tick(np.zeros((8, 2)))
 
 
-@pytest.mark.parametrize("field, value", [("motor_tau_max_s", 0.2), ("pose_delay_spread_ticks", 3),
-                                          ("command_delay_spread_ticks", 3)])
+@pytest.mark.parametrize(
+    "field, value", [("motor_tau_max_s", 0.2), ("pose_delay_spread_ticks", 3), ("command_delay_spread_ticks", 3)]
+)
 def test_a_range_from_zero_switches_its_component_on(field, value):
     """A lag drawn from [0, motor_tau_max_s] (or a delay from [0, spread] ticks) is on: with only
     that field set the layer runs and moves the robots differently (it once counted as off: the

@@ -29,7 +29,10 @@ def test_reality_is_a_run_setting_from_presets_and_overrides(tmp_path):
     assert _resolved(["reality=nominal"]).reality == RealityConfig(level="nominal")
     assert _resolved(["reality.level=stress"]).reality == RealityConfig(level="stress")
     # a level and one field changed, in either order (one dotlist would let the later replace the earlier)
-    for overrides in (["reality=nominal", "reality.pose_delay_ticks=2"], ["reality.pose_delay_ticks=2", "reality=nominal"]):
+    for overrides in (
+        ["reality=nominal", "reality.pose_delay_ticks=2"],
+        ["reality.pose_delay_ticks=2", "reality=nominal"],
+    ):
         assert _resolved(overrides).reality == RealityConfig(level="nominal", pose_delay_ticks=2)
     # one field without a level changes off: that component alone
     assert _resolved(["reality.command_loss_prob=0.5"]).reality.overrides() == {"command_loss_prob": 0.5}
@@ -61,13 +64,16 @@ def test_run_config_round_trips_and_older_configs_load_as_off():
     assert custom.to_dict() != off.to_dict()  # so resuming it with another layer is refused
 
 
-@pytest.mark.parametrize("override, message", [
-    ("reality=medium", "reality.level must be one of ['off', 'nominal', 'stress'], got 'medium'"),
-    ("reality.pose_delay_ticks=-1", "reality.pose_delay_ticks must be an integer >= 0 (ticks), got -1"),
-    ("reality.pose_hold_prob=1.5", "reality.pose_hold_prob must be a probability in [0, 1], got 1.5"),
-    ("reality.pose_delay_ticks=two", "reality.pose_delay_ticks must be int or NoneType, got 'two' (str)"),
-    ("reality.delay=1", "unknown key(s) ['delay'] for reality; valid keys: ["),
-])
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("reality=medium", "reality.level must be one of ['off', 'nominal', 'stress'], got 'medium'"),
+        ("reality.pose_delay_ticks=-1", "reality.pose_delay_ticks must be an integer >= 0 (ticks), got -1"),
+        ("reality.pose_hold_prob=1.5", "reality.pose_hold_prob must be a probability in [0, 1], got 1.5"),
+        ("reality.pose_delay_ticks=two", "reality.pose_delay_ticks must be int or NoneType, got 'two' (str)"),
+        ("reality.delay=1", "unknown key(s) ['delay'] for reality; valid keys: ["),
+    ],
+)
 def test_bad_reality_overrides_get_one_line_errors(tmp_path, capsys, override, message):
     out = tmp_path / "run"
     assert main(["train", "--algo", "comat", "--task", "pcp", "--steps", "6", "--out", str(out), override]) == 2
@@ -79,8 +85,14 @@ def test_bad_reality_overrides_get_one_line_errors(tmp_path, capsys, override, m
 # -- training at a level ---------------------------------------------------------------------------
 def _tiny_preset(tmp_path):
     """tests/test_rl.py's tiny preset as a file, for the command line."""
-    preset = {"eval_every_steps": 10**9, "eval_episodes_per_team": 0, "checkpoint_every_steps": 6, "seeds": [3],
-              "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2}, "models": TINY_MODELS}
+    preset = {
+        "eval_every_steps": 10**9,
+        "eval_episodes_per_team": 0,
+        "checkpoint_every_steps": 6,
+        "seeds": [3],
+        "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2},
+        "models": TINY_MODELS,
+    }
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(preset))
     return str(path)
@@ -115,8 +127,9 @@ def test_training_at_nominal_records_the_level_and_resumes_exactly(tmp_path, cap
     assert main([*train, "--steps", "12", "--out", str(tmp_path / "off")]) == 0
     off = load_checkpoint(tmp_path / "off" / "checkpoint.pt")
     assert RunConfig.from_dict(off["config"]).reality == RealityConfig()
-    assert any(not torch.equal(a, b) for a, b in zip(off["trainer"]["policy"].values(),
-                                                     ckpt["trainer"]["policy"].values()))
+    assert any(
+        not torch.equal(a, b) for a, b in zip(off["trainer"]["policy"].values(), ckpt["trainer"]["policy"].values())
+    )
     # interrupted half way and resumed: the same run, bit for bit
     assert main([*train, "--steps", "6", "--out", str(tmp_path / "split"), "reality=nominal"]) == 0
     assert main([*train, "--steps", "12", "--out", str(tmp_path / "split"), "--resume"]) == 0
@@ -180,7 +193,11 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
     # a bad level: one line naming the flag, the choices and the value, nothing written
     assert main([*ev, "--reality", "foo", "--out", str(tmp_path / "bad")]) == 2
     err = capsys.readouterr().err
-    assert err == "comat eval: error: --reality must be one of ['off', 'nominal', 'stress'] or a profile file PROFILE.yaml, got 'foo'\n"
+    assert (
+        err
+        == "comat eval: error: --reality must be one of ['off', 'nominal', 'stress'] or a profile file PROFILE.yaml, "
+        "got 'foo'\n"
+    )
     assert not (tmp_path / "bad").exists()
 
 
@@ -188,8 +205,14 @@ def test_evaluate_policies_names_a_custom_layer():
     from comat.eval.evaluate import evaluate_policies
 
     own = resolve_coalitions("train", "pcp")[:1]
-    result = evaluate_policies(None, task="pcp", sets=[("one", own)], references=("constant",),
-                               progress=lambda s: None, reality={"level": "nominal", "pose_delay_ticks": 1})
+    result = evaluate_policies(
+        None,
+        task="pcp",
+        sets=[("one", own)],
+        references=("constant",),
+        progress=lambda s: None,
+        reality={"level": "nominal", "pose_delay_ticks": 1},
+    )
     assert result["reality"] == "custom" and [r["reality"] for r in result["rows"]] == ["custom"]
     assert result["reality_config"]["pose_delay_ticks"] == 1 and result["trained_reality"] is None
     with pytest.raises(ValueError, match=r"^reality must be one of \['off', 'nominal', 'stress'\].*got 'medium'$"):
@@ -233,7 +256,8 @@ def test_reality_sweep_writes_its_file_and_the_report_draws_it(tmp_path, capsys)
     assert main([*bad, "--reality-sweep", "delay"]) == 2
     assert "--reality-sweep must be one of the reality layer's numeric fields" in capsys.readouterr().err
     assert main([*bad, "--reality-sweep", "command_loss_prob", "--sweep-values", "0", "0.5", "2"]) == 2
-    assert capsys.readouterr().err == ("comat eval: error: --sweep-values: RealityConfig.command_loss_prob must be a "
-                                       "probability in [0, 1], got 2.0\n")
+    assert capsys.readouterr().err == (
+        "comat eval: error: --sweep-values: RealityConfig.command_loss_prob must be a probability in [0, 1], got 2.0\n"
+    )
     assert main([*bad, "--reality-sweep", "command_delay_ticks", "--sweep-values", "0", "1"]) == 2
     assert not (tmp_path / "bad").exists()

@@ -74,8 +74,11 @@ def test_a_repeated_measurement_is_dead_reckoned_by_the_sent_command():
 def test_the_filter_reads_the_estimate_of_a_frozen_robot():
     """A frozen robot driven forward: the measurement repeats, the filter's pose moves with the
     commands it sent, and the true pose moves too."""
-    teams = SafeTeams([1], SimConfig(tier="unicycle"), reality=RealityConfig(pose_noise_xy_m=1e-4, pose_freeze_prob=1.0,
-                                                                             pose_freeze_mean_ticks=50))
+    teams = SafeTeams(
+        [1],
+        SimConfig(tier="unicycle"),
+        reality=RealityConfig(pose_noise_xy_m=1e-4, pose_freeze_prob=1.0, pose_freeze_mean_ticks=50),
+    )
     teams.reset(np.array([[0.0, 0.0, 0.0]]))
     for _ in range(20):
         teams.tick(np.array([[0.1, 0.0]]))
@@ -104,8 +107,9 @@ def test_without_the_margin_nominal_collides_and_with_it_it_does_not():
 
 def test_the_battery_passes_at_nominal_on_a_few_episodes(tmp_path):
     out = tmp_path / "safety.json"
-    result = run_safety_bench(("nominal",), ("unicycle",), 4, 1, str(out),
-                              ("head_on", "swap8", "corner", "bangbang16", "walls", "inside"))
+    result = run_safety_bench(
+        ("nominal",), ("unicycle",), 4, 1, str(out), ("head_on", "swap8", "corner", "bangbang16", "walls", "inside")
+    )
     assert out.exists() and result["checks"]["safe_starts_clean_nominal"]["pass"]
     rows = {r["scenario"]: r for r in result["rows"]}
     assert rows["inside"]["safe_start_scenario"] is False and rows["inside"]["safe_starts"] == 0
@@ -117,8 +121,14 @@ def test_a_known_fault_is_reported_in_the_speed_capability_and_a_hidden_one_is_n
 
     seen = {}
     for known in (False, True):
-        env = make_vec_env("hmt_v0", 2, seed=0, tier="unicycle", ticks_per_step=4,
-                           reality={"fault_prob": 1.0, "fault_start_max_s": 0.1, "fault_known": known})
+        env = make_vec_env(
+            "hmt_v0",
+            2,
+            seed=0,
+            tier="unicycle",
+            ticks_per_step=4,
+            reality={"fault_prob": 1.0, "fault_start_max_s": 0.1, "fault_known": known},
+        )
         env.reset()
         for _ in range(3):
             env.step(np.zeros((2, env.max_robots), np.int64))
@@ -159,8 +169,9 @@ def test_wheels_physics_is_drawn_per_robot_and_written_into_each_simulation():
     assert ((0.6 <= friction) & (friction <= 1.5)).all() and len(set(friction.round(6))) == 3
     assert ((0.9 <= mass) & (mass <= 1.1)).all() and (np.abs(com) <= 0.005).all()
     g = teams.world.groups[0]
-    np.testing.assert_array_equal(g.batch.expanded("geom_friction")[0, g.binding.wheel_geoms, 0],
-                                  np.repeat(friction[:, None], 2, axis=1))
+    np.testing.assert_array_equal(
+        g.batch.expanded("geom_friction")[0, g.binding.wheel_geoms, 0], np.repeat(friction[:, None], 2, axis=1)
+    )
     np.testing.assert_allclose(g.batch.expanded("body_mass")[0, g.binding.body], 0.1 * mass, rtol=1e-6)
     single = _wheels(r, batched=False)  # the single-team world: its own model copy, the same draws
     np.testing.assert_array_equal(single.reality.physics()[0], friction)
@@ -181,8 +192,11 @@ def test_a_slippery_floor_makes_the_wheels_slip():
     robot ends elsewhere than on the model's μ = 1.5 (the floor-friction component alone)."""
     ends = {}
     for mu in (None, 0.02):
-        reality = RealityConfig(pose_noise_xy_m=1e-9) if mu is None else RealityConfig(floor_friction_min=mu,
-                                                                                      floor_friction_max=mu)
+        reality = (
+            RealityConfig(pose_noise_xy_m=1e-9)
+            if mu is None
+            else RealityConfig(floor_friction_min=mu, floor_friction_max=mu)
+        )
         teams = _wheels(reality)
         for k in range(40):
             teams.world.step(np.tile([0.2 if k < 20 else -0.2, 0.0], (3, 1)))
@@ -195,8 +209,15 @@ def test_both_loops_pass_a_short_battery_at_nominal_with_faults(tmp_path):
     collision from safe starts, a robot that stops while commanded included; the Robotarium's own
     V2 barrier lets robots collide with a stopped robot (issue 45's probe: 3 of 8 converge16 episodes)."""
     out = tmp_path / "loops.json"
-    result = run_safety_bench(("nominal",), ("unicycle",), 3, 2, str(out), ("swap4", "stop_swap4", "frozen_stop_swap4"),
-                              ("comat", "shipped_v2"))
+    result = run_safety_bench(
+        ("nominal",),
+        ("unicycle",),
+        3,
+        2,
+        str(out),
+        ("swap4", "stop_swap4", "frozen_stop_swap4"),
+        ("comat", "shipped_v2"),
+    )
     assert result["checks"]["safe_starts_clean_nominal"]["pass"]
     assert result["checks"]["safe_starts_clean_nominal_shipped_v2"]["pass"]
     assert {r["loop"] for r in result["rows"]} == {"comat", "shipped_v2"}

@@ -11,8 +11,17 @@ from comat.viz import record_episodes
 def test_recording_holds_measured_poses_error_lines_and_faults(tmp_path):
     reality = {"level": "stress", "fault_prob": 1.0, "fault_start_max_s": 0.5}
     out = tmp_path / "r.rrd"
-    result = record_episodes(out, "pcp", "heuristic", episodes=1, coalitions="test", seed=2, tier="unicycle",
-                             ticks_per_step=6, reality=reality)
+    result = record_episodes(
+        out,
+        "pcp",
+        "heuristic",
+        episodes=1,
+        coalitions="test",
+        seed=2,
+        tier="unicycle",
+        ticks_per_step=6,
+        reality=reality,
+    )
     static, temporal = read(out)
     steps = int(result.episodes[0]["steps"])
     true = column(temporal["/episode_0/world/robots"], "Points2D:positions")

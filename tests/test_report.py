@@ -20,9 +20,19 @@ from comat.measure.metrics import summarize_ci
 
 
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
-    return {"return": ret, "steps": steps, "progress": completion, "finished": success, "collisions": collisions,
-            "robotarium_collisions": rc, "boundary_exits": be, "actuator_errors": ae, "interventions": 3.0,
-            "fallbacks": 0.0, "recoveries": 1.0}
+    return {
+        "return": ret,
+        "steps": steps,
+        "progress": completion,
+        "finished": success,
+        "collisions": collisions,
+        "robotarium_collisions": rc,
+        "boundary_exits": be,
+        "actuator_errors": ae,
+        "interventions": 3.0,
+        "fallbacks": 0.0,
+        "recoveries": 1.0,
+    }
 
 
 SIZES = {"train": (3, 5), "val": (3, 7), "test": (2, 4), "scale": (10, 20), "size": (2, 20), "capability": (3, 5)}
@@ -50,16 +60,25 @@ def _set_row(algo, task, split, ret, success, prog, k=1, keyed=False, extra=None
         if extra:
             e.update(extra(i))
         eps.append(e)
-    return {"policy": algo, "task": task, "set": split, "tier": "unicycle", "episodes": len(eps),
-            "metrics": summarize_ci(eps), "per_episode": eps}
+    return {
+        "policy": algo,
+        "task": task,
+        "set": split,
+        "tier": "unicycle",
+        "episodes": len(eps),
+        "metrics": summarize_ci(eps),
+        "per_episode": eps,
+    }
 
 
 def _fake_run(folder, algo, task, seed, train_return, test_return, success, scale_return=None, progress=0.5):
     """A run folder as `comat train` + `comat eval` left it before issue 28: one episode per
     coalition, two coalitions per set (team sizes 3, 5 on U_train; 2, 4 on U_test; 10, 20 on
     U_scale when ``scale_return`` is given), no coalition index, no new endpoints."""
-    rows = [_set_row(algo, task, "train", train_return, success, progress),
-            _set_row(algo, task, "test", test_return, success, progress / 2)]
+    rows = [
+        _set_row(algo, task, "train", train_return, success, progress),
+        _set_row(algo, task, "test", test_return, success, progress / 2),
+    ]
     if scale_return is not None:
         rows.append(_set_row(algo, task, "scale", scale_return, success, progress / 4))
     _write_run(folder, algo, task, seed, rows, train_return=train_return)
@@ -134,8 +153,17 @@ def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, 
     from comat.eval import figures
 
     for seed in range(3):
-        _fake_run(tmp_path / f"c{seed}", "comat", "hmt", seed, 10.0 + seed, 8.0, 1.0, scale_return=5.0 + seed,
-                  progress=0.6 + 0.1 * seed)
+        _fake_run(
+            tmp_path / f"c{seed}",
+            "comat",
+            "hmt",
+            seed,
+            10.0 + seed,
+            8.0,
+            1.0,
+            scale_return=5.0 + seed,
+            progress=0.6 + 0.1 * seed,
+        )
     _fake_run(tmp_path / "m0", "mat", "hmt", 0, 9.0, 7.0, 1.0)  # an old run: no U_scale evaluation
     drawn = {}
     real_save = figures.save
@@ -146,8 +174,10 @@ def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, 
 
     monkeypatch.setattr(figures, "save", keep)
     colours = []
-    for order in ([*[tmp_path / f"c{s}" for s in range(3)], tmp_path / "m0"],
-                  [tmp_path / "m0", *[tmp_path / f"c{s}" for s in range(3)]]):
+    for order in (
+        [*[tmp_path / f"c{s}" for s in range(3)], tmp_path / "m0"],
+        [tmp_path / "m0", *[tmp_path / f"c{s}" for s in range(3)]],
+    ):
         out = tmp_path / f"out{len(colours)}"
         assert main(["report", *map(str, order), "--out", str(out)]) == 0
         printed = capsys.readouterr().out
@@ -157,8 +187,11 @@ def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, 
         assert gen["mat"]["scale_retention"] == "nan"  # U_scale columns, empty for the run without it
         # bars: each algorithm's colour, whatever the order the runs came in; sets by hatching only
         ax = drawn["fig5_generalization"].axes[0]
-        bars = {(round(p.get_x() + p.get_width() / 2, 3), p.get_hatch()): p.get_facecolor()[:3] for p in ax.patches
-                if hasattr(p, "get_hatch") and p.get_width() > 0}
+        bars = {
+            (round(p.get_x() + p.get_width() / 2, 3), p.get_hatch()): p.get_facecolor()[:3]
+            for p in ax.patches
+            if hasattr(p, "get_hatch") and p.get_width() > 0
+        }
         colours.append(sorted({tuple(round(c, 3) for c in v) for v in bars.values()}))
         assert {h for _, h in bars} == {figures.SET_HATCHES[s] for s in ("train", "test", "scale")}
         assert drawn["fig5_generalization"].axes[1].get_ylim()[0] == 0  # progress from 0
@@ -187,13 +220,20 @@ def test_team_size_counts_per_algorithm_where_they_differ(tmp_path, monkeypatch)
 
     drawn = {}
     monkeypatch.setattr(figures, "save", lambda fig, stem: drawn.setdefault(stem.name, fig) and [])
-    by_size = {("comat", "pcp"): {2: [{"return": 1.0, "progress": 0.5, "coalitions": 2}] * 3,
-                                  4: [{"return": 1.0, "progress": 0.5, "coalitions": 1}] * 2},
-               ("mat", "pcp"): {2: [{"return": 1.0, "progress": 0.5, "coalitions": 1}] * 3}}
+    by_size = {
+        ("comat", "pcp"): {
+            2: [{"return": 1.0, "progress": 0.5, "coalitions": 2}] * 3,
+            4: [{"return": 1.0, "progress": 0.5, "coalitions": 1}] * 2,
+        },
+        ("mat", "pcp"): {2: [{"return": 1.0, "progress": 0.5, "coalitions": 1}] * 3},
+    }
     figures.fig_team_size(by_size, ["pcp"], ["mat", "comat"], {"pcp": {"mat": [1], "comat": [1]}}, tmp_path / "f")
     labels = {(t.get_text(), t.get_color()) for t in drawn["f"].axes[1].texts}
-    assert labels == {("1", figures.ALGO_COLORS["mat"]), ("2", figures.ALGO_COLORS["comat"]),
-                      ("1 (2 seeds)", figures.ALGO_COLORS["comat"])}
+    assert labels == {
+        ("1", figures.ALGO_COLORS["mat"]),
+        ("2", figures.ALGO_COLORS["comat"]),
+        ("1 (2 seeds)", figures.ALGO_COLORS["comat"]),
+    }
 
 
 def test_generalization_compares_with_welch_tests(tmp_path):
@@ -207,8 +247,17 @@ def test_generalization_compares_with_welch_tests(tmp_path):
         progress[algo] = [base + step * seed for seed in range(3)]
         for seed in range(3):
             runs.append(tmp_path / f"{algo}{seed}")
-            _fake_run(runs[-1], algo, "pcp", seed, 10.0, 8.0, finished[algo][seed], scale_return=5.0,
-                      progress=progress[algo][seed])
+            _fake_run(
+                runs[-1],
+                algo,
+                "pcp",
+                seed,
+                10.0,
+                8.0,
+                finished[algo][seed],
+                scale_return=5.0,
+                progress=progress[algo][seed],
+            )
     runs.append(tmp_path / "mat0")
     _fake_run(runs[-1], "mat", "pcp", 0, 9.0, 7.0, 1.0)  # one seed, no U_scale
     runs.append(tmp_path / "comat_hmt")
@@ -231,8 +280,10 @@ def test_generalization_compares_with_welch_tests(tmp_path):
     ref = sst.ttest_ind(a, b, equal_var=False)
     half = sst.t.ppf(0.975, 4) * math.sqrt(a.var(ddof=1) / 3 + b.var(ddof=1) / 3)
     mappo = line("U_scale", "progress", "MAPPO")
-    assert (f"| 20.5 ± 1.2 | 5.5 ± 1.2 | +15.0 [{100 * (0.15 - half):+.1f}, {100 * (0.15 + half):+.1f}] | "
-            f"{ref.statistic:.2f} | 4.0 | < 0.001 | COMAT higher (p < 0.05) |") in mappo
+    assert (
+        f"| 20.5 ± 1.2 | 5.5 ± 1.2 | +15.0 [{100 * (0.15 - half):+.1f}, {100 * (0.15 + half):+.1f}] | "
+        f"{ref.statistic:.2f} | 4.0 | < 0.001 | COMAT higher (p < 0.05) |"
+    ) in mappo
     qmix = line("U_scale", "progress", "QMIX")
     q = sst.ttest_ind(a, np.array(progress["qmix"]) / 4, equal_var=False)
     assert qmix.endswith(f"| {q.pvalue:.3f} | not separated (p ≥ 0.05) |"), qmix
@@ -266,6 +317,7 @@ def test_generalization_compares_with_welch_tests(tmp_path):
 def test_k_episodes_never_count_as_k_seeds_and_the_coalition_index_is_used(tmp_path):
     """Two seeds, 5 episodes per coalition: every interval is over 2 seeds (df 1), not 20 episodes;
     rows with "coalition" are grouped by it, older rows (no index) as coalition i % C."""
+
     def spread(i):  # episodes of a coalition differ, so cell means differ from single episodes
         return {"progress": 0.1 * i}
 
@@ -294,8 +346,14 @@ def test_k_episodes_never_count_as_k_seeds_and_the_coalition_index_is_used(tmp_p
     rows = [_set_row("comat", "pcp", "train", 10.0, 1.0, 0.5, k=5, keyed=True, extra=spread)]
     rows[0]["per_episode"].sort(key=lambda e: e["coalition"])
     _write_run(tmp_path / "sorted" / "s0", "comat", "pcp", 0, rows, k=5)
-    _write_run(tmp_path / "sorted" / "s1", "comat", "pcp", 1,
-               [_set_row("comat", "pcp", "train", 14.0, 1.0, 0.5, k=5, keyed=True, extra=spread)], k=5)
+    _write_run(
+        tmp_path / "sorted" / "s1",
+        "comat",
+        "pcp",
+        1,
+        [_set_row("comat", "pcp", "train", 14.0, 1.0, 0.5, k=5, keyed=True, extra=spread)],
+        k=5,
+    )
     out = tmp_path / "out_sorted"
     out.mkdir()
     make_report([tmp_path / "sorted" / f"s{seed}" for seed in range(2)], out)
@@ -311,6 +369,7 @@ def test_new_sets_and_endpoints_in_table_order(tmp_path):
     order = ("capability", "size", "train", "val")  # as a file might hold them; U_test, U_scale not evaluated
     for algo, lift in (("comat", 0.1), ("mat", 0.0)):
         for seed in range(2):
+
             def extra(i, seed=seed, lift=lift):
                 return {"progress_auc": 0.5 + lift + 0.01 * seed, "time_to_90": 40.0 - 10 * lift - seed}
 
@@ -321,15 +380,22 @@ def test_new_sets_and_endpoints_in_table_order(tmp_path):
     result = make_report([tmp_path / f"{a}{s}" for a in ("comat", "mat") for s in range(2)], out)
     assert result["sets"] == ["train", "val", "size", "capability"]
     md = (out / "generalization.md").read_text()
-    assert ("| Task | Algorithm | Seeds | U_train progress (%) | U_val progress (%) | U_size progress (%) | "
-            "U_cap progress (%) | U_val retention (%) | U_size retention (%) | U_cap retention (%) |") in md
+    assert (
+        "| Task | Algorithm | Seeds | U_train progress (%) | U_val progress (%) | U_size progress (%) | "
+        "U_cap progress (%) | U_val retention (%) | U_size retention (%) | U_cap retention (%) |"
+    ) in md
     assert "| HMT | COMAT | 2 | 60.5 ± 6.4 | 60.5 ± 6.4 | 60.5 ± 6.4 | 60.5 ± 6.4 |" in md  # progress AUC
     assert "| HMT | MAT | 2 | 39.5 ± 6.4 | 39.5 ± 6.4 | 39.5 ± 6.4 | 39.5 ± 6.4 |" in md  # steps to 90 %
     assert "| HMT | U_cap | progress AUC | MAT |" in md
     gen = {r["algo"]: r for r in _csv(out / "generalization.csv")}["comat"]
     assert float(gen["size_progress_auc"]) == pytest.approx(0.605) and gen["size_time_to_90_seeds"] == "2"
-    assert {r["metric"] for r in _csv(out / "aggregates.csv")} == {"return", "progress", "finished", "progress_auc",
-                                                                    "time_to_90"}
+    assert {r["metric"] for r in _csv(out / "aggregates.csv")} == {
+        "return",
+        "progress",
+        "finished",
+        "progress_auc",
+        "time_to_90",
+    }
     assert not any(f"{name} progress (%)" in md or f"| {name} |" in md for name in ("U_test", "U_scale"))
 
 
@@ -354,8 +420,20 @@ def test_a_report_written_twice_is_the_same_bytes(tmp_path):
     """Every file of a report, the PDFs included (no creation date) and the bootstrap (a fixed
     generator), so regenerating committed results shows a diff only where something changed."""
     for seed in range(3):
-        rows = [_set_row("comat", "pcp", s, 10.0 + seed, 1.0, 0.5 + 0.1 * seed, k=2, keyed=True,
-                         extra=lambda i: {"progress_auc": 0.1 * i, "time_to_90": 10.0 * i}) for s in ("train", "scale")]
+        rows = [
+            _set_row(
+                "comat",
+                "pcp",
+                s,
+                10.0 + seed,
+                1.0,
+                0.5 + 0.1 * seed,
+                k=2,
+                keyed=True,
+                extra=lambda i: {"progress_auc": 0.1 * i, "time_to_90": 10.0 * i},
+            )
+            for s in ("train", "scale")
+        ]
         _write_run(tmp_path / f"c{seed}", "comat", "pcp", seed, rows, k=2)
     written = []
     for k in range(2):

@@ -26,17 +26,46 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _episode(i: int, **extra) -> dict:
-    return {"return": 1.5 * i, "steps": 40.0 + i, "progress": 0.25 * (i % 5), "finished": float(i % 2),
-            "coalition": i % 3, "progress_curve": [0.1 * k for k in range(i + 2)],
-            "robots": [{"type": "fast", "delivered": 0.5 * i}], **extra}
+    return {
+        "return": 1.5 * i,
+        "steps": 40.0 + i,
+        "progress": 0.25 * (i % 5),
+        "finished": float(i % 2),
+        "coalition": i % 3,
+        "progress_curve": [0.1 * k for k in range(i + 2)],
+        "robots": [{"type": "fast", "delivered": 0.5 * i}],
+        **extra,
+    }
 
 
 def _result(checkpoint=None) -> dict:
-    rows = [{"policy": p, "task": "pcp", "set": s, "tier": "unicycle", "reality": "off", "episodes": 6,
-             "metrics": {"return": {"mean": 42.6, "ci95": 9.45, "n": 3}, "progress": {"mean": 0.97, "ci95": 0.2, "n": 3}},
-             "per_episode": [_episode(i) for i in range(6)]} for p in ("comat", "heuristic") for s in ("train", "test")]
-    return {"checkpoint": checkpoint, "algo": "comat", "task": "pcp", "tier": "unicycle", "seed": 2_000_003,
-            "episodes_per_coalition": 2, "reality": "off", "rows": rows}
+    rows = [
+        {
+            "policy": p,
+            "task": "pcp",
+            "set": s,
+            "tier": "unicycle",
+            "reality": "off",
+            "episodes": 6,
+            "metrics": {
+                "return": {"mean": 42.6, "ci95": 9.45, "n": 3},
+                "progress": {"mean": 0.97, "ci95": 0.2, "n": 3},
+            },
+            "per_episode": [_episode(i) for i in range(6)],
+        }
+        for p in ("comat", "heuristic")
+        for s in ("train", "test")
+    ]
+    return {
+        "checkpoint": checkpoint,
+        "algo": "comat",
+        "task": "pcp",
+        "tier": "unicycle",
+        "seed": 2_000_003,
+        "episodes_per_coalition": 2,
+        "reality": "off",
+        "rows": rows,
+    }
 
 
 def _strings(node):
@@ -54,8 +83,11 @@ def _strings(node):
 # -- the format --------------------------------------------------------------------------------------
 def test_summary_and_detail_round_trip(tmp_path):
     result = _result()
-    sweep = {"component": "pose_delay_ticks", "values": [0, 2], "points": [{"value": v, "rows": _result()["rows"]}
-                                                                          for v in (0, 2)]}
+    sweep = {
+        "component": "pose_delay_ticks",
+        "values": [0, 2],
+        "points": [{"value": v, "rows": _result()["rows"]} for v in (0, 2)],
+    }
     for name, doc in (("evaluation_unicycle.json", result), ("evaluation_unicycle_sweep_x.json", sweep)):
         paths = write_json_detail(tmp_path / name, doc)
         assert [p.name for p in paths] == [name, detail_name(name)]
@@ -117,10 +149,18 @@ def test_written_results_hold_no_absolute_path(tmp_path):
     other.mkdir()
     write_results(_result(checkpoint=run / "checkpoint.pt"), other, "evaluation_unicycle")
     assert read_results(other / "evaluation_unicycle.json")["checkpoint"] == "../runs/mine/checkpoint.pt"
-    sweep = {"component": "fault_prob", "base": "off", "values": [0.0], "task": "pcp", "tier": "unicycle",
-             "episodes_per_coalition": 2, "points": [{"value": 0.0, "rows": _result()["rows"]}]}
-    assert [p.name for p in write_sweep(sweep, run, "evaluation_unicycle_sweep_fault_prob")] == \
-        sweep_files("evaluation_unicycle_sweep_fault_prob")
+    sweep = {
+        "component": "fault_prob",
+        "base": "off",
+        "values": [0.0],
+        "task": "pcp",
+        "tier": "unicycle",
+        "episodes_per_coalition": 2,
+        "points": [{"value": 0.0, "rows": _result()["rows"]}],
+    }
+    assert [p.name for p in write_sweep(sweep, run, "evaluation_unicycle_sweep_fault_prob")] == sweep_files(
+        "evaluation_unicycle_sweep_fault_prob"
+    )
     write_probe({"checkpoint": str(run / "checkpoint.pt"), "algo": "comat"}, run)
     assert json.loads((run / "probe.json").read_text())["checkpoint"] == "checkpoint.pt"
     for path in [*run.iterdir(), *other.iterdir()]:
@@ -159,12 +199,18 @@ def test_source_commit_names_the_checkout_its_state_or_why_not(tmp_path, monkeyp
     monkeypatch.delenv(SOURCE_COMMIT_ENV, raising=False)
     repo = tmp_path / "src"
     repo.mkdir()
-    env = {**os.environ, "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
-           "GIT_COMMITTER_EMAIL": "t@t"}
+    env = {
+        **os.environ,
+        "GIT_AUTHOR_NAME": "t",
+        "GIT_AUTHOR_EMAIL": "t@t",
+        "GIT_COMMITTER_NAME": "t",
+        "GIT_COMMITTER_EMAIL": "t@t",
+    }
 
     def git(*args):
-        return subprocess.run(["git", "-C", str(repo), *args], check=True, capture_output=True, text=True,
-                              env=env).stdout.strip()
+        return subprocess.run(
+            ["git", "-C", str(repo), *args], check=True, capture_output=True, text=True, env=env
+        ).stdout.strip()
 
     git("init", "-q")
     (repo / "a.py").write_text("x = 1\n")
@@ -196,8 +242,10 @@ def test_eval_table_columns_never_touch():
     wide = {"mean": 0.97, "ci95": 0.05, "n": 20}  # a share near 1: written "0.97 [0.92, 1.00]"
     metrics = {m: wide for m in REPORTED}
     metrics["return"] = {"mean": 42.6, "ci95": 9.45, "n": 20}
-    rows = [{"policy": "comat", "set": "train", "episodes": 100, "metrics": metrics},
-            {"policy": "heuristic", "set": "capability", "episodes": 5, "metrics": {"return": metrics["return"]}}]
+    rows = [
+        {"policy": "comat", "set": "train", "episodes": 100, "metrics": metrics},
+        {"policy": "heuristic", "set": "capability", "episodes": 5, "metrics": {"return": metrics["return"]}},
+    ]
     lines = table_lines({"rows": rows})
     head, rule, *body = lines
     assert set(rule) == {"-"} and len(rule) == len(head)
@@ -205,10 +253,19 @@ def test_eval_table_columns_never_touch():
     names = ["policy", "set", "n", *(TABLE_NAMES[m] for m in REPORTED)]
     # every column at least one space from the next: split at runs of 2+ spaces, each line gives its cells
     assert re.split(r" {2,}", head) == names
-    assert re.split(r" {2,}", body[0]) == ["comat", "train", "100", *(
-        interval_text(v["mean"], v["ci95"], share=m in SHARES, unit=None) for m, v in metrics.items())]
-    assert re.split(r" {2,}", body[1]) == ["heuristic", "capability", "5", "42.60 ± 9.45",
-                                           *["n/a"] * (len(REPORTED) - 1)]
+    assert re.split(r" {2,}", body[0]) == [
+        "comat",
+        "train",
+        "100",
+        *(interval_text(v["mean"], v["ci95"], share=m in SHARES, unit=None) for m, v in metrics.items()),
+    ]
+    assert re.split(r" {2,}", body[1]) == [
+        "heuristic",
+        "capability",
+        "5",
+        "42.60 ± 9.45",
+        *["n/a"] * (len(REPORTED) - 1),
+    ]
     # right-aligned number columns end where their header ends, in every line
     for name in names[2:]:
         end = head.index(name) + len(name) if name != "n" else head.index(" n ") + 2

@@ -33,11 +33,14 @@ TINY_MODELS = {
 
 def tiny(algo: str, task: str = "pcp", steps: int = 12, **overrides):
     preset = {
-        "total_env_steps": steps, "eval_every_steps": 10**9, "eval_episodes_per_team": 0,
+        "total_env_steps": steps,
+        "eval_every_steps": 10**9,
+        "eval_episodes_per_team": 0,
         "checkpoint_every_steps": 6,
         "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2},
         "qmix": {"num_envs": 2, "batch_episodes": 2, "buffer_episodes": 8, "updates_per_episode": 1.0},
-        "models": TINY_MODELS, **overrides,
+        "models": TINY_MODELS,
+        **overrides,
     }
     return resolve(preset, algo, task, seed=3)
 
@@ -83,10 +86,21 @@ def _pad(ro: Rollout, extra: int) -> Rollout:
         shape = (*x.shape[:2], extra, *x.shape[3:])
         return torch.cat([x, torch.full(shape, value, dtype=x.dtype)], 2)
 
-    return Rollout(obs=pad(ro.obs), mask=pad(ro.mask, False), state=ro.state, actions=pad(ro.actions),
-                   logp=pad(ro.logp), values=pad(ro.values), rewards=ro.rewards, terminated=ro.terminated,
-                   dones=ro.dones, next_obs=pad(ro.next_obs), next_mask=pad(ro.next_mask, False),
-                   next_state=ro.next_state, episodes=ro.episodes)
+    return Rollout(
+        obs=pad(ro.obs),
+        mask=pad(ro.mask, False),
+        state=ro.state,
+        actions=pad(ro.actions),
+        logp=pad(ro.logp),
+        values=pad(ro.values),
+        rewards=ro.rewards,
+        terminated=ro.terminated,
+        dones=ro.dones,
+        next_obs=pad(ro.next_obs),
+        next_mask=pad(ro.next_mask, False),
+        next_state=ro.next_state,
+        episodes=ro.episodes,
+    )
 
 
 @pytest.mark.parametrize("algo", ["comat", "mappo"])
@@ -129,7 +143,9 @@ def test_gae_value_target_is_the_td_target_at_lambda_zero():
         return torch.cat([p.detach().flatten() for p in tr.policy.parameters()])
 
     torch.manual_seed(0)
-    ro = PPOTrainer(Comat(layout, ComatConfig(16, 2, 1, 8)), env, PPOConfig(num_envs=2, rollout_steps=6), seed=0).collect()
+    ro = PPOTrainer(
+        Comat(layout, ComatConfig(16, 2, 1, 8)), env, PPOConfig(num_envs=2, rollout_steps=6), seed=0
+    ).collect()
     td = updated(gae_lambda=0.0)
     torch.testing.assert_close(updated(gae_lambda=0.0, value_target="gae"), td, atol=1e-6, rtol=1e-5)
     assert not torch.allclose(updated(gae_lambda=0.95, value_target="gae"), updated(gae_lambda=0.95), atol=1e-5)
@@ -146,9 +162,15 @@ def test_qmix_learn_step_matches_a_per_step_reference():
     env.reset()
     net = QmixNetConfig(16, 8, 16)
     torch.manual_seed(0)
-    tr = QmixTrainer(QmixAgents(ObsLayout.for_task(env.task), net), QmixMixer(env.core.state_size(), net), env,
-                     QmixConfig(num_envs=2, batch_episodes=2, buffer_episodes=4, standardize_rewards=False,
-                                target_update_interval=1), seed=0)
+    tr = QmixTrainer(
+        QmixAgents(ObsLayout.for_task(env.task), net),
+        QmixMixer(env.core.state_size(), net),
+        env,
+        QmixConfig(
+            num_envs=2, batch_episodes=2, buffer_episodes=4, standardize_rewards=False, target_update_interval=1
+        ),
+        seed=0,
+    )
     tr.collect()
     for p in tr.target_agents.parameters():  # make online and target nets differ
         p.data.add_(0.1)
@@ -183,9 +205,15 @@ def test_qmix_stores_the_time_limit_as_terminal_only_when_asked(horizon_terminal
     env = make_vec_env("pcp_v0", 3, seed=2, tier="unicycle", max_robots=8)
     env.reset()
     net = QmixNetConfig(16, 8, 16)
-    tr = QmixTrainer(QmixAgents(ObsLayout.for_task(env.task), net), QmixMixer(env.core.state_size(), net), env,
-                     QmixConfig(num_envs=3, batch_episodes=2, buffer_episodes=4, epsilon_start=1.0,
-                                horizon_terminal=horizon_terminal), seed=0)
+    tr = QmixTrainer(
+        QmixAgents(ObsLayout.for_task(env.task), net),
+        QmixMixer(env.core.state_size(), net),
+        env,
+        QmixConfig(
+            num_envs=3, batch_episodes=2, buffer_episodes=4, epsilon_start=1.0, horizon_terminal=horizon_terminal
+        ),
+        seed=0,
+    )
     tr.collect()  # random actions: no team captures all prey, every episode hits the time limit
     buf = tr.buffer
     assert buf.size == 3 and buf.filled[:3].all()
@@ -209,7 +237,8 @@ def test_resume_continues_exactly(tmp_path, algo, steps):
     # the logs read like one run
     rows = (tmp_path / "split" / "progress.csv").read_text().splitlines()
     assert rows[1:] and [r.split(",")[0] for r in rows[1:]] == [
-        r.split(",")[0] for r in (tmp_path / "straight" / "progress.csv").read_text().splitlines()[1:]]
+        r.split(",")[0] for r in (tmp_path / "straight" / "progress.csv").read_text().splitlines()[1:]
+    ]
 
 
 def test_resume_keeps_the_earlier_sittings_in_config_yaml(tmp_path):
@@ -243,7 +272,9 @@ def test_collect_over_env_workers_assembles_rollout_in_env_order():
 
     rollouts = []
     for workers in (1, 2):
-        config = tiny("mappo", env_workers=workers, ppo={"num_envs": 3, "rollout_steps": 4, "epochs": 1, "minibatches": 1})
+        config = tiny(
+            "mappo", env_workers=workers, ppo={"num_envs": 3, "rollout_steps": 4, "epochs": 1, "minibatches": 1}
+        )
         torch.manual_seed(0)
         env = make_run_env(config, 3, seed=11)
         try:
@@ -272,8 +303,12 @@ def test_comat_trained_on_357_acts_on_other_sizes(tmp_path):
             actions = act(obs, info["agent_mask"], None)
             assert actions.shape == (2, n) and actions.min() >= 0 and actions.max() < 5
             obs, *_, info = env.step(actions)
-    episodes = run_episodes(make_vec_env("pcp_v0", 2, seed=0, tier="unicycle", ticks_per_step=2, max_robots=9), act,
-                            [random_team(rng, "pcp", "test", n) for n in (2, 9, 4)], seed=5)
+    episodes = run_episodes(
+        make_vec_env("pcp_v0", 2, seed=0, tier="unicycle", ticks_per_step=2, max_robots=9),
+        act,
+        [random_team(rng, "pcp", "test", n) for n in (2, 9, 4)],
+        seed=5,
+    )
     assert [e["team_size"] for e in episodes] == [2, 9, 4]
 
 
@@ -379,7 +414,9 @@ def test_a_run_stopped_before_its_first_checkpoint_can_be_resumed_or_restarted(t
         else:
             train(tiny("comat"), run, quiet=True)
         assert not list(run.glob(".*.tmp"))
-        assert_same(load_checkpoint(straight / "checkpoint.pt")["trainer"], load_checkpoint(run / "checkpoint.pt")["trainer"])
+        assert_same(
+            load_checkpoint(straight / "checkpoint.pt")["trainer"], load_checkpoint(run / "checkpoint.pt")["trainer"]
+        )
     (tmp_path / "restart" / "checkpoint.pt").unlink()
     with pytest.raises(FileExistsError, match="but no checkpoint.pt: it is not trained into again"):
         train(tiny("comat", steps=24), tmp_path / "restart", quiet=True)  # a finished run's policy.pt is kept
@@ -402,12 +439,18 @@ def test_every_command_reading_a_checkpoint_explains_a_bad_one_in_one_line(tmp_p
         bad.write_bytes((tmp_path / "good" / "checkpoint.pt").read_bytes()[:2000])
     else:
         bad.write_bytes(b"" if kind == "empty" else np.random.default_rng(0).bytes(4096))
-    expected = {"empty": "is empty (0 bytes)", "random_bytes": "is corrupt or not a comat checkpoint",
-                "folder": "is a folder without a checkpoint.pt",
-                "truncated": "is corrupt or not a comat checkpoint"}[kind]
-    commands = [["eval", "--policy", str(bad)], ["probe", "--policy", str(bad)],
-                ["rollout", "--task", "pcp", "--policy", str(bad), "--out", str(tmp_path / "x.rrd")],
-                ["export", "--policy", str(bad), "--task", "pcp", "--team", "test:0", "--out", str(tmp_path / "sub")]]
+    expected = {
+        "empty": "is empty (0 bytes)",
+        "random_bytes": "is corrupt or not a comat checkpoint",
+        "folder": "is a folder without a checkpoint.pt",
+        "truncated": "is corrupt or not a comat checkpoint",
+    }[kind]
+    commands = [
+        ["eval", "--policy", str(bad)],
+        ["probe", "--policy", str(bad)],
+        ["rollout", "--task", "pcp", "--policy", str(bad), "--out", str(tmp_path / "x.rrd")],
+        ["export", "--policy", str(bad), "--task", "pcp", "--team", "test:0", "--out", str(tmp_path / "sub")],
+    ]
     if kind != "folder":  # train --resume reads RUN/checkpoint.pt
         commands.append(["train", "--resume", "--out", str(bad.parent)])
     for argv in commands:
@@ -419,15 +462,20 @@ def test_every_command_reading_a_checkpoint_explains_a_bad_one_in_one_line(tmp_p
     assert not (tmp_path / "sub").exists() and not (tmp_path / "x.rrd").exists()
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("", "is empty; expected a mapping of settings"),
-    ("total_env_steps: [1, 2\n", "is not valid YAML at line 2"),
-    ("- 1\n- 2\n", "must be a mapping of settings, got list"),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("", "is empty; expected a mapping of settings"),
+        ("total_env_steps: [1, 2\n", "is not valid YAML at line 2"),
+        ("- 1\n- 2\n", "must be a mapping of settings, got list"),
+    ],
+)
 def test_bad_preset_files_get_one_clear_line(tmp_path, capsys, text, expected):
     preset = tmp_path / "p.yaml"
     preset.write_text(text)
-    assert main(["train", "--algo", "comat", "--task", "pcp", "--preset", str(preset), "--out", str(tmp_path / "r")]) == 2
+    assert (
+        main(["train", "--algo", "comat", "--task", "pcp", "--preset", str(preset), "--out", str(tmp_path / "r")]) == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and expected in err[0], err
     assert not (tmp_path / "r").exists()
@@ -473,17 +521,36 @@ def test_progress_line_eta_never_negative():
     assert "1,024/1,000 steps" in out.getvalue()
 
 
-@pytest.mark.parametrize("case", ["team_missing", "team_folder", "team_empty", "team_bytes", "team_nan",
-                                  "team_list", "preset_nan_lr", "preset_negative", "preset_wrong_type",
-                                  "report_not_a_run", "check_not_a_submission", "eval_out_is_a_file"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "team_missing",
+        "team_folder",
+        "team_empty",
+        "team_bytes",
+        "team_nan",
+        "team_list",
+        "preset_nan_lr",
+        "preset_negative",
+        "preset_wrong_type",
+        "report_not_a_run",
+        "check_not_a_submission",
+        "eval_out_is_a_file",
+    ],
+)
 def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, capsys, case):
     """Team files, preset values, folders given to report/--check and output paths: exit 2, one
     error line naming the argument and what was wrong, nothing written."""
-    files = {"team_empty": b"", "team_bytes": np.random.default_rng(0).bytes(300),
-             "team_nan": b'{"robots": [{"type": "sensing", "capabilities": [NaN, 0]}, '
-                         b'{"type": "capture", "capabilities": [0, 0.3]}]}', "team_list": b"[1, 2]",
-             "preset_nan_lr": b"ppo: {lr: .nan}\n", "preset_negative": b"total_env_steps: -5\n",
-             "preset_wrong_type": b"ppo: {lr: fast}\n"}
+    files = {
+        "team_empty": b"",
+        "team_bytes": np.random.default_rng(0).bytes(300),
+        "team_nan": b'{"robots": [{"type": "sensing", "capabilities": [NaN, 0]}, '
+        b'{"type": "capture", "capabilities": [0, 0.3]}]}',
+        "team_list": b"[1, 2]",
+        "preset_nan_lr": b"ppo: {lr: .nan}\n",
+        "preset_negative": b"total_env_steps: -5\n",
+        "preset_wrong_type": b"ppo: {lr: fast}\n",
+    }
     path = tmp_path / ("in.yaml" if case.startswith("preset") else "in.json")
     if case in files:
         path.write_bytes(files[case])
@@ -491,16 +558,24 @@ def test_bad_user_files_and_values_get_one_line_and_leave_nothing(tmp_path, caps
         path.mkdir()
     export = ["export", "--policy", "heuristic", "--task", "pcp", "--out", str(tmp_path / "out"), "--team", str(path)]
     argv, expected = {
-        "team_missing": (export, "(no such file)"), "team_folder": (export, "(a folder)"),
-        "team_empty": (export, "got a file that is empty"), "team_bytes": (export, "got a file that is not JSON"),
+        "team_missing": (export, "(no such file)"),
+        "team_folder": (export, "(a folder)"),
+        "team_empty": (export, "got a file that is empty"),
+        "team_bytes": (export, "got a file that is not JSON"),
         "team_nan": (export, "sensing_radius_m must be in [0.0, 1.0] (physical limit), got nan"),
         "team_list": (export, "must hold a JSON object"),
-        "preset_nan_lr": (["train", "--algo", "comat", "--task", "pcp", "--preset", str(path), "--out",
-                           str(tmp_path / "out")], "ppo.lr must be a finite number > 0, got nan"),
-        "preset_negative": (["train", "--algo", "mat", "--task", "hmt", "--preset", str(path), "--out",
-                             str(tmp_path / "out")], "total_env_steps must be an integer >= 1, got -5"),
-        "preset_wrong_type": (["train", "--algo", "mappo", "--task", "pcp", "--preset", str(path), "--out",
-                               str(tmp_path / "out")], "ppo.lr must be float, got 'fast' (str)"),
+        "preset_nan_lr": (
+            ["train", "--algo", "comat", "--task", "pcp", "--preset", str(path), "--out", str(tmp_path / "out")],
+            "ppo.lr must be a finite number > 0, got nan",
+        ),
+        "preset_negative": (
+            ["train", "--algo", "mat", "--task", "hmt", "--preset", str(path), "--out", str(tmp_path / "out")],
+            "total_env_steps must be an integer >= 1, got -5",
+        ),
+        "preset_wrong_type": (
+            ["train", "--algo", "mappo", "--task", "pcp", "--preset", str(path), "--out", str(tmp_path / "out")],
+            "ppo.lr must be float, got 'fast' (str)",
+        ),
         "report_not_a_run": (["report", str(path), "--out", str(tmp_path)], "is not a run folder (no config.yaml)"),
         "check_not_a_submission": (["export", "--check", str(path)], "is not an exported submission"),
         "eval_out_is_a_file": (["eval", "--task", "pcp", "--out", str(path)], "is a file; expected a folder"),
@@ -523,11 +598,33 @@ def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_pa
     import yaml
 
     preset = tmp_path / "tiny.yaml"
-    preset.write_text(yaml.safe_dump({
-        "total_env_steps": 96, "eval_every_steps": 10**9, "eval_episodes_per_team": 0, "checkpoint_every_steps": 6,
-        "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2}, "models": TINY_MODELS}))
-    cmd = [sys.executable, "-m", "comat.cli", "train", "--algo", "comat", "--task", "pcp", "--preset", str(preset),
-           "--seed", "3", "--quiet"]
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                "total_env_steps": 96,
+                "eval_every_steps": 10**9,
+                "eval_episodes_per_team": 0,
+                "checkpoint_every_steps": 6,
+                "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2},
+                "models": TINY_MODELS,
+            }
+        )
+    )
+    cmd = [
+        sys.executable,
+        "-m",
+        "comat.cli",
+        "train",
+        "--algo",
+        "comat",
+        "--task",
+        "pcp",
+        "--preset",
+        str(preset),
+        "--seed",
+        "3",
+        "--quiet",
+    ]
     t0 = time.perf_counter()
     subprocess.run([*cmd, "--out", str(tmp_path / "straight")], check=True, capture_output=True, timeout=300)
     whole = time.perf_counter() - t0  # start-up included: kills land at the same phases on a slow, loaded machine
@@ -536,7 +633,9 @@ def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_pa
     kills = 0
     for delay in rng.uniform(0.15, 0.95, size=5) * whole:
         resume = ["--resume"] if (run / "config.yaml").exists() else []
-        proc = subprocess.Popen([*cmd, "--out", str(run), *resume], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [*cmd, "--out", str(run), *resume], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
         time.sleep(delay)
         if proc.poll() is None:
             proc.send_signal(signal.SIGKILL)
@@ -548,8 +647,7 @@ def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_pa
     # As a user would: --resume where a run was started (on a loaded machine every kill can land before
     # the run wrote anything, and there is nothing to resume).
     resume = ["--resume"] if (run / "config.yaml").exists() else []
-    final = subprocess.run([*cmd, "--out", str(run), *resume], check=False, capture_output=True, text=True,
-                           timeout=300)
+    final = subprocess.run([*cmd, "--out", str(run), *resume], check=False, capture_output=True, text=True, timeout=300)
     assert final.returncode == 0, final.stderr[-2000:]  # what went wrong, if it did
     assert not list(run.glob(".*tmp*"))
     a, b = load_checkpoint(tmp_path / "straight" / "checkpoint.pt"), load_checkpoint(run / "checkpoint.pt")
@@ -568,8 +666,9 @@ def test_overrides_and_base_presets(tmp_path, capsys):
     changed = apply_overrides(base, ["ppo.lr=3e-4", "models.comat.heads=2", "ppo.rollout_steps=null", "tier=wheels"])
     assert changed["ppo"]["lr"] == 3e-4 and changed["models"]["comat"]["heads"] == 2 and changed["tier"] == "wheels"
     assert changed["ppo"]["rollout_steps"] is None
-    assert {k: v for k, v in changed["ppo"].items() if k not in ("lr", "rollout_steps")} == \
-        {k: v for k, v in base["ppo"].items() if k not in ("lr", "rollout_steps")}
+    assert {k: v for k, v in changed["ppo"].items() if k not in ("lr", "rollout_steps")} == {
+        k: v for k, v in base["ppo"].items() if k not in ("lr", "rollout_steps")
+    }
     child = tmp_path / "child.yaml"
     child.write_text("base: quick\nppo: {lr: 0.001}\nmodels: {mat: {embed: 32}}\n")
     merged = load_preset(child)
@@ -580,17 +679,46 @@ def test_overrides_and_base_presets(tmp_path, capsys):
     with pytest.raises(ValueError, match="form a cycle"):
         load_preset(loop)
     run = tmp_path / "run"
-    argv = ["train", "--algo", "comat", "--task", "pcp", "--preset", str(child), "--steps", "12", "--quiet", "--out", str(run)]
-    assert main([*argv, "ppo.num_envs=2", "ppo.rollout_steps=3", "ppo.epochs=1", "eval_episodes_per_team=0",
-                 "models.comat.embed=16", "models.comat.heads=2", "models.comat.edge_embed=8"]) == 0
+    argv = [
+        "train",
+        "--algo",
+        "comat",
+        "--task",
+        "pcp",
+        "--preset",
+        str(child),
+        "--steps",
+        "12",
+        "--quiet",
+        "--out",
+        str(run),
+    ]
+    assert (
+        main(
+            [
+                *argv,
+                "ppo.num_envs=2",
+                "ppo.rollout_steps=3",
+                "ppo.epochs=1",
+                "eval_episodes_per_team=0",
+                "models.comat.embed=16",
+                "models.comat.heads=2",
+                "models.comat.edge_embed=8",
+            ]
+        )
+        == 0
+    )
     doc = yaml.safe_load((run / "config.yaml").read_text())
     assert doc["overrides"][0] == "ppo.num_envs=2" and doc["config"]["model"]["embed"] == 16
     assert doc["config"]["trainer"]["lr"] == 0.001 and doc["config"]["trainer"]["num_envs"] == 2
-    for bad, message in ((["ppo.lrr=3"], "unknown key(s) ['lrr']"), (["ppo.lr=fast"], "ppo.lr must be float"),
-                         (["lr"], "overrides must be key=value"), (["zzz=1"], "unknown key(s) ['zzz'] in overrides")):
+    for bad, message in (
+        (["ppo.lrr=3"], "unknown key(s) ['lrr']"),
+        (["ppo.lr=fast"], "ppo.lr must be float"),
+        (["lr"], "overrides must be key=value"),
+        (["zzz=1"], "unknown key(s) ['zzz'] in overrides"),
+    ):
         assert main([*argv[:-1], str(tmp_path / "other"), *bad]) == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "other").exists()
     assert main(["train", "--resume", "--out", str(run), "ppo.lr=1"]) == 2
     assert "overrides ['ppo.lr=1'] are for a new run" in capsys.readouterr().err
-

@@ -77,6 +77,7 @@ def test_infeasible_start_recovers_and_only_a_failed_solver_brakes():
     _ev, info = teams.tick(dxi)
     assert info.recovery.tolist() == [True, False] and not info.fallback.any()
     assert teams.recoveries.tolist() == [1, 0] and teams.fallbacks.tolist() == [0, 0]
+
     def gap(p):
         return np.linalg.norm(projected_points(p[:2], 0.05)[0] - projected_points(p[:2], 0.05)[1])
 
@@ -187,8 +188,11 @@ def _check(result, name):
     assert result.min_centre_distance.min() > C.GRITSBOT.diameter_m
     # Started inside the safe set, teams stay in it: never a recovery tick, never a brake.
     ticks = result.interventions.size * make_scenario(name, 1, seed=0).ticks
-    print(f"{name}: brake share {result.fallbacks.sum() / ticks:.2e}, recovery share {result.recoveries.sum() / ticks:.2e} "
-          f"of {ticks} team-ticks")
+    print(
+        f"{name}: brake share {result.fallbacks.sum() / ticks:.2e}, "
+        f"recovery share {result.recoveries.sum() / ticks:.2e} "
+        f"of {ticks} team-ticks"
+    )
     assert result.fallbacks.sum() == 0 and result.recoveries.sum() == 0, f"{name}: brakes or recoveries"
 
 

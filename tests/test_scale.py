@@ -20,15 +20,18 @@ def test_scale_set_has_teams_past_eight_slots_with_the_unseen_ranges(task):
     assert generate_coalitions(task, "scale") != generate_coalitions(task, "test")
 
 
-@pytest.mark.parametrize("algo", ["mappo", pytest.param("mat", marks=pytest.mark.slow),
-                                  pytest.param("qmix", marks=pytest.mark.slow)])
+@pytest.mark.parametrize(
+    "algo", ["mappo", pytest.param("mat", marks=pytest.mark.slow), pytest.param("qmix", marks=pytest.mark.slow)]
+)
 def test_baselines_with_20_slots_train_on_u_train_and_play_u_scale(tmp_path, algo):
     """A tiny run with 20 slots, then all 20 U_scale teams (MAPPO's critic state covers the 20)."""
     wide = {**TINY_MODELS, algo: {**TINY_MODELS[algo], "max_robots": 20}}
     config = tiny(algo, models=wide)
     assert config.model.max_robots == 20
     train(config, tmp_path / "run", quiet=True)
-    result = evaluate_policies(tmp_path / "run" / "checkpoint.pt", sets=("scale",), references=False, progress=lambda m: None)
+    result = evaluate_policies(
+        tmp_path / "run" / "checkpoint.pt", sets=("scale",), references=False, progress=lambda m: None
+    )
     (row,) = result["rows"]
     assert row["set"] == "scale" and row["episodes"] == 20
     assert max(e["team_size"] for e in row["per_episode"]) == 20
@@ -68,5 +71,7 @@ def test_layouts_of_changing_vectors_of_large_teams_hold_little_memory():
     for _ in range(300):
         team_layout(tuple(rng.choice(SIZES["scale"], 32).tolist()))
     largest = team_layout((20,) * 32)
-    held = sum(a.nbytes for a in (largest.offsets, largest.robot_team, largest.pair_i, largest.pair_j, largest.pair_team))
+    held = sum(
+        a.nbytes for a in (largest.offsets, largest.robot_team, largest.pair_i, largest.pair_j, largest.pair_team)
+    )
     assert team_layout.cache_info().currsize <= 16 and 16 * held < 3 * 2**20

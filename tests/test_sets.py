@@ -63,8 +63,14 @@ def test_capability_robots_lie_outside_the_training_range_in_every_capability(ta
 def test_a_side_is_drawn_in_proportion_to_its_width():
     # PCP sensing radii of U_cap: [0.18, 0.30) is 0.12 m wide, (0.55, 0.75] 0.20 m: 3/8 below.
     rng = np.random.default_rng(0)
-    values = np.array([r.capabilities[0] for _ in range(400)
-                       for r in random_team(rng, "pcp", "capability", 10).robots if r.type == "sensing"])
+    values = np.array(
+        [
+            r.capabilities[0]
+            for _ in range(400)
+            for r in random_team(rng, "pcp", "capability", 10).robots
+            if r.type == "sensing"
+        ]
+    )
     assert values.size > 1500
     assert abs(np.mean(values < 0.30) - 0.375) < 0.03
     below, above = values[values < 0.30], values[values > 0.55]
@@ -124,4 +130,4 @@ def test_every_set_gives_a_state_by_default(task):
         assert state.shape == env.state_space.shape
         sizes[split] = state.shape[0]
     obs = 15 if task == "hmt" else 13
-    assert sizes["scale"] - sizes["train"] >= 12 * obs     # 20 robot slots instead of 8
+    assert sizes["scale"] - sizes["train"] >= 12 * obs  # 20 robot slots instead of 8

@@ -16,8 +16,13 @@ def _run(env, steps: int, seed: int = 0) -> dict:
     for _ in range(steps):
         actions = np.where(info["agent_mask"], rng.integers(0, 5, info["agent_mask"].shape), 0)
         obs, rewards, terminated, truncated, info = env.step(actions)
-        for key, value in (("obs", obs), ("mask", info["agent_mask"]), ("rewards", rewards),
-                           ("done", terminated | truncated), ("state", env.state())):
+        for key, value in (
+            ("obs", obs),
+            ("mask", info["agent_mask"]),
+            ("rewards", rewards),
+            ("done", terminated | truncated),
+            ("state", env.state()),
+        ):
             out[key].append(value)
         if "_episode" in info:
             out["final"].append((info["_episode"], info["episode"]["progress"], info["final_obs"], info["final_state"]))
@@ -85,13 +90,16 @@ def test_merged_record_of_a_worker_without_finished_episodes_is_zeros():
         assert merged["episode_robots"][name].shape == (5, 8) and not merged["episode_robots"][name][:3].any()
         np.testing.assert_array_equal(merged["episode_robots"][name][3:], v)
     np.testing.assert_array_equal(merged["episode_robots"]["still_idle"][3:], 80 * team_mask)  # all stayed
-    np.testing.assert_array_equal(merged["episode_end"]["sensed_not_captured"][3:],
-                                  info_a["episode_end"]["sensed_not_captured"])
+    np.testing.assert_array_equal(
+        merged["episode_end"]["sensed_not_captured"][3:], info_a["episode_end"]["sensed_not_captured"]
+    )
 
 
 def test_sharded_is_deterministic():
-    with make_vec_env("pcp_v0", 4, workers=2, seed=7, **OPTS) as env1, \
-            make_vec_env("pcp_v0", 4, workers=2, seed=7, **OPTS) as env2:
+    with (
+        make_vec_env("pcp_v0", 4, workers=2, seed=7, **OPTS) as env1,
+        make_vec_env("pcp_v0", 4, workers=2, seed=7, **OPTS) as env2,
+    ):
         a, b = _run(env1, 12, seed=1), _run(env2, 12, seed=1)
     for key in ("obs", "rewards", "state"):
         np.testing.assert_array_equal(np.stack(a[key]), np.stack(b[key]))
@@ -121,8 +129,10 @@ def test_sharded_rng_state_round_trip_and_errors():
 
 def test_shard_by_shard_steps_equal_whole_steps():
     """step_send/step_recv, one worker at a time and overlapping, give what step() gives."""
-    with make_vec_env("pcp_v0", 5, workers=2, seed=5, **OPTS) as whole, \
-            make_vec_env("pcp_v0", 5, workers=2, seed=5, **OPTS) as parts:
+    with (
+        make_vec_env("pcp_v0", 5, workers=2, seed=5, **OPTS) as whole,
+        make_vec_env("pcp_v0", 5, workers=2, seed=5, **OPTS) as parts,
+    ):
         rng = np.random.default_rng(2)
         _, info = whole.reset()
         parts.reset()

@@ -86,7 +86,8 @@ def test_runtime_matches_torch(task, kind, tmp_path):
 
 
 OPTIONS = {
-    "sizes": {}, "root": {"root_weight": True},
+    "sizes": {},
+    "root": {"root_weight": True},
     "embed": {"obs_embed": True, "message_gain": 0.01, "node_ffn": True, "decision": "shared_trunk"},
     "reference": {"obs_embed": True, "heat_form": "reference", "edge_frame": "world", "root_weight": True},
     "raw_reference_ffn": {"heat_form": "reference", "node_ffn": True},
@@ -134,7 +135,9 @@ def test_weights_file_round_trips(tmp_path):
 def test_weights_of_another_model_are_refused(tmp_path):
     changed = make_model("pcp", "init")
     changed.extra = torch.nn.Linear(2, 2)  # a module the runtime does not know: refused, not dropped
-    with pytest.raises(ValueError, match=r"does not match the numpy runtime.*unexpected \['extra.bias', 'extra.weight'\]"):
+    with pytest.raises(
+        ValueError, match=r"does not match the numpy runtime.*unexpected \['extra.bias', 'extra.weight'\]"
+    ):
         comat_arrays(changed)
     config, arrays = comat_arrays(make_model("pcp", "init"))
     # HMT observations are wider than PCP's: an HMT config cannot take PCP weights.
@@ -185,8 +188,9 @@ def test_version_1_files_with_the_shared_trunk_flag_still_load(tmp_path):
     import json
 
     for decision in ("type_heads", "shared_trunk", "adapters"):
-        model = make_model("hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=1, edge_embed=8,
-                                                         decision=decision))
+        model = make_model(
+            "hmt", "trained", ComatConfig(embed=24, heads=3, heat_blocks=1, edge_embed=8, decision=decision)
+        )
         config, arrays = comat_arrays(model)
         record = pack_weights(arrays, config)
         manifest = json.loads(record["manifest"].tobytes())

@@ -77,16 +77,28 @@ def _configurations():
         # a corner pile-up pushed into the walls
         radius = 0.21 / (2 * np.sin(np.pi / n))
         a = np.linspace(0, 2 * np.pi, n, endpoint=False)
-        out.append((f"ring-{n}", (n,), np.stack([radius * np.cos(a), radius * np.sin(a), a + np.pi], 1),
-                    np.tile([[0.2, 0.0]], (n, 1))))
+        out.append(
+            (
+                f"ring-{n}",
+                (n,),
+                np.stack([radius * np.cos(a), radius * np.sin(a), a + np.pi], 1),
+                np.tile([[0.2, 0.0]], (n, 1)),
+            )
+        )
         x1, y1 = C.ARENA_BOUNDS_M[1] - 0.2, C.ARENA_BOUNDS_M[3] - 0.2
         g = np.stack(np.meshgrid(np.arange(8), np.arange(n // 8 + 1)), -1).reshape(-1, 2)[:n]
         corner = np.column_stack([x1 - 0.22 * g[:, 0], y1 - 0.22 * g[:, 1], np.full(n, np.pi / 4)])
         out.append((f"corner-{n}", (n,), corner, np.tile([[1e6, 0.0]], (n, 1))))
     g = np.stack(np.meshgrid(np.arange(8), np.arange(4)), -1).reshape(-1, 2)
     x1, y1 = C.ARENA_BOUNDS_M[1] - 0.2, C.ARENA_BOUNDS_M[3] - 0.2
-    out.append(("corner-32", (32,), np.column_stack([x1 - 0.22 * g[:, 0], y1 - 0.22 * g[:, 1], np.full(32, np.pi / 4)]),
-                np.tile([[1e6, 0.0]], (32, 1))))
+    out.append(
+        (
+            "corner-32",
+            (32,),
+            np.column_stack([x1 - 0.22 * g[:, 0], y1 - 0.22 * g[:, 1], np.full(32, np.pi / 4)]),
+            np.tile([[1e6, 0.0]], (32, 1)),
+        )
+    )
     return out
 
 
@@ -165,7 +177,9 @@ def test_small_teams_keep_the_all_pairs_problem_bit_for_bit(rng):
 def test_safe_robots_outside_the_reduced_problem_keep_their_command():
     """A 12-robot team: two robots about to collide, ten far apart and still. Only the pair is in
     the reduced problem; the others' commands come back exactly."""
-    poses = np.array([[-0.12, 0.0, 0.0], [0.12, 0.0, np.pi]] + [[-1.2 + 0.5 * (i % 5), 0.6 * (-1) ** i, 0.0] for i in range(10)])
+    poses = np.array(
+        [[-0.12, 0.0, 0.0], [0.12, 0.0, np.pi]] + [[-1.2 + 0.5 * (i % 5), 0.6 * (-1) ** i, 0.0] for i in range(10)]
+    )
     dxu = np.array([[0.2, 0.0], [0.2, 0.0]] + [[0.05, 0.1]] * 10)
     f = SafetyFilter(12)
     out, info = f.filter_unicycle(poses, dxu)

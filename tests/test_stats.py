@@ -69,7 +69,7 @@ def test_welch_matches_scipy_and_the_satterthwaite_df():
     ref = sst.ttest_ind(a, b, equal_var=False)
     assert w["t"] == pytest.approx(ref.statistic) and w["p"] == pytest.approx(ref.pvalue)
     va, vb = a.var(ddof=1) / 3, b.var(ddof=1) / 4
-    df = (va + vb) ** 2 / (va ** 2 / 2 + vb ** 2 / 3)
+    df = (va + vb) ** 2 / (va**2 / 2 + vb**2 / 3)
     assert w["df"] == pytest.approx(df)
     half = sst.t.ppf(0.975, df) * math.sqrt(va + vb)
     assert w["diff"] == pytest.approx(a.mean() - b.mean())

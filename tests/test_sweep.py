@@ -33,17 +33,35 @@ ROOT = Path(__file__).resolve().parents[1]
 def _preset(folder: Path, steps: int = 12) -> Path:
     """A preset whose runs take seconds: one CPU per trial, no evaluation during training."""
     path = folder / "tiny.yaml"
-    path.write_text(yaml.safe_dump({
-        "total_env_steps": steps, "seeds": [0], "eval_every_steps": 10**9, "eval_episodes_per_team": 0,
-        "checkpoint_every_steps": 6, "tier": "unicycle", "torch_threads": 1,
-        "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1}, "models": TINY_MODELS}))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "total_env_steps": steps,
+                "seeds": [0],
+                "eval_every_steps": 10**9,
+                "eval_episodes_per_team": 0,
+                "checkpoint_every_steps": 6,
+                "tier": "unicycle",
+                "torch_threads": 1,
+                "ppo": {"num_envs": 2, "rollout_steps": 3, "epochs": 1, "minibatches": 1},
+                "models": TINY_MODELS,
+            }
+        )
+    )
     return path
 
 
 def _comat(*args: str, cwd: Path, env: dict | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
     env = {**os.environ, **(env or {}), "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    return subprocess.run([sys.executable, "-m", "comat.cli", *args], check=False, cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "comat.cli", *args],
+        check=False,
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def _straight(preset: Path, algo: str, seed: int, out: Path) -> dict:
@@ -62,8 +80,22 @@ def test_swept_runs_equal_comat_train_runs_and_a_second_sitting_skips_them(tmp_p
     root = tmp_path / "elsewhere" / "sw"
     (root / "mat_pcp_s0").mkdir(parents=True)  # a run stopped before its first checkpoint, by hand
     (root / "mat_pcp_s0" / "config.yaml").write_text("partial")
-    argv = ["sweep", "--preset", str(preset), "--algos", "comat", "mat", "--tasks", "pcp", "--eval-sets", "train",
-            "--out", "sw", "--jobs", "2"]
+    argv = [
+        "sweep",
+        "--preset",
+        str(preset),
+        "--algos",
+        "comat",
+        "mat",
+        "--tasks",
+        "pcp",
+        "--eval-sets",
+        "train",
+        "--out",
+        "sw",
+        "--jobs",
+        "2",
+    ]
     first = _comat(*argv, cwd=tmp_path / "elsewhere")
     assert first.returncode == 0, first.stderr[-3000:]
     out = first.stdout
@@ -131,8 +163,10 @@ def test_sweep_status_reads_the_grid_from_the_record(tmp_path, capsys):
     assert "1 of 6 jobs done" in out and not (root / "comat_pcp_s2").exists()
     # Without a record (a sweep from before records were kept) the flags give the grid, as they did.
     (root / RECORD).unlink()
-    assert main(["sweep", "--status", "--preset", str(preset), "--algos", "comat", "--tasks", "pcp", "--out",
-                 str(root)]) == 0
+    assert (
+        main(["sweep", "--status", "--preset", str(preset), "--algos", "comat", "--tasks", "pcp", "--out", str(root)])
+        == 0
+    )
     assert "1 of 3 jobs done" in capsys.readouterr().out
 
 
@@ -145,10 +179,29 @@ def test_seeds_given_replace_the_presets_and_the_sweep_says_so(tmp_path):
     assert prepare_sweep(tmp_path / "sw", {"preset": "paper"})[0]["cpus_per_trial"] == 2  # 2 env processes
 
 
-@pytest.mark.parametrize("case", ["preset_missing", "preset_unknown", "preset_empty", "preset_bytes", "preset_negative",
-                                  "override_unknown", "seeds_negative", "seeds_repeated", "steps_zero", "episodes_zero",
-                                  "jobs_zero", "retries_negative", "out_is_a_file", "out_unwritable",
-                                  "out_under_a_file", "out_is_a_run", "out_holds_another_sweep", "record_corrupt"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "preset_missing",
+        "preset_unknown",
+        "preset_empty",
+        "preset_bytes",
+        "preset_negative",
+        "override_unknown",
+        "seeds_negative",
+        "seeds_repeated",
+        "steps_zero",
+        "episodes_zero",
+        "jobs_zero",
+        "retries_negative",
+        "out_is_a_file",
+        "out_unwritable",
+        "out_under_a_file",
+        "out_is_a_run",
+        "out_holds_another_sweep",
+        "record_corrupt",
+    ],
+)
 def test_bad_sweep_inputs_get_one_line_and_leave_nothing(tmp_path, capsys, case):
     """Exit status 2, one line naming the argument, the expected and the received value, no
     traceback, and nothing written (no root folder; an existing sweep's record unchanged)."""
@@ -167,28 +220,43 @@ def test_bad_sweep_inputs_get_one_line_and_leave_nothing(tmp_path, capsys, case)
         (out / "config.yaml").write_text("config: {}\n")
     elif case in ("out_holds_another_sweep", "record_corrupt"):
         out.mkdir()
-        (out / RECORD).write_text("{not json" if case == "record_corrupt" else json.dumps(
-            prepare_sweep(out, {"preset": str(preset), "algos": ["comat"], "tasks": ["pcp"], "eval_sets": []})[0]))
+        (out / RECORD).write_text(
+            "{not json"
+            if case == "record_corrupt"
+            else json.dumps(
+                prepare_sweep(out, {"preset": str(preset), "algos": ["comat"], "tasks": ["pcp"], "eval_sets": []})[0]
+            )
+        )
     argv, expected = {
         "preset_missing": ([*base, "--preset", str(tmp_path / "nope.yaml"), "--out", str(out)], "does not exist"),
         "preset_unknown": ([*base, "--preset", "nosuch", "--out", str(out)], "unknown preset 'nosuch'; presets: ["),
         "preset_empty": ([*base, "--preset", str(path.with_suffix(".yaml")), "--out", str(out)], "is empty"),
         "preset_bytes": ([*base, "--preset", str(path.with_suffix(".yaml")), "--out", str(out)], "is not"),
-        "preset_negative": ([*base, "--preset", str(path.with_suffix(".yaml")), "--out", str(out)],
-                            "total_env_steps must be an integer >= 1, got -5"),
+        "preset_negative": (
+            [*base, "--preset", str(path.with_suffix(".yaml")), "--out", str(out)],
+            "total_env_steps must be an integer >= 1, got -5",
+        ),
         "override_unknown": ([*base, "--out", str(out), "ppo.lrr=3"], "unknown key(s) ['lrr']"),
-        "seeds_negative": ([*base, "--seeds", "-1", "--out", str(out)], "--seeds must be non-negative integers, got [-1]"),
+        "seeds_negative": (
+            [*base, "--seeds", "-1", "--out", str(out)],
+            "--seeds must be non-negative integers, got [-1]",
+        ),
         "seeds_repeated": ([*base, "--seeds", "1", "1", "--out", str(out)], "--seeds must not repeat a seed"),
         "steps_zero": ([*base, "--steps", "0", "--out", str(out)], "--steps must be an integer >= 1, got 0"),
         "episodes_zero": ([*base, "--episodes", "0", "--out", str(out)], "--episodes must be an integer >= 1, got 0"),
         "jobs_zero": ([*base, "--jobs", "0", "--out", str(out)], "--jobs must be an integer >= 1, got 0"),
-        "retries_negative": ([*base, "--retries", "-1", "--out", str(out)], "--retries must be an integer >= 0, got -1"),
+        "retries_negative": (
+            [*base, "--retries", "-1", "--out", str(out)],
+            "--retries must be an integer >= 0, got -1",
+        ),
         "out_is_a_file": ([*base, "--out", str(path)], "is a file; expected the sweep's root folder"),
         "out_unwritable": ([*base, "--out", "/sys/comat-sweep"], "cannot be written"),
         "out_under_a_file": ([*base, "--out", str(tmp_path / "tiny.yaml" / "sw")], "cannot be written"),
         "out_is_a_run": ([*base, "--out", str(out)], "is a run folder of comat train"),
-        "out_holds_another_sweep": ([*base, "--seeds", "7", "--out", str(out)],
-                                    "holds a sweep with other settings (--seeds [0] there, [7] given)"),
+        "out_holds_another_sweep": (
+            [*base, "--seeds", "7", "--out", str(out)],
+            "holds a sweep with other settings (--seeds [0] there, [7] given)",
+        ),
         "record_corrupt": ([*base, "--out", str(out)], "cannot be read"),
     }[case]
     if case in ("preset_empty", "preset_bytes", "preset_negative"):
@@ -250,13 +318,35 @@ def test_kill_9_of_a_sweep_at_random_moments_then_rerun_equals_an_uninterrupted_
 
     preset = _preset(tmp_path, steps=96)
     root = tmp_path / "sw"
-    argv = [sys.executable, "-m", "comat.cli", "sweep", "--preset", str(preset), "--algos", "comat", "--tasks", "pcp",
-            "--seeds", "3", "--no-eval", "--out", str(root), "--jobs", "1"]
+    argv = [
+        sys.executable,
+        "-m",
+        "comat.cli",
+        "sweep",
+        "--preset",
+        str(preset),
+        "--algos",
+        "comat",
+        "--tasks",
+        "pcp",
+        "--seeds",
+        "3",
+        "--no-eval",
+        "--out",
+        str(root),
+        "--jobs",
+        "1",
+    ]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     run = root / "comat_pcp_s3"
     rng = np.random.default_rng(0)
-    phases = ["ray starting", "before the first checkpoint", "between checkpoints", "during a checkpoint write",
-              "between checkpoints"]
+    phases = [
+        "ray starting",
+        "before the first checkpoint",
+        "between checkpoints",
+        "during a checkpoint write",
+        "between checkpoints",
+    ]
     killed_in = []
     for phase in phases:
         first, config = _file_id(run / "checkpoint.pt"), _file_id(run / "config.yaml")
@@ -325,20 +415,38 @@ def _cluster(ray_env: dict, nodes: int = 2, dashboard: bool = False):
     temps = [tempfile.mkdtemp(prefix="rn", dir="/tmp") for _ in range(nodes)]  # short: Ray's socket paths
     gcs, client, dash, *agent = _free_ports(3 + 2 * nodes)
     common = ["--node-ip-address", LOOPBACK, "--num-cpus", "1", "--disable-usage-stats"]
-    cmds = [[ray, "start", "--head", "--port", str(gcs), "--temp-dir", temps[0], "--include-dashboard",
-             str(dashboard).lower(), "--dashboard-host", LOOPBACK, "--dashboard-port", str(dash),
-             "--ray-client-server-port", str(client)]]
+    cmds = [
+        [
+            ray,
+            "start",
+            "--head",
+            "--port",
+            str(gcs),
+            "--temp-dir",
+            temps[0],
+            "--include-dashboard",
+            str(dashboard).lower(),
+            "--dashboard-host",
+            LOOPBACK,
+            "--dashboard-port",
+            str(dash),
+            "--ray-client-server-port",
+            str(client),
+        ]
+    ]
     cmds += [[ray, "start", "--address", f"{LOOPBACK}:{gcs}", "--temp-dir", t] for t in temps[1:]]
     try:
         for k, cmd in enumerate(cmds):
             ports = ["--dashboard-agent-listen-port", str(agent[2 * k]), "--metrics-export-port", str(agent[2 * k + 1])]
-            done = subprocess.run([*cmd, *ports, *common], check=False, env=ray_env, cwd="/", capture_output=True,
-                                  text=True, timeout=180)
+            done = subprocess.run(
+                [*cmd, *ports, *common], check=False, env=ray_env, cwd="/", capture_output=True, text=True, timeout=180
+            )
             assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
         yield f"{LOOPBACK}:{gcs}", f"http://{LOOPBACK}:{dash}"
     finally:
-        started = [p for p in psutil.process_iter(["cmdline"])
-                   if any(t in " ".join(p.info["cmdline"] or []) for t in temps)]
+        started = [
+            p for p in psutil.process_iter(["cmdline"]) if any(t in " ".join(p.info["cmdline"] or []) for t in temps)
+        ]
         _end(list({q.pid: q for p in started for q in [p, *_descendants(p.pid)]}.values()))
         for t in temps:
             shutil.rmtree(t, ignore_errors=True)
@@ -378,10 +486,33 @@ def test_a_sweep_on_a_two_node_cluster_lands_under_its_out_and_a_killed_worker_r
     root = tmp_path / "elsewhere" / "sw"
     with _cluster(ray_env) as (address, _):
         env = {**ray_env, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-        proc = subprocess.Popen([sys.executable, "-m", "comat.cli", "sweep", "--address", address, "--preset",
-                                 str(preset), "--algos", "comat", "--tasks", "pcp", "--seeds", "0", "1", "--no-eval",
-                                 "--out", "sw"], cwd=tmp_path / "elsewhere", env=env, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "comat.cli",
+                "sweep",
+                "--address",
+                address,
+                "--preset",
+                str(preset),
+                "--algos",
+                "comat",
+                "--tasks",
+                "pcp",
+                "--seeds",
+                "0",
+                "1",
+                "--no-eval",
+                "--out",
+                "sw",
+            ],
+            cwd=tmp_path / "elsewhere",
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         killed, deadline = None, time.monotonic() + 400
         while killed is None and proc.poll() is None and time.monotonic() < deadline:
             for seed in (0, 1):
@@ -417,11 +548,39 @@ def test_ray_job_submit_runs_a_sweep_on_the_cluster(tmp_path):
     root = tmp_path / "sw"
     with _cluster(ray_env, nodes=1, dashboard=True) as (_, dashboard):
         job_env = json.dumps({"env_vars": {"PYTHONPATH": str(ROOT)}})  # the job's driver imports this checkout
-        done = subprocess.run([ray, "job", "submit", "--address", dashboard, "--runtime-env-json", job_env, "--",
-                               str(Path(sys.executable).with_name("comat")), "sweep", "--address", "auto", "--preset",
-                               str(preset), "--algos", "comat", "--tasks", "pcp", "--seeds", "0", "1", "--no-eval",
-                               "--out", str(root)], check=False, env=ray_env, capture_output=True, text=True,
-                              timeout=600)
+        done = subprocess.run(
+            [
+                ray,
+                "job",
+                "submit",
+                "--address",
+                dashboard,
+                "--runtime-env-json",
+                job_env,
+                "--",
+                str(Path(sys.executable).with_name("comat")),
+                "sweep",
+                "--address",
+                "auto",
+                "--preset",
+                str(preset),
+                "--algos",
+                "comat",
+                "--tasks",
+                "pcp",
+                "--seeds",
+                "0",
+                "1",
+                "--no-eval",
+                "--out",
+                str(root),
+            ],
+            check=False,
+            env=ray_env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
     assert "2 of 2 jobs finished" in done.stdout
     for seed in (0, 1):

@@ -27,7 +27,8 @@ def test_the_checkout_train_folder_is_the_package_data():
             pytest.skip("not a checkout")
         assert (ROOT / "train" / link).resolve() == target
     assert sorted(p.name for p in COALITIONS_DIR.glob("*.yaml")) == sorted(
-        f"{task}_{split}.yaml" for task, split in CAPABILITY_RANGES)
+        f"{task}_{split}.yaml" for task, split in CAPABILITY_RANGES
+    )
 
 
 @pytest.mark.parametrize("task,split", sorted(CAPABILITY_RANGES))
@@ -53,9 +54,7 @@ def test_sets_are_reproducible_and_seed_dependent():
 @pytest.mark.parametrize("task,split", sorted(CAPABILITY_RANGES))
 def test_stored_files_equal_the_generator(task, split):
     path = COALITIONS_DIR / f"{task}_{split}.yaml"
-    assert load_coalitions(path) == generate_coalitions(task, split, seed=0), (
-        f"{path} is stale: run `comat coalitions`"
-    )
+    assert load_coalitions(path) == generate_coalitions(task, split, seed=0), f"{path} is stale: run `comat coalitions`"
 
 
 def test_unseen_test_ranges_differ_from_training():
@@ -73,13 +72,23 @@ def test_unseen_test_ranges_differ_from_training():
         ((), r"needs at least one robot of each type \('sensing', 'capture'\), got an empty team"),
         ((RobotSpec("sensing", (0.4, 0.0)),), r"missing \['capture'\]"),
         ((RobotSpec("sensing", (0.4, 0.0)), RobotSpec("seeker", (0.0, 0.3))), r"robot 1: type must be one of"),
-        ((RobotSpec("sensing", (1.5, 0.0)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: sensing_radius_m must be in \[0.0, 1.0\] \(physical limit\), got 1.5"),
-        ((RobotSpec("sensing", (0.0, 0.0)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: a sensing robot needs sensing_radius_m > 0, got 0.0"),
+        (
+            (RobotSpec("sensing", (1.5, 0.0)), RobotSpec("capture", (0.0, 0.3))),
+            r"robot 0: sensing_radius_m must be in \[0.0, 1.0\] \(physical limit\), got 1.5",
+        ),
+        (
+            (RobotSpec("sensing", (0.0, 0.0)), RobotSpec("capture", (0.0, 0.3))),
+            r"robot 0: a sensing robot needs sensing_radius_m > 0, got 0.0",
+        ),
         ((RobotSpec("sensing", (0.4,)), RobotSpec("capture", (0.0, 0.3))), r"robot 0: capabilities must be 2 numbers"),
-        ((RobotSpec("sensing", (0.4, 0.3)), RobotSpec("capture", (0.0, 0.3))),
-         r"robot 0: a sensing robot has no capture_radius_m \(the pcp rules ignore it\); expected 0, got 0.3"),
-        ((RobotSpec("sensing", (0.4, 0.0)), RobotSpec("capture", (0.2, 0.3))),
-         r"robot 1: a capture robot has no sensing_radius_m"),
+        (
+            (RobotSpec("sensing", (0.4, 0.3)), RobotSpec("capture", (0.0, 0.3))),
+            r"robot 0: a sensing robot has no capture_radius_m \(the pcp rules ignore it\); expected 0, got 0.3",
+        ),
+        (
+            (RobotSpec("sensing", (0.4, 0.0)), RobotSpec("capture", (0.2, 0.3))),
+            r"robot 1: a capture robot has no sensing_radius_m",
+        ),
     ],
 )
 def test_bad_teams(robots, match):

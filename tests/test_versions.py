@@ -1,4 +1,5 @@
 """What every run records about the code and machine that made it (``comat.rl.checkpoint.versions``)."""
+
 import subprocess
 from pathlib import Path
 

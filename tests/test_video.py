@@ -13,8 +13,21 @@ from comat.viz.video import VideoWriter
 @pytest.mark.parametrize("suffix", [".mp4", ".gif"])
 def test_rollout_video_decodes_to_one_frame_per_step(tmp_path, capsys, suffix):
     video = tmp_path / f"run{suffix}"
-    code = main(["rollout", "--task", "pcp", "--policy", "heuristic", "--episodes", "2", "--tier", "unicycle",
-                 "--video", str(video)])
+    code = main(
+        [
+            "rollout",
+            "--task",
+            "pcp",
+            "--policy",
+            "heuristic",
+            "--episodes",
+            "2",
+            "--tier",
+            "unicycle",
+            "--video",
+            str(video),
+        ]
+    )
     assert code == 0
     printed = capsys.readouterr().out
     steps = [int(line.split(" steps")[0].split()[-1]) for line in printed.splitlines() if "episode " in line]
@@ -43,7 +56,10 @@ def test_video_frames_are_the_env_render_frames(tmp_path):
 def test_bad_videos_are_refused_and_leave_nothing(tmp_path, capsys):
     assert main(["rollout", "--task", "pcp", "--video", str(tmp_path / "x.avi")]) == 2
     assert "video must be a file name ending in .mp4 or .gif, got" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="frame must be an \\(H, W, 3\\) uint8 array"), VideoWriter(tmp_path / "y.mp4") as w:
+    with (
+        pytest.raises(ValueError, match="frame must be an \\(H, W, 3\\) uint8 array"),
+        VideoWriter(tmp_path / "y.mp4") as w,
+    ):
         w.append(np.zeros((4, 4)))
     with pytest.raises(RuntimeError, match="boom"), VideoWriter(tmp_path / "z.gif") as w:
         w.append(np.zeros((*FRAME_SIZE, 3), np.uint8))

@@ -98,9 +98,7 @@ def record_one(tmp_path, task, policy, team_size=8, seed=3):
     }
     info = {}
     while env.agents:
-        actions = (heuristic_actions(core) if policy == "heuristic" else random_actions(rng, core.mask))[
-            0, :team_size
-        ]
+        actions = (heuristic_actions(core) if policy == "heuristic" else random_actions(rng, core.mask))[0, :team_size]
         _, rewards, _, _, infos = env.step({a: int(actions[i]) for i, a in enumerate(env.agents)})
         ref.close_step()
         info = infos["robot_0"]
@@ -176,11 +174,7 @@ def test_recording_matches_the_env(tmp_path, task, policy):
     # Robots where the env had them, and the actions it was given.
     positions = np.stack(column(temporal[f"{w}/robots"], "Points2D:positions"))
     np.testing.assert_allclose(positions, np.stack(kept["poses"])[..., :2], atol=1e-6)
-    assert (
-        static[f"{w}/robots"]["Points2D:labels"]
-        .to_pylist()[0][0]
-        .startswith(f"robot_0 {team.robots[0].type}")
-    )
+    assert static[f"{w}/robots"]["Points2D:labels"].to_pylist()[0][0].startswith(f"robot_0 {team.robots[0].type}")
     np.testing.assert_array_equal(
         np.stack(column(temporal[f"{w}/actions"], "Arrows2D:class_ids")), np.stack(kept["actions"])
     )
@@ -193,12 +187,8 @@ def test_recording_matches_the_env(tmp_path, task, policy):
     total = np.stack(column(temporal["/episode_0/reward/total"], "Scalars:scalars"))
     np.testing.assert_allclose(total[:, 0], kept["rewards"])
     np.testing.assert_allclose(total[:, 1], np.cumsum(kept["rewards"]))
-    np.testing.assert_allclose(
-        np.stack(column(temporal["/episode_0/reward/terms"], "Scalars:scalars")), kept["terms"]
-    )
-    assert static["/episode_0/reward/terms"]["SeriesLines:names"].to_pylist()[0] == list(
-        core.task.reward_terms
-    )
+    np.testing.assert_allclose(np.stack(column(temporal["/episode_0/reward/terms"], "Scalars:scalars")), kept["terms"])
+    assert static["/episode_0/reward/terms"]["SeriesLines:names"].to_pylist()[0] == list(core.task.reward_terms)
 
     # Safety: per-step counters add up to the env's episode metrics; arrows where the filter acted.
     counts = np.stack(column(temporal["/episode_0/safety/counts"], "Scalars:scalars"))
@@ -242,8 +232,11 @@ def test_recording_matches_the_env(tmp_path, task, policy):
         # lies at its robot's radius from the robot.
         rings = np.stack(column(temporal[f"{w}/capabilities/sensing"], "LineStrips2D:strips")[-1])  # (m, S+1, 2)
         centre = np.asarray(kept["poses"][-1])[sensing, :2]
-        np.testing.assert_allclose(np.hypot(*(rings - centre[:, None]).transpose(2, 0, 1)),
-                                   np.repeat(team.capability_array()[sensing, 0][:, None], rings.shape[1], 1), rtol=1e-5)
+        np.testing.assert_allclose(
+            np.hypot(*(rings - centre[:, None]).transpose(2, 0, 1)),
+            np.repeat(team.capability_array()[sensing, 0][:, None], rings.shape[1], 1),
+            rtol=1e-5,
+        )
     else:
         material = np.stack(column(temporal["/episode_0/task/material"], "Scalars:scalars"))
         np.testing.assert_allclose(material[:, :2], [s["left"] for s in kept["state"]])
@@ -253,9 +246,7 @@ def test_recording_matches_the_env(tmp_path, task, policy):
         bars = np.stack(column(temporal[f"{w}/capabilities/load"], "LineStrips2D:strips"))  # (T+1, n, 2, 2)
         payload = team.capability_array()[:, 1]
         fill = (bars[:, :, 1, 0] - bars[:, :, 0, 0]) / (payload * 0.006)
-        np.testing.assert_allclose(
-            fill, np.stack([s["load"][:n] for s in kept["state"]]) / payload, atol=1e-4
-        )
+        np.testing.assert_allclose(fill, np.stack([s["load"][:n] for s in kept["state"]]) / payload, atol=1e-4)
 
     # Metadata: team composition with each robot's type and capabilities, policy and seed.
     meta = static["/episode_0/meta"]
@@ -273,13 +264,9 @@ def test_file_passes_rerun_verify_and_holds_every_episode(tmp_path):
     )
     assert result.path == out and out.stat().st_size == result.bytes > 0
     assert not list(tmp_path.glob(".*"))  # the temporary file was renamed into place
-    verify = subprocess.run(
-        [str(RERUN), "rrd", "verify", str(out)], check=False, capture_output=True, text=True
-    )
+    verify = subprocess.run([str(RERUN), "rrd", "verify", str(out)], check=False, capture_output=True, text=True)
     assert verify.returncode == 0, verify.stderr
-    printed = subprocess.run(
-        [str(RERUN), "rrd", "print", str(out)], check=True, capture_output=True, text=True
-    ).stdout
+    printed = subprocess.run([str(RERUN), "rrd", "print", str(out)], check=True, capture_output=True, text=True).stdout
     assert "Blueprint" in printed  # the layout travels with the file
     for k, episode in enumerate(result.episodes):
         _, temporal = read(out, f"episode_{k}")
@@ -373,9 +360,7 @@ def test_policy_task_mismatch_and_unknown_policy_fail_before_anything_runs(tmp_p
     with pytest.raises(ValueError, match="episodes must be a positive integer, got 0"):
         record_episodes(out, "pcp", "heuristic", episodes=0)
     with pytest.raises(ValueError, match="teams\\[0\\] is a 'hmt' team, but the rollout runs 'pcp'"):
-        record_episodes(
-            out, "pcp", "heuristic", teams=[random_team(np.random.default_rng(0), "hmt", "test", 3)]
-        )
+        record_episodes(out, "pcp", "heuristic", teams=[random_team(np.random.default_rng(0), "hmt", "test", 3)])
     args = _parser().parse_args(["rollout", "--task", "pcp", "--policy", str(ckpt), "--out", str(out)])
     with pytest.raises(ValueError, match="--task 'pcp' disagrees with the checkpoint, which is for task 'hmt'"):
         args.func(args)
@@ -533,8 +518,15 @@ def test_the_arena_has_a_legend_and_a_quiet_episode_says_it_had_no_events(tmp_pa
     report logs one line that says so instead of an empty events view."""
     from comat.viz.recorder import NO_EVENTS
 
-    team = TeamSpec.from_dict({"task": "pcp", "robots": [{"type": "sensing", "capabilities": [0.4, 0.0]},
-                                                         {"type": "capture", "capabilities": [0.0, 0.3]}]})
+    team = TeamSpec.from_dict(
+        {
+            "task": "pcp",
+            "robots": [
+                {"type": "sensing", "capabilities": [0.4, 0.0]},
+                {"type": "capture", "capabilities": [0.0, 0.3]},
+            ],
+        }
+    )
     path = tmp_path / "quiet.rrd"
     record_episodes(path, "pcp", "heuristic", teams=[team], ticks_per_step=2)
     static, temporal = read(path)

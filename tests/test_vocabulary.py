@@ -13,11 +13,20 @@ from comat.cli import main
 from comat.measure.metrics import RETIRED_NAMES, current_names
 
 RETIRED = re.compile(r"\b(completion|success|brakes?)\b", re.IGNORECASE)
-PAPER_QUOTES = ('the paper\'s "completion"', "the paper's \\\"completion\\\"", "paper: completion")
+PAPER_QUOTES = ('the paper\'s "completion"', 'the paper\'s \\"completion\\"', "paper: completion")
 """Where the paper's own word stands, quoted as the paper's."""
-TINY = ["ppo.num_envs=2", "ppo.rollout_steps=8", "ppo.epochs=1", "ppo.minibatches=1", "eval_episodes_per_team=1",
-        "eval_every_steps=16", "models.comat.embed=16", "models.comat.heads=2", "models.comat.heat_blocks=1",
-        "models.comat.edge_embed=8"]
+TINY = [
+    "ppo.num_envs=2",
+    "ppo.rollout_steps=8",
+    "ppo.epochs=1",
+    "ppo.minibatches=1",
+    "eval_episodes_per_team=1",
+    "eval_every_steps=16",
+    "models.comat.embed=16",
+    "models.comat.heads=2",
+    "models.comat.heat_blocks=1",
+    "models.comat.edge_embed=8",
+]
 
 
 def _retired(text: str) -> list[str]:
@@ -59,8 +68,10 @@ def test_no_output_uses_a_retired_word(tmp_path, capsys):
 
 
 def test_files_written_before_the_rename_are_read_under_todays_names():
-    old = {"rows": [{"metrics": {"completion": {"mean": 0.5}, "success": {"mean": 0.1}, "brakes": 2}}],
-           "header": ["env_steps", "episode_completion", "episode_success"]}
+    old = {
+        "rows": [{"metrics": {"completion": {"mean": 0.5}, "success": {"mean": 0.1}, "brakes": 2}}],
+        "header": ["env_steps", "episode_completion", "episode_success"],
+    }
     new = current_names(old)
     assert new["rows"][0]["metrics"] == {"progress": {"mean": 0.5}, "finished": {"mean": 0.1}, "fallbacks": 2}
     assert new["header"] == ["env_steps", "episode_progress", "episode_finished"]
@@ -74,4 +85,7 @@ def test_a_run_started_under_the_old_names_resumes_under_todays(tmp_path):
     logger = RunLogger(tmp_path, resume_step=8, tensorboard=False)
     logger.log("progress", 16, {"episode_progress": 0.75, "episode_finished": 1.0})
     assert (tmp_path / "progress.csv").read_text().splitlines() == [
-        "env_steps,episode_progress,episode_finished", "8,0.5,0.0", "16,0.75,1.0"]
+        "env_steps,episode_progress,episode_finished",
+        "8,0.5,0.0",
+        "16,0.75,1.0",
+    ]

@@ -87,7 +87,10 @@ def test_same_inputs_same_trajectory():
         (np.zeros((2, 2)), r"poses must have shape \(2, 3\), got shape \(2, 2\)"),
         (np.array([[0.0, 0.0, np.nan], [0.5, 0.0, 0.0]]), r"poses must be finite, got nan at index \(0, 2\)"),
         (np.array([[1.58, 0.0, 0.0], [0.0, 0.0, 0.0]]), r"robot 0 at \(1.580, 0.000\) is outside the arena"),
-        (np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]]), r"robots 0 and 1 overlap \(centres 0.050 m apart, need >= 0.110 m\)"),
+        (
+            np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0]]),
+            r"robots 0 and 1 overlap \(centres 0.050 m apart, need >= 0.110 m\)",
+        ),
     ],
 )
 def test_bad_reset_poses(poses, match):

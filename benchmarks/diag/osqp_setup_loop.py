@@ -23,8 +23,17 @@ mode = sys.argv[1]
 
 def once():
     s = osqp.OSQP()
-    s.setup(sp.identity(n, format="csc"), -rng.normal(size=n), A, -np.ones(m), np.ones(m), verbose=False,
-            polishing=True, warm_starting=True, check_termination=10)
+    s.setup(
+        sp.identity(n, format="csc"),
+        -rng.normal(size=n),
+        A,
+        -np.ones(m),
+        np.ones(m),
+        verbose=False,
+        polishing=True,
+        warm_starting=True,
+        check_termination=10,
+    )
     ext = s._solver
     if mode == "warm":
         ext.warm_start(np.zeros(n), np.zeros(m))

@@ -17,8 +17,21 @@ from comat.bench import soak
 
 
 class MallInfo2(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
-                                                  "fsmblks", "uordblks", "fordblks", "keepcost")]
+    _fields_ = [
+        (n, ctypes.c_size_t)
+        for n in (
+            "arena",
+            "ordblks",
+            "smblks",
+            "hblks",
+            "hblkhd",
+            "usmblks",
+            "fsmblks",
+            "uordblks",
+            "fordblks",
+            "keepcost",
+        )
+    ]
 
 
 libc = ctypes.CDLL("libc.so.6")
@@ -30,15 +43,23 @@ out = Path(sys.argv[1])
 def sample_after_release():
     real_release()
     m = libc.mallinfo2()
-    row = {"batch": len(rows) + 1, "rss": soak._rss_bytes(), "in_use": m.uordblks + m.hblkhd,
-           "traced": tracemalloc.get_traced_memory()[0]}
+    row = {
+        "batch": len(rows) + 1,
+        "rss": soak._rss_bytes(),
+        "in_use": m.uordblks + m.hblkhd,
+        "traced": tracemalloc.get_traced_memory()[0],
+    }
     rows.append(row)
     if len(rows) % 50 == 10:
         snap = tracemalloc.take_snapshot().filter_traces([tracemalloc.Filter(False, tracemalloc.__file__)])
         if not first:
             first.append(snap)
-        row["growth"] = [(str(s.traceback), s.size_diff, s.count_diff) for s in snap.compare_to(first[0], "lineno")[:15]]
-        print(row["batch"], {k: round(v / 2**20, 1) for k, v in row.items() if k not in ("batch", "growth")}, flush=True)
+        row["growth"] = [
+            (str(s.traceback), s.size_diff, s.count_diff) for s in snap.compare_to(first[0], "lineno")[:15]
+        ]
+        print(
+            row["batch"], {k: round(v / 2**20, 1) for k, v in row.items() if k not in ("batch", "growth")}, flush=True
+        )
         for line in row["growth"][:8]:
             print("   ", line, flush=True)
         out.write_text(json.dumps(rows))

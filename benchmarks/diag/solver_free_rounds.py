@@ -21,8 +21,21 @@ from comat.heap import release_free_heap
 
 
 class MallInfo2(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
-                                                  "fsmblks", "uordblks", "fordblks", "keepcost")]
+    _fields_ = [
+        (n, ctypes.c_size_t)
+        for n in (
+            "arena",
+            "ordblks",
+            "smblks",
+            "hblks",
+            "hblkhd",
+            "usmblks",
+            "fsmblks",
+            "uordblks",
+            "fordblks",
+            "keepcost",
+        )
+    ]
 
 
 libc = ctypes.CDLL("libc.so.6")
@@ -30,8 +43,12 @@ libc.mallinfo2.restype = MallInfo2
 seed, rng = 0, np.random.default_rng(0)
 sets = ("train", "test", "scale")
 combos = [(task, split, policy) for task in ("pcp", "hmt") for split in sets for policy in ("heuristic", "random")]
-envs = {(task, split, tier): make_vec_env(f"{task}_v0", 32, seed=seed, tier=tier, coalitions=split)
-        for task in ("pcp", "hmt") for split in sets for tier in ("unicycle", "wheels")}
+envs = {
+    (task, split, tier): make_vec_env(f"{task}_v0", 32, seed=seed, tier=tier, coalitions=split)
+    for task in ("pcp", "hmt")
+    for split in sets
+    for tier in ("unicycle", "wheels")
+}
 for env in envs.values():
     _, info = env.reset(seed=seed)
     for _ in range(3):
@@ -45,5 +62,9 @@ for r in range(int(sys.argv[1])):
     gc.collect()
     release_free_heap()
     m = libc.mallinfo2()
-    print(time.strftime("%H:%M:%S"), f"{(r + 1) * 240} episodes: RSS {soak._rss_bytes() / 2**20:.2f} MiB, "
-          f"malloc in use {(m.uordblks + m.hblkhd) / 2**20:.2f} MiB", flush=True)
+    print(
+        time.strftime("%H:%M:%S"),
+        f"{(r + 1) * 240} episodes: RSS {soak._rss_bytes() / 2**20:.2f} MiB, "
+        f"malloc in use {(m.uordblks + m.hblkhd) / 2**20:.2f} MiB",
+        flush=True,
+    )

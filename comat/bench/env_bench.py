@@ -68,7 +68,13 @@ def bench_rps_env(task: str, n: int, iterations: int = 150) -> EnvBenchRow | Non
 
 
 def run_env_bench(
-    tasks=("pcp", "hmt"), tiers=("wheels", "unicycle"), sizes=(2, 5, 8, 12, 16, 20), batches=(1, 64), steps: int = 20, out=None, progress=print
+    tasks=("pcp", "hmt"),
+    tiers=("wheels", "unicycle"),
+    sizes=(2, 5, 8, 12, 16, 20),
+    batches=(1, 64),
+    steps: int = 20,
+    out=None,
+    progress=print,
 ) -> dict:
     rows: list[EnvBenchRow] = []
     for task in tasks:
@@ -105,7 +111,14 @@ def run_env_bench(
 def _checks(rows: list[EnvBenchRow]) -> dict:
     checks = {}
     for tier, factor in (("unicycle", 20), ("wheels", 5)):
-        r = next((r for r in rows if r.system == "comat" and r.task == "pcp" and r.tier == tier and r.batch == 64 and r.n_robots == 4), None)
+        r = next(
+            (
+                r
+                for r in rows
+                if r.system == "comat" and r.task == "pcp" and r.tier == tier and r.batch == 64 and r.n_robots == 4
+            ),
+            None,
+        )
         if r:
             ratio = r.env_steps_per_s / MARBLER_PCP4_REPORTED
             checks[f"pcp4_{tier}_B64_vs_marbler"] = {"value": ratio, "target": f">= {factor}", "pass": ratio >= factor}
@@ -135,43 +148,80 @@ def _timed_shard(task: str, tier: str, first: int, count: int, total: int, steps
         env.step(random_actions(rng, env.agent_mask))
     step_ms = (time.perf_counter() - t0) / steps * 1e3
     ticks, physics, osqp = split / steps * 1e3
-    return {"envs": [first, first + count - 1], "robots": robots / steps, "step_ms": step_ms, "physics_ms": physics,
-            "osqp_ms": osqp, "tick_rest_ms": ticks - physics - osqp, "outside_ticks_ms": step_ms - ticks}
+    return {
+        "envs": [first, first + count - 1],
+        "robots": robots / steps,
+        "step_ms": step_ms,
+        "physics_ms": physics,
+        "osqp_ms": osqp,
+        "tick_rest_ms": ticks - physics - osqp,
+        "outside_ticks_ms": step_ms - ticks,
+    }
 
 
-def bench_rollout_split(task: str = "pcp", tier: str = "unicycle", batch: int = 32, workers: int = 2,
-                        steps: int = 8, seed: int = 0) -> dict:
+def bench_rollout_split(
+    task: str = "pcp", tier: str = "unicycle", batch: int = 32, workers: int = 2, steps: int = 8, seed: int = 0
+) -> dict:
     """Where a rollout step's time goes: the whole batch in one process, then each of the
     ``workers`` shards an env process would hold, timed one after the other (their maximum is
     what a step with that many processes costs at best), plus a single environment (the fixed
     part)."""
 
     whole = _timed_shard(task, tier, 0, batch, batch, steps, seed)
-    shards = [_timed_shard(task, tier, sl.start, sl.stop - sl.start, batch, steps, seed)
-              for sl in shard_slices(batch, workers)]
+    shards = [
+        _timed_shard(task, tier, sl.start, sl.stop - sl.start, batch, steps, seed)
+        for sl in shard_slices(batch, workers)
+    ]
     single = _timed_shard(task, tier, 0, 1, batch, steps, seed)
     best = max(r["step_ms"] for r in shards)
-    return {"task": task, "tier": tier, "batch": batch, "workers": workers, "steps": steps, "whole": whole,
-            "shards": shards, "single_env": single, "sharded_step_ms_lower_bound": best,
-            "sharding_speedup_upper_bound": whole["step_ms"] / best}
+    return {
+        "task": task,
+        "tier": tier,
+        "batch": batch,
+        "workers": workers,
+        "steps": steps,
+        "whole": whole,
+        "shards": shards,
+        "single_env": single,
+        "sharded_step_ms_lower_bound": best,
+        "sharding_speedup_upper_bound": whole["step_ms"] / best,
+    }
 
 
-def run_rollout_bench(task: str = "pcp", tier: str = "unicycle", batch: int = 32, workers: int = 2, steps: int = 8,
-                      out=None, progress=print) -> dict:
+def run_rollout_bench(
+    task: str = "pcp",
+    tier: str = "unicycle",
+    batch: int = 32,
+    workers: int = 2,
+    steps: int = 8,
+    out=None,
+    progress=print,
+) -> dict:
     """``comat bench env --rollout``: :func:`bench_rollout_split` as a table and JSON."""
     r = bench_rollout_split(task, tier, batch, workers, steps)
     head = f"{'environments':<16}{'robots':>8}{'step ms':>9}{'physics':>9}{'OSQP':>7}{'tick rest':>11}{'outside':>9}"
-    progress(f"comat bench env --rollout: {task}, {tier}, training coalitions, random actions, {steps} steps\n"
-             + head + "\n" + "-" * len(head))
-    for label, row in [("all", r["whole"])] + [(f"shard {i}", x) for i, x in enumerate(r["shards"])] + [
-            ("one env", r["single_env"])]:
-        progress(f"{label + ' ' + str(row['envs'][0]) + '-' + str(row['envs'][1]):<16}{row['robots']:>8.0f}"
-                 f"{row['step_ms']:>9.1f}{row['physics_ms']:>9.1f}{row['osqp_ms']:>7.1f}{row['tick_rest_ms']:>11.1f}"
-                 f"{row['outside_ticks_ms']:>9.1f}")
-    progress(f"{workers} env processes: a step costs at least {r['sharded_step_ms_lower_bound']:.1f} ms (the slowest "
-             f"shard), at most {r['sharding_speedup_upper_bound']:.2f}x faster than one process")
+    progress(
+        f"comat bench env --rollout: {task}, {tier}, training coalitions, random actions, {steps} steps\n"
+        + head
+        + "\n"
+        + "-" * len(head)
+    )
+    for label, row in (
+        [("all", r["whole"])] + [(f"shard {i}", x) for i, x in enumerate(r["shards"])] + [("one env", r["single_env"])]
+    ):
+        progress(
+            f"{label + ' ' + str(row['envs'][0]) + '-' + str(row['envs'][1]):<16}{row['robots']:>8.0f}"
+            f"{row['step_ms']:>9.1f}{row['physics_ms']:>9.1f}{row['osqp_ms']:>7.1f}{row['tick_rest_ms']:>11.1f}"
+            f"{row['outside_ticks_ms']:>9.1f}"
+        )
+    progress(
+        f"{workers} env processes: a step costs at least {r['sharded_step_ms_lower_bound']:.1f} ms (the slowest "
+        f"shard), at most {r['sharding_speedup_upper_bound']:.2f}x faster than one process"
+    )
 
-    result = {"benchmark": "env-rollout",
-              "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
-              **r}
+    result = {
+        "benchmark": "env-rollout",
+        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count()},
+        **r,
+    }
     return finish(result, {}, out, progress)

@@ -62,7 +62,11 @@ def exact_unicycle(start: np.ndarray, commands: np.ndarray) -> np.ndarray:
         if abs(w) < 1e-12:
             nxt = (x + v * _DT * np.cos(th), y + v * _DT * np.sin(th), th)
         else:
-            nxt = (x + v / w * (np.sin(th + w * _DT) - np.sin(th)), y - v / w * (np.cos(th + w * _DT) - np.cos(th)), th + w * _DT)
+            nxt = (
+                x + v / w * (np.sin(th + w * _DT) - np.sin(th)),
+                y - v / w * (np.cos(th + w * _DT) - np.cos(th)),
+                th + w * _DT,
+            )
         poses.append(np.array(nxt))
     return np.array(poses)
 
@@ -82,7 +86,12 @@ def simulate(world: World, start: np.ndarray, commands: np.ndarray) -> np.ndarra
 def _inside(poses: np.ndarray, margin: float = 0.2) -> bool:
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
     return bool(
-        np.all((poses[:, 0] > x0 + margin) & (poses[:, 0] < x1 - margin) & (poses[:, 1] > y0 + margin) & (poses[:, 1] < y1 - margin))
+        np.all(
+            (poses[:, 0] > x0 + margin)
+            & (poses[:, 0] < x1 - margin)
+            & (poses[:, 1] > y0 + margin)
+            & (poses[:, 1] < y1 - margin)
+        )
     )
 
 

@@ -73,14 +73,24 @@ def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: i
     # Each path's own encoder is subtracted: act encodes with the compiled kernel where it
     # decodes compiled (COMAT), the re-run reference with the torch encoder.
     t_enc = _best_time(lambda: model.encode(obs, mask), repeats)
-    compiled_encoder = model._compiled_ok(obs) and type(model).encode_compiled is not AutoregressivePolicy.encode_compiled
+    compiled_encoder = (
+        model._compiled_ok(obs) and type(model).encode_compiled is not AutoregressivePolicy.encode_compiled
+    )
     t_enc_act = _best_time(lambda: model.encode_compiled(obs, mask), repeats) if compiled_encoder else t_enc
     t_cached = _best_time(lambda: model.act(obs, mask, deterministic=True), repeats)
     t_uncached = _best_time(lambda: model.act_uncached(obs, mask, deterministic=True), repeats)
     dec_cached, dec_uncached = max(t_cached - t_enc_act, 1e-9), max(t_uncached - t_enc, 1e-9)
-    return {"model": model_name, "n_robots": n_robots, "batch": batch, "encode_ms": 1e3 * t_enc,
-            "encode_act_ms": 1e3 * t_enc_act, "act_cached_ms": 1e3 * t_cached, "act_uncached_ms": 1e3 * t_uncached,
-            "decode_speedup": dec_uncached / dec_cached, "act_speedup": t_uncached / t_cached}
+    return {
+        "model": model_name,
+        "n_robots": n_robots,
+        "batch": batch,
+        "encode_ms": 1e3 * t_enc,
+        "encode_act_ms": 1e3 * t_enc_act,
+        "act_cached_ms": 1e3 * t_cached,
+        "act_uncached_ms": 1e3 * t_uncached,
+        "decode_speedup": dec_uncached / dec_cached,
+        "act_speedup": t_uncached / t_cached,
+    }
 
 
 def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0) -> dict:
@@ -113,6 +123,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
                 out = call(*args, **kwargs)
                 clock["env"] += time.perf_counter() - t0
                 return out
+
             return wrapper
 
         # Time spent waiting for the environments: their whole step in one process; with
@@ -144,11 +155,21 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
     finally:
         env.close()
     total = collect_s + update_s
-    return {"algo": label, "task": "pcp", "tier": "unicycle", "num_envs": config.trainer.num_envs,
-            "robot_slots": getattr(config.model, "max_robots", None),
-            "env_workers": env_workers, "torch_threads": config.torch_threads, "env_steps": int(steps),
-            "env_steps_per_s": steps / total, "env_s": env_s, "act_s": collect_s - env_s, "learn_s": update_s,
-            "env_only_steps_per_s": steps / env_s if env_workers == 1 else None}
+    return {
+        "algo": label,
+        "task": "pcp",
+        "tier": "unicycle",
+        "num_envs": config.trainer.num_envs,
+        "robot_slots": getattr(config.model, "max_robots", None),
+        "env_workers": env_workers,
+        "torch_threads": config.torch_threads,
+        "env_steps": int(steps),
+        "env_steps_per_s": steps / total,
+        "env_s": env_s,
+        "act_s": collect_s - env_s,
+        "learn_s": update_s,
+        "env_only_steps_per_s": steps / env_s if env_workers == 1 else None,
+    }
 
 
 def _checks(decode: list[dict], train: list[dict]) -> dict:
@@ -158,18 +179,30 @@ def _checks(decode: list[dict], train: list[dict]) -> dict:
     for row in decode:
         if row["batch"] in (32, 256):
             checks[f"{row['model']}_decode_cached_vs_uncached_N8_B{row['batch']}"] = {
-                "value": row["decode_speedup"], "target": f">= {DECODE_TARGET}", "pass": row["decode_speedup"] >= DECODE_TARGET}
+                "value": row["decode_speedup"],
+                "target": f">= {DECODE_TARGET}",
+                "pass": row["decode_speedup"] >= DECODE_TARGET,
+            }
     comat_rows = [r for r in train if r["algo"] == "comat"]
     if comat_rows:
         best = max(comat_rows, key=lambda r: r["env_steps_per_s"])
         checks["comat_train_pcp_unicycle_env_steps_per_s"] = {
-            "value": best["env_steps_per_s"], "target": f">= {TRAIN_TARGET}", "pass": best["env_steps_per_s"] >= TRAIN_TARGET,
-            "env_workers": best["env_workers"]}
+            "value": best["env_steps_per_s"],
+            "target": f">= {TRAIN_TARGET}",
+            "pass": best["env_steps_per_s"] >= TRAIN_TARGET,
+            "env_workers": best["env_workers"],
+        }
     return checks
 
 
-def run_learn_bench(algos=("comat", "comat_paper", "mat", "mappo", "qmix"), workers=(1, 2), iterations: int = 2,
-                    batches=(1, 32, 256), out: str | None = None, progress=print) -> dict:
+def run_learn_bench(
+    algos=("comat", "comat_paper", "mat", "mappo", "qmix"),
+    workers=(1, 2),
+    iterations: int = 2,
+    batches=(1, 32, 256),
+    out: str | None = None,
+    progress=print,
+) -> dict:
     """Both parts, a table on ``progress`` and JSON at ``out``."""
     decode = []
     for model in ("comat", "mat"):
@@ -182,23 +215,39 @@ def run_learn_bench(algos=("comat", "comat_paper", "mat", "mappo", "qmix"), work
             progress(f"  train {algo} env_workers={w} ({iterations} iterations) ...")
             train.append(bench_train(algo, iterations, env_workers=w))
     checks = _checks(decode, train)
-    result = {"benchmark": "learn",
-              "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-                          "torch": torch.__version__},
-              "decode": decode, "train": train, "checks": checks}
-    head = (f"{'model':<7}{'B':>5}{'encode ms':>11}{'act enc ms':>12}{'cached ms':>11}{'uncached ms':>13}"
-            f"{'decode ×':>10}{'act ×':>8}")
+    result = {
+        "benchmark": "learn",
+        "machine": {
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "torch": torch.__version__,
+        },
+        "decode": decode,
+        "train": train,
+        "checks": checks,
+    }
+    head = (
+        f"{'model':<7}{'B':>5}{'encode ms':>11}{'act enc ms':>12}{'cached ms':>11}{'uncached ms':>13}"
+        f"{'decode ×':>10}{'act ×':>8}"
+    )
     progress(head + "\n" + "-" * len(head))
     for r in decode:
-        progress(f"{r['model']:<7}{r['batch']:>5}{r['encode_ms']:>11.2f}{r['encode_act_ms']:>12.2f}{r['act_cached_ms']:>11.2f}"
-                 f"{r['act_uncached_ms']:>13.2f}{r['decode_speedup']:>10.2f}{r['act_speedup']:>8.2f}")
+        progress(
+            f"{r['model']:<7}{r['batch']:>5}{r['encode_ms']:>11.2f}{r['encode_act_ms']:>12.2f}{r['act_cached_ms']:>11.2f}"
+            f"{r['act_uncached_ms']:>13.2f}{r['decode_speedup']:>10.2f}{r['act_speedup']:>8.2f}"
+        )
     head = f"{'algo':<9}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}{'env only/s':>12}"
     progress(head + "\n" + "-" * len(head))
     for r in train:
         env_only = "-" if r["env_only_steps_per_s"] is None else f"{r['env_only_steps_per_s']:.1f}"
-        progress(f"{r['algo']:<9}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
-                 f"{r['learn_s']:>9.2f}{env_only:>12}")
-    progress("env s: waiting for the environments (with several workers, the part of their steps that the "
-             "policy's turns on other shards did not hide); act s: the rest of collecting.")
+        progress(
+            f"{r['algo']:<9}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
+            f"{r['learn_s']:>9.2f}{env_only:>12}"
+        )
+    progress(
+        "env s: waiting for the environments (with several workers, the part of their steps that the "
+        "policy's turns on other shards did not hide); act s: the rest of collecting."
+    )
 
     return finish(result, checks, out, progress)

@@ -29,9 +29,26 @@ from comat.reality.config import RealityConfig
 
 __all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "loops_table", "run_safety_bench"]
 
-SCENARIO_NAMES = ("head_on", "swap4", "swap8", "converge16", "converge32", "walls", "ring20", "bangbang16", "corner",
-                  "stop_swap4", "stop_converge16", "dropout_swap4", "frozen_stop_swap4", "exact_swap4",
-                  "exact_bangbang16", "stall_converge16", "stall_bangbang16", "inside")
+SCENARIO_NAMES = (
+    "head_on",
+    "swap4",
+    "swap8",
+    "converge16",
+    "converge32",
+    "walls",
+    "ring20",
+    "bangbang16",
+    "corner",
+    "stop_swap4",
+    "stop_converge16",
+    "dropout_swap4",
+    "frozen_stop_swap4",
+    "exact_swap4",
+    "exact_bangbang16",
+    "stall_converge16",
+    "stall_bangbang16",
+    "inside",
+)
 """The battery's scenarios (those of comat.bench.scenarios, named here so that the command line
 is built without importing the simulator; a test keeps the two equal)."""
 DEFAULT_LOOPS = ("comat", "robotarium_v2", "shipped_v2")
@@ -49,34 +66,62 @@ def _row(name: str, tier: str, level: str, episodes: int, seed: int, loop: str =
         return {"safe_starts": int(x[s].sum()), "all": int(x.sum())}
 
     return {
-        "scenario": name, "loop": loop, "tier": tier, "reality": level, "episodes": episodes, "seed": seed,
+        "scenario": name,
+        "loop": loop,
+        "tier": tier,
+        "reality": level,
+        "episodes": episodes,
+        "seed": seed,
         "fault": FAULTS[name][1] if name in FAULTS else None,
-        "safe_start_scenario": name in SCENARIOS or name in FAULTS, "safe_starts": int(s.sum()),
+        "safe_start_scenario": name in SCENARIOS or name in FAULTS,
+        "safe_starts": int(s.sum()),
         "episodes_hit": int(((r.robot_contacts + r.robotarium_collisions)[s] > 0).sum()),
-        "first_collision": next(({"episode": b, "tick": c[0], "robots": [c[1], c[2]]}
-                                 for b, c in enumerate(r.first_collision) if c is not None and s[b]), None),
+        "first_collision": next(
+            (
+                {"episode": b, "tick": c[0], "robots": [c[1], c[2]]}
+                for b, c in enumerate(r.first_collision)
+                if c is not None and s[b]
+            ),
+            None,
+        ),
         "min_centre_distance_m": float(r.min_centre_distance[s].min()) if s.any() else None,
-        "robot_contacts": both(r.robot_contacts), "robotarium_collisions": both(r.robotarium_collisions),
-        "boundary_exits": both(r.boundary_exits), "wall_contacts": both(r.wall_contacts),
+        "robot_contacts": both(r.robot_contacts),
+        "robotarium_collisions": both(r.robotarium_collisions),
+        "boundary_exits": both(r.boundary_exits),
+        "wall_contacts": both(r.wall_contacts),
         "actuator_errors": both(r.actuator_errors),
-        "min_point_distance_m": {"safe_starts": float(r.min_point_distance[s].min()) if s.any() else None,
-                                 "all": float(r.min_point_distance.min())},
-        "recovery_ticks": int(r.recoveries.sum()), "fallback_ticks": int(r.fallbacks.sum()),
-        "interventions": int(r.interventions.sum()), "team_ticks": int(s.size * scn.ticks),
-        "median_goal_error_m": float(np.median(r.goal_error)), "seconds": round(time.perf_counter() - t0, 1),
+        "min_point_distance_m": {
+            "safe_starts": float(r.min_point_distance[s].min()) if s.any() else None,
+            "all": float(r.min_point_distance.min()),
+        },
+        "recovery_ticks": int(r.recoveries.sum()),
+        "fallback_ticks": int(r.fallbacks.sum()),
+        "interventions": int(r.interventions.sum()),
+        "team_ticks": int(s.size * scn.ticks),
+        "median_goal_error_m": float(np.median(r.goal_error)),
+        "seconds": round(time.perf_counter() - t0, 1),
     }
 
 
-def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: int, seed: int, out: str,
-                     scenarios: tuple[str, ...] | None = None, loops: tuple[str, ...] = ("comat",)) -> dict:
+def run_safety_bench(
+    levels: tuple[str, ...],
+    tiers: tuple[str, ...],
+    episodes: int,
+    seed: int,
+    out: str,
+    scenarios: tuple[str, ...] | None = None,
+    loops: tuple[str, ...] = ("comat",),
+) -> dict:
     """Run the battery, print a table row per scenario and loop, write ``out`` (JSON) and return it.
 
     ``out`` is rewritten after every row, so an interrupted run keeps what it measured."""
 
     names = scenarios or SCENARIO_NAMES
     rows: list[dict] = []
-    print(f"{'level':8s} {'tier':9s} {'scenario':18s} {'loop':18s} {'safe':>7s} {'hit':>4s} {'contacts':>9s} "
-          f"{'rob.coll':>9s} {'exits':>6s} {'min d (m)':>9s} {'recov':>6s} {'brake':>6s} {'goal (m)':>8s}")
+    print(
+        f"{'level':8s} {'tier':9s} {'scenario':18s} {'loop':18s} {'safe':>7s} {'hit':>4s} {'contacts':>9s} "
+        f"{'rob.coll':>9s} {'exits':>6s} {'min d (m)':>9s} {'recov':>6s} {'brake':>6s} {'goal (m)':>8s}"
+    )
     filters = {lv: _filter_settings(lv) for lv in levels}
 
     def result() -> dict:
@@ -85,14 +130,30 @@ def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: 
             for loop in loops:
                 safe = [r for r in rows if r["reality"] == level and r["loop"] == loop and r["safe_start_scenario"]]
                 bad = sum(r["robot_contacts"]["safe_starts"] + r["robotarium_collisions"]["safe_starts"] for r in safe)
-                hit = [f"{r['scenario']} (episode {r['first_collision']['episode']}, robots "
-                       f"{r['first_collision']['robots'][0]} and {r['first_collision']['robots'][1]}, tick "
-                       f"{r['first_collision']['tick']})" if r["first_collision"] else r["scenario"]
-                       for r in safe if r["episodes_hit"]]
+                hit = [
+                    f"{r['scenario']} (episode {r['first_collision']['episode']}, robots "
+                    f"{r['first_collision']['robots'][0]} and {r['first_collision']['robots'][1]}, tick "
+                    f"{r['first_collision']['tick']})"
+                    if r["first_collision"]
+                    else r["scenario"]
+                    for r in safe
+                    if r["episodes_hit"]
+                ]
                 checks[f"safe_starts_clean_{level}" + ("" if loop == "comat" else f"_{loop}")] = {
-                    "contacts_plus_collisions": bad, "scenarios_hit": hit, "pass": bad == 0}
-        return {"levels": list(levels), "tiers": list(tiers), "loops": list(loops), "episodes": episodes, "seed": seed,
-                "filter": filters, "rows": rows, "checks": checks}
+                    "contacts_plus_collisions": bad,
+                    "scenarios_hit": hit,
+                    "pass": bad == 0,
+                }
+        return {
+            "levels": list(levels),
+            "tiers": list(tiers),
+            "loops": list(loops),
+            "episodes": episodes,
+            "seed": seed,
+            "filter": filters,
+            "rows": rows,
+            "checks": checks,
+        }
 
     for level in levels:
         for tier in tiers:
@@ -101,19 +162,23 @@ def run_safety_bench(levels: tuple[str, ...], tiers: tuple[str, ...], episodes: 
                     row = _row(name, tier, level, episodes, seed, loop)
                     rows.append(row)
                     d = row["min_point_distance_m"]["safe_starts"]
-                    print(f"{level:8s} {tier:9s} {name:18s} {loop:18s} {row['safe_starts']:>3d}/{episodes:<3d} "
-                          f"{row['episodes_hit']:>4d} "
-                          f"{row['robot_contacts']['safe_starts']:>4d}|{row['robot_contacts']['all']:<4d} "
-                          f"{row['robotarium_collisions']['safe_starts']:>4d}|{row['robotarium_collisions']['all']:<4d} "
-                          f"{row['boundary_exits']['all']:>6d} {d if d is not None else float('nan'):>9.4f} "
-                          f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} {row['median_goal_error_m']:>8.3f}",
-                          flush=True)
+                    print(
+                        f"{level:8s} {tier:9s} {name:18s} {loop:18s} {row['safe_starts']:>3d}/{episodes:<3d} "
+                        f"{row['episodes_hit']:>4d} "
+                        f"{row['robot_contacts']['safe_starts']:>4d}|{row['robot_contacts']['all']:<4d} "
+                        f"{row['robotarium_collisions']['safe_starts']:>4d}|{row['robotarium_collisions']['all']:<4d} "
+                        f"{row['boundary_exits']['all']:>6d} {d if d is not None else float('nan'):>9.4f} "
+                        f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} {row['median_goal_error_m']:>8.3f}",
+                        flush=True,
+                    )
                     write_atomic(out, json.dumps(result(), indent=1) + "\n")
     final = result()
     write_atomic(out, json.dumps(final, indent=1) + "\n")
     for name, c in final["checks"].items():
         where = f"; hit: {', '.join(c['scenarios_hit'])}" if c["scenarios_hit"] else ""
-        print(f"{name}: {'pass' if c['pass'] else 'FAIL'} ({c['contacts_plus_collisions']} contacts + collisions{where})")
+        print(
+            f"{name}: {'pass' if c['pass'] else 'FAIL'} ({c['contacts_plus_collisions']} contacts + collisions{where})"
+        )
     print(f"wrote {out}")
     return final
 
@@ -135,8 +200,9 @@ def loops_table(result: dict, level: str, tier: str = "unicycle") -> str:
                 continue
             d = r["min_point_distance_m"]["safe_starts"]
             hit = r["episodes_hit"] if r["safe_start_scenario"] else "—"
-            cells.append(f"{hit} / {r['safe_starts']}, {'—' if d is None else f'{d:.3f}'}, "
-                         f"{r['median_goal_error_m']:.2f}")
+            cells.append(
+                f"{hit} / {r['safe_starts']}, {'—' if d is None else f'{d:.3f}'}, {r['median_goal_error_m']:.2f}"
+            )
         lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -23,7 +23,16 @@ from comat.control import SafeTeams, go_to_goal
 from comat.reality import RealityConfig, resolve_reality
 from comat.sim.kinematics import si_to_uni
 
-__all__ = ["FAULTS", "SCENARIOS", "UNSAFE_STARTS", "Scenario", "ScenarioResult", "make_scenario", "run_scenario", "swap_scenario"]
+__all__ = [
+    "FAULTS",
+    "SCENARIOS",
+    "UNSAFE_STARTS",
+    "Scenario",
+    "ScenarioResult",
+    "make_scenario",
+    "run_scenario",
+    "swap_scenario",
+]
 
 _X0, _X1, _Y0, _Y1 = C.ARENA_BOUNDS_M
 
@@ -129,8 +138,9 @@ def _ring20(rng, episodes):
 
 def _packed(rng, episodes):
     """16 robots 0.3 m apart across the arena, for bang-bang commands (goals unused)."""
-    poses = [np.column_stack([_spread(rng, 16, 0.3, margin=0.2), rng.uniform(-np.pi, np.pi, 16)])
-             for _ in range(episodes)]
+    poses = [
+        np.column_stack([_spread(rng, 16, 0.3, margin=0.2), rng.uniform(-np.pi, np.pi, 16)]) for _ in range(episodes)
+    ]
     return (16,) * episodes, poses, [np.zeros((16, 2))] * episodes, 300
 
 
@@ -142,7 +152,8 @@ def _corner(rng, episodes):
         corner = np.array([sx * _X1, sy * _Y1])
         pinned = corner - np.array([sx, sy]) * 0.25
         others = pinned - np.array([sx, sy]) * rng.uniform(0.5, 0.9, (3, 1)) * np.array(
-            [[1.0, 0.2], [0.6, 0.6], [0.2, 1.0]])
+            [[1.0, 0.2], [0.6, 0.6], [0.2, 1.0]]
+        )
         start = np.vstack([pinned, others])
         poses.append(np.column_stack([start, rng.uniform(-np.pi, np.pi, 4)]))
         goals.append(np.repeat(corner[None], 4, axis=0))
@@ -216,8 +227,9 @@ def make_scenario(name: str, episodes: int, seed: int) -> Scenario:
     if name not in makers:
         raise ValueError(f"scenario must be one of {sorted(makers) + sorted(FAULTS)}, got {name!r}")
     sizes, poses, goals, ticks = makers[name](np.random.default_rng(seed), episodes)
-    return Scenario(name, tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks,
-                    bangbang=name.startswith("bangbang"))
+    return Scenario(
+        name, tuple(sizes), np.concatenate(poses), np.concatenate(goals), ticks, bangbang=name.startswith("bangbang")
+    )
 
 
 @dataclass
@@ -270,8 +282,12 @@ def _in_safe_set(teams: SafeTeams) -> np.ndarray:
     lay = teams.world.layout
     if teams.deployed is not None:
         true = teams.poses
-        return np.array([loop.barrier.in_safe_set(true[lay.offsets[b]:lay.offsets[b + 1]].T)
-                         for b, loop in enumerate(teams.deployed)])
+        return np.array(
+            [
+                loop.barrier.in_safe_set(true[lay.offsets[b] : lay.offsets[b + 1]].T)
+                for b, loop in enumerate(teams.deployed)
+            ]
+        )
     cfg, q = teams.filter_config, teams.points
     close = np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1) < cfg.safety_distance_m
     m = cfg.boundary_margin_m
@@ -282,8 +298,12 @@ def _in_safe_set(teams: SafeTeams) -> np.ndarray:
 
 
 def run_scenario(
-    scn: Scenario, sim: SimConfig, safety: SafetyConfig | None = None, filtered: bool = True,
-    reality: RealityConfig | str | None = None, seed: int = 0,
+    scn: Scenario,
+    sim: SimConfig,
+    safety: SafetyConfig | None = None,
+    filtered: bool = True,
+    reality: RealityConfig | str | None = None,
+    seed: int = 0,
 ) -> ScenarioResult:
     """Run every episode of ``scn`` as one batch for ``scn.ticks`` ticks.
 

@@ -72,8 +72,9 @@ def _goals(rng: np.random.Generator, count: int) -> np.ndarray:
     return rng.uniform([x0 + 0.3, y0 + 0.3], [x1 - 0.3, y1 - 0.3], (count, 2))
 
 
-def bench_ours(tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup: int = 10,
-               reality: Any = "off") -> SimBenchRow:
+def bench_ours(
+    tier: str, n: int, batch: int, ticks: int, seed: int = 0, warmup: int = 10, reality: Any = "off"
+) -> SimBenchRow:
     """Time ``ticks`` control ticks of ``batch`` teams of ``n`` robots in one tier, at a reality level
     (the controller then reads the measured points, as the envs' does)."""
 
@@ -173,8 +174,11 @@ def _table(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> str:
     )
     lines = [head, "-" * len(head)]
     for r in rows:
-        ratio = (rps[r.n_robots].per_robot_tick_us / r.per_robot_tick_us
-                 if r.n_robots in rps and r.system == "comat" and r.reality == "off" else float("nan"))
+        ratio = (
+            rps[r.n_robots].per_robot_tick_us / r.per_robot_tick_us
+            if r.n_robots in rps and r.system == "comat" and r.reality == "off"
+            else float("nan")
+        )
         rest_pct = 100 * r.rest_us / r.tick_us if r.system == "comat" else float("nan")
         lines.append(
             f"{r.system:<15}{r.tier:<9}{r.reality:<9}{r.n_robots:>4}{r.batch:>4}{r.tick_us:>11.0f}{r.physics_us:>10.0f}"
@@ -228,20 +232,25 @@ def run_sim_bench(
 
 def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
     def find(tier, n, b, reality="off"):
-        return next((r for r in rows if r.tier == tier and r.n_robots == n and r.batch == b and r.reality == reality),
-                    None)
+        return next(
+            (r for r in rows if r.tier == tier and r.n_robots == n and r.batch == b and r.reality == reality), None
+        )
 
     checks = {}
     for tier in ("wheels", "unicycle"):
         r = find(tier, 8, 64)
         if r:
             checks[f"python_overhead_share_{tier}_B64_N8"] = {
-                "value": r.rest_us / r.tick_us, "target": "<= 0.25", "pass": r.rest_us / r.tick_us <= 0.25
+                "value": r.rest_us / r.tick_us,
+                "target": "<= 0.25",
+                "pass": r.rest_us / r.tick_us <= 0.25,
             }
     w, u = find("wheels", 8, 64), find("unicycle", 8, 64)
     if w and u:
         checks["unicycle_cheaper_than_wheels_B64_N8"] = {
-            "value": w.tick_us / u.tick_us, "target": ">= 4", "pass": w.tick_us / u.tick_us >= 4
+            "value": w.tick_us / u.tick_us,
+            "target": ">= 4",
+            "pass": w.tick_us / u.tick_us >= 4,
         }
     if 8 in rps:
         for tier in ("wheels", "unicycle"):
@@ -249,7 +258,9 @@ def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
             if r:
                 ratio = rps[8].per_robot_tick_us / r.per_robot_tick_us
                 checks[f"faster_than_rps_per_robot_tick_{tier}_B64_N8"] = {
-                    "value": ratio, "target": ">= 5", "pass": ratio >= 5
+                    "value": ratio,
+                    "target": ">= 5",
+                    "pass": ratio >= 5,
                 }
     # The reality layer's cost (issue 29): at most 15 % on the tick.
     for tier in ("wheels", "unicycle"):
@@ -263,7 +274,11 @@ def _checks(rows: list[SimBenchRow], rps: dict[int, SimBenchRow]) -> dict:
     if small and large:
         for part, attr, limit in (("tick", "tick_us", 6.0), ("filter", "filter_us", 8.0)):
             ratio = getattr(large, attr) / max(getattr(small, attr), 1e-9)
-            checks[f"{part}_N32_over_N8_unicycle_B64"] = {"value": ratio, "target": f"<= {limit}", "pass": ratio <= limit}
+            checks[f"{part}_N32_over_N8_unicycle_B64"] = {
+                "value": ratio,
+                "target": f"<= {limit}",
+                "pass": ratio <= limit,
+            }
     return checks
 
 
@@ -279,7 +294,6 @@ def finish(result: dict, checks: dict, out: str | None, progress=print) -> dict:
 
 def _write_json(path: str, data: dict) -> None:
     from pathlib import Path
-
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)

@@ -92,8 +92,14 @@ def _episodes(env, policy: str, teams, seed: int, rng: np.random.Generator) -> t
     return run_episodes(env, act, teams, seed), bad_steps
 
 
-def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, out: str | None = None,
-             progress=print, sets=("train", "test")) -> dict:
+def run_soak(
+    episodes: int = 10_000,
+    wheels_share: float = 0.1,
+    seed: int = 0,
+    out: str | None = None,
+    progress=print,
+    sets=("train", "test"),
+) -> dict:
     """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × len(sets) × 2 tasks);
     resident memory is sampled after every batch and compared over the first and the last thousand
     episodes (tenth of a shorter run)."""
@@ -103,14 +109,19 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
         raise ValueError(f"sets must be distinct names of {list(COALITION_SETS)}, got {list(sets)!r}")
     per_round = 20 * 2 * 2 * len(sets)
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < per_round:
-        raise ValueError(f"episodes must be an integer >= {per_round} (one round of every task, set and policy), "
-                         f"got {episodes!r}")
+        raise ValueError(
+            f"episodes must be an integer >= {per_round} (one round of every task, set and policy), got {episodes!r}"
+        )
     if not 0 <= wheels_share <= 1:
         raise ValueError(f"wheels_share must be in [0, 1], got {wheels_share!r}")
     rng = np.random.default_rng(seed)
     combos = [(task, split, policy) for task in ("pcp", "hmt") for split in sets for policy in ("heuristic", "random")]
-    envs = {(task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
-            for task in ("pcp", "hmt") for split in sets for tier in ("unicycle", "wheels")}
+    envs = {
+        (task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
+        for task in ("pcp", "hmt")
+        for split in sets
+        for tier in ("unicycle", "wheels")
+    }
     # Warm-up, not counted: a few steps in every environment, so that what is allocated on first
     # use (MuJoCo data, filters, compiled kernels) is in place before the first memory sample; the
     # wheels environments are otherwise first used at random moments. Their OSQP problems are
@@ -121,8 +132,22 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
         for _ in range(3):
             _, _, _, _, info = env.step(random_actions(rng, info["agent_mask"]))
         env.release_solvers()
-    totals = {k: 0.0 for k in ("episodes", "collisions", "robotarium_collisions", "boundary_exits", "actuator_errors",
-                               "nan_obs_steps", "nan_returns", "recoveries", "fallbacks", "interventions", "finished")}
+    totals = {
+        k: 0.0
+        for k in (
+            "episodes",
+            "collisions",
+            "robotarium_collisions",
+            "boundary_exits",
+            "actuator_errors",
+            "nan_obs_steps",
+            "nan_returns",
+            "recoveries",
+            "fallbacks",
+            "interventions",
+            "finished",
+        )
+    }
     by_tier = {"unicycle": 0, "wheels": 0}
     memory: list[tuple[int, int]] = []
     batches: list[tuple[int, int]] = []
@@ -145,8 +170,15 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
             for e in eps:
                 totals["episodes"] += 1
                 totals["nan_returns"] += not np.isfinite(e["return"])
-                for key in ("collisions", "robotarium_collisions", "boundary_exits", "actuator_errors", "recoveries",
-                            "fallbacks", "interventions"):
+                for key in (
+                    "collisions",
+                    "robotarium_collisions",
+                    "boundary_exits",
+                    "actuator_errors",
+                    "recoveries",
+                    "fallbacks",
+                    "interventions",
+                ):
                     totals[key] += e[key]
                 totals["finished"] += e["finished"] if policy == "heuristic" else 0.0
             if done >= next_mark:
@@ -154,8 +186,10 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
                 next_mark += mark_every
                 rate = done / (time.perf_counter() - t0)
                 recent = np.median([rss for d, rss in batches if d > done - mark_every]) / 2**20
-                progress(f"  {done:,} / {episodes:,} episodes, {rate:.1f} episodes/s, RSS {memory[-1][1] / 2**20:.0f} MiB "
-                         f"(median of the last {mark_every:,}: {recent:.0f} MiB)")
+                progress(
+                    f"  {done:,} / {episodes:,} episodes, {rate:.1f} episodes/s, RSS {memory[-1][1] / 2**20:.0f} MiB "
+                    f"(median of the last {mark_every:,}: {recent:.0f} MiB)"
+                )
         rounds += 1
     for env in envs.values():
         env.close()
@@ -164,24 +198,45 @@ def run_soak(episodes: int = 10_000, wheels_share: float = 0.1, seed: int = 0, o
     peak_windows = _first_and_last_thousand(batch_peaks, mark_every)
     growth["batch_peak_median"] = _growth(peak_windows[0]["median"], peak_windows[1]["median"])
     first, last = (memory[0][1], memory[-1][1]) if memory else (0, 0)
-    checks = {name: {"value": totals[key], "target": "== 0", "pass": totals[key] == 0}
-              for name, key in (("mujoco_contacts", "collisions"), ("robotarium_collisions", "robotarium_collisions"),
-                                ("boundary_exits", "boundary_exits"), ("actuator_errors", "actuator_errors"),
-                                ("nan_observation_steps", "nan_obs_steps"), ("nan_returns", "nan_returns"),
-                                ("fallback_ticks", "fallbacks"))}
-    for name, stat in (("batch_peak_rss_growth_first_to_last_thousand_median", "batch_peak_median"),
-                       ("rss_growth_first_to_last_thousand_median", "median"),
-                       ("rss_growth_first_to_last_thousand_peak", "peak")):
-        checks[name] = {"value": growth[stat], "target": f"< {MEMORY_GROWTH_TARGET}",
-                        "pass": growth[stat] < MEMORY_GROWTH_TARGET}
-    result = {"benchmark": "soak", "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
-              "sets": list(sets), "episodes": int(totals["episodes"]), "episodes_by_tier": by_tier, "totals": totals,
-              "scripted_finished_share": totals["finished"] / max(1.0, totals["episodes"] / 2),
-              "rss_windows": {"first": windows[0], "last": windows[1]},
-              "batch_peak_rss_windows": {"first": peak_windows[0], "last": peak_windows[1]},
-              "rss_peak_bytes_per_batch": batch_peaks,
-              "rss_growth_first_to_last_mark": _growth(first, last), "rss_bytes_per_batch": batches,
-              "rss_bytes": memory, "wall_s": time.perf_counter() - t0, "checks": checks}
+    checks = {
+        name: {"value": totals[key], "target": "== 0", "pass": totals[key] == 0}
+        for name, key in (
+            ("mujoco_contacts", "collisions"),
+            ("robotarium_collisions", "robotarium_collisions"),
+            ("boundary_exits", "boundary_exits"),
+            ("actuator_errors", "actuator_errors"),
+            ("nan_observation_steps", "nan_obs_steps"),
+            ("nan_returns", "nan_returns"),
+            ("fallback_ticks", "fallbacks"),
+        )
+    }
+    for name, stat in (
+        ("batch_peak_rss_growth_first_to_last_thousand_median", "batch_peak_median"),
+        ("rss_growth_first_to_last_thousand_median", "median"),
+        ("rss_growth_first_to_last_thousand_peak", "peak"),
+    ):
+        checks[name] = {
+            "value": growth[stat],
+            "target": f"< {MEMORY_GROWTH_TARGET}",
+            "pass": growth[stat] < MEMORY_GROWTH_TARGET,
+        }
+    result = {
+        "benchmark": "soak",
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
+        "sets": list(sets),
+        "episodes": int(totals["episodes"]),
+        "episodes_by_tier": by_tier,
+        "totals": totals,
+        "scripted_finished_share": totals["finished"] / max(1.0, totals["episodes"] / 2),
+        "rss_windows": {"first": windows[0], "last": windows[1]},
+        "batch_peak_rss_windows": {"first": peak_windows[0], "last": peak_windows[1]},
+        "rss_peak_bytes_per_batch": batch_peaks,
+        "rss_growth_first_to_last_mark": _growth(first, last),
+        "rss_bytes_per_batch": batches,
+        "rss_bytes": memory,
+        "wall_s": time.perf_counter() - t0,
+        "checks": checks,
+    }
     progress(f"{'metric':<28}{'total':>14}")
     for key, value in totals.items():
         progress(f"{key:<28}{value:>14,.0f}")

@@ -19,7 +19,8 @@ Experiments (:data:`EXPERIMENTS`):
   the same backwards, 4 cycles (46 s): the dead zone, the wheel speed below which a robot does
   not move (the GTernal's 0.03 m/s minimum would be 1.9 rad/s);
 * ``spin`` — turn-rate steps 0 → ½ → 95 % of the Robotarium's 3.64 rad/s → 0 and back, the robots
-  turning in place more than once round each way, 5 cycles (33 s): the delay and the lag again, the turn-rate gain and the
+  turning in place more than once round each way, 5 cycles (33 s): the delay and the lag again, the turn-rate gain
+  and the
   reachable turn rate, and from the circle the robot's centre draws while it turns the wheels' gain
   difference (and how far ahead of the wheel axle the tracked point sits).
 
@@ -41,7 +42,6 @@ from comat.reality import RealityLayer, resolve_reality
 from comat.sim.layout import team_layout
 
 __all__ = ["EXPERIMENTS", "LOG_COLUMNS", "lane_poses", "load_log", "run_under_rps", "schedule", "simulate"]
-
 
 
 def simulate(experiment: str, reality, n: int = 4, seed: int = 0, tier: str | None = None) -> np.ndarray:
@@ -98,8 +98,9 @@ def load_log(path: str | Path) -> tuple[str, np.ndarray]:
     path = Path(path)
     name = path.stem
     if not (path.suffix == ".npy" and name.startswith("calib_") and name[6:].split(".")[0] in EXPERIMENTS):
-        raise ValueError(f"LOGS must be calibration logs calib_<{'|'.join(sorted(EXPERIMENTS))}>[.<run>].npy, got "
-                         f"{str(path)!r}")
+        raise ValueError(
+            f"LOGS must be calibration logs calib_<{'|'.join(sorted(EXPERIMENTS))}>[.<run>].npy, got {str(path)!r}"
+        )
     experiment = name[6:].split(".")[0]
     if not path.is_file():
         raise FileNotFoundError(f"LOGS: {str(path)!r} does not exist")
@@ -108,12 +109,16 @@ def load_log(path: str | Path) -> tuple[str, np.ndarray]:
     except ValueError as exc:
         raise ValueError(f"LOGS: {str(path)!r} is not a numeric .npy array ({exc})") from None
     if log.ndim != 3 or log.shape[2] != len(LOG_COLUMNS) or not np.issubdtype(log.dtype, np.floating):
-        raise ValueError(f"LOGS: {str(path)!r} must be a float array (iterations, robots, {len(LOG_COLUMNS)}) with "
-                         f"columns {list(LOG_COLUMNS)}, got shape {log.shape} {log.dtype}")
+        raise ValueError(
+            f"LOGS: {str(path)!r} must be a float array (iterations, robots, {len(LOG_COLUMNS)}) with "
+            f"columns {list(LOG_COLUMNS)}, got shape {log.shape} {log.dtype}"
+        )
     need = EXPERIMENTS[experiment] // 2
     if log.shape[0] < need:
-        raise ValueError(f"LOGS: {str(path)!r} holds {log.shape[0]} iterations of {experiment!r}, fewer than the "
-                         f"{need} a fit needs (a truncated run?)")
+        raise ValueError(
+            f"LOGS: {str(path)!r} holds {log.shape[0]} iterations of {experiment!r}, fewer than the "
+            f"{need} a fit needs (a truncated run?)"
+        )
     if not np.isfinite(log).all():
         raise ValueError(f"LOGS: {str(path)!r} holds non-finite values")
     return experiment, log
@@ -127,8 +132,9 @@ def run_under_rps(experiment: str, n: int = 4) -> np.ndarray:
 
     if experiment not in EXPERIMENTS:
         raise ValueError(f"experiment must be one of {sorted(EXPERIMENTS)}, got {experiment!r}")
-    r = robotarium.Robotarium(number_of_robots=n, show_figure=False, sim_in_real_time=False,
-                              initial_conditions=lane_poses(n).T.copy())
+    r = robotarium.Robotarium(
+        number_of_robots=n, show_figure=False, sim_in_real_time=False, initial_conditions=lane_poses(n).T.copy()
+    )
     K = EXPERIMENTS[experiment]
     log = np.zeros((K, n, 6))
     for k in range(K):

@@ -38,11 +38,24 @@ from comat.calibration.experiments import load_log
 from comat.calibration.schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
 from comat.measure.stats import t_interval
 
-__all__ = ["FIT_RANGES", "fit_logs", "fit_ramp", "fit_spin", "fit_steps", "fit_still", "loop_timing", "profile_fields",
-           "truth_of"]
+__all__ = [
+    "FIT_RANGES",
+    "fit_logs",
+    "fit_ramp",
+    "fit_spin",
+    "fit_steps",
+    "fit_still",
+    "loop_timing",
+    "profile_fields",
+    "truth_of",
+]
 
-FIT_RANGES = {"delay_ticks": range(9), "tau_s": np.round(np.arange(0.0, 0.2001, 0.0025), 6),
-              "cap_fraction": np.round(np.arange(0.70, 1.0001, 0.01), 4), "accel_radps2": (0.0, 200.0)}
+FIT_RANGES = {
+    "delay_ticks": range(9),
+    "tau_s": np.round(np.arange(0.0, 0.2001, 0.0025), 6),
+    "cap_fraction": np.round(np.arange(0.70, 1.0001, 0.01), 4),
+    "accel_radps2": (0.0, 200.0),
+}
 """The grids of the ``steps`` fit; the slew limit is either none (0) or the firmware's 200 rad/s²."""
 DEAD_ZONE_GRID = np.round(np.arange(0.0, 4.5001, 0.05), 4)
 """Dead zones (rad/s) the ``ramp`` fit tries: up to 4.5 of the ramp's 5 rad/s."""
@@ -107,9 +120,17 @@ def _fit_response(dist: np.ndarray, fresh: np.ndarray, v_cmd: np.ndarray) -> lis
     for i in range(N):
         ci, di = np.unravel_index(np.argmin(res[i, :, :, t_shared]), res[i, :, :, 0].shape)
         own_t = int(np.argmin(res[i, ci, di]))
-        out.append({"delay_ticks": delays[di], "tau_s": float(taus[t_shared]), "tau_own_s": float(taus[own_t]),
-                    "gain": float(gains[i, ci, di, t_shared]), "cap_fraction": float(shapes[ci][0]),
-                    "accel_radps2": float(shapes[ci][1]), "rms_m": math.sqrt(float(res[i, ci, di, t_shared]))})
+        out.append(
+            {
+                "delay_ticks": delays[di],
+                "tau_s": float(taus[t_shared]),
+                "tau_own_s": float(taus[own_t]),
+                "gain": float(gains[i, ci, di, t_shared]),
+                "cap_fraction": float(shapes[ci][0]),
+                "accel_radps2": float(shapes[ci][1]),
+                "rms_m": math.sqrt(float(res[i, ci, di, t_shared])),
+            }
+        )
     return out
 
 
@@ -183,8 +204,11 @@ def loop_timing(log: np.ndarray) -> dict:
     """The loop's own timing from a log's clock column: median and 95th percentile of the tick (s),
     and the share of ticks longer than 1.5 × 0.033 s."""
     dt = np.diff(log[:, 0, 0])
-    return {"tick_s": float(np.median(dt)), "tick_p95_s": float(np.percentile(dt, 95)),
-            "late_share": float((dt > 1.5 * C.CONTROL_DT_S).mean())}
+    return {
+        "tick_s": float(np.median(dt)),
+        "tick_p95_s": float(np.percentile(dt, 95)),
+        "late_share": float((dt > 1.5 * C.CONTROL_DT_S).mean()),
+    }
 
 
 def fit_ramp(log: np.ndarray) -> list[dict]:
@@ -228,8 +252,13 @@ def fit_still(log: np.ndarray) -> list[dict]:
             continue
         xy = log[m, i, 3:5]
         th = np.unwrap(log[m, i, 5])
-        out.append({"noise_xy_m": float(xy.std(0, ddof=1).mean()), "noise_theta_rad": float(th.std(ddof=1)),
-                    "repeat_share": float(1.0 - m[1:].mean())})
+        out.append(
+            {
+                "noise_xy_m": float(xy.std(0, ddof=1).mean()),
+                "noise_theta_rad": float(th.std(ddof=1)),
+                "repeat_share": float(1.0 - m[1:].mean()),
+            }
+        )
     return out
 
 
@@ -252,7 +281,9 @@ def fit_logs(paths: Sequence[str]) -> dict:
     ``spin`` without it), the gain difference from ``spin`` (from ``steps`` without it), the reachable
     speed from both."""
     if not paths:
-        raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
+        raise ValueError(
+            "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)"
+        )
     fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}
     per: dict[str, list[dict]] = {e: [] for e in fits}
     runs: dict[str, int] = {e: 0 for e in fits}
@@ -267,9 +298,18 @@ def fit_logs(paths: Sequence[str]) -> dict:
     def add(name, values, n_runs, note="", robots=None, over="t95"):
         est, lo, hi = _interval(values)
         kind = over if np.isfinite(lo) and np.isfinite(hi) else None  # one value: no interval, not [nan, nan]
-        params.append({"name": name, "estimate": est, "lo": lo if kind else None, "hi": hi if kind else None,
-                       "interval": kind, "robots": len(values) if robots is None else robots, "runs": n_runs,
-                       "note": note})
+        params.append(
+            {
+                "name": name,
+                "estimate": est,
+                "lo": lo if kind else None,
+                "hi": hi if kind else None,
+                "interval": kind,
+                "robots": len(values) if robots is None else robots,
+                "runs": n_runs,
+                "note": note,
+            }
+        )
 
     # The delay and the lag from ``steps`` (the experiment built for them; with wheels of unequal lag
     # a spin can read one tick more and a shorter lag), from ``spin`` only without it; the gain
@@ -280,42 +320,107 @@ def fit_logs(paths: Sequence[str]) -> dict:
     moving = per["steps"] + per["spin"]
     if moving:
         delays = [r["delay_ticks"] for r in timed]
-        params.append({"name": "pose_delay_ticks", "estimate": int(min(delays)), "lo": int(min(delays)),
-                       "hi": int(max(delays)), "interval": "range", "robots": len(delays), "runs": timed_runs,
-                       "note": "pose + command delay (not separable); the profile's minimum and spread"})
+        params.append(
+            {
+                "name": "pose_delay_ticks",
+                "estimate": int(min(delays)),
+                "lo": int(min(delays)),
+                "hi": int(max(delays)),
+                "interval": "range",
+                "robots": len(delays),
+                "runs": timed_runs,
+                "note": "pose + command delay (not separable); the profile's minimum and spread",
+            }
+        )
         add("motor_tau_s", [r["tau_s"] for r in timed], timed_runs, "per-robot mean")
         if per["steps"]:
-            add("speed_gain", [r["gain"] for r in per["steps"]], runs["steps"], "forward speed gain (mean of the wheels)")
+            add(
+                "speed_gain",
+                [r["gain"] for r in per["steps"]],
+                runs["steps"],
+                "forward speed gain (mean of the wheels)",
+            )
         if per["spin"]:
-            add("turn_gain", [r["gain"] for r in per["spin"]], runs["spin"],
-                "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)")
-            add("tracked_ahead_m", [r["tracked_ahead_m"] for r in per["spin"]], runs["spin"],
-                "tracked point ahead of the wheel axle (reported, not in the layer)")
-        add("top_speed_fraction", [r["cap_fraction"] * r["gain"] for r in moving], runs["steps"] + runs["spin"],
-            "reachable / 12.5 rad/s")
+            add(
+                "turn_gain",
+                [r["gain"] for r in per["spin"]],
+                runs["spin"],
+                "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)",
+            )
+            add(
+                "tracked_ahead_m",
+                [r["tracked_ahead_m"] for r in per["spin"]],
+                runs["spin"],
+                "tracked point ahead of the wheel axle (reported, not in the layer)",
+            )
+        add(
+            "top_speed_fraction",
+            [r["cap_fraction"] * r["gain"] for r in moving],
+            runs["steps"] + runs["spin"],
+            "reachable / 12.5 rad/s",
+        )
         diffs = [r["half_gain_diff"] for r in paired if np.isfinite(r["half_gain_diff"])]
         spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
-        params.append({"name": "wheel_gain_spread", "estimate": spread, "lo": None, "hi": None, "interval": None,
-                       "robots": len(diffs), "runs": paired_runs,
-                       "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"
-                               + (", from spin" if per["spin"] else ", from steps")})
+        params.append(
+            {
+                "name": "wheel_gain_spread",
+                "estimate": spread,
+                "lo": None,
+                "hi": None,
+                "interval": None,
+                "robots": len(diffs),
+                "runs": paired_runs,
+                "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"
+                + (", from spin" if per["spin"] else ", from steps"),
+            }
+        )
     if per["still"]:
         still = per["still"]
         add("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"])
         add("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], runs["still"])
-        add("pose_hold_prob", [r["repeat_share"] for r in still], runs["still"],
-            "share of repeated poses (nan: the poses never changed, no noise to tell a hold by)")
+        add(
+            "pose_hold_prob",
+            [r["repeat_share"] for r in still],
+            runs["still"],
+            "share of repeated poses (nan: the poses never changed, no noise to tell a hold by)",
+        )
     if per["ramp"]:
-        add("motor_dead_zone_radps", [r["dead_zone_radps"] for r in per["ramp"]], runs["ramp"],
-            "wheel speed below which a robot does not move (0.05 rad/s grid)")
-    add("loop_tick_s", [t["tick_s"] for t in timing], len(paths),
+        add(
+            "motor_dead_zone_radps",
+            [r["dead_zone_radps"] for r in per["ramp"]],
+            runs["ramp"],
+            "wheel speed below which a robot does not move (0.05 rad/s grid)",
+        )
+    add(
+        "loop_tick_s",
+        [t["tick_s"] for t in timing],
+        len(paths),
         "median iteration (s), over runs; not in the layer: a longer tick moves the robots further per tick, "
-        "which the gains hold", robots=0, over="t95_runs")
-    unknown = ("pose_bias_xy_m", "command_delay_ticks", "command_loss_prob",
-               *(() if per["ramp"] else ("motor_dead_zone_radps",)), "wheel_disturbance_radps", "fault_prob")
+        "which the gains hold",
+        robots=0,
+        over="t95_runs",
+    )
+    unknown = (
+        "pose_bias_xy_m",
+        "command_delay_ticks",
+        "command_loss_prob",
+        *(() if per["ramp"] else ("motor_dead_zone_radps",)),
+        "wheel_disturbance_radps",
+        "fault_prob",
+    )
     for name in unknown:
-        params.append({"name": name, "estimate": None, "lo": None, "hi": None, "interval": None, "robots": 0,
-                       "runs": 0, "note": "not identified by these experiments"})
+        params.append(
+            {
+                "name": name,
+                "estimate": None,
+                "lo": None,
+                "hi": None,
+                "interval": None,
+                "robots": 0,
+                "runs": 0,
+                "note": "not identified by these experiments",
+            }
+        )
     return {"parameters": params, "per_robot": per, "timing": timing}
 
 
@@ -336,7 +441,9 @@ def profile_fields(fit: dict) -> dict:
         fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(*shared, *own)), float(max(*shared, *own))
         fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in timed]))
         # a cap at or above the fastest commanded wheel speed (steps: 95 % of the top; spin: 91 %) is not seen
-        seen = [r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - 0.01]
+        seen = [
+            r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - 0.01
+        ]
         fields["top_speed_derate_min"] = float(min(1.0, min(seen))) if seen else 1.0
     if "wheel_gain_spread" in est:
         fields["wheel_gain_spread"] = float(min(0.99, max(0.0, est["wheel_gain_spread"]["estimate"])))
@@ -355,14 +462,22 @@ def truth_of(config) -> dict[str, str]:
     spread = c.pose_delay_spread_ticks + c.command_delay_spread_ticks
     return {
         "pose_delay_ticks": f"{delay}..{delay + spread}" if spread else f"{delay}",
-        "motor_tau_s": f"{c.motor_tau_min_s:.4g}..{c.motor_tau_max_s:.4g}" if c.motor_tau_max_s != c.motor_tau_min_s
+        "motor_tau_s": f"{c.motor_tau_min_s:.4g}..{c.motor_tau_max_s:.4g}"
+        if c.motor_tau_max_s != c.motor_tau_min_s
         else f"{c.motor_tau_min_s:.4g}",
-        "speed_gain": "1", "turn_gain": "1", "tracked_ahead_m": "0",
+        "speed_gain": "1",
+        "turn_gain": "1",
+        "tracked_ahead_m": "0",
         "top_speed_fraction": f"{c.top_speed_derate_min:.4g}..1" if c.top_speed_derate_min < 1 else "1",
         "wheel_gain_spread": f"{c.wheel_gain_spread:.4g}",
-        "pose_noise_xy_m": f"{c.pose_noise_xy_m:.4g}", "pose_noise_theta_rad": f"{c.pose_noise_theta_rad:.4g}",
-        "pose_hold_prob": f"{c.pose_hold_prob:.4g}", "motor_dead_zone_radps": f"{c.motor_dead_zone_radps:.4g}",
-        "loop_tick_s": "0.033", "pose_bias_xy_m": f"{c.pose_bias_xy_m:.4g}",
-        "command_delay_ticks": f"{c.command_delay_ticks}", "command_loss_prob": f"{c.command_loss_prob:.4g}",
-        "wheel_disturbance_radps": f"{c.wheel_disturbance_radps:.4g}", "fault_prob": f"{c.fault_prob:.4g}",
+        "pose_noise_xy_m": f"{c.pose_noise_xy_m:.4g}",
+        "pose_noise_theta_rad": f"{c.pose_noise_theta_rad:.4g}",
+        "pose_hold_prob": f"{c.pose_hold_prob:.4g}",
+        "motor_dead_zone_radps": f"{c.motor_dead_zone_radps:.4g}",
+        "loop_tick_s": "0.033",
+        "pose_bias_xy_m": f"{c.pose_bias_xy_m:.4g}",
+        "command_delay_ticks": f"{c.command_delay_ticks}",
+        "command_loss_prob": f"{c.command_loss_prob:.4g}",
+        "wheel_disturbance_radps": f"{c.wheel_disturbance_radps:.4g}",
+        "fault_prob": f"{c.fault_prob:.4g}",
     }

@@ -46,8 +46,9 @@ def schedule(experiment: str, k: int, n: int) -> np.ndarray:
     """(n, 2) unicycle commands (v m/s, ω rad/s) of iteration ``k`` of ``experiment``."""
     out = np.zeros((n, 2))
     if experiment in ("steps", "spin"):
-        column, top, phases = (0, TOP_SPEED_MPS, _STEP_PHASES) if experiment == "steps" else \
-            (1, TOP_TURN_RATE_RADPS, _SPIN_PHASES)
+        column, top, phases = (
+            (0, TOP_SPEED_MPS, _STEP_PHASES) if experiment == "steps" else (1, TOP_TURN_RATE_RADPS, _SPIN_PHASES)
+        )
         k = k % sum(p for p, _ in phases)
         for length, fraction in phases:
             if k < length:
@@ -73,5 +74,3 @@ def lane_poses(n: int) -> np.ndarray:
         raise ValueError(f"a calibration run has 1 to {MAX_ROBOTS} robots (lanes {LANE_SPACING_M} m apart), got {n}")
     y = LANE_SPACING_M * (np.arange(n) - (n - 1) / 2)
     return np.column_stack([np.full(n, -0.4), y, np.zeros(n)])
-
-

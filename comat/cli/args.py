@@ -13,7 +13,8 @@ Shared flags, defined here once so their spelling, choices (in one order) and de
 ``--team TEAM``      one team: ``SET:K`` (coalition K of a set below, e.g. ``capability:3``)
                      or a JSON/YAML file ``{"robots": [...]}``
 ``--teams SET``      a set of teams: ``train``, ``val``, ``test``, ``scale``, ``size``, ``capability``,
-                     ``both`` (train and test), ``all`` (every set), or a file (a coalition list ``{"coalitions": [...]}`` or one team);
+                     ``both`` (train and test), ``all`` (every set), or a file (a coalition list
+                     ``{"coalitions": [...]}`` or one team);
                      default ``both``
 ``--tier T``         ``wheels`` or ``unicycle``; default the checkpoint's training tier, else
                      :data:`comat.config.REFERENCE_TIER`
@@ -107,49 +108,73 @@ class VersionAction(argparse.Action):
         parser.exit()
 
 
-def add_policy(p: argparse.ArgumentParser, *, required: bool = False, references: tuple[str, ...] = REFERENCE_POLICIES,
-               checkpoint_alias: bool = True, policy_files: bool = True) -> None:
+def add_policy(
+    p: argparse.ArgumentParser,
+    *,
+    required: bool = False,
+    references: tuple[str, ...] = REFERENCE_POLICIES,
+    checkpoint_alias: bool = True,
+    policy_files: bool = True,
+) -> None:
     """``--policy`` (default heuristic unless ``required``) and the deprecated ``--checkpoint``;
     ``policy_files=False``: a command that needs the checkpoint (probe).
 
     A required ``--policy`` is checked by :func:`resolve_policy_arg`, not argparse, so that the old
     spelling still satisfies it."""
     refs = "|".join(references)
-    p.add_argument("--policy", default=None if required else "heuristic",
-                   metavar=f"{'POLICY|' if policy_files else ''}CHECKPOINT|RUN_FOLDER{'|' + refs if refs else ''}",
-                   help=("a policy.pt, a checkpoint.pt, a run folder (its checkpoint.pt, else its policy.pt)"
-                         if policy_files else "a checkpoint.pt or a run folder (its checkpoint.pt; a policy.pt has "
-                         "no value estimates)")
-                   + (f", or a reference policy ({', '.join(references)})" if references else "")
-                   + (" (required)" if required else " (default: %(default)s)"))
+    p.add_argument(
+        "--policy",
+        default=None if required else "heuristic",
+        metavar=f"{'POLICY|' if policy_files else ''}CHECKPOINT|RUN_FOLDER{'|' + refs if refs else ''}",
+        help=(
+            "a policy.pt, a checkpoint.pt, a run folder (its checkpoint.pt, else its policy.pt)"
+            if policy_files
+            else "a checkpoint.pt or a run folder (its checkpoint.pt; a policy.pt has no value estimates)"
+        )
+        + (f", or a reference policy ({', '.join(references)})" if references else "")
+        + (" (required)" if required else " (default: %(default)s)"),
+    )
     if checkpoint_alias:
         p.add_argument("--checkpoint", dest="policy", action=_Deprecated, new="--policy", help=argparse.SUPPRESS)
 
 
 def add_task(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--task", choices=TASKS, default=None,
-                   help="task (default: the checkpoint's; needed with a reference policy)")
+    p.add_argument(
+        "--task", choices=TASKS, default=None, help="task (default: the checkpoint's; needed with a reference policy)"
+    )
 
 
 def add_team(p: argparse.ArgumentParser, *, required: bool = False) -> None:
-    p.add_argument("--team", required=required, default=None, metavar="SET:K|FILE",
-                   help=f"one team: {', '.join(f'{s}:K' for s in COALITION_SETS)} (coalition K of that set) or a "
-                   "JSON/YAML file {\"robots\": [...]} (instead of --teams)")
+    p.add_argument(
+        "--team",
+        required=required,
+        default=None,
+        metavar="SET:K|FILE",
+        help=f"one team: {', '.join(f'{s}:K' for s in COALITION_SETS)} (coalition K of that set) or a "
+        'JSON/YAML file {"robots": [...]} (instead of --teams)',
+    )
 
 
 def add_teams(p: argparse.ArgumentParser, *, set_alias: bool = True) -> None:
-    p.add_argument("--teams", default=DEFAULT_TEAMS, metavar="|".join(TEAM_SETS) + "|FILE",
-                   help="a set of teams: " + ", ".join(COALITION_SETS) + " (the composition sets), both = train and "
-                   "test, all = " + " and ".join(COALITION_SETS) + ", or a coalition file "
-                   "({\"coalitions\": [...]} or one team) (default: %(default)s)")
+    p.add_argument(
+        "--teams",
+        default=DEFAULT_TEAMS,
+        metavar="|".join(TEAM_SETS) + "|FILE",
+        help="a set of teams: " + ", ".join(COALITION_SETS) + " (the composition sets), both = train and "
+        "test, all = " + " and ".join(COALITION_SETS) + ", or a coalition file "
+        '({"coalitions": [...]} or one team) (default: %(default)s)',
+    )
     if set_alias:
         p.add_argument("--set", dest="teams", action=_Deprecated, new="--teams", help=argparse.SUPPRESS)
 
 
 def add_tier(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--tier", choices=TIERS, default=None,
-                   help=f"dynamics tier (default: the checkpoint's training tier; {REFERENCE_TIER} for a reference "
-                   "policy)")
+    p.add_argument(
+        "--tier",
+        choices=TIERS,
+        default=None,
+        help=f"dynamics tier (default: the checkpoint's training tier; {REFERENCE_TIER} for a reference policy)",
+    )
 
 
 def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> None:
@@ -157,19 +182,32 @@ def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> 
 
 
 def add_reality(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--reality", default="off", metavar="{" + ",".join(REALITY_LEVELS) + ",PROFILE.yaml}",
-                   help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
-                   "docs/reality.md); default: off, the ideal world, NOT the level the policy trained at")
+    p.add_argument(
+        "--reality",
+        default="off",
+        metavar="{" + ",".join(REALITY_LEVELS) + ",PROFILE.yaml}",
+        help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
+        "docs/reality.md); default: off, the ideal world, NOT the level the policy trained at",
+    )
 
 
 def add_reality_sweep(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--reality-sweep", default=None, metavar="COMPONENT",
-                   help="play at several values of one reality field (e.g. pose_delay_ticks, command_loss_prob, "
-                   "motor_tau_max_s), the others at --reality's level; the heuristic plays next to a trained policy "
-                   "unless --no-references")
-    p.add_argument("--sweep-values", type=float, nargs="+", default=None, metavar="V",
-                   help="the values (three or more; default: off, nominal, stress and beyond, "
-                   "comat.eval.robustness.SWEEP_VALUES)")
+    p.add_argument(
+        "--reality-sweep",
+        default=None,
+        metavar="COMPONENT",
+        help="play at several values of one reality field (e.g. pose_delay_ticks, command_loss_prob, "
+        "motor_tau_max_s), the others at --reality's level; the heuristic plays next to a trained policy "
+        "unless --no-references",
+    )
+    p.add_argument(
+        "--sweep-values",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="V",
+        help="the values (three or more; default: off, nominal, stress and beyond, comat.eval.robustness.SWEEP_VALUES)",
+    )
 
 
 def reality_arg(value: str, name: str = "--reality") -> str:
@@ -229,8 +267,13 @@ class PolicyArg:
         return self.trained_tier or REFERENCE_TIER
 
 
-def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[str, ...] = REFERENCE_POLICIES,
-                       algos: tuple[str, ...] = ALGOS, need_checkpoint: str | None = None) -> PolicyArg:
+def resolve_policy_arg(
+    policy: str | None,
+    task: str | None,
+    references: tuple[str, ...] = REFERENCE_POLICIES,
+    algos: tuple[str, ...] = ALGOS,
+    need_checkpoint: str | None = None,
+) -> PolicyArg:
     """Check ``--policy`` against ``--task`` (ValueError naming the flag, expected and got).
 
     ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
@@ -239,16 +282,23 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
     from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, shipped_name
 
     shipped = ", ".join(PREFIX + name for name in PRETRAINED)
-    what = ("a checkpoint.pt or a run folder" if need_checkpoint
-            else f"a policy.pt, a checkpoint.pt, a run folder, a shipped policy ({shipped})")
+    what = (
+        "a checkpoint.pt or a run folder"
+        if need_checkpoint
+        else f"a policy.pt, a checkpoint.pt, a run folder, a shipped policy ({shipped})"
+    )
     if policy is None:
-        raise ValueError(f"--policy is required: {what}"
-                         + (f", or one of {', '.join(references)}" if references else ""))
+        raise ValueError(
+            f"--policy is required: {what}" + (f", or one of {', '.join(references)}" if references else "")
+        )
     if policy in REFERENCE_POLICIES:
         if policy not in references:
             kinds = "a checkpoint or run folder" if need_checkpoint else "a policy file, checkpoint or run folder"
-            raise ValueError(f"--policy must be {kinds}" + (f" or one of {list(references)}" if references else "")
-                             + f" here, got {policy!r}")
+            raise ValueError(
+                f"--policy must be {kinds}"
+                + (f" or one of {list(references)}" if references else "")
+                + f" here, got {policy!r}"
+            )
         if task is None:
             raise ValueError(f"--task is needed with --policy {policy} (a reference policy has no task of its own)")
         return PolicyArg(policy, task)
@@ -261,16 +311,20 @@ def resolve_policy_arg(policy: str | None, task: str | None, references: tuple[s
         data = load_checkpoint(path) if need_checkpoint else load_trained(path)
     except ValueError as err:
         if need_checkpoint and "is a comat policy file" in str(err):
-            raise ValueError(f"--policy {policy!r} is a policy file (the weights to act only): {need_checkpoint}; "
-                             "give the run's checkpoint.pt") from err
+            raise ValueError(
+                f"--policy {policy!r} is a policy file (the weights to act only): {need_checkpoint}; "
+                "give the run's checkpoint.pt"
+            ) from err
         raise
     kind = "policy" if data["format"] == POLICY_FORMAT else "checkpoint"
     noun = "policy file" if kind == "policy" else "checkpoint"
     if task is not None and task != data["task"]:
         raise ValueError(f"--task {task!r} disagrees with the {noun}, which is for task {data['task']!r} ({path})")
     if data["algo"] not in algos:
-        raise ValueError(f"--policy must be a checkpoint or policy file of {'/'.join(algos)} here, got a "
-                         f"{data['algo']} {noun} ({path})")
+        raise ValueError(
+            f"--policy must be a checkpoint or policy file of {'/'.join(algos)} here, got a "
+            f"{data['algo']} {noun} ({path})"
+        )
     tier = (data.get("config") or {}).get("tier")
     return PolicyArg(f"{data['algo']} {kind}", data["task"], path, data["algo"], tier, kind, shipped_name(path))
 
@@ -291,8 +345,9 @@ def _read_team_file(value: str, task: str, flag: str):
     if data is None:
         return None, f"{flag} {value!r} must be {expected}, got a file that is empty"
     if not isinstance(data, dict):
-        return None, (f"{flag} {value!r} must hold a JSON object (YAML mapping) {{'robots': [...]}}, got a "
-                      f"{type(data).__name__}")
+        return None, (
+            f"{flag} {value!r} must hold a JSON object (YAML mapping) {{'robots': [...]}}, got a {type(data).__name__}"
+        )
     if not {"robots", "coalitions"} & set(data):
         return None, f"{flag} {value!r} must be {expected}, got a mapping with keys {sorted(data)}"
     return data, None

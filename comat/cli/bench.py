@@ -26,30 +26,46 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
         sizes = tuple(args.sizes)
         t0 = time.perf_counter()
-        print(f"comat bench sim: N={sizes}, B={tuple(args.batches)}, tiers={tuple(args.tiers)}, {args.ticks} ticks each")
+        print(
+            f"comat bench sim: N={sizes}, B={tuple(args.batches)}, tiers={tuple(args.tiers)}, {args.ticks} ticks each"
+        )
         run_sim_bench(sizes, tuple(args.batches), tuple(args.tiers), args.ticks, args.rps_ticks, args.out)
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "env" and args.rollout:
         from comat.bench.env_bench import run_rollout_bench
 
-        run_rollout_bench(args.tasks[0], args.tiers[-1], args.rollout_batch, 2, max(args.steps // 2, 4),
-                          args.out or "benchmarks/results/env_rollout.json")
+        run_rollout_bench(
+            args.tasks[0],
+            args.tiers[-1],
+            args.rollout_batch,
+            2,
+            max(args.steps // 2, 4),
+            args.out or "benchmarks/results/env_rollout.json",
+        )
         return 0
     if args.what == "env":
         from comat.bench.env_bench import run_env_bench
 
         t0 = time.perf_counter()
-        run_env_bench(tuple(args.tasks), tuple(args.tiers), tuple(args.sizes), tuple(args.batches), args.steps,
-                      args.out or "benchmarks/results/env.json")
+        run_env_bench(
+            tuple(args.tasks),
+            tuple(args.tiers),
+            tuple(args.sizes),
+            tuple(args.batches),
+            args.steps,
+            args.out or "benchmarks/results/env.json",
+        )
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "learn":
         from comat.bench.learn_bench import run_learn_bench
 
         t0 = time.perf_counter()
-        print(f"comat bench learn: decode (COMAT, MAT, 8 robots), training {tuple(args.algos)} with env workers "
-              f"{tuple(args.workers)}, {args.iterations} iterations each")
+        print(
+            f"comat bench learn: decode (COMAT, MAT, 8 robots), training {tuple(args.algos)} with env workers "
+            f"{tuple(args.workers)}, {args.iterations} iterations each"
+        )
         run_learn_bench(tuple(args.algos), tuple(args.workers), args.iterations, tuple(args.batches), args.out)
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
@@ -67,8 +83,15 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_safety(args: argparse.Namespace) -> int:
-    result = run_safety_bench(tuple(args.reality), tuple(args.tiers), args.episodes, args.seed, args.out,
-                              tuple(args.scenarios) if args.scenarios else None, tuple(args.loops))
+    result = run_safety_bench(
+        tuple(args.reality),
+        tuple(args.tiers),
+        args.episodes,
+        args.seed,
+        args.out,
+        tuple(args.scenarios) if args.scenarios else None,
+        tuple(args.loops),
+    )
     return 0 if all(c["pass"] for c in result["checks"].values()) else 1
 
 
@@ -76,9 +99,12 @@ def add_bench_parser(sub) -> None:
     """``comat bench`` and its benchmarks on the top-level sub-parsers."""
     p = sub.add_parser("bench", help="benchmarks (JSON + table)", description="Performance and fidelity benchmarks.")
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
-    b = bsub.add_parser("sim", help="µs per control tick vs team size, batch and tier; vs the Robotarium simulator",
-                        description="Time one control tick (physics + barrier filter + the rest) and compare "
-                        "with the Robotarium simulator's own loop (PyPI rps, unicycle barrier every step).")
+    b = bsub.add_parser(
+        "sim",
+        help="µs per control tick vs team size, batch and tier; vs the Robotarium simulator",
+        description="Time one control tick (physics + barrier filter + the rest) and compare "
+        "with the Robotarium simulator's own loop (PyPI rps, unicycle barrier every step).",
+    )
     b.add_argument("--sizes", type=int, nargs="+", default=[2, 4, 8, 16, 32], help="team sizes (default: %(default)s)")
     b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="teams per batch (default: %(default)s)")
     b.add_argument("--tiers", nargs="+", choices=TIERS, default=["wheels", "unicycle"])
@@ -86,60 +112,100 @@ def add_bench_parser(sub) -> None:
     b.add_argument("--rps-ticks", type=int, default=100, help="measured Robotarium iterations (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/sim.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
-    b = bsub.add_parser("env", help="env-steps/s with random actions per task, tier, batch and team size",
-                        description="Time vector environments (safety filter at every tick) with random actions, "
-                        "next to the Robotarium simulator's loop per env step.")
+    b = bsub.add_parser(
+        "env",
+        help="env-steps/s with random actions per task, tier, batch and team size",
+        description="Time vector environments (safety filter at every tick) with random actions, "
+        "next to the Robotarium simulator's loop per env step.",
+    )
     b.add_argument("--tasks", nargs="+", choices=TASKS, default=list(TASKS), help="tasks (default: %(default)s)")
     b.add_argument("--tiers", nargs="+", choices=TIERS, default=["wheels", "unicycle"])
-    b.add_argument("--sizes", type=int, nargs="+", default=[2, 5, 8, 12, 16, 20], help="team sizes (default: %(default)s)")
-    b.add_argument("--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)")
+    b.add_argument(
+        "--sizes", type=int, nargs="+", default=[2, 5, 8, 12, 16, 20], help="team sizes (default: %(default)s)"
+    )
+    b.add_argument(
+        "--batches", type=int, nargs="+", default=[1, 64], help="environments per batch (default: %(default)s)"
+    )
     b.add_argument("--steps", type=int, default=20, help="measured steps at batch 1; a quarter at larger batches")
-    b.add_argument("--out", default=None,
-                   help="JSON output (default: benchmarks/results/env.json; with --rollout: "
-                   "benchmarks/results/env_rollout.json)")
-    b.add_argument("--rollout", action="store_true",
-                   help="instead: where a rollout step's time goes (training coalitions, --rollout-batch envs; "
-                   "physics, OSQP, the rest) for all of them in one process, for each half two env processes would "
-                   "hold, and for one env; first of --tasks, last of --tiers")
+    b.add_argument(
+        "--out",
+        default=None,
+        help="JSON output (default: benchmarks/results/env.json; with --rollout: benchmarks/results/env_rollout.json)",
+    )
+    b.add_argument(
+        "--rollout",
+        action="store_true",
+        help="instead: where a rollout step's time goes (training coalitions, --rollout-batch envs; "
+        "physics, OSQP, the rest) for all of them in one process, for each half two env processes would "
+        "hold, and for one env; first of --tasks, last of --tiers",
+    )
     b.add_argument("--rollout-batch", type=int, default=32, help="environments for --rollout (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
-    b = bsub.add_parser("learn", help="cached vs uncached decoding; training env-steps/s per algorithm",
-                        description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "
-                        "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
-                        "algorithm on PCP in the unicycle tier with the paper's settings.")
-    b.add_argument("--algos", nargs="+",
-                   choices=["comat", "comat_paper", *COMAT_VARIANTS, "mat", "mappo", "qmix", "mat_20", "mappo_20",
-                            "qmix_20"],
-                   default=["comat", "comat_paper", "mat", "mappo", "qmix"],
-                   help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
-                   f"to compare today's default with it in one run; {', '.join(COMAT_VARIANTS)}: COMAT with that "
-                   "decision layer or one HEAT block; mat_20, mappo_20, qmix_20: the baseline with 20 "
-                   "robot slots instead of 8 (default: %(default)s)")
-    b.add_argument("--workers", type=int, nargs="+", default=[1, 2],
-                   help="environment worker processes to compare (default: %(default)s)")
-    b.add_argument("--iterations", type=int, default=2,
-                   help="timed training iterations per algorithm, each 2,560 env steps (default: %(default)s)")
-    b.add_argument("--batches", type=int, nargs="+", default=[1, 32, 256],
-                   help="decoding batch sizes (default: %(default)s)")
+    b = bsub.add_parser(
+        "learn",
+        help="cached vs uncached decoding; training env-steps/s per algorithm",
+        description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "
+        "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
+        "algorithm on PCP in the unicycle tier with the paper's settings.",
+    )
+    b.add_argument(
+        "--algos",
+        nargs="+",
+        choices=["comat", "comat_paper", *COMAT_VARIANTS, "mat", "mappo", "qmix", "mat_20", "mappo_20", "qmix_20"],
+        default=["comat", "comat_paper", "mat", "mappo", "qmix"],
+        help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
+        f"to compare today's default with it in one run; {', '.join(COMAT_VARIANTS)}: COMAT with that "
+        "decision layer or one HEAT block; mat_20, mappo_20, qmix_20: the baseline with 20 "
+        "robot slots instead of 8 (default: %(default)s)",
+    )
+    b.add_argument(
+        "--workers",
+        type=int,
+        nargs="+",
+        default=[1, 2],
+        help="environment worker processes to compare (default: %(default)s)",
+    )
+    b.add_argument(
+        "--iterations",
+        type=int,
+        default=2,
+        help="timed training iterations per algorithm, each 2,560 env steps (default: %(default)s)",
+    )
+    b.add_argument(
+        "--batches", type=int, nargs="+", default=[1, 32, 256], help="decoding batch sizes (default: %(default)s)"
+    )
     b.add_argument("--out", default="benchmarks/results/learn.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
-    b = bsub.add_parser("soak", help="many reference-policy episodes: contacts, collisions, NaN, memory drift",
-                        description="Episodes of the scripted and the random policy on composition sets of both "
-                        "tasks (unicycle tier, a share in the wheels tier): every contact, collision, boundary exit, "
-                        "actuator error, NaN, filter recovery and fallback counted, and resident memory after every batch, "
-                        "compared over the first and the last thousand episodes. Not part of the tests: one round of 160 episodes (U_train and U_test) "
-                        "took 2 min on this 2-core machine (under load), so 10,000 take an hour or more.")
+    b = bsub.add_parser(
+        "soak",
+        help="many reference-policy episodes: contacts, collisions, NaN, memory drift",
+        description="Episodes of the scripted and the random policy on composition sets of both "
+        "tasks (unicycle tier, a share in the wheels tier): every contact, collision, boundary exit, "
+        "actuator error, NaN, filter recovery and fallback counted, and resident memory after every batch, "
+        "compared over the first and the last thousand episodes. Not part of the tests: one round of 160 episodes "
+        "(U_train and U_test) "
+        "took 2 min on this 2-core machine (under load), so 10,000 take an hour or more.",
+    )
     b.add_argument("--episodes", type=int, default=10_000, help="at least this many episodes (default: %(default)s)")
-    b.add_argument("--sets", nargs="+", choices=list(COALITION_SETS), default=["train", "test"],
-                   help="composition sets (default: %(default)s; scale: 10-20 robots, slower per episode)")
-    b.add_argument("--wheels-share", type=float, default=0.1,
-                   help="share of rounds run in the wheels tier (default: %(default)s)")
+    b.add_argument(
+        "--sets",
+        nargs="+",
+        choices=list(COALITION_SETS),
+        default=["train", "test"],
+        help="composition sets (default: %(default)s; scale: 10-20 robots, slower per episode)",
+    )
+    b.add_argument(
+        "--wheels-share", type=float, default=0.1, help="share of rounds run in the wheels tier (default: %(default)s)"
+    )
     b.add_argument("--seed", type=int, default=0, help="seed of the episodes (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/soak.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
-    b = bsub.add_parser("fidelity", help="how closely the MuJoCo robot follows the Robotarium's unicycle model",
-                        description="Steady-state tracking over the admissible command range, and trajectory "
-                        "errors of 10 s random command sequences vs the Robotarium's Euler integration.")
+    b = bsub.add_parser(
+        "fidelity",
+        help="how closely the MuJoCo robot follows the Robotarium's unicycle model",
+        description="Steady-state tracking over the admissible command range, and trajectory "
+        "errors of 10 s random command sequences vs the Robotarium's Euler integration.",
+    )
     b.add_argument("--seeds", type=int, default=50, help="random command sequences per tier (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/fidelity.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
@@ -149,28 +215,45 @@ def add_bench_parser(sub) -> None:
 
 def _add_safety_bench_parser(bsub) -> None:
     """``comat bench safety`` on the bench sub-parsers."""
-    b = bsub.add_parser("safety", help="the safety battery at reality levels: contacts and collisions on true poses",
-                        description="Every scenario of the safety battery (head-on pairs, swaps of 4 and 8, 16 and 32 robots "
-                        "driven at one point, robots driven into the walls, a ring of 20 driven through its centre, "
-                        "bang-bang at full speed among 16 robots, a robot pinned in a corner; faults: a robot that stops "
-                        "while commanded, Wi-Fi dropouts that brake a robot, a stopped robot whose pose freezes, "
-                        "repeated poses with no noise, team-wide stalls of the script; and two robots started inside the safety "
-                        "distance), through "
-                        "each loop (--loops: comat's filter; the exported main.py with the Robotarium's barrier or "
-                        "with comat's shipped filter), in each tier and at each reality level, judged on true poses: "
-                        "contacts, Robotarium collisions, boundary exits, the closest projected points, recoveries, "
-                        "fallbacks and the distance left to the goals, for the episodes that really started in the "
-                        "loop's safe set and for all. Exit 1 if a safe start saw a contact or a collision. The JSON is "
-                        "rewritten after every row.")
-    b.add_argument("--reality", nargs="+", choices=REALITY_LEVELS, default=["nominal"],
-                   help="reality levels (default: %(default)s)")
-    b.add_argument("--tiers", nargs="+", choices=["wheels", "unicycle"], default=["unicycle", "wheels"],
-                   help="tiers (default: %(default)s)")
+    b = bsub.add_parser(
+        "safety",
+        help="the safety battery at reality levels: contacts and collisions on true poses",
+        description="Every scenario of the safety battery (head-on pairs, swaps of 4 and 8, 16 and 32 robots "
+        "driven at one point, robots driven into the walls, a ring of 20 driven through its centre, "
+        "bang-bang at full speed among 16 robots, a robot pinned in a corner; faults: a robot that stops "
+        "while commanded, Wi-Fi dropouts that brake a robot, a stopped robot whose pose freezes, "
+        "repeated poses with no noise, team-wide stalls of the script; and two robots started inside the safety "
+        "distance), through "
+        "each loop (--loops: comat's filter; the exported main.py with the Robotarium's barrier or "
+        "with comat's shipped filter), in each tier and at each reality level, judged on true poses: "
+        "contacts, Robotarium collisions, boundary exits, the closest projected points, recoveries, "
+        "fallbacks and the distance left to the goals, for the episodes that really started in the "
+        "loop's safe set and for all. Exit 1 if a safe start saw a contact or a collision. The JSON is "
+        "rewritten after every row.",
+    )
+    b.add_argument(
+        "--reality",
+        nargs="+",
+        choices=REALITY_LEVELS,
+        default=["nominal"],
+        help="reality levels (default: %(default)s)",
+    )
+    b.add_argument(
+        "--tiers",
+        nargs="+",
+        choices=["wheels", "unicycle"],
+        default=["unicycle", "wheels"],
+        help="tiers (default: %(default)s)",
+    )
     b.add_argument("--episodes", type=int, default=50, help="episodes per scenario (default: %(default)s)")
-    b.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=None,
-                   help="scenarios (default: all)")
-    b.add_argument("--loops", nargs="+", choices=LOOPS, default=list(DEFAULT_LOOPS),
-                   help="loops, side by side (default: %(default)s)")
+    b.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=None, help="scenarios (default: all)")
+    b.add_argument(
+        "--loops",
+        nargs="+",
+        choices=LOOPS,
+        default=list(DEFAULT_LOOPS),
+        help="loops, side by side (default: %(default)s)",
+    )
     b.add_argument("--seed", type=int, default=0, help="seed of the episodes and the layer (default: %(default)s)")
     b.add_argument("--out", default="benchmarks/results/safety_reality.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_safety)

@@ -35,12 +35,24 @@ def _table(parameters: list[dict], truth: dict[str, str] | None) -> str:
     rows = []
     for p in parameters:
         interval = "" if p["lo"] is None else f"[{_fmt(p['lo'])}, {_fmt(p['hi'])}]"
-        rows.append([p["name"], _fmt(p["estimate"]), interval, INTERVAL_KINDS[p.get("interval")],
-                     *([truth.get(p["name"], "")] if truth else []), str(p["robots"]), str(p["runs"]), p["note"]])
+        rows.append(
+            [
+                p["name"],
+                _fmt(p["estimate"]),
+                interval,
+                INTERVAL_KINDS[p.get("interval")],
+                *([truth.get(p["name"], "")] if truth else []),
+                str(p["robots"]),
+                str(p["runs"]),
+                p["note"],
+            ]
+        )
     widths = [max(len(r[k]) for r in [head, *rows]) for k in range(len(head) - 1)]
     right = {1, 2, len(head) - 3, len(head) - 2}  # numbers right-aligned
-    return "\n".join("  ".join(c.rjust(w) if k in right else c.ljust(w) for k, (c, w) in enumerate(zip(r, widths)))
-                     + "  " + r[-1] for r in [head, *rows])
+    return "\n".join(
+        "  ".join(c.rjust(w) if k in right else c.ljust(w) for k, (c, w) in enumerate(zip(r, widths))) + "  " + r[-1]
+        for r in [head, *rows]
+    )
 
 
 def _header(fields: dict, logs: list[str]) -> str:
@@ -48,9 +60,12 @@ def _header(fields: dict, logs: list[str]) -> str:
     from comat.reality.config import field_docs
 
     docs = field_docs()
-    lines = textwrap.wrap(f"comat calibrate: a reality profile fitted to {len(logs)} calibration log(s): the "
-                          "layer at 'off' with the fields below set (fit: the estimates behind them; "
-                          "not_identified: what stays off). The fields:", 100) + [""]
+    lines = textwrap.wrap(
+        f"comat calibrate: a reality profile fitted to {len(logs)} calibration log(s): the "
+        "layer at 'off' with the fields below set (fit: the estimates behind them; "
+        "not_identified: what stays off). The fields:",
+        100,
+    ) + [""]
     for name in fields:
         if name in docs and name != "level":
             lines += textwrap.wrap(f"{name}: {docs[name]}", 100, subsequent_indent="    ")
@@ -90,14 +105,18 @@ def _cmd(args: argparse.Namespace) -> int:
                 write_atomic(buf_path, buf.getvalue())
                 print(f"wrote {buf_path} ({log.shape[0]} iterations, {log.shape[1]} robots)")
             write_atomic(out / "truth.yaml", yaml.safe_dump({"reality": truth}, sort_keys=False))
-        print(f"wrote {out / 'truth.yaml'} (the layer the logs were simulated at); fit them with: comat calibrate "
-              f"{out}/calib_*.npy --truth {out / 'truth.yaml'} --out PROFILE.yaml")
+        print(
+            f"wrote {out / 'truth.yaml'} (the layer the logs were simulated at); fit them with: comat calibrate "
+            f"{out}/calib_*.npy --truth {out / 'truth.yaml'} --out PROFILE.yaml"
+        )
         return 0
     from comat.calibration.fit import fit_logs, profile_fields, truth_of
     from comat.reality import RealityConfig, resolve_reality
 
     if not args.logs:
-        raise ValueError("LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)")
+        raise ValueError(
+            "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)"
+        )
     truth = None if args.truth is None else truth_of(resolve_reality(args.truth))
     fit = fit_logs(args.logs)
     fields = profile_fields(fit)
@@ -113,8 +132,10 @@ def _cmd(args: argparse.Namespace) -> int:
     if out.suffix not in (".yaml", ".yml"):
         raise ValueError(f"--out must be a .yaml file (the profile), got {args.out!r}")
     with new_outputs(out.parent, [out.name], force=args.force):
-        write_atomic(out, _header(profile["reality"], args.logs)
-                     + yaml.safe_dump(json.loads(json.dumps(profile)), sort_keys=False))
+        write_atomic(
+            out,
+            _header(profile["reality"], args.logs) + yaml.safe_dump(json.loads(json.dumps(profile)), sort_keys=False),
+        )
     print(f"wrote {out}: train with `comat train ... reality={out}`, evaluate with `comat eval --reality {out}`")
     return 0
 
@@ -124,19 +145,29 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     from comat.cli.args import add_force
 
     p = subparsers.add_parser(
-        "calibrate", help="fit the reality layer to calibration logs (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)",
-        description=__doc__.split("\n\n")[1].replace("``", "'").replace(":mod:", ""))
+        "calibrate",
+        help="fit the reality layer to calibration logs "
+        "(calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)",
+        description=__doc__.split("\n\n")[1].replace("``", "'").replace(":mod:", ""),
+    )
     p.add_argument("logs", nargs="*", metavar="LOGS", help="calibration logs calib_<experiment>[.<run>].npy")
     p.add_argument("--out", required=True, help="the profile to write (PROFILE.yaml); with --simulate, a folder")
-    p.add_argument("--simulate", default=None, metavar="REALITY",
-                   help="write the experiments' logs from comat's simulator at this layer (a level, a profile "
-                   "PROFILE.yaml or a JSON mapping of fields) into the folder --out, instead of fitting")
-    p.add_argument("--truth", default=None, metavar="PROFILE",
-                   help="the layer the logs were simulated at (the truth.yaml --simulate writes, or a level): a "
-                   "truth column beside the fit")
+    p.add_argument(
+        "--simulate",
+        default=None,
+        metavar="REALITY",
+        help="write the experiments' logs from comat's simulator at this layer (a level, a profile "
+        "PROFILE.yaml or a JSON mapping of fields) into the folder --out, instead of fitting",
+    )
+    p.add_argument(
+        "--truth",
+        default=None,
+        metavar="PROFILE",
+        help="the layer the logs were simulated at (the truth.yaml --simulate writes, or a level): a "
+        "truth column beside the fit",
+    )
     p.add_argument("--robots", type=int, default=4, help="robots of a simulated run (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of a simulated run (default: %(default)s)")
     add_force(p)
     p.set_defaults(func=_cmd)
     return p
-

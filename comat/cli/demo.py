@@ -34,8 +34,14 @@ PARTS = ("all", "physics", "tasks", "pretrained", "train")
 
 
 def run_demo(
-    tier: str = "wheels", robots: int = 8, episodes: int = 4, seed: int = 0, out: str | None = None, part: str = "all",
-    folder: str = "runs/demo", command: Callable[[list[str]], int] | None = None,
+    tier: str = "wheels",
+    robots: int = 8,
+    episodes: int = 4,
+    seed: int = 0,
+    out: str | None = None,
+    part: str = "all",
+    folder: str = "runs/demo",
+    command: Callable[[list[str]], int] | None = None,
 ) -> int:
     """Run the demo and print its summary; returns a process exit code (0 = all safe, and the
     pretrained policy's files written and checked). ``command(argv) -> exit code`` runs a ``comat``
@@ -59,8 +65,10 @@ def run_demo(
     if part == "train":
         summary["train"] = _train(seed)
     elif part == "all":
-        print("\ntrain your own: comat demo --part train (a quick COMAT on PCP, about 5-10 minutes), or "
-              "comat train --algo comat --task pcp --preset quick")
+        print(
+            "\ntrain your own: comat demo --part train (a quick COMAT on PCP, about 5-10 minutes), or "
+            "comat train --algo comat --task pcp --preset quick"
+        )
     if out:
         Path(out).parent.mkdir(parents=True, exist_ok=True)
         Path(out).write_text(json.dumps(summary, indent=2))
@@ -82,8 +90,11 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
         f"{ticks} ticks = {ticks * C.CONTROL_DT_S:.1f} s simulated)"
     )
     rows: dict = {}
-    for label, filtered, reality in (("safety filter", True, "off"), ("no filter", False, "off"),
-                                     ("filter, nominal", True, "nominal")):
+    for label, filtered, reality in (
+        ("safety filter", True, "off"),
+        ("no filter", False, "off"),
+        ("filter, nominal", True, "nominal"),
+    ):
         t0 = time.perf_counter()
         r = run_scenario(scn, sim, filtered=filtered, reality=reality, seed=seed)
         rows[label] = {
@@ -104,15 +115,19 @@ def _physics(tier: str, robots: int, episodes: int, seed: int) -> tuple[bool, di
         a, b, c = rows["safety filter"][key], rows["no filter"][key], rows["filter, nominal"][key]
         fmt = (lambda v: f"{v:.3f}") if isinstance(a, float) and "distance" in key else str
         print(f"{key:<{width}}  {fmt(a):>14}  {fmt(b):>10}  {fmt(c):>15}")
-    print("filter, nominal: the same teams with the reality layer at nominal (late, noisy poses; lagging motors; "
-          "start error): the filter decides on measured poses with its robust gain and margin, judged on true ones")
+    print(
+        "filter, nominal: the same teams with the reality layer at nominal (late, noisy poses; lagging motors; "
+        "start error): the filter decides on measured poses with its robust gain and margin, judged on true ones"
+    )
     ok = True
     for safe in (rows["safety filter"], rows["filter, nominal"]):
         ok &= safe["MuJoCo robot-robot contact ticks"] == 0 and safe["Robotarium collisions (pair-ticks)"] == 0
         ok &= safe["boundary exits (robot-ticks)"] == 0
     print(
         "the filter kept every pair apart (bodies are 0.110 m wide; the barrier holds projected points "
-        f"{C.SAFETY_DISTANCE_M} m apart)" if ok else "SAFETY VIOLATION with the filter on: please report this"
+        f"{C.SAFETY_DISTANCE_M} m apart)"
+        if ok
+        else "SAFETY VIOLATION with the filter on: please report this"
     )
     return ok, {"robots": robots, "episodes": episodes, "results": rows}
 
@@ -124,12 +139,19 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     from comat.team import generate_coalitions
 
     rng = np.random.default_rng(seed)
-    policies = {"heuristic": lambda env: (lambda obs, mask, state: heuristic_actions(env.core)),
-                "random": lambda env: (lambda obs, mask, state: random_actions(rng, mask))}
-    print(f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task "
-          "state; finished = share of episodes finished (all prey captured / all material delivered; the paper's "
-          "completion), progress = fraction captured / delivered")
-    head = f"{'task':<5}{'set':<7}{'policy':<11}{'finished':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
+    policies = {
+        "heuristic": lambda env: lambda obs, mask, state: heuristic_actions(env.core),
+        "random": lambda env: lambda obs, mask, state: random_actions(rng, mask),
+    }
+    print(
+        f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task "
+        "state; finished = share of episodes finished (all prey captured / all material delivered; the paper's "
+        "completion), progress = fraction captured / delivered"
+    )
+    head = (
+        f"{'task':<5}{'set':<7}{'policy':<11}{'finished':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}"
+        f"{'violations':>11}{'interv.':>9}{'time s':>8}"
+    )
     print(head + "\n" + "-" * len(head))
     rows, ok = [], True
     for task in ("pcp", "hmt"):
@@ -151,26 +173,51 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     return ok, {"episodes": episodes, "rows": rows}
 
 
-def _pretrained(tier: str, episodes: int, seed: int, folder: Path, comat: Callable[[list[str]], int]) -> tuple[bool, dict]:
+def _pretrained(
+    tier: str, episodes: int, seed: int, folder: Path, comat: Callable[[list[str]], int]
+) -> tuple[bool, dict]:
     """The shipped COMAT PCP policy on unseen teams: .rrd, video and a checked Robotarium export."""
     import shutil
 
     from comat.rl.policy import PRETRAINED
 
-    print(f"\npretrained policy: {PRETRAINED['comat-pcp']['what']}\n"
-          f"{episodes} unseen U_test team(s), {tier} tier; files in {folder}/")
+    print(
+        f"\npretrained policy: {PRETRAINED['comat-pcp']['what']}\n"
+        f"{episodes} unseen U_test team(s), {tier} tier; files in {folder}/"
+    )
     folder.mkdir(parents=True, exist_ok=True)
     rrd, video, export = folder / "comat_pcp.rrd", folder / "comat_pcp.mp4", folder / "robotarium_pcp"
-    rc = comat(["rollout", "--policy", "pretrained:comat-pcp", "--teams", "test", "--episodes", str(episodes),
-                "--tier", tier, "--seed", str(seed), "--out", str(rrd), "--video", str(video), "--force"])
+    rc = comat(
+        [
+            "rollout",
+            "--policy",
+            "pretrained:comat-pcp",
+            "--teams",
+            "test",
+            "--episodes",
+            str(episodes),
+            "--tier",
+            tier,
+            "--seed",
+            str(seed),
+            "--out",
+            str(rrd),
+            "--video",
+            str(video),
+            "--force",
+        ]
+    )
     shutil.rmtree(export, ignore_errors=True)  # the demo's own folder: a new export each time
-    rc = rc or comat(["export", "--policy", "pretrained:comat-pcp", "--team", "test:3", "--seed", str(seed),
-                      "--out", str(export)])
+    rc = rc or comat(
+        ["export", "--policy", "pretrained:comat-pcp", "--team", "test:3", "--seed", str(seed), "--out", str(export)]
+    )
     print(f"\nchecking {export} under the installed rps (the Robotarium's simulator) and in MuJoCo:")
     check = comat(["export", "--check", str(export), "--tier", tier]) if rc == 0 else 1
     ok = rc == 0 and check == 0
-    print(f"\npretrained policy files: {rrd} (Rerun), {video} (video), {export}/ (upload to the Robotarium); "
-          + ("all written and the export checked" if ok else "NOT all written or checked: see the errors above"))
+    print(
+        f"\npretrained policy files: {rrd} (Rerun), {video} (video), {export}/ (upload to the Robotarium); "
+        + ("all written and the export checked" if ok else "NOT all written or checked: see the errors above")
+    )
     return ok, {"rrd": str(rrd), "video": str(video), "export": str(export), "ok": ok}
 
 
@@ -185,8 +232,10 @@ def _train(seed: int) -> dict:
 
     config = resolve(load_preset("quick"), "comat", "pcp", seed=seed)
     out = Path("runs") / f"demo-comat-pcp-{time.strftime('%Y%m%d-%H%M%S')}"
-    print(f"\nlearning: COMAT on PCP ({config.tier} tier), {config.total_env_steps:,} env steps (--preset quick), "
-          f"run folder {out}")
+    print(
+        f"\nlearning: COMAT on PCP ({config.tier} tier), {config.total_env_steps:,} env steps (--preset quick), "
+        f"run folder {out}"
+    )
     t0 = time.perf_counter()
     train(config, out)
     minutes = (time.perf_counter() - t0) / 60
@@ -199,11 +248,14 @@ def _train(seed: int) -> dict:
         teams = resolve_coalitions(split, "pcp")
         env = make_run_env(config, len(teams), seed + EVAL_SEED_OFFSET, split)
         trained = summarize(run_episodes(env, act, teams, seed + EVAL_SEED_OFFSET))
-        random = summarize(run_episodes(env, lambda obs, mask, state: random_actions(rng, mask), teams,
-                                        seed + EVAL_SEED_OFFSET))
+        random = summarize(
+            run_episodes(env, lambda obs, mask, state: random_actions(rng, mask), teams, seed + EVAL_SEED_OFFSET)
+        )
         for name, r in (("COMAT (quick)", trained), ("random", random)):
-            print(f"{name:<16}{split:<7}{r['finished']:>11.2f}{r['progress']:>9.2f}{r['steps']:>7.1f}"
-                  f"{r['return']:>8.2f}{r['collisions']:>11.1f}")
+            print(
+                f"{name:<16}{split:<7}{r['finished']:>11.2f}{r['progress']:>9.2f}{r['steps']:>7.1f}"
+                f"{r['return']:>8.2f}{r['collisions']:>11.1f}"
+            )
             rows.append({"policy": name, "set": split, **r})
     print(f"continue training with: comat train --resume --out {out} --steps 1000000")
     return {"run": str(out), "minutes": minutes, "rows": rows}

@@ -53,17 +53,35 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     if args.reality_sweep:
         from comat.eval.robustness import eval_sweep_command
 
-        return eval_sweep_command(args, pol, named, tier, out, refs if pol.checkpoint is None else
-                                  (() if args.no_references else ("heuristic",)), reality)
+        return eval_sweep_command(
+            args,
+            pol,
+            named,
+            tier,
+            out,
+            refs if pol.checkpoint is None else (() if args.no_references else ("heuristic",)),
+            reality,
+        )
     with new_outputs(out, result_files(stem), force=args.force):
-        print(f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} "
-              f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}, loop {args.loop}",
-              file=sys.stderr)
+        print(
+            f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} "
+            f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}, loop {args.loop}",
+            file=sys.stderr,
+        )
         from comat.config import SafetyConfig
 
-        result = evaluate_policies(pol.checkpoint, pol.task, named, args.episodes, tier, args.seed,
-                                   references=refs, progress=lambda m: print(m, file=sys.stderr), reality=reality,
-                                   safety=None if args.loop == "comat" else SafetyConfig(loop=args.loop))
+        result = evaluate_policies(
+            pol.checkpoint,
+            pol.task,
+            named,
+            args.episodes,
+            tier,
+            args.seed,
+            references=refs,
+            progress=lambda m: print(m, file=sys.stderr),
+            reality=reality,
+            safety=None if args.loop == "comat" else SafetyConfig(loop=args.loop),
+        )
         print_table(result)
         paths = write_results(result, out, stem)
     for path in paths:
@@ -78,8 +96,12 @@ def _cmd_probe(args: argparse.Namespace) -> int:
     from comat.eval.probe import print_probe, probe_checkpoint, write_probe
     from comat.files import new_outputs
 
-    pol = resolve_policy_arg(args.policy, None, references=(),
-                             need_checkpoint="comat probe reads the learner's value estimates (critic, mixer)")
+    pol = resolve_policy_arg(
+        args.policy,
+        None,
+        references=(),
+        need_checkpoint="comat probe reads the learner's value estimates (critic, mixer)",
+    )
     out = Path(args.out) if args.out else pol.default_out
     with new_outputs(out, ["probe.json"], force=args.force):
         print(f"comat probe: {pol.checkpoint}", file=sys.stderr)
@@ -138,8 +160,10 @@ def _print_sweep_status(args: argparse.Namespace) -> int:
     from comat.eval.sweep import RECORD, prepare_sweep, sweep_status
 
     if not Path(args.out).is_dir():
-        raise FileNotFoundError(f"--out {args.out!r} does not exist: no sweep has run there "
-                                f"(start it with the same command without --status)")
+        raise FileNotFoundError(
+            f"--out {args.out!r} does not exist: no sweep has run there "
+            f"(start it with the same command without --status)"
+        )
     record, _ = prepare_sweep(args.out, _sweep_given(args))
     if not (Path(args.out) / RECORD).is_file():
         print(f"(no {RECORD} in {args.out}, a sweep from before sweeps kept a record: the grid of these flags)")
@@ -154,9 +178,11 @@ def _print_sweep_status(args: argparse.Namespace) -> int:
     known = [r["hours_left"] for r in rows if r["hours_left"] is not None]
     jobs = args.jobs or os.cpu_count() or 1
     unknown = sum(r["hours_left"] is None for r in rows)
-    print(f"{sum(r['state'] == 'done' for r in rows)} of {len(rows)} jobs done; about {sum(known):.1f} job-hours of "
-          f"training left, {sum(known) / jobs:.1f} h at {jobs} jobs at once"
-          + (f" (+ {unknown} jobs with no rate yet)" if unknown else ""))
+    print(
+        f"{sum(r['state'] == 'done' for r in rows)} of {len(rows)} jobs done; about {sum(known):.1f} job-hours of "
+        f"training left, {sum(known) / jobs:.1f} h at {jobs} jobs at once"
+        + (f" (+ {unknown} jobs with no rate yet)" if unknown else "")
+    )
     return 0
 
 
@@ -174,21 +200,27 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     failed = [r for r in rows if "error" in r]
     for r in failed:
         print(f"comat sweep: {os.path.basename(r['folder'])} did not finish: {r['error']:.300}", file=sys.stderr)
-    print(f"comat sweep: {len(rows) - len(failed)} of {len(rows)} jobs finished; report with: comat report "
-          f"{record['root']}/*_s* --out results")
+    print(
+        f"comat sweep: {len(rows) - len(failed)} of {len(rows)} jobs finished; report with: comat report "
+        f"{record['root']}/*_s* --out results"
+    )
     return 1 if failed else 0
 
 
 def add_evaluate_parsers(sub) -> None:
     """``comat eval``, ``probe``, ``report`` and ``sweep`` on the top-level sub-parsers."""
-    p = sub.add_parser("eval", help="evaluate a policy (and reference policies) on training and unseen coalitions",
-                       description="The paper's metrics with 95% confidence intervals for a trained policy, the "
-                       "scripted heuristic, the best constant action and a random policy, on the coalition sets "
-                       "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, evaluation_<tier>.json "
-                       "(the summary), .episodes.json.gz (per-episode detail) and .csv in --out (default: the checkpoint's run folder; runs/pretrained-NAME for a shipped policy); at --reality nominal or stress, "
-                       "evaluation_<tier>_<level>.json and .csv. The reality layer defaults to off whatever level "
-                       "the policy trained at. --reality-sweep COMPONENT plays at three or more values of one "
-                       "component instead (evaluation_<tier>_sweep_<component>.json/.csv; comat report draws them).")
+    p = sub.add_parser(
+        "eval",
+        help="evaluate a policy (and reference policies) on training and unseen coalitions",
+        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
+        "scripted heuristic, the best constant action and a random policy, on the coalition sets "
+        "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, "
+        "evaluation_<tier>.json (the summary), .episodes.json.gz (per-episode detail) and .csv in --out (default: "
+        "the checkpoint's run folder; runs/pretrained-NAME for a shipped policy); at --reality nominal or stress, "
+        "evaluation_<tier>_<level>.json and .csv. The reality layer defaults to off whatever level "
+        "the policy trained at. --reality-sweep COMPONENT plays at three or more values of one "
+        "component instead (evaluation_<tier>_sweep_<component>.json/.csv; comat report draws them).",
+    )
     add_policy(p)
     add_task(p)
     add_teams(p)
@@ -197,84 +229,141 @@ def add_evaluate_parsers(sub) -> None:
     add_seed(p, "evaluation seed")
     add_reality(p)
     add_reality_sweep(p)
-    p.add_argument("--loop", choices=LOOPS, default="comat",
-                   help="what turns waypoints into wheel commands: comat's filter, or the loop an export runs on the "
-                   "Robotarium (robotarium_v2 / robotarium_legacy: the rps generation's own barrier; shipped_v2 / "
-                   "shipped_legacy: comat's shipped filter); another loop writes evaluation_<tier>[_<level>]_<loop> "
-                   "(default: %(default)s)")
+    p.add_argument(
+        "--loop",
+        choices=LOOPS,
+        default="comat",
+        help="what turns waypoints into wheel commands: comat's filter, or the loop an export runs on the "
+        "Robotarium (robotarium_v2 / robotarium_legacy: the rps generation's own barrier; shipped_v2 / "
+        "shipped_legacy: comat's shipped filter); another loop writes evaluation_<tier>[_<level>]_<loop> "
+        "(default: %(default)s)",
+    )
     p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
-    p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
-                   "folder; for pretrained:NAME, runs/pretrained-NAME: nothing is written into the package)")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="output folder, created if missing (default: the checkpoint's run "
+        "folder; for pretrained:NAME, runs/pretrained-NAME: nothing is written into the package)",
+    )
     add_force(p)
     p.set_defaults(func=_cmd_eval)
 
-    p = sub.add_parser("probe", help="a checkpoint's value estimates next to the rewards its policy earns",
-                       description="Diagnose a trained learner: for COMAT, MAT and MAPPO one training rollout "
-                       "(value V̂, GAE return and normalized advantage per team size, the robot-weighted mean "
-                       "advantage the policy loss sees); for QMIX greedy episodes (Q_tot at the start against "
-                       "the discounted return, the agents' action gap, the mixer's gain, greedy action shares). "
-                       "Both next to the bound max step reward / (1 - gamma). A table and probe.json in --out.")
+    p = sub.add_parser(
+        "probe",
+        help="a checkpoint's value estimates next to the rewards its policy earns",
+        description="Diagnose a trained learner: for COMAT, MAT and MAPPO one training rollout "
+        "(value V̂, GAE return and normalized advantage per team size, the robot-weighted mean "
+        "advantage the policy loss sees); for QMIX greedy episodes (Q_tot at the start against "
+        "the discounted return, the agents' action gap, the mixer's gain, greedy action shares). "
+        "Both next to the bound max step reward / (1 - gamma). A table and probe.json in --out.",
+    )
     add_policy(p, required=True, references=(), policy_files=False)
-    p.add_argument("--seed", type=int, default=None,
-                   help="environment and sampling seed (default: the run's own, to replay its training rollout)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="environment and sampling seed (default: the run's own, to replay its training rollout)",
+    )
     p.add_argument("--envs", type=int, default=None, help="environments (default: the run's num_envs)")
-    p.add_argument("--out", default=None, help="output folder, created if missing (default: the checkpoint's run "
-                   "folder)")
+    p.add_argument(
+        "--out", default=None, help="output folder, created if missing (default: the checkpoint's run folder)"
+    )
     add_force(p)
     p.set_defaults(func=_cmd_probe)
 
-    p = sub.add_parser("report", help="Table I, Fig. 4, Fig. 5 and team-size figure from run folders",
-                       description="Aggregate run folders (algorithms x tasks x seeds) into the paper's Table I "
-                       "(markdown + CSV, next to the paper's values and the env-step budget), the generalization "
-                       "table (progress, retention, finished share per composition set; t-intervals over per-seed means; "
-                       "Welch tests of COMAT against each baseline), aggregates.csv (also the hierarchical bootstrap "
-                       "over seeds then coalitions, descriptive), Fig. 4 (training return "
-                       "vs env steps), Fig. 5 (train vs unseen) and return/progress vs team size, as PNG and PDF. "
-                       "Runs need `comat eval` first.")
+    p = sub.add_parser(
+        "report",
+        help="Table I, Fig. 4, Fig. 5 and team-size figure from run folders",
+        description="Aggregate run folders (algorithms x tasks x seeds) into the paper's Table I "
+        "(markdown + CSV, next to the paper's values and the env-step budget), the generalization "
+        "table (progress, retention, finished share per composition set; t-intervals over per-seed means; "
+        "Welch tests of COMAT against each baseline), aggregates.csv (also the hierarchical bootstrap "
+        "over seeds then coalitions, descriptive), Fig. 4 (training return "
+        "vs env steps), Fig. 5 (train vs unseen) and return/progress vs team size, as PNG and PDF. "
+        "Runs need `comat eval` first.",
+    )
     p.add_argument("runs", nargs="+", help="run folders (each with config.yaml, progress.csv, evaluation_<tier>.json)")
     p.add_argument("--out", default="results", help="output folder, created if missing (default: %(default)s)")
-    p.add_argument("--tier", choices=TIERS, default=None,
-                   help="which evaluation to read (default: each run's training tier)")
+    p.add_argument(
+        "--tier", choices=TIERS, default=None, help="which evaluation to read (default: each run's training tier)"
+    )
     add_force(p)
     p.set_defaults(func=_cmd_report)
 
-    p = sub.add_parser("sweep", help="train and evaluate a grid of runs as resumable Ray Tune trials",
-                       description="Algorithms x tasks x seeds as Ray Tune trials (a local Ray instance, or a cluster "
-                       "with --address), one comat run folder each under --out, next to the sweep's record "
-                       "(sweep.json, written at the start). A trial whose worker fails is retried and resumes from "
-                       "its checkpoint; running `comat sweep --out DIR` again continues the recorded sweep "
-                       "(finished runs are skipped, interrupted ones resume). Settings not given: the recorded "
-                       "sweep's, else the defaults shown.")
-    p.add_argument("--algos", nargs="+", choices=ALGOS, default=None,
-                   help="algorithms (default: all four)")
+    p = sub.add_parser(
+        "sweep",
+        help="train and evaluate a grid of runs as resumable Ray Tune trials",
+        description="Algorithms x tasks x seeds as Ray Tune trials (a local Ray instance, or a cluster "
+        "with --address), one comat run folder each under --out, next to the sweep's record "
+        "(sweep.json, written at the start). A trial whose worker fails is retried and resumes from "
+        "its checkpoint; running `comat sweep --out DIR` again continues the recorded sweep "
+        "(finished runs are skipped, interrupted ones resume). Settings not given: the recorded "
+        "sweep's, else the defaults shown.",
+    )
+    p.add_argument("--algos", nargs="+", choices=ALGOS, default=None, help="algorithms (default: all four)")
     p.add_argument("--tasks", nargs="+", choices=TASKS, default=None, help="tasks (default: pcp hmt)")
-    p.add_argument("--seeds", type=int, nargs="+", default=None,
-                   help="seeds (default: the preset's seeds; given, they replace them, and the sweep says so)")
+    p.add_argument(
+        "--seeds",
+        type=int,
+        nargs="+",
+        default=None,
+        help="seeds (default: the preset's seeds; given, they replace them, and the sweep says so)",
+    )
     p.add_argument("--preset", default=None, help="preset name or YAML path (default: paper)")
     p.add_argument("--steps", type=int, default=None, help="env steps per run (default: the preset's)")
     p.add_argument("--tier", choices=TIERS, default=None, help="training tier (default: the preset's)")
-    p.add_argument("--eval-tiers", nargs="+", choices=TIERS, default=None,
-                   help="tiers to evaluate each final policy in (default: unicycle)")
-    p.add_argument("--eval-sets", nargs="+", choices=list(COALITION_SETS), default=None,
-                   help="coalition sets to evaluate each final policy on (default: train test; scale needs "
-                        "baselines with 20 slots, models.<algo>.max_robots=20)")
+    p.add_argument(
+        "--eval-tiers",
+        nargs="+",
+        choices=TIERS,
+        default=None,
+        help="tiers to evaluate each final policy in (default: unicycle)",
+    )
+    p.add_argument(
+        "--eval-sets",
+        nargs="+",
+        choices=list(COALITION_SETS),
+        default=None,
+        help="coalition sets to evaluate each final policy on (default: train test; scale needs "
+        "baselines with 20 slots, models.<algo>.max_robots=20)",
+    )
     p.add_argument("--episodes", type=int, default=None, help="evaluation episodes per coalition (default: 1)")
     p.add_argument("--no-eval", action="store_true", help="train only")
-    p.add_argument("--device", choices=["auto", "cpu", "cuda"], default=None,
-                   help="where each job's update runs (default: auto, cuda where the cluster has GPUs: each job "
-                   "then reserves one)")
-    p.add_argument("--retries", type=int, default=None,
-                   help="times a failed trial is retried, resuming from its checkpoint (default: 2)")
-    p.add_argument("--jobs", type=int, default=None,
-                   help="trials at once (default: as many as the CPUs hold; each reserves max(env_workers, "
-                   "torch_threads) CPUs)")
-    p.add_argument("--address", default=None,
-                   help="an existing Ray cluster ('auto', or HOST:PORT of its head); --out must then be on storage "
-                   "every node sees at the same path")
+    p.add_argument(
+        "--device",
+        choices=["auto", "cpu", "cuda"],
+        default=None,
+        help="where each job's update runs (default: auto, cuda where the cluster has GPUs: each job "
+        "then reserves one)",
+    )
+    p.add_argument(
+        "--retries",
+        type=int,
+        default=None,
+        help="times a failed trial is retried, resuming from its checkpoint (default: 2)",
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        help="trials at once (default: as many as the CPUs hold; each reserves max(env_workers, torch_threads) CPUs)",
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        help="an existing Ray cluster ('auto', or HOST:PORT of its head); --out must then be on storage "
+        "every node sees at the same path",
+    )
     p.add_argument("--out", default="runs/sweep", help="root folder of the sweep (default: %(default)s)")
-    p.add_argument("--status", action="store_true",
-                   help="print where each job of the recorded sweep stands (env steps, rate, hours left) and start "
-                   "nothing")
-    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
-                   help="settings changed from the preset for every job (as for comat train)")
+    p.add_argument(
+        "--status",
+        action="store_true",
+        help="print where each job of the recorded sweep stands (env steps, rate, hours left) and start nothing",
+    )
+    p.add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="settings changed from the preset for every job (as for comat train)",
+    )
     p.set_defaults(func=_cmd_sweep)

@@ -54,15 +54,23 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
     from comat.team import CAPABILITY_RANGES, SET_LABELS, generate_coalitions, save_coalitions
 
     # What each file's first line says its set is (the paper's two sets keep their old header).
-    about = {"train": "(paper §III-D)", "test": "(paper §III-D)", "scale": "(sizes 10-20, U_test's capability ranges)",
-             "val": "(drawn like U_train, no U_train team; the only set for model selection)",
-             "size": "(sizes 2-20, two of each, the training capability ranges)",
-             "capability": "(sizes 3/5/7, every capability outside the training range)"}
+    about = {
+        "train": "(paper §III-D)",
+        "test": "(paper §III-D)",
+        "scale": "(sizes 10-20, U_test's capability ranges)",
+        "val": "(drawn like U_train, no U_train team; the only set for model selection)",
+        "size": "(sizes 2-20, two of each, the training capability ranges)",
+        "capability": "(sizes 3/5/7, every capability outside the training range)",
+    }
     for task, split in sorted(CAPABILITY_RANGES):
         teams = generate_coalitions(task, split, args.count, args.seed)
         path = Path(args.out) / f"{task}_{split}.yaml"
-        save_coalitions(teams, path, header=f"comat coalitions --seed {args.seed} --count {args.count}: "
-                        f"{SET_LABELS[split]} for {task} {about[split]}")
+        save_coalitions(
+            teams,
+            path,
+            header=f"comat coalitions --seed {args.seed} --count {args.count}: "
+            f"{SET_LABELS[split]} for {task} {about[split]}",
+        )
         sizes = sorted({t.size for t in teams})
         print(f"wrote {path}: {len(teams)} teams, sizes {sizes}")
     return 0
@@ -71,8 +79,16 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
 def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.cli.demo import run_demo
 
-    return run_demo(tier=args.tier, robots=args.robots, episodes=args.episodes, seed=args.seed, out=args.out, part=args.part,
-                    folder=args.folder, command=main)
+    return run_demo(
+        tier=args.tier,
+        robots=args.robots,
+        episodes=args.episodes,
+        seed=args.seed,
+        out=args.out,
+        part=args.part,
+        folder=args.folder,
+        command=main,
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -85,36 +101,55 @@ def build_parser() -> argparse.ArgumentParser:
     add_rollout_parser(sub)
     add_export_parser(sub)
 
-    p = sub.add_parser("mjcf", help="write the generated MJCF files (robot, arena, scenes)",
-                       description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).")
+    p = sub.add_parser(
+        "mjcf",
+        help="write the generated MJCF files (robot, arena, scenes)",
+        description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).",
+    )
     p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_mjcf)
 
-    p = sub.add_parser("coalitions", help="regenerate the team composition sets (" + ", ".join(COALITION_SETS) + ")",
-                       description="Write every composition set (U_train, U_val, U_test, U_scale, U_size, U_cap; "
-                       "20 coalitions each, per task; what each holds: comat.team) from a seed as YAML; the "
-                       "environments use the same teams (seed 0).")
+    p = sub.add_parser(
+        "coalitions",
+        help="regenerate the team composition sets (" + ", ".join(COALITION_SETS) + ")",
+        description="Write every composition set (U_train, U_val, U_test, U_scale, U_size, U_cap; "
+        "20 coalitions each, per task; what each holds: comat.team) from a seed as YAML; the "
+        "environments use the same teams (seed 0).",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
     p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
-    p.add_argument("--out", default=str(COALITIONS_DIR),
-                   help="output folder (default: the package's copies, train/coalitions/ in a checkout)")
+    p.add_argument(
+        "--out",
+        default=str(COALITIONS_DIR),
+        help="output folder (default: the package's copies, train/coalitions/ in a checkout)",
+    )
     p.set_defaults(func=_cmd_coalitions)
 
-    p = sub.add_parser("demo", help="robots crossing paths under the safety filter; the tasks; a trained policy",
-                       description="1) Teams of robots swap places through the arena centre, every command passing "
-                       "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
-                       "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) The COMAT "
-                       "policy that ships with comat plays unseen PCP teams: a Rerun recording, a video and a checked "
-                       "Robotarium export in --folder. --part train: a quick COMAT trains on PCP (5-10 minutes) and plays "
-                       "the training and unseen coalitions next to a random policy.")
+    p = sub.add_parser(
+        "demo",
+        help="robots crossing paths under the safety filter; the tasks; a trained policy",
+        description="1) Teams of robots swap places through the arena centre, every command passing "
+        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
+        "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) The COMAT "
+        "policy that ships with comat plays unseen PCP teams: a Rerun recording, a video and a checked "
+        "Robotarium export in --folder. --part train: a quick COMAT trains on PCP (5-10 minutes) and plays "
+        "the training and unseen coalitions next to a random policy.",
+    )
     p.add_argument("--tier", choices=TIERS, default="wheels", help="dynamics tier (default: %(default)s)")
     p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
     p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--part", choices=["all", "physics", "tasks", "pretrained", "train"], default="all",
-                   help="which part to run (default: all = physics, tasks, pretrained)")
-    p.add_argument("--folder", default="runs/demo", help="where the pretrained part writes its recording, video and "
-                   "export (default: %(default)s)")
+    p.add_argument(
+        "--part",
+        choices=["all", "physics", "tasks", "pretrained", "train"],
+        default="all",
+        help="which part to run (default: all = physics, tasks, pretrained)",
+    )
+    p.add_argument(
+        "--folder",
+        default="runs/demo",
+        help="where the pretrained part writes its recording, video and export (default: %(default)s)",
+    )
     p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
     p.set_defaults(func=_cmd_demo)
 

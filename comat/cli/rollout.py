@@ -67,8 +67,14 @@ def cmd_rollout(args: argparse.Namespace) -> int:
     with contextlib.ExitStack() as stack:
         for path in (out, video):
             if path is not None:
-                stack.enter_context(new_outputs(Path(path).parent, [Path(path).name], force=args.force,
-                                                flag="--out" if path is out else "--video"))
+                stack.enter_context(
+                    new_outputs(
+                        Path(path).parent,
+                        [Path(path).name],
+                        force=args.force,
+                        flag="--out" if path is out else "--video",
+                    )
+                )
         if out is not None:
             check_rrd_path(out, "--out")  # its folder exists now: writable?
         result = record_episodes(
@@ -129,9 +135,7 @@ def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
     add_task(p)
     add_teams(p)
     add_team(p)
-    p.add_argument(
-        "--episodes", type=_positive_int, default=1, help="episodes to record (default: %(default)s)"
-    )
+    p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to record (default: %(default)s)")
     add_tier(p)
     add_seed(p, "episode k resets with seed + k")
     add_reality(p)
@@ -167,8 +171,11 @@ def cmd_viz_bench(args: argparse.Namespace) -> int:
     from comat.viz.bench import run_viz_bench
 
     if args.policy in REFERENCE_POLICIES:
-        tasks, policy, tier = tuple(args.tasks or TASKS), args.policy, args.tier or resolve_policy_arg(
-            args.policy, "pcp").tier
+        tasks, policy, tier = (
+            tuple(args.tasks or TASKS),
+            args.policy,
+            args.tier or resolve_policy_arg(args.policy, "pcp").tier,
+        )
     else:  # a checkpoint plays its own task
         pol = resolve_policy_arg(args.policy, None)
         if args.tasks and args.tasks != [pol.task]:
@@ -201,16 +208,17 @@ def add_viz_bench_parser(bench_subparsers) -> argparse.ArgumentParser:
     )
     from comat.cli.args import TASKS, add_policy, add_seed, add_tier
 
-    b.add_argument("--tasks", nargs="+", choices=TASKS, default=None,
-                   help=f"tasks (default: {' '.join(TASKS)}; a checkpoint's own task)")
+    b.add_argument(
+        "--tasks",
+        nargs="+",
+        choices=TASKS,
+        default=None,
+        help=f"tasks (default: {' '.join(TASKS)}; a checkpoint's own task)",
+    )
     add_tier(b)
     add_policy(b)
-    b.add_argument(
-        "--episodes", type=_positive_int, default=3, help="episodes per rollout (default: %(default)s)"
-    )
-    b.add_argument(
-        "--repeats", type=_positive_int, default=5, help="rollouts each way (default: %(default)s)"
-    )
+    b.add_argument("--episodes", type=_positive_int, default=3, help="episodes per rollout (default: %(default)s)")
+    b.add_argument("--repeats", type=_positive_int, default=5, help="rollouts each way (default: %(default)s)")
     add_seed(b, "seed of the first episode")
     b.add_argument("--out", default="benchmarks/results/viz.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=cmd_viz_bench)

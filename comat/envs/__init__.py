@@ -17,9 +17,17 @@ from comat.envs.registry import ENV_IDS, make_env, make_local_vec_env
 from comat.envs.sharded import ShardedVectorEnv
 from comat.envs.vector import VectorEnv
 
-__all__ = ["ENV_IDS", "EnvOptions", "HmtEnv", "PcpEnv", "ShardedVectorEnv", "TaskEnv", "VectorEnv", "make_env",
-           "make_vec_env"]
-
+__all__ = [
+    "ENV_IDS",
+    "EnvOptions",
+    "HmtEnv",
+    "PcpEnv",
+    "ShardedVectorEnv",
+    "TaskEnv",
+    "VectorEnv",
+    "make_env",
+    "make_vec_env",
+]
 
 
 def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -> VectorEnv | ShardedVectorEnv:

@@ -60,7 +60,9 @@ def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
     elif isinstance(value, Sequence) and len(value) > 0:
         teams = [resolve_team(t, task, f"coalitions[{i}]") for i, t in enumerate(value)]
     else:
-        raise ValueError(f"coalitions must be one of {_SET_NAMES}, a YAML path or a non-empty list of teams, got {value!r}")
+        raise ValueError(
+            f"coalitions must be one of {_SET_NAMES}, a YAML path or a non-empty list of teams, got {value!r}"
+        )
     for i, t in enumerate(teams):
         if t.task != task:
             raise ValueError(f"coalitions[{i}] is a {t.task!r} team, but this environment runs {task!r}")
@@ -78,7 +80,9 @@ def team_source(task: Any, coalitions: Any, team: Any, max_robots: Any) -> tuple
     teams = resolve_coalitions(coalitions, name)
     fixed = None if team is None else resolve_team(team, name)
     largest = max([t.size for t in teams] + ([fixed.size] if fixed else []))
-    if max_robots is not None and (isinstance(max_robots, bool) or not isinstance(max_robots, int) or max_robots < largest):
+    if max_robots is not None and (
+        isinstance(max_robots, bool) or not isinstance(max_robots, int) or max_robots < largest
+    ):
         raise ValueError(f"max_robots must be an integer >= the largest team ({largest}), got {max_robots!r}")
     if not isinstance(task, str):
         task.check_team_size(largest)  # the largest team the task takes, said as a limit
@@ -87,8 +91,9 @@ def team_source(task: Any, coalitions: Any, team: Any, max_robots: Any) -> tuple
     return teams, fixed, max_robots or largest
 
 
-def build_core(task: Any, num_envs: int, options: EnvOptions,
-               state_robots: int | None = None) -> tuple[list[TeamSpec], TeamSpec | None, TaskCore]:
+def build_core(
+    task: Any, num_envs: int, options: EnvOptions, state_robots: int | None = None
+) -> tuple[list[TeamSpec], TeamSpec | None, TaskCore]:
     """The coalition set, the fixed team (or None) and the engine of ``num_envs`` environments of
     ``task`` (a task-logic instance) run with ``options``.
 
@@ -100,8 +105,16 @@ def build_core(task: Any, num_envs: int, options: EnvOptions,
         state_robots = options.state_robots
     elif state_robots is None:
         state_robots = max(8, slots)
-    core = TaskCore(task, num_envs, slots, options.sim_config(), options.safety, options.ticks_per_step, state_robots,
-                    options.reality)
+    core = TaskCore(
+        task,
+        num_envs,
+        slots,
+        options.sim_config(),
+        options.safety,
+        options.ticks_per_step,
+        state_robots,
+        options.reality,
+    )
     return teams, fixed, core
 
 
@@ -164,7 +177,6 @@ class TaskEnv(ParallelEnv):
         self.render_caption = self.metadata["name"]
         """First line drawn above every rendered frame (e.g. the policy and the episode)."""
         if render_mode == "rgb_array":
-
             self._frames = EpisodeFrames()
 
     # -- spaces ---------------------------------------------------------------------------------
@@ -203,7 +215,7 @@ class TaskEnv(ParallelEnv):
         # The rest of possible_agents sit this episode out, done before it starts. The dicts hold this
         # team's keys (PettingZoo's conversions want exactly these); a wrapper that reads every possible
         # agent at reset (TorchRL sizes its arrays by possible_agents) gets a zero observation, an empty info.
-        out = set(self.possible_agents[team.size:])
+        out = set(self.possible_agents[team.size :])
         blank = np.zeros_like(obs[self.agents[0]])
         return _SatOut(obs, out, lambda: blank.copy()), _SatOut({a: {} for a in self.agents}, out, dict)
 
@@ -214,8 +226,10 @@ class TaskEnv(ParallelEnv):
         missing = [a for a in self.agents if a not in actions]
         extra = [a for a in actions if a not in self.possible_agents]
         if missing or extra:
-            raise ValueError(f"actions must cover the agents {self.agents} (those of the other possible_agents "
-                             f"are ignored); missing {missing}, not possible agents {extra}")
+            raise ValueError(
+                f"actions must cover the agents {self.agents} (those of the other possible_agents "
+                f"are ignored); missing {missing}, not possible agents {extra}"
+            )
         for i, a in enumerate(self.agents):
             value = actions[a]
             if isinstance(value, np.ndarray) and value.shape == ():
@@ -276,4 +290,3 @@ class TaskEnv(ParallelEnv):
     def _obs(self) -> dict[str, np.ndarray]:
         obs = self.core.observe()[0]
         return {a: obs[i].copy() for i, a in enumerate(self.possible_agents[: self.team.size])}
-

@@ -207,7 +207,8 @@ class TaskCore:
         for _ in range(self.ticks_per_step):
             if safe.deployed is not None:  # the exported script's loop (SafetyConfig.loop)
                 events, info = safe.tick_deployed(
-                    go_to_goal(safe.measured_points, goals, WAYPOINT_GAIN, safe.world.profile.max_linear_velocity_mps))
+                    go_to_goal(safe.measured_points, goals, WAYPOINT_GAIN, safe.world.profile.max_linear_velocity_mps)
+                )
             else:
                 seen, cos_sin = safe.decision_poses()  # measured with a reality layer, else true
                 events, info = safe._tick(waypoint_controller(None, goals, seen, WAYPOINT_GAIN, d, cos_sin))
@@ -231,8 +232,20 @@ class TaskCore:
         s["progress"] = task.progress(self.state)
         s["finished"] = terminated.astype(float)
         moved = self.padded(np.hypot(*(safe.points - points).T))
-        self.record.add(before, raw, self.state, actions, moved, step_len, poses, self.type_ids, self.caps, self.mask,
-                        self.steps, s["progress"])
+        self.record.add(
+            before,
+            raw,
+            self.state,
+            actions,
+            moved,
+            step_len,
+            poses,
+            self.type_ids,
+            self.caps,
+            self.mask,
+            self.steps,
+            s["progress"],
+        )
         return StepResult(rewards, terms, terminated, truncated)
 
     def _count_tick(self, starts: np.ndarray, events, info, last: np.ndarray, violations: np.ndarray) -> None:
@@ -278,8 +291,11 @@ class TaskCore:
         (valid for the episode's ``steps`` entries), ``episode_robots`` name -> (B, N) per-robot
         counts, ``episode_end`` name -> (B,) episode-level counts."""
         rec = self.record
-        return {"episode_curve": rec.curve.copy(), "episode_robots": {k: v.copy() for k, v in rec.robots.items()},
-                "episode_end": rec.end(self.state)}
+        return {
+            "episode_curve": rec.curve.copy(),
+            "episode_robots": {k: v.copy() for k, v in rec.robots.items()},
+            "episode_end": rec.end(self.state),
+        }
 
     # -- observations -------------------------------------------------------------------------------
     def observe(self) -> np.ndarray:

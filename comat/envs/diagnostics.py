@@ -79,9 +79,21 @@ class EpisodeRecorder:
             return {"sensed": state["sensed"].copy(), "captured": state["captured"].copy()}
         return {}
 
-    def add(self, before: dict, raw: dict, state: dict, actions: np.ndarray, moved: np.ndarray, step: np.ndarray,
-            poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray, steps: np.ndarray,
-            progress: np.ndarray) -> None:
+    def add(
+        self,
+        before: dict,
+        raw: dict,
+        state: dict,
+        actions: np.ndarray,
+        moved: np.ndarray,
+        step: np.ndarray,
+        poses: np.ndarray,
+        type_ids: np.ndarray,
+        caps: np.ndarray,
+        mask: np.ndarray,
+        steps: np.ndarray,
+        progress: np.ndarray,
+    ) -> None:
         """Count one env step.
 
         Args:

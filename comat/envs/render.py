@@ -161,21 +161,44 @@ def _draw_legend(ax, s: FrameState) -> None:
     from matplotlib.lines import Line2D
 
     def dot(color, label, marker="o", size=7, fill=True, ls="none"):
-        return Line2D([], [], marker=marker, ms=size, ls=ls, color=color, markerfacecolor=color if fill else "none",
-                      markeredgecolor="k" if fill else color, label=label)
+        return Line2D(
+            [],
+            [],
+            marker=marker,
+            ms=size,
+            ls=ls,
+            color=color,
+            markerfacecolor=color if fill else "none",
+            markeredgecolor="k" if fill else color,
+            label=label,
+        )
 
     items = [dot(_rgb(TYPE_COLORS.get(kind, (200, 200, 200))), kind) for kind in dict.fromkeys(s.types)]
     if s.task == "pcp":
-        items += [dot(PREY_COLORS[k, :3] / 255, f"prey {name}", size=5) for k, name in enumerate(("free", "sensed", "captured"))]
+        items += [
+            dot(PREY_COLORS[k, :3] / 255, f"prey {name}", size=5)
+            for k, name in enumerate(("free", "sensed", "captured"))
+        ]
         items.append(dot((0.4, 0.4, 0.4), "shaded disk: sensing / capture radius", size=9, fill=False))
     else:
-        items += [dot("#e6aa14", "bar: load / payload", marker="s", size=6),
-                  dot((0.4, 0.4, 0.4), "dotted ring: step length", size=9, fill=False)]
+        items += [
+            dot("#e6aa14", "bar: load / payload", marker="s", size=6),
+            dot((0.4, 0.4, 0.4), "dotted ring: step length", size=9, fill=False),
+        ]
     items.append(dot("red", "red ring: filter changed the command", size=9, fill=False))
     if s.measured is not None:
         items.append(Line2D([], [], color="#404040", ls="--", label="dashed: measured pose"))
-    ax.legend(handles=items, loc="lower center", ncol=min(len(items), 4), fontsize=6.5, framealpha=0.85,
-              handletextpad=0.3, columnspacing=0.9, borderpad=0.3, labelspacing=0.25)
+    ax.legend(
+        handles=items,
+        loc="lower center",
+        ncol=min(len(items), 4),
+        fontsize=6.5,
+        framealpha=0.85,
+        handletextpad=0.3,
+        columnspacing=0.9,
+        borderpad=0.3,
+        labelspacing=0.25,
+    )
 
 
 def _status_line(s: FrameState) -> str:
@@ -186,8 +209,10 @@ def _status_line(s: FrameState) -> str:
         body = f"prey sensed {int(st['sensed'].sum())}/{k}, captured {int(st['captured'].sum())}/{k}"
     else:
         st = s.task_state
-        body = f"left {st['left'][0]:.1f} + {st['left'][1]:.1f}, carried {float(st['load'].sum()):.1f}, " \
+        body = (
+            f"left {st['left'][0]:.1f} + {st['left'][1]:.1f}, carried {float(st['load'].sum()):.1f}, "
             f"delivered {float(st['delivered']):.1f}"
+        )
     return head + body + f" · filtered {int(s.intervened.sum())}"
 
 
@@ -196,8 +221,7 @@ def reality_view(core, b: int, n: int) -> dict[str, np.ndarray | None]:
     layer = core.safe.reality
     if layer is None:
         return {"measured": None, "faulty": None}
-    return {"measured": core.measured_poses()[b, :n].copy(),
-            "faulty": core.padded(layer.speed_fraction)[b, :n] < 1.0}
+    return {"measured": core.measured_poses()[b, :n].copy(), "faulty": core.padded(layer.speed_fraction)[b, :n] < 1.0}
 
 
 def _draw_arena(ax) -> None:
@@ -206,8 +230,12 @@ def _draw_arena(ax) -> None:
     X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
     t = C.WALL_THICKNESS_M
     ax.add_patch(Rectangle((X0, Y0), X1 - X0, Y1 - Y0, facecolor="#f7f7f2", edgecolor="#3c3c3c", lw=1.2))
-    for x, y, w, h in ((X0 - t, Y0 - t, t, Y1 - Y0 + 2 * t), (X1, Y0 - t, t, Y1 - Y0 + 2 * t),
-                       (X0, Y0 - t, X1 - X0, t), (X0, Y1, X1 - X0, t)):
+    for x, y, w, h in (
+        (X0 - t, Y0 - t, t, Y1 - Y0 + 2 * t),
+        (X1, Y0 - t, t, Y1 - Y0 + 2 * t),
+        (X0, Y0 - t, X1 - X0, t),
+        (X0, Y1, X1 - X0, t),
+    ):
         ax.add_patch(Rectangle((x, y), w, h, facecolor="#9a9a9a", edgecolor="none"))
 
 
@@ -215,8 +243,9 @@ def _box(ax, box, color, label: str) -> None:
     from matplotlib.patches import Rectangle
 
     x0, x1, y0, y1 = box
-    ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(*color, 0.12), edgecolor=(*color, 0.7),
-                           lw=0.8, ls="--"))
+    ax.add_patch(
+        Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(*color, 0.12), edgecolor=(*color, 0.7), lw=0.8, ls="--")
+    )
     ax.text(x0 + 0.02, y1 - 0.02, label, ha="left", va="top", fontsize=7, color=color)
 
 
@@ -243,8 +272,13 @@ def _draw_hmt(ax, s: FrameState) -> None:
     ax.add_patch(Rectangle((ZONE2_X, Y0), X1 - ZONE2_X, Y1 - Y0, facecolor=(*amber, 0.15), edgecolor=amber, lw=1.0))
     ax.add_patch(Rectangle((X0, Y0), -ZONE2_X - X0, Y1 - Y0, facecolor=(*green, 0.15), edgecolor=green, lw=1.0))
     kw = {"fontsize": 7, "ha": "center", "va": "top"}
-    ax.text(ZONE1_CENTRE[0], ZONE1_CENTRE[1] - ZONE1_RADIUS - 0.02,
-            f"zone 1: {st['left'][0]:.1f} of {st['initial'][0]:.1f}", color=amber, **kw)
+    ax.text(
+        ZONE1_CENTRE[0],
+        ZONE1_CENTRE[1] - ZONE1_RADIUS - 0.02,
+        f"zone 1: {st['left'][0]:.1f} of {st['initial'][0]:.1f}",
+        color=amber,
+        **kw,
+    )
     ax.text((ZONE2_X + X1) / 2, Y1 - 0.02, f"zone 2: {st['left'][1]:.1f} of {st['initial'][1]:.1f}", color=amber, **kw)
     ax.text((X0 - ZONE2_X) / 2, Y1 - 0.02, f"drop-off: {float(st['delivered']):.1f}", color=green, **kw)
 
@@ -280,8 +314,9 @@ def _draw_reality(ax, s: FrameState) -> None:
     if s.measured is not None:
         for (x, y, _), (mx, my, mth) in zip(s.poses, s.measured):
             ax.add_patch(Circle((mx, my), s.robot_radius_m, fill=False, edgecolor="#404040", lw=0.8, ls="--", zorder=6))
-            ax.plot([mx, mx + 0.08 * np.cos(mth)], [my, my + 0.08 * np.sin(mth)], color="#404040", lw=0.8, ls="--",
-                    zorder=6)
+            ax.plot(
+                [mx, mx + 0.08 * np.cos(mth)], [my, my + 0.08 * np.sin(mth)], color="#404040", lw=0.8, ls="--", zorder=6
+            )
             ax.plot([x, mx], [y, my], color="#d01010", lw=1.0, zorder=6)
     if s.faulty is not None:
         for i in np.flatnonzero(s.faulty):
@@ -299,8 +334,9 @@ def _draw_safety(ax, s: FrameState) -> None:
         ox, oy = s.origin[i]
         for vec, color in ((s.nominal[i], "#787878"), (s.filtered[i], "red")):
             dx, dy = vec * SAFETY_ARROW_S
-            ax.annotate("", (ox + dx, oy + dy), (ox, oy), zorder=9,
-                        arrowprops={"arrowstyle": "->", "color": color, "lw": 1.0})
+            ax.annotate(
+                "", (ox + dx, oy + dy), (ox, oy), zorder=9, arrowprops={"arrowstyle": "->", "color": color, "lw": 1.0}
+            )
     hits = np.flatnonzero(s.events)
     if hits.size:
         ax.scatter(s.event_xy[hits, 0], s.event_xy[hits, 1], marker="x", s=60, color="red", zorder=10)
@@ -356,19 +392,33 @@ class EpisodeFrames:
             on = core.state["active"][b]  # padded prey slots of a smaller team are not drawn
             st = {k: core.state[k][b][on].copy() for k in ("prey", "sensed", "captured")}
         else:
-            st = {"left": core.state["left"][b].copy(), "initial": core.state["initial"][b].copy(),
-                  "load": core.state["load"][b, :n].copy(), "delivered": np.array(core.state["delivered"][b])}
+            st = {
+                "left": core.state["left"][b].copy(),
+                "initial": core.state["initial"][b].copy(),
+                "load": core.state["load"][b, :n].copy(),
+                "delivered": np.array(core.state["delivered"][b]),
+            }
         state = FrameState(
-            task=task.name, poses=core.poses()[b, :n].copy(), types=[r.type for r in core.teams[b].robots],
-            caps=core.caps[b, :n].copy(), robot_radius_m=C.PROFILES[core.sim_config.profile].radius_m,
+            task=task.name,
+            poses=core.poses()[b, :n].copy(),
+            types=[r.type for r in core.teams[b].robots],
+            caps=core.caps[b, :n].copy(),
+            robot_radius_m=C.PROFILES[core.sim_config.profile].radius_m,
             trails=np.concatenate(self._trails, axis=1),
-            intervened=none if last is None else last.intervened, origin=zeros2 if last is None else last.origin,
-            nominal=zeros2 if last is None else last.nominal, filtered=zeros2 if last is None else last.filtered,
+            intervened=none if last is None else last.intervened,
+            origin=zeros2 if last is None else last.origin,
+            nominal=zeros2 if last is None else last.nominal,
+            filtered=zeros2 if last is None else last.filtered,
             events=none if last is None else last.events[:, [0, 1, 2]].any(axis=1),
-            event_xy=zeros2 if last is None else last.event_xy, task_state=st,
+            event_xy=zeros2 if last is None else last.event_xy,
+            task_state=st,
             spawn_box=getattr(task, "spawn_box", None) if task.name == "pcp" else None,
-            prey_box=getattr(task, "prey_box", None), step=int(core.steps[b]), horizon=int(task.horizon),
-            ret=self._return, title=self.title, **reality_view(core, b, n),
+            prey_box=getattr(task, "prey_box", None),
+            step=int(core.steps[b]),
+            horizon=int(task.horizon),
+            ret=self._return,
+            title=self.title,
+            **reality_view(core, b, n),
         )
         if self._fig is None:
             self._fig = _figure()  # one figure per follower: drawing reuses it

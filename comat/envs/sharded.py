@@ -107,8 +107,9 @@ class ShardedVectorEnv:
         self._conns, self._procs = [], []
         for sl in self._slices:
             parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_worker, daemon=True,
-                               args=(child, env_id, sl.stop - sl.start, sl.start, num_envs, seed, options))
+            proc = ctx.Process(
+                target=_worker, daemon=True, args=(child, env_id, sl.stop - sl.start, sl.start, num_envs, seed, options)
+            )
             proc.start()
             child.close()
             self._conns.append(parent)
@@ -155,7 +156,9 @@ class ShardedVectorEnv:
     def reset(self, seed: int | None = None, teams: list[TeamSpec] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """As :meth:`comat.envs.VectorEnv.reset`."""
         if teams is not None and (len(teams) != self.num_envs or not all(isinstance(t, TeamSpec) for t in teams)):
-            raise ValueError(f"teams must be a list of {self.num_envs} TeamSpec (one per environment), got {teams!r:.200}")
+            raise ValueError(
+                f"teams must be a list of {self.num_envs} TeamSpec (one per environment), got {teams!r:.200}"
+            )
         results = self._call("reset", [(seed, None if teams is None else teams[sl]) for sl in self._slices])
         obs = np.concatenate([r[0] for r in results])
         info = _merge_infos([r[1] for r in results], [r[0] for r in results], self._state_size)
@@ -166,8 +169,9 @@ class ShardedVectorEnv:
         """As :meth:`comat.envs.VectorEnv.step` (the same arrays and info keys)."""
         actions = np.asarray(actions)
         if actions.shape != (self.num_envs, self.max_robots):
-            raise ValueError(f"actions must have shape ({self.num_envs}, {self.max_robots}) (envs, robot slots), "
-                             f"got {actions.shape}")
+            raise ValueError(
+                f"actions must have shape ({self.num_envs}, {self.max_robots}) (envs, robot slots), got {actions.shape}"
+            )
         results = self._call("step", [actions[sl] for sl in self._slices])
         obs = np.concatenate([r[0] for r in results])
         rewards, terminated, truncated = (np.concatenate([r[k] for r in results]) for k in (1, 2, 3))
@@ -192,8 +196,10 @@ class ShardedVectorEnv:
         sl = self._slices[i]
         actions = np.asarray(actions)
         if actions.shape != (sl.stop - sl.start, self.max_robots):
-            raise ValueError(f"actions of worker {i} must have shape ({sl.stop - sl.start}, {self.max_robots}) "
-                             f"(its envs, robot slots), got {actions.shape}")
+            raise ValueError(
+                f"actions of worker {i} must have shape ({sl.stop - sl.start}, {self.max_robots}) "
+                f"(its envs, robot slots), got {actions.shape}"
+            )
         self._conns[i].send(("step_state" if with_state else "step", actions))
 
     def step_recv(self, i: int) -> tuple:
@@ -257,8 +263,11 @@ class ShardedVectorEnv:
 def _merge_infos(infos: list[dict], obs: list[np.ndarray], state_size: int) -> dict[str, Any]:
     """Concatenate the workers' infos in environment order; episode keys are filled for
     workers whose environments did not finish (``_episode`` False there)."""
-    merged = {k: np.concatenate([i[k] for i in infos]) for k in infos[0] if k in ("agent_mask", "type_ids")
-              or k.startswith("reward/")}
+    merged = {
+        k: np.concatenate([i[k] for i in infos])
+        for k in infos[0]
+        if k in ("agent_mask", "type_ids") or k.startswith("reward/")
+    }
     if not any("_episode" in i for i in infos):
         return merged
     sizes = [len(o) for o in obs]
@@ -268,13 +277,15 @@ def _merge_infos(infos: list[dict], obs: list[np.ndarray], state_size: int) -> d
 
     def filled(get) -> np.ndarray:
         """One episode array over all workers: zeros, shaped like ``ref``'s, where none finished."""
-        return np.concatenate([get(i) if "_episode" in i else np.zeros((n, *get(ref).shape[1:]))
-                               for i, n in zip(infos, sizes)])
+        return np.concatenate(
+            [get(i) if "_episode" in i else np.zeros((n, *get(ref).shape[1:])) for i, n in zip(infos, sizes)]
+        )
 
     merged["episode_curve"] = filled(lambda i: i["episode_curve"])
     for key in ("episode", "episode_robots", "episode_end"):
         merged[key] = {name: filled(lambda i, k=key, m=name: i[k][m]) for name in ref[key]}
     if all("final_state" in i for i in infos if "_episode" in i):
-        merged["final_state"] = np.concatenate([i.get("final_state", np.zeros((n, state_size)))
-                                                for i, n in zip(infos, sizes)])
+        merged["final_state"] = np.concatenate(
+            [i.get("final_state", np.zeros((n, state_size))) for i, n in zip(infos, sizes)]
+        )
     return merged

@@ -124,9 +124,7 @@ class TickTap:
         self._k = 0
         self._poses[0] = poses
 
-    def __call__(
-        self, nominal: np.ndarray, filtered: np.ndarray, events: TickEvents, info: SafetyInfo
-    ) -> None:
+    def __call__(self, nominal: np.ndarray, filtered: np.ndarray, events: TickEvents, info: SafetyInfo) -> None:
         # Every tick pays for this: plain row copies only; all reductions wait for summarize().
         t0 = time.thread_time()
         k, rows, b = self._k, self._rows, self._team
@@ -168,9 +166,7 @@ class TickTap:
         before = poses[worst, robots]  # the filter saw the pose before its tick
         events = self._events[:K].copy()
         contact = events[..., 0].copy()
-        events[..., 0] &= ~np.concatenate(
-            [self._last_contact[None], contact[:-1]]
-        )  # onsets, as the metric counts
+        events[..., 0] &= ~np.concatenate([self._last_contact[None], contact[:-1]])  # onsets, as the metric counts
         if K:
             self._last_contact = contact[-1]
         any_event = events.any(axis=2)  # (K, n)

@@ -45,15 +45,18 @@ class VectorEnv:
             ``state_robots`` says otherwise.
     """
 
-    def __init__(self, task, num_envs: int, *, seed: int | None = None, shard: tuple[int, int] | None = None,
-                 **options: Any) -> None:
+    def __init__(
+        self, task, num_envs: int, *, seed: int | None = None, shard: tuple[int, int] | None = None, **options: Any
+    ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self.task = task
         self.num_envs = num_envs
         first, total = shard if shard is not None else (0, num_envs)
         if not (0 <= first and first + num_envs <= total):
-            raise ValueError(f"shard must be (first, total) with 0 <= first and first + num_envs <= total, got {shard!r}")
+            raise ValueError(
+                f"shard must be (first, total) with 0 <= first and first + num_envs <= total, got {shard!r}"
+            )
         self._shard = (first, total)
         self.env_options = EnvOptions.of(options, "VectorEnv")
         """The env options these environments were made with."""
@@ -102,7 +105,9 @@ class VectorEnv:
         if teams is None:
             teams = [self._draw(b) for b in envs]
         elif len(teams) != self.num_envs or not all(isinstance(t, TeamSpec) for t in teams):
-            raise ValueError(f"teams must be a list of {self.num_envs} TeamSpec (one per environment), got {teams!r:.200}")
+            raise ValueError(
+                f"teams must be a list of {self.num_envs} TeamSpec (one per environment), got {teams!r:.200}"
+            )
         self.core.reset(envs, list(teams), [self._rngs[b] for b in envs])
         self._started = True
         release_free_heap()  # the last batch's transient peaks, held by glibc (comat.heap)

@@ -4,7 +4,8 @@ Protocol: for each set (U_train, U_test; 20 coalitions each), ``episodes`` episo
 coalition with deterministic actions, environments seeded from ``seed``; the same teams and
 starts for every policy. Rows: the checkpoint's policy, the scripted heuristic (privileged: it
 reads the task state), the best constant action (every robot always the same waypoint step:
-what a policy that ignores its observations can reach) and uniformly random actions. Each metric of :data:`REPORTED` comes with
+what a policy that ignores its observations can reach) and uniformly random actions. Each metric of
+:data:`REPORTED` comes with
 a 95 % confidence interval over the coalitions (each coalition's episodes averaged first:
 :func:`comat.measure.metrics.summarize_ci`). Every episode row keeps its progress curve, endpoints
 and per-robot diagnostics (:func:`comat.measure.episodes.run_episodes`).
@@ -41,8 +42,16 @@ from comat.rl.algos import BASELINE_ROBOTS, robot_slots
 from comat.rl.policy import load_policy
 from comat.team import COALITION_SETS
 
-__all__ = ["EVAL_SEED", "REFERENCES", "TABLE_NAMES", "evaluate_policies", "print_table", "result_files",
-           "table_lines", "write_results"]
+__all__ = [
+    "EVAL_SEED",
+    "REFERENCES",
+    "TABLE_NAMES",
+    "evaluate_policies",
+    "print_table",
+    "result_files",
+    "table_lines",
+    "write_results",
+]
 
 EVAL_SEED = 2_000_003
 """Default seed of evaluation episodes (never a training seed of the presets)."""
@@ -66,9 +75,18 @@ REFERENCES = ("heuristic", "constant", "random")
 """Reference rows, in table order."""
 
 
-def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, sets=SETS, episodes: int = 1,
-                      tier: str | None = None, seed: int = EVAL_SEED, references: bool | tuple[str, ...] = True,
-                      progress=print, reality="off", safety=None) -> dict:
+def evaluate_policies(
+    checkpoint: str | Path | None,
+    task: str | None = None,
+    sets=SETS,
+    episodes: int = 1,
+    tier: str | None = None,
+    seed: int = EVAL_SEED,
+    references: bool | tuple[str, ...] = True,
+    progress=print,
+    reality="off",
+    safety=None,
+) -> dict:
     """Rows of (policy, set) results; see the module docstring.
 
     Args:
@@ -86,7 +104,6 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
             e.g. ``SafetyConfig(robust=False)`` to measure what the reality margin costs.
     """
     import dataclasses
-
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1 (per coalition), got {episodes!r}")
@@ -109,39 +126,81 @@ def evaluate_policies(checkpoint: str | Path | None, task: str | None = None, se
     if tier not in ("wheels", "unicycle"):
         raise ValueError(f"tier must be 'wheels' or 'unicycle', got {tier!r}")
     slots = None if config is None else robot_slots(config)
-    named = [(s, resolve_coalitions(s, task)) if isinstance(s, str) else (s[0], resolve_coalitions(list(s[1]), task))
-             for s in sets]
+    named = [
+        (s, resolve_coalitions(s, task)) if isinstance(s, str) else (s[0], resolve_coalitions(list(s[1]), task))
+        for s in sets
+    ]
     largest = {split: max(t.size for t in teams) for split, teams in named}
     too_large = [s for s, _ in named if slots is not None and largest[s] > slots]
     if too_large:
-        raise ValueError(f"sets {too_large} hold teams of up to {max(largest[s] for s in too_large)} robots, but this "
-                         f"{config.algo} checkpoint has {slots} robot slots (fixed-size: train it with "
-                         f"models.{config.algo}.max_robots=20 to play U_scale)")
+        raise ValueError(
+            f"sets {too_large} hold teams of up to {max(largest[s] for s in too_large)} robots, but this "
+            f"{config.algo} checkpoint has {slots} robot slots (fixed-size: train it with "
+            f"models.{config.algo}.max_robots=20 to play U_scale)"
+        )
     rows = []
     for split, coalitions in named:
         teams = coalitions * episodes
         # One process: the heuristic reads the env's task state directly.
-        env = make_vec_env(f"{task}_v0", min(len(teams), 32), seed=seed, tier=tier, coalitions=coalitions,
-                           max_robots=slots, state_robots=slots or BASELINE_ROBOTS, reality=layer, safety=safety)
+        env = make_vec_env(
+            f"{task}_v0",
+            min(len(teams), 32),
+            seed=seed,
+            tier=tier,
+            coalitions=coalitions,
+            max_robots=slots,
+            state_robots=slots or BASELINE_ROBOTS,
+            reality=layer,
+            safety=safety,
+        )
         policies = _policies(config, act, env, seed)
         policies = {k: v for k, v in policies.items() if k not in REFERENCES or k in refs}
         for name, policy in policies.items():
             t0 = time.perf_counter()
             eps = run_episodes(env, policy, teams, seed, n_coalitions=len(coalitions))
-            rows.append({"policy": name, "task": task, "set": split, "tier": tier, "reality": level,
-                         "episodes": len(eps), "metrics": summarize_ci(eps), "per_episode": eps})
+            rows.append(
+                {
+                    "policy": name,
+                    "task": task,
+                    "set": split,
+                    "tier": tier,
+                    "reality": level,
+                    "episodes": len(eps),
+                    "metrics": summarize_ci(eps),
+                    "per_episode": eps,
+                }
+            )
             progress(f"  {name:<10} {split:<5} {len(eps)} episodes in {time.perf_counter() - t0:.0f} s")
-    return {"checkpoint": None if checkpoint is None else str(checkpoint),
-            "algo": None if config is None else config.algo, "trained_tier": None if config is None else config.tier,
-            "trained_reality": None if config is None else config.reality.label,
-            "task": task, "tier": tier, "seed": seed, "episodes_per_coalition": episodes, "reality": level,
-            "reality_config": dataclasses.asdict(layer), "loop": "comat" if safety is None else safety.loop,
-            "trained_loop": None if config is None else config.loop, "rows": rows}
+    return {
+        "checkpoint": None if checkpoint is None else str(checkpoint),
+        "algo": None if config is None else config.algo,
+        "trained_tier": None if config is None else config.tier,
+        "trained_reality": None if config is None else config.reality.label,
+        "task": task,
+        "tier": tier,
+        "seed": seed,
+        "episodes_per_coalition": episodes,
+        "reality": level,
+        "reality_config": dataclasses.asdict(layer),
+        "loop": "comat" if safety is None else safety.loop,
+        "trained_loop": None if config is None else config.loop,
+        "rows": rows,
+    }
 
 
-TABLE_NAMES = {"return": "return", "steps": "steps", "progress": "progress", "finished": "finished",
-               "progress_auc": "AUC", "time_to_90": "t90", "collisions": "collisions", "violations": "violations",
-               "interventions": "interv.", "fallbacks": "fallbacks", "recoveries": "recoveries"}
+TABLE_NAMES = {
+    "return": "return",
+    "steps": "steps",
+    "progress": "progress",
+    "finished": "finished",
+    "progress_auc": "AUC",
+    "time_to_90": "t90",
+    "collisions": "collisions",
+    "violations": "violations",
+    "interventions": "interv.",
+    "fallbacks": "fallbacks",
+    "recoveries": "recoveries",
+}
 """Column name of each metric of :data:`REPORTED` in :func:`print_table`."""
 
 
@@ -181,16 +240,20 @@ def print_table(result: dict, out=print) -> None:
     k = result.get("episodes_per_coalition", 1)
     # Old result files predate the layer (their episodes were all in the ideal world).
     level = f"reality layer {result['reality']} (comat eval --reality); " if "reality" in result else ""
-    out(f"{level}finished = share of episodes with every prey captured / all material delivered (the paper's "
-        "\"completion\"); progress = fraction captured / delivered; AUC = mean progress over the horizon's env steps "
+    out(
+        f"{level}finished = share of episodes with every prey captured / all material delivered (the paper's "
+        '"completion"); progress = fraction captured / delivered; AUC = mean progress over the horizon\'s env steps '
         "(the final value held after an early finish); t90 = env steps to 90 % progress (the horizon when never "
         f"reached); n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each "
         f"coalition's {k} episode(s) averaged first; [low, high] where a share's interval is cut to [0, 1]; none with "
-        "one coalition), one policy: seed-to-seed spread is not in it")
+        "one coalition), one policy: seed-to-seed spread is not in it"
+    )
     if "seed" in result:
-        out(f"start states: drawn from seed {result['seed']} (comat eval --seed; the same teams and starts for every "
+        out(
+            f"start states: drawn from seed {result['seed']} (comat eval --seed; the same teams and starts for every "
             "policy here). The evaluations during training draw theirs from the run's seed + 1,000,003: other start "
-            "states, so other numbers for the same policy.")
+            "states, so other numbers for the same policy."
+        )
 
 
 def result_files(stem: str) -> list[str]:
@@ -212,8 +275,18 @@ def write_results(result: dict, out_dir: str | Path, stem: str = "eval") -> list
     writer.writerow(["policy", "task", "set", "tier", "episodes", "metric", "mean", "ci95"])
     for r in result["rows"]:
         for m in (m for m in REPORTED if m in r["metrics"]):
-            writer.writerow([r["policy"], r["task"], r["set"], r["tier"], r["episodes"], m,
-                             r["metrics"][m]["mean"], r["metrics"][m]["ci95"]])
+            writer.writerow(
+                [
+                    r["policy"],
+                    r["task"],
+                    r["set"],
+                    r["tier"],
+                    r["episodes"],
+                    m,
+                    r["metrics"][m]["mean"],
+                    r["metrics"][m]["ci95"],
+                ]
+            )
     if result.get("checkpoint") is not None:
         result = {**result, "checkpoint": relative_path(result["checkpoint"], out_dir)}
     paths = write_json_detail(out_dir / f"{stem}.json", result)

@@ -23,24 +23,40 @@ import numpy as np
 from comat.files import write_atomic
 from comat.measure.metrics import mean_ci
 
-__all__ = ["ALGO_COLORS", "ALGO_LABELS", "SET_HATCHES", "SIZE_SETS", "TRAIN_SIZES", "fig4", "fig5", "fig_team_size",
-           "save"]
+__all__ = [
+    "ALGO_COLORS",
+    "ALGO_LABELS",
+    "SET_HATCHES",
+    "SIZE_SETS",
+    "TRAIN_SIZES",
+    "fig4",
+    "fig5",
+    "fig_team_size",
+    "save",
+]
 
 ALGO_LABELS = {"mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "comat": "COMAT"}
 ALGO_COLORS = {"comat": "#d62728", "mat": "#1f77b4", "mappo": "#2ca02c", "qmix": "#9467bd"}
 """Colour of each algorithm, fixed (not by the order runs are given)."""
 SET_HATCHES = {"train": "", "val": "\\\\", "test": "//", "scale": "..", "size": "xx", "capability": "oo"}
 """Composition sets are told apart by hatching, never by colour (colour means algorithm)."""
-SET_LABELS = {"train": "U_train", "val": "U_val (validation)", "test": "U_test (unseen)",
-              "scale": "U_scale (10-20 robots)", "size": "U_size (2-20 robots, training capabilities)",
-              "capability": "U_cap (capabilities outside training)"}
+SET_LABELS = {
+    "train": "U_train",
+    "val": "U_val (validation)",
+    "test": "U_test (unseen)",
+    "scale": "U_scale (10-20 robots)",
+    "size": "U_size (2-20 robots, training capabilities)",
+    "capability": "U_cap (capabilities outside training)",
+}
 SIZE_SETS = ("train", "test", "scale", "size")
 """Sets pooled in the team-size figure: U_val repeats U_train's draw (it is for model selection)
 and U_cap varies capability at the training sizes, so neither belongs on a size axis."""
 TRAIN_SIZES = (3, 5, 7)
 """Team sizes of U_train (paper §III-D)."""
-METRIC_AXES = {"return": "episode return (team reward, sum over steps)",
-               "progress": "progress (% of prey captured / material delivered)"}
+METRIC_AXES = {
+    "return": "episode return (team reward, sum over steps)",
+    "progress": "progress (% of prey captured / material delivered)",
+}
 FORMATS = ("png", "pdf")
 
 
@@ -52,8 +68,9 @@ def save(fig, stem: Path) -> list[str]:
     names = []
     for fmt in FORMATS:
         buf = io.BytesIO()
-        fig.savefig(buf, format=fmt, dpi=200, bbox_inches="tight",
-                    metadata={"CreationDate": None} if fmt == "pdf" else None)
+        fig.savefig(
+            buf, format=fmt, dpi=200, bbox_inches="tight", metadata={"CreationDate": None} if fmt == "pdf" else None
+        )
         write_atomic(stem.with_suffix(f".{fmt}"), buf.getvalue())
         names.append(f"{stem.name}.{fmt}")
     plt.close(fig)
@@ -97,8 +114,13 @@ def _budget_text(budgets: Mapping[str, Sequence[int]]) -> str:
     return ", ".join(parts) + " env steps per run (paper: 4,000,000)"
 
 
-def fig4(curves: Mapping[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]], tasks: list[str], algos: list[str],
-         budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path) -> list[str]:
+def fig4(
+    curves: Mapping[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]],
+    tasks: list[str],
+    algos: list[str],
+    budgets: Mapping[str, Mapping[str, Sequence[int]]],
+    stem: Path,
+) -> list[str]:
     """Training return against env steps, one panel per task.
 
     ``curves[(algo, task)]``: per seed (env_steps (T,), episode return (T,)). Line: mean over
@@ -124,30 +146,55 @@ def fig4(curves: Mapping[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]], 
             if len(runs) > 1:
                 half = np.array([mean_ci(col)[1] for col in ys.T])
                 ax.fill_between(grid, mean - half, mean + half, color=color, alpha=0.2, lw=0)
-        ax.set_title(f"{task.upper()}: training episode return on U_train\n{_budget_text(budgets.get(task, {}))}",
-                     fontsize=9)
+        ax.set_title(
+            f"{task.upper()}: training episode return on U_train\n{_budget_text(budgets.get(task, {}))}", fontsize=9
+        )
         ax.set_xlabel("env steps")
         ax.set_ylabel("episode return\n(team reward, sum over steps)")
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
         else:
-            ax.text(0.5, 0.5, "no training curve (fewer than two logged points per run)", transform=ax.transAxes,
-                    ha="center", va="center", fontsize=8, color="grey")
-    fig.text(0.01, -0.01, "Line: mean over seeds of each run's training episode return, smoothed by a trailing mean "
-             "over 5 % of the run. Band: 95 % Student-t interval over seeds (none with one seed).", fontsize=7,
-             ha="left", va="top", wrap=True)
+            ax.text(
+                0.5,
+                0.5,
+                "no training curve (fewer than two logged points per run)",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=8,
+                color="grey",
+            )
+    fig.text(
+        0.01,
+        -0.01,
+        "Line: mean over seeds of each run's training episode return, smoothed by a trailing mean "
+        "over 5 % of the run. Band: 95 % Student-t interval over seeds (none with one seed).",
+        fontsize=7,
+        ha="left",
+        va="top",
+        wrap=True,
+    )
     fig.tight_layout()
     return save(fig, stem)
 
 
 def _method(k_text: str) -> str:
-    return ("95 % Student-t interval over per-seed means (none with one seed); each seed's mean first averages its "
-            f"{k_text} episode(s) per coalition, then its coalitions")
+    return (
+        "95 % Student-t interval over per-seed means (none with one seed); each seed's mean first averages its "
+        f"{k_text} episode(s) per coalition, then its coalitions"
+    )
 
 
-def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
-         budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path, k_text: str = "1") -> list[str]:
+def fig5(
+    rows: list[dict],
+    tasks: list[str],
+    algos: list[str],
+    sets: list[str],
+    budgets: Mapping[str, Mapping[str, Sequence[int]]],
+    stem: Path,
+    k_text: str = "1",
+) -> list[str]:
     """Return and progress per composition set, bars per algorithm; progress retention labels.
 
     ``rows``: the generalization rows of :mod:`comat.eval.generalization` (``<set>_return``,
@@ -156,8 +203,9 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
     plt = _plt()
     if not sets:  # runs evaluated on teams of their own only: nothing to compare across sets
         return empty_figure("no composition set (U_train, U_val, ...) in these runs' evaluations", stem)
-    fig, axes = plt.subplots(2, len(tasks), figsize=(len(tasks) * (1.5 + 0.35 * len(algos) * len(sets)) + 1, 6.4),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        2, len(tasks), figsize=(len(tasks) * (1.5 + 0.35 * len(algos) * len(sets)) + 1, 6.4), squeeze=False
+    )
     width = 0.8 / len(sets)
     for col, task in enumerate(tasks):
         sel = [r for r in rows if r["task"] == task and r["seeds"]]
@@ -170,17 +218,33 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
                 errs = [scale * r.get(f"{split}_{key}_ci95", math.nan) for r in sel]  # nan: no bar (one seed)
                 if key == "progress":
                     errs = clipped_err(vals, errs)
-                ax.bar(x + (k - (len(sets) - 1) / 2) * width, vals, width, yerr=errs, capsize=2,
-                       color=[ALGO_COLORS[r["algo"]] for r in sel], hatch=SET_HATCHES[split], edgecolor="white",
-                       alpha=1.0 if split == "train" else 0.75, label=SET_LABELS[split])
+                ax.bar(
+                    x + (k - (len(sets) - 1) / 2) * width,
+                    vals,
+                    width,
+                    yerr=errs,
+                    capsize=2,
+                    color=[ALGO_COLORS[r["algo"]] for r in sel],
+                    hatch=SET_HATCHES[split],
+                    edgecolor="white",
+                    alpha=1.0 if split == "train" else 0.75,
+                    label=SET_LABELS[split],
+                )
                 if key == "progress" and split != "train":
                     for i, r in enumerate(sel):
                         ret = r.get(f"{split}_retention", math.nan)
                         if not math.isnan(ret):
                             top = max(0.0, vals[i]) if not math.isnan(vals[i]) else 0.0
-                            ax.annotate(f"{100 * ret:.0f}%", (x[i] + (k - (len(sets) - 1) / 2) * width, top),
-                                        xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
-                                        fontsize=6, color="black")
+                            ax.annotate(
+                                f"{100 * ret:.0f}%",
+                                (x[i] + (k - (len(sets) - 1) / 2) * width, top),
+                                xytext=(0, 2),
+                                textcoords="offset points",
+                                ha="center",
+                                va="bottom",
+                                fontsize=6,
+                                color="black",
+                            )
             ax.set_xticks(x, [ALGO_LABELS[r["algo"]] for r in sel])
             ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
             if key == "progress":
@@ -188,18 +252,33 @@ def fig5(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
             ax.axhline(0, color="k", lw=0.5)
             ax.grid(axis="y", alpha=0.3)
             if row_i == 0:
-                ax.set_title(f"{task.upper()}: deterministic policy per composition set\n"
-                             f"{_budget_text(budgets.get(task, {}))}", fontsize=9)
+                ax.set_title(
+                    f"{task.upper()}: deterministic policy per composition set\n{_budget_text(budgets.get(task, {}))}",
+                    fontsize=9,
+                )
             # Legend of the sets: hatching, in neutral grey (colour is the algorithm's).
             from matplotlib.patches import Patch
 
-            ax.legend(handles=[Patch(facecolor="#bbbbbb", hatch=SET_HATCHES[s], edgecolor="white",
-                                     label=SET_LABELS[s]) for s in sets], fontsize=7)
+            ax.legend(
+                handles=[
+                    Patch(facecolor="#bbbbbb", hatch=SET_HATCHES[s], edgecolor="white", label=SET_LABELS[s])
+                    for s in sets
+                ],
+                fontsize=7,
+            )
     counts = {r.get(f"{s}_progress_seeds", r["seeds"]) for r in rows if r["seeds"] for s in sets} - {0}
     seeds = f"{counts.pop()} seeds per bar" if len(counts) == 1 else "seeds per bar: generalization.md"
-    fig.text(0.01, -0.01, f"Bars: mean over seeds ({seeds}) of each seed's mean over the set's coalitions. Error bars: "
-             f"{_method(k_text)}. Labels on the progress bars: progress retention = progress on the set / progress on "
-             "U_train.", fontsize=7, ha="left", va="top", wrap=True)
+    fig.text(
+        0.01,
+        -0.01,
+        f"Bars: mean over seeds ({seeds}) of each seed's mean over the set's coalitions. Error bars: "
+        f"{_method(k_text)}. Labels on the progress bars: progress retention = progress on the set / progress on "
+        "U_train.",
+        fontsize=7,
+        ha="left",
+        va="top",
+        wrap=True,
+    )
     fig.tight_layout()
     return save(fig, stem)
 
@@ -213,16 +292,36 @@ def _count_labels(ax, counts: Mapping[str, Mapping[int, tuple[str, float]]]) -> 
         for n, (text, y) in per.items():
             if shared:
                 if k == min(i for i, p in enumerate(counts.values()) if n in p):  # first algorithm with this size
-                    ax.annotate(text, (n, 0), xycoords=("data", "axes fraction"), xytext=(0, 3),
-                                textcoords="offset points", ha="center", fontsize=6, color="dimgrey")
+                    ax.annotate(
+                        text,
+                        (n, 0),
+                        xycoords=("data", "axes fraction"),
+                        xytext=(0, 3),
+                        textcoords="offset points",
+                        ha="center",
+                        fontsize=6,
+                        color="dimgrey",
+                    )
             else:
-                ax.annotate(text, (n, y), xytext=(3, -8 - 6 * k), textcoords="offset points", fontsize=5,
-                            color=ALGO_COLORS[algo])
+                ax.annotate(
+                    text,
+                    (n, y),
+                    xytext=(3, -8 - 6 * k),
+                    textcoords="offset points",
+                    fontsize=5,
+                    color=ALGO_COLORS[algo],
+                )
 
 
-def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, float]]]], tasks: list[str],
-                  algos: list[str], budgets: Mapping[str, Mapping[str, Sequence[int]]], stem: Path,
-                  sets: Sequence[str] = ("train", "test", "scale"), k_text: str = "1") -> list[str]:
+def fig_team_size(
+    by_size: Mapping[tuple[str, str], dict[int, list[dict[str, float]]]],
+    tasks: list[str],
+    algos: list[str],
+    budgets: Mapping[str, Mapping[str, Sequence[int]]],
+    stem: Path,
+    sets: Sequence[str] = ("train", "test", "scale"),
+    k_text: str = "1",
+) -> list[str]:
     """Return and progress against team size, a line per algorithm.
 
     ``by_size[(algo, task)][n]``: per seed ``{"return": mean, "progress": mean, "coalitions":
@@ -253,8 +352,9 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
                 mean, half = np.asarray(mean), np.asarray(half)
                 color = ALGO_COLORS[algo]
                 seeds = max(len(v) for v in by_size[(algo, task)].values())
-                ax.plot(sizes, mean, "o-", color=color, ms=3, label=f"{ALGO_LABELS[algo]} ({seeds} seed"
-                        f"{'s' * (seeds > 1)})")
+                ax.plot(
+                    sizes, mean, "o-", color=color, ms=3, label=f"{ALGO_LABELS[algo]} ({seeds} seed{'s' * (seeds > 1)})"
+                )
                 low, high = mean - half, mean + half
                 if metric == "progress":
                     low, high = np.clip(low, 0.0, 100.0), np.clip(high, 0.0, 100.0)
@@ -270,15 +370,24 @@ def fig_team_size(by_size: Mapping[tuple[str, str], dict[int, list[dict[str, flo
                 ax.set_ylim(0, 105)  # a share: from 0, so a drop reads at its true size
             ax.grid(alpha=0.3)
             if row_i == 0:
-                ax.set_title(f"{task.upper()}: deterministic policy against team size\n"
-                             f"{_budget_text(budgets.get(task, {}))}", fontsize=9)
+                ax.set_title(
+                    f"{task.upper()}: deterministic policy against team size\n{_budget_text(budgets.get(task, {}))}",
+                    fontsize=9,
+                )
                 if ax.get_legend_handles_labels()[0]:
                     ax.legend(fontsize=7)
     names = ", ".join(SET_LABELS[s].split(" ")[0] for s in sets) or "none"
-    fig.text(0.01, -0.01, "Points: mean over seeds of each seed's mean over its coalitions with that many robots "
-             f"(each coalition its episodes' mean; sets pooled: {names}, where evaluated; U_val and U_cap left out). "
-             f"Band: {_method(k_text)}. Numbers along the bottom (or, where algorithms differ, next to each point): "
-             "coalitions of that size per seed.", fontsize=7,
-             ha="left", va="top", wrap=True)
+    fig.text(
+        0.01,
+        -0.01,
+        "Points: mean over seeds of each seed's mean over its coalitions with that many robots "
+        f"(each coalition its episodes' mean; sets pooled: {names}, where evaluated; U_val and U_cap left out). "
+        f"Band: {_method(k_text)}. Numbers along the bottom (or, where algorithms differ, next to each point): "
+        "coalitions of that size per seed.",
+        fontsize=7,
+        ha="left",
+        va="top",
+        wrap=True,
+    )
     fig.tight_layout()
     return save(fig, stem)

@@ -28,8 +28,9 @@ _NOUNS = {"progress": "progress", "finished": "finished share", "progress_auc": 
 _WELCH = ("comat_diff", "comat_diff_lo", "comat_diff_hi", "welch_t", "welch_df", "welch_p")
 
 
-def generalization_rows(groups: dict, tasks: list[str], algos: list[str], sets: list[str],
-                        endpoints: list[tuple[str, str]]) -> list[dict]:
+def generalization_rows(
+    groups: dict, tasks: list[str], algos: list[str], sets: list[str], endpoints: list[tuple[str, str]]
+) -> list[dict]:
     """One row per (task, algo) in ``algos`` order, with the columns of the module docstring."""
     rows, values = [], {}
     for task in tasks:
@@ -43,8 +44,11 @@ def generalization_rows(groups: dict, tasks: list[str], algos: list[str], sets: 
                     name = f"{split}_{key}"
                     row[name], row[f"{name}_ci95"], row[f"{name}_seeds"] = mean, half, len(vals)
             for split in (s for s in sets if s != "train"):
-                ratios = [un / tr for tr, un in ((_one(r, "train"), _one(r, split)) for r in runs)
-                          if tr is not None and un is not None and tr > 0]  # a seed without U_train progress has none
+                ratios = [
+                    un / tr
+                    for tr, un in ((_one(r, "train"), _one(r, split)) for r in runs)
+                    if tr is not None and un is not None and tr > 0
+                ]  # a seed without U_train progress has none
                 mean, half = mean_ci(ratios) if ratios else (math.nan, math.nan)
                 row[f"{split}_retention"], row[f"{split}_retention_ci95"] = mean, half
                 row[f"{split}_retention_seeds"] = len(ratios)
@@ -93,47 +97,90 @@ def _table(rows: list[dict], head: list[str], cells) -> list[str]:
     """A markdown table: task, algorithm and seeds, then ``cells(row)``."""
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in rows:
-        lines.append("| " + " | ".join([row["task"].upper(), ALGO_LABELS.get(row["algo"], row["algo"]),
-                                        str(row["seeds"]), *cells(row)]) + " |")
+        lines.append(
+            "| "
+            + " | ".join(
+                [row["task"].upper(), ALGO_LABELS.get(row["algo"], row["algo"]), str(row["seeds"]), *cells(row)]
+            )
+            + " |"
+        )
     return lines
 
 
-def generalization_md(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str],
-                      endpoints: list[tuple[str, str]], k_text: str) -> str:
+def generalization_md(
+    rows: list[dict], tasks: list[str], algos: list[str], sets: list[str], endpoints: list[tuple[str, str]], k_text: str
+) -> str:
     """Progress and retention, the finished share, ``progress_auc`` and ``time_to_90`` where
     present, each per set; then COMAT against each baseline (Welch)."""
     keys = [k for _, k in endpoints]
     unseen = [s for s in sets if s != "train"]
     method = method_text("the Seeds column, or as named", k_text)
-    head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} progress (%)" for s in sets),
-            *(f"{SET_NAMES[s]} retention (%)" for s in unseen)]
-    lines = _table(rows, head, lambda row: [*(_cell(row, f"{s}_progress") for s in sets),
-                                            *(_cell(row, f"{s}_retention") for s in unseen)])
-    lines += ["", (f"Progress: share of prey captured / material delivered (deterministic policy); {method}. "
-              "Retention: progress on the set / progress on U_train, per seed, then the same t-interval (undefined "
-              "for a seed with no U_train progress, which the cell then names)."), ""]
+    head = [
+        "Task",
+        "Algorithm",
+        "Seeds",
+        *(f"{SET_NAMES[s]} progress (%)" for s in sets),
+        *(f"{SET_NAMES[s]} retention (%)" for s in unseen),
+    ]
+    lines = _table(
+        rows,
+        head,
+        lambda row: [*(_cell(row, f"{s}_progress") for s in sets), *(_cell(row, f"{s}_retention") for s in unseen)],
+    )
+    lines += [
+        "",
+        (
+            f"Progress: share of prey captured / material delivered (deterministic policy); {method}. "
+            "Retention: progress on the set / progress on U_train, per seed, then the same t-interval (undefined "
+            "for a seed with no U_train progress, which the cell then names)."
+        ),
+        "",
+    ]
     head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} finished (%)" for s in sets)]
     lines += _table(rows, head, lambda row: [_cell(row, f"{s}_finished") for s in sets])
-    lines += ["", ("Finished: share of episodes in which every prey was captured / all material delivered (the paper's "
-              f"\"completion\"); {method}. A binary endpoint: it needs many more seeds than progress to separate "
-              "anything, read it as descriptive."), ""]
+    lines += [
+        "",
+        (
+            "Finished: share of episodes in which every prey was captured / all material delivered (the paper's "
+            f'"completion"); {method}. A binary endpoint: it needs many more seeds than progress to separate '
+            "anything, read it as descriptive."
+        ),
+        "",
+    ]
     if "progress_auc" in keys:
         head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} progress AUC (%)" for s in sets)]
         lines += _table(rows, head, lambda row: [_cell(row, f"{s}_progress_auc") for s in sets])
-        lines += ["", ("Progress AUC: mean over the horizon's env steps of the progress after each step, the final "
-                  f"value held after an early finish (finishing sooner scores higher); {method}."), ""]
+        lines += [
+            "",
+            (
+                "Progress AUC: mean over the horizon's env steps of the progress after each step, the final "
+                f"value held after an early finish (finishing sooner scores higher); {method}."
+            ),
+            "",
+        ]
     if "time_to_90" in keys:
         head = ["Task", "Algorithm", "Seeds", *(f"{SET_NAMES[s]} steps to 90 %" for s in sets)]
         lines += _table(rows, head, lambda row: [_cell(row, f"{s}_time_to_90", 1.0) for s in sets])
-        lines += ["", ("Steps to 90 %: env steps until progress first reached 90 %, the horizon for an episode that "
-                  f"never did (censored, so a mean is a lower bound where episodes time out); {method}. "
-                  "Descriptive: not tested."), ""]
+        lines += [
+            "",
+            (
+                "Steps to 90 %: env steps until progress first reached 90 %, the horizon for an episode that "
+                f"never did (censored, so a mean is a lower bound where episodes time out); {method}. "
+                "Descriptive: not tested."
+            ),
+            "",
+        ]
     lines += _comparisons(rows, tasks, algos, sets, [k for k in keys if k in COMPARED])
-    lines += ["", ("aggregates.csv: per set and metric the same t-interval over seeds, and the mean and interquartile "
-              "mean of the seed x coalition cells with hierarchical-bootstrap intervals (seeds, then coalitions "
-              "within a seed; it targets the coalition population). That bootstrap is descriptive only: in "
-              "calibration (comat/measure/stats.py) its 95 % interval covered 73 % of the time at 3 seeds, 83 % at 5 "
-              "and 90 % at 12; no claim rests on it.")]
+    lines += [
+        "",
+        (
+            "aggregates.csv: per set and metric the same t-interval over seeds, and the mean and interquartile "
+            "mean of the seed x coalition cells with hierarchical-bootstrap intervals (seeds, then coalitions "
+            "within a seed; it targets the coalition population). That bootstrap is descriptive only: in "
+            "calibration (comat/measure/stats.py) its 95 % interval covered 73 % of the time at 3 seeds, 83 % at 5 "
+            "and 90 % at 12; no claim rests on it."
+        ),
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -177,14 +224,23 @@ def _comparisons(rows: list[dict], tasks: list[str], algos: list[str], sets: lis
                     tests += not math.isnan(row[f"{split}_{key}_welch_p"])
                     table.append(_comparison_line(task, split, key, mine, row))
     if table:
-        lines += [("| Task | Set | Endpoint | Baseline | COMAT (%) | Baseline (%) | COMAT − baseline, points [95 %] "
-                  "| t | df | p | Welch verdict |"), "|" + "---|" * 11, *table, "",
-                  ("COMAT − baseline: difference of the means over seeds, in percentage points, with its 95 % "
-                  "interval (Welch–Satterthwaite df); t and two-sided p of Welch's t-test over the per-seed means "
-                  "(each seed's coalitions, each its episodes averaged first). The test decides: 'COMAT higher / "
-                  f"lower' where p < {ALPHA:g}, 'not separated' otherwise; overlapping intervals are not used as a "
-                  f"test. The {tests} p-values here are not adjusted for multiplicity: read any one of them as a "
-                  "single test only where it was chosen before the results (e.g. HMT U_scale progress, COMAT − MAT).")]
+        lines += [
+            (
+                "| Task | Set | Endpoint | Baseline | COMAT (%) | Baseline (%) | COMAT − baseline, points [95 %] "
+                "| t | df | p | Welch verdict |"
+            ),
+            "|" + "---|" * 11,
+            *table,
+            "",
+            (
+                "COMAT − baseline: difference of the means over seeds, in percentage points, with its 95 % "
+                "interval (Welch–Satterthwaite df); t and two-sided p of Welch's t-test over the per-seed means "
+                "(each seed's coalitions, each its episodes averaged first). The test decides: 'COMAT higher / "
+                f"lower' where p < {ALPHA:g}, 'not separated' otherwise; overlapping intervals are not used as a "
+                f"test. The {tests} p-values here are not adjusted for multiplicity: read any one of them as a "
+                "single test only where it was chosen before the results (e.g. HMT U_scale progress, COMAT − MAT)."
+            ),
+        ]
     return lines
 
 
@@ -195,7 +251,17 @@ def _comparison_line(task: str, split: str, key: str, mine: dict, row: dict) -> 
     t, df, p = (row[f"{name}_{k}"] for k in ("welch_t", "welch_df", "welch_p"))
     diff = "—" if math.isnan(d) else f"{100 * d:+.1f}"
     diff += "" if math.isnan(lo) else f" [{100 * lo:+.1f}, {100 * hi:+.1f}]"
-    cells = [task.upper(), SET_NAMES[split], _NOUNS[key], ALGO_LABELS.get(row["algo"], row["algo"]),
-             _cell(mine, name), _cell(row, name), diff, "—" if math.isnan(t) else f"{t:.2f}",
-             "—" if math.isnan(df) else f"{df:.1f}", _p(p), _verdict(row, mine, split, key)]
+    cells = [
+        task.upper(),
+        SET_NAMES[split],
+        _NOUNS[key],
+        ALGO_LABELS.get(row["algo"], row["algo"]),
+        _cell(mine, name),
+        _cell(row, name),
+        diff,
+        "—" if math.isnan(t) else f"{t:.2f}",
+        "—" if math.isnan(df) else f"{df:.1f}",
+        _p(p),
+        _verdict(row, mine, split, key),
+    ]
     return "| " + " | ".join(cells) + " |"

@@ -78,9 +78,17 @@ def probe_checkpoint(checkpoint: str | Path, seed: int | None = None, num_envs: 
         body = _probe_qmix(learner.trainer) if config.algo == "qmix" else _probe_ppo(learner.trainer)
     finally:
         env.close()
-    return {"checkpoint": str(checkpoint), "algo": config.algo, "task": config.task, "tier": config.tier,
-            "env_steps": int(data["progress"]["env_steps"]), "seed": seed, "num_envs": config.trainer.num_envs,
-            "gamma": config.trainer.gamma, **body}
+    return {
+        "checkpoint": str(checkpoint),
+        "algo": config.algo,
+        "task": config.task,
+        "tier": config.tier,
+        "env_steps": int(data["progress"]["env_steps"]),
+        "seed": seed,
+        "num_envs": config.trainer.num_envs,
+        "gamma": config.trainer.gamma,
+        **body,
+    }
 
 
 @torch.no_grad()
@@ -91,12 +99,22 @@ def _probe_ppo(trainer) -> dict:
     v_hat, _, ret, norm = trainer.advantages(ro)  # exactly what the update sees
     n = mask.sum(-1)
     T, B, N, D = ro.obs.shape
-    _, entropy, _ = trainer.policy.evaluate_actions(ro.obs.reshape(T * B, N, D), ro.mask.reshape(T * B, N),
-                                                    ro.actions.reshape(T * B, N),
-                                                    None if ro.state is None else ro.state.reshape(T * B, -1))
-    sizes = [{"size": int(k), "share": float((n == k).float().mean()), "value": float(v_hat[n == k].mean()),
-              "gae_return": float(ret[n == k].mean()), "advantage": float(norm[n == k].mean())}
-             for k in torch.unique(n).tolist()]
+    _, entropy, _ = trainer.policy.evaluate_actions(
+        ro.obs.reshape(T * B, N, D),
+        ro.mask.reshape(T * B, N),
+        ro.actions.reshape(T * B, N),
+        None if ro.state is None else ro.state.reshape(T * B, -1),
+    )
+    sizes = [
+        {
+            "size": int(k),
+            "share": float((n == k).float().mean()),
+            "value": float(v_hat[n == k].mean()),
+            "gae_return": float(ret[n == k].mean()),
+            "advantage": float(norm[n == k].mean()),
+        }
+        for k in torch.unique(n).tolist()
+    ]
     return {
         "kind": "ppo",
         "team_steps": T * B,
@@ -161,7 +179,9 @@ def _probe_qmix(trainer) -> dict:
         "value_bound": max_reward / (1 - cfg.gamma),
         "action_gap": float(np.concatenate(gaps).mean()),
         "mixer_gain": mixer_gain,
-        "greedy_actions": {str(ty): dict(zip(_ACTIONS, (c / c.sum()).round(4).tolist())) for ty, c in sorted(counts.items())},
+        "greedy_actions": {
+            str(ty): dict(zip(_ACTIONS, (c / c.sum()).round(4).tolist())) for ty, c in sorted(counts.items())
+        },
         **dict(zip(("reward_mean", "reward_std"), trainer.reward_standardization())),
     }
 
@@ -173,15 +193,24 @@ def print_probe(result: dict) -> None:
         print(f"{head}: one training rollout of {result['team_steps']} team-steps")
         print(f"{'team size':>9} {'share':>6} {'value V̂':>10} {'GAE return':>11} {'advantage':>10}")
         for row in result["by_team_size"]:
-            print(f"{row['size']:>9} {row['share']:>6.2f} {row['value']:>10.3f} {row['gae_return']:>11.3f} {row['advantage']:>+10.3f}")
-        print(f"value at episode start {result['value_start']:.3f}; episodes returned {result['episode_return']:.3f}; "
-              f"bound max r/(1-γ) {result['value_bound']:.3f}")
-        print(f"robot-weighted mean advantage {result['robot_weighted_advantage']:+.3f} (policy loss at ratio 1: its "
-              f"negative); entropy {result['entropy']:.3f} (uniform: {np.log(5):.3f})")
+            print(
+                f"{row['size']:>9} {row['share']:>6.2f} {row['value']:>10.3f} {row['gae_return']:>11.3f} "
+                f"{row['advantage']:>+10.3f}"
+            )
+        print(
+            f"value at episode start {result['value_start']:.3f}; episodes returned {result['episode_return']:.3f}; "
+            f"bound max r/(1-γ) {result['value_bound']:.3f}"
+        )
+        print(
+            f"robot-weighted mean advantage {result['robot_weighted_advantage']:+.3f} (policy loss at ratio 1: its "
+            f"negative); entropy {result['entropy']:.3f} (uniform: {np.log(5):.3f})"
+        )
         return
     print(f"{head}: {result['episodes']} greedy episodes (standardized reward units)")
-    print(f"Q_tot at episode start {result['q_tot_start']:.3f}; discounted return {result['discounted_return']:.3f}; "
-          f"bound max r/(1-γ) {result['value_bound']:.3f}")
+    print(
+        f"Q_tot at episode start {result['q_tot_start']:.3f}; discounted return {result['discounted_return']:.3f}; "
+        f"bound max r/(1-γ) {result['value_bound']:.3f}"
+    )
     print(f"agent Q best-minus-second {result['action_gap']:.4f}; mixer gain dQ_tot/dQ_i {result['mixer_gain']:.3f}")
     for ty, shares in result["greedy_actions"].items():
         print(f"type {ty} greedy actions: " + ", ".join(f"{a} {s:.0%}" for a, s in shares.items()))

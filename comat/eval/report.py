@@ -72,9 +72,18 @@ from comat.measure.stats import hierarchical_bootstrap
 
 __all__ = ["PAPER_TABLE1", "REPORT_FILES", "make_report"]
 
-REPORT_FILES = ("table1.md", "table1.csv", "generalization.md", "generalization.csv", "aggregates.csv",
-                *(f"{stem}.{fmt}" for stem in ("fig4_training_return", "fig5_generalization", "fig6_team_size")
-                  for fmt in figures.FORMATS))
+REPORT_FILES = (
+    "table1.md",
+    "table1.csv",
+    "generalization.md",
+    "generalization.csv",
+    "aggregates.csv",
+    *(
+        f"{stem}.{fmt}"
+        for stem in ("fig4_training_return", "fig5_generalization", "fig6_team_size")
+        for fmt in figures.FORMATS
+    ),
+)
 """Every file ``make_report`` writes (``comat report`` refuses to overwrite them without --force)."""
 PAPER_TABLE1 = {
     # Paper Table I ("Detailed metrics for train team compositions"): MAPPO, QMIX, MAT, COMAT.
@@ -88,9 +97,15 @@ PAPER_TABLE1 = {
     ("hmt", "collisions"): (0.00, 0.00, 1.00, 0.00),
 }
 """The paper's Table I, keyed by (task, our metric name); values in ``ALGO_ORDER``."""
-TABLE_METRICS = (("return", "Mean return"), ("steps", "Episode steps"), ("finished", "Finished (paper: completion)"),
-                 ("collisions", "Collisions"), ("progress", "Progress (fraction done)"),
-                 ("violations", "Robotarium violations"), ("interventions", "Filter interventions"))
+TABLE_METRICS = (
+    ("return", "Mean return"),
+    ("steps", "Episode steps"),
+    ("finished", "Finished (paper: completion)"),
+    ("collisions", "Collisions"),
+    ("progress", "Progress (fraction done)"),
+    ("violations", "Robotarium violations"),
+    ("interventions", "Filter interventions"),
+)
 
 
 def _fmt(mean: float, half: float, metric: str, unit: str | None = "seed") -> str:
@@ -116,15 +131,26 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(["task", "metric", "algo", "seeds", "mean", "ci95_over_seeds", "paper"])
-    lines = ["| Task | Metric | " + " | ".join(f"{ALGO_LABELS[a]} (ours) | {ALGO_LABELS[a]} (paper)" for a in algos)
-             + " |", "|---|---|" + "---|---|" * len(algos)]
+    lines = [
+        "| Task | Metric | " + " | ".join(f"{ALGO_LABELS[a]} (ours) | {ALGO_LABELS[a]} (paper)" for a in algos) + " |",
+        "|---|---|" + "---|---|" * len(algos),
+    ]
     for task in tasks:
         budgets = _budgets(groups, task, algos)
         cells = []
         for algo in algos:
             cells += [_budget_cell(budgets.get(algo, [])), f"{PAPER_BUDGET:,}"]
-            writer.writerow([task, "env_step_budget", algo, len(budgets.get(algo, [])),
-                             np.mean(budgets[algo]) if budgets.get(algo) else "", "", PAPER_BUDGET])
+            writer.writerow(
+                [
+                    task,
+                    "env_step_budget",
+                    algo,
+                    len(budgets.get(algo, [])),
+                    np.mean(budgets[algo]) if budgets.get(algo) else "",
+                    "",
+                    PAPER_BUDGET,
+                ]
+            )
         lines.append(f"| {task.upper()} | Env-step budget per run | " + " | ".join(cells) + " |")
         for metric, label in TABLE_METRICS:
             cells = []
@@ -133,20 +159,29 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
                 # Returns are not comparable: the paper's reward scale is not ours (see the caption).
                 paper = None if metric == "return" else PAPER_TABLE1.get((task, metric))
                 paper_v = None if paper is None else paper[ALGO_ORDER.index(algo)]
-                cells += [_fmt(mean, half, metric), "—" if paper_v is None else _fmt(paper_v, math.nan, metric, unit=None)]
+                cells += [
+                    _fmt(mean, half, metric),
+                    "—" if paper_v is None else _fmt(paper_v, math.nan, metric, unit=None),
+                ]
                 writer.writerow([task, metric, algo, n, mean, half, "" if paper_v is None else paper_v])
             lines.append(f"| {task.upper()} | {label} | " + " | ".join(cells) + " |")
-    seeds = {f"{ALGO_LABELS[a]}/{t.upper()}": len(seed_means(groups.get((a, t), []), "train", "return"))
-             for t in tasks for a in algos}
+    seeds = {
+        f"{ALGO_LABELS[a]}/{t.upper()}": len(seed_means(groups.get((a, t), []), "train", "return"))
+        for t in tasks
+        for a in algos
+    }
     every = [r for rs in groups.values() for r in rs]
-    lines += ["", "Training coalitions (U_train), deterministic actions; ours: "
-              + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), k_text(every))
-              + ". Finished = share of episodes in which every prey was captured / all material delivered (the "
-              "paper's \"completion\"). The paper trains 4 M env steps per run. The paper's "
-              "columns hold only what compares: the finished share, episode steps and collisions. Its returns are "
-              "left out: they are on another reward scale (our scripted policy, which finishes every episode, scores "
-              "35 on PCP; the paper's COMAT 82.5), so a return next to a return would mislead. Shares' intervals are "
-              "cut to [0, 100] % (written [low, high] where cut); one seed has no interval and says so."]
+    lines += [
+        "",
+        "Training coalitions (U_train), deterministic actions; ours: "
+        + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), k_text(every))
+        + ". Finished = share of episodes in which every prey was captured / all material delivered (the "
+        "paper's \"completion\"). The paper trains 4 M env steps per run. The paper's "
+        "columns hold only what compares: the finished share, episode steps and collisions. Its returns are "
+        "left out: they are on another reward scale (our scripted policy, which finishes every episode, scores "
+        "35 on PCP; the paper's COMAT 82.5), so a return next to a return would mislead. Shares' intervals are "
+        "cut to [0, 100] % (written [low, high] where cut); one seed has no interval and says so.",
+    ]
     lines += _reference_lines(groups, tasks)
     return "\n".join(lines) + "\n", buf.getvalue()
 
@@ -158,14 +193,27 @@ def _reference_lines(groups: dict, tasks: list[str]) -> list[str]:
     for task in tasks:
         runs = [r for (a, t), rs in groups.items() if t == task for r in rs if r["evaluation"]]
         for split in SETS:
-            found = next(((r, {p: evaluation_row(r, split, p) for p in REFERENCES}) for r in runs
-                          if any(evaluation_row(r, split, p) for p in REFERENCES)), None)
+            found = next(
+                (
+                    (r, {p: evaluation_row(r, split, p) for p in REFERENCES})
+                    for r in runs
+                    if any(evaluation_row(r, split, p) for p in REFERENCES)
+                ),
+                None,
+            )
             if not found:
                 continue
             if not out:
-                out += ["", ("Reference policies on the same episodes (one policy each: mean ± 95 % t-interval over "
-                        "the set's coalitions, each coalition's episodes averaged first; no seed spread):"), "",
-                        "| Task | Set | Policy | Return | Progress | Finished |", "|---|---|---|---|---|---|"]
+                out += [
+                    "",
+                    (
+                        "Reference policies on the same episodes (one policy each: mean ± 95 % t-interval over "
+                        "the set's coalitions, each coalition's episodes averaged first; no seed spread):"
+                    ),
+                    "",
+                    "| Task | Set | Policy | Return | Progress | Finished |",
+                    "|---|---|---|---|---|---|",
+                ]
             run, rows = found
             for policy, row in rows.items():
                 if row is None:
@@ -184,8 +232,11 @@ def _sets_present(runs: list[dict]) -> list[str]:
 
 def _endpoints_present(runs: list[dict], sets: list[str]) -> list[tuple[str, str]]:
     """ENDPOINTS that some run's own row carries on some set (older files lack the new ones)."""
-    return [(m, k) for m, k in ENDPOINTS
-            if any(run_cells(r, s, m) is not None for r in runs if r["evaluation"] for s in sets)]
+    return [
+        (m, k)
+        for m, k in ENDPOINTS
+        if any(run_cells(r, s, m) is not None for r in runs if r["evaluation"] for s in sets)
+    ]
 
 
 def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str], endpoints) -> str:
@@ -193,10 +244,27 @@ def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str
     seed x coalition cells, the mean and IQM with hierarchical-bootstrap intervals."""
     buf = io.StringIO()
     writer = csv.writer(buf)
-    writer.writerow(["task", "algo", "set", "metric", "seeds", "coalitions", "episodes_per_coalition",
-                     "mean_over_seeds", "sd_over_seeds", "t_ci95_lo_over_seeds", "t_ci95_hi_over_seeds", "t_df",
-                     "hier_boot_mean_ci95_lo", "hier_boot_mean_ci95_hi", "iqm_of_cells", "hier_boot_iqm_ci95_lo",
-                     "hier_boot_iqm_ci95_hi"])
+    writer.writerow(
+        [
+            "task",
+            "algo",
+            "set",
+            "metric",
+            "seeds",
+            "coalitions",
+            "episodes_per_coalition",
+            "mean_over_seeds",
+            "sd_over_seeds",
+            "t_ci95_lo_over_seeds",
+            "t_ci95_hi_over_seeds",
+            "t_df",
+            "hier_boot_mean_ci95_lo",
+            "hier_boot_mean_ci95_hi",
+            "iqm_of_cells",
+            "hier_boot_iqm_ci95_lo",
+            "hier_boot_iqm_ci95_hi",
+        ]
+    )
     for task in tasks:
         for algo in algos:
             runs = groups.get((algo, task), [])
@@ -212,13 +280,33 @@ def _aggregates(groups: dict, tasks: list[str], algos: list[str], sets: list[str
                     if same:
                         boot = hierarchical_bootstrap(np.stack([c[1] for _, c in got]))
                     else:
-                        print(f"warning: {algo}/{task} {split}: runs evaluated different coalitions; no "
-                              "hierarchical bootstrap in aggregates.csv", file=sys.stderr)
+                        print(
+                            f"warning: {algo}/{task} {split}: runs evaluated different coalitions; no "
+                            "hierarchical bootstrap in aggregates.csv",
+                            file=sys.stderr,
+                        )
                         boot = dict.fromkeys(("mean_lo", "mean_hi", "iqm", "iqm_lo", "iqm_hi"), math.nan)
-                    writer.writerow([task, algo, split, metric, per_seed.size, len(got[0][1][0]) if same else "",
-                                     k_text([r for r, _ in got]), mean, sd, mean - half, mean + half,
-                                     per_seed.size - 1, boot["mean_lo"], boot["mean_hi"], boot["iqm"],
-                                     boot["iqm_lo"], boot["iqm_hi"]])
+                    writer.writerow(
+                        [
+                            task,
+                            algo,
+                            split,
+                            metric,
+                            per_seed.size,
+                            len(got[0][1][0]) if same else "",
+                            k_text([r for r, _ in got]),
+                            mean,
+                            sd,
+                            mean - half,
+                            mean + half,
+                            per_seed.size - 1,
+                            boot["mean_lo"],
+                            boot["mean_hi"],
+                            boot["iqm"],
+                            boot["iqm_lo"],
+                            boot["iqm_hi"],
+                        ]
+                    )
     return buf.getvalue()
 
 
@@ -240,8 +328,9 @@ def _by_team_size(groups: dict, sets: list[str]) -> dict:
                     for m, v in metrics.items():
                         mine[m].append(float(v[c]))
             for n in sorted(cells):
-                sizes.setdefault(n, []).append({m: float(np.mean(v)) for m, v in cells[n].items()}
-                                               | {"coalitions": len(cells[n]["return"])})
+                sizes.setdefault(n, []).append(
+                    {m: float(np.mean(v)) for m, v in cells[n].items()} | {"coalitions": len(cells[n]["return"])}
+                )
         if sizes:
             out[key] = sizes
     return out
@@ -258,11 +347,16 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     runs = [load_run(f, tier) for f in run_folders]
     missing = [r["folder"] for r in runs if r["evaluation"] is None]
     if len(missing) == len(runs):
-        raise ValueError(f"none of the {len(runs)} run folder(s) has an evaluation (evaluation_<tier>.json, tier "
-                         f"{runs[0]['tier']!r}): run `comat eval --policy RUN` on each first")
+        raise ValueError(
+            f"none of the {len(runs)} run folder(s) has an evaluation (evaluation_<tier>.json, tier "
+            f"{runs[0]['tier']!r}): run `comat eval --policy RUN` on each first"
+        )
     for folder in missing:
-        print(f"warning: {folder} has no evaluation in the {tier or 'training'} tier: left out of the tables and "
-              "of Fig. 5 and 6 (its training curve stays in Fig. 4)", file=sys.stderr)
+        print(
+            f"warning: {folder} has no evaluation in the {tier or 'training'} tier: left out of the tables and "
+            "of Fig. 5 and 6 (its training curve stays in Fig. 4)",
+            file=sys.stderr,
+        )
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         groups.setdefault((r["algo"], r["task"]), []).append(r)
@@ -274,25 +368,36 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     episodes_text = k_text(runs)
     md, table_csv = _table1(evaluated, tasks, algos)
     rows = generalization_rows(evaluated, tasks, algos, sets, endpoints)
-    files = {"table1.md": md, "table1.csv": table_csv,
-             "generalization.md": generalization_md(rows, tasks, algos, sets, endpoints, episodes_text),
-             "generalization.csv": generalization_csv(rows),
-             "aggregates.csv": _aggregates(evaluated, tasks, algos, sets, endpoints)}
+    files = {
+        "table1.md": md,
+        "table1.csv": table_csv,
+        "generalization.md": generalization_md(rows, tasks, algos, sets, endpoints, episodes_text),
+        "generalization.csv": generalization_csv(rows),
+        "aggregates.csv": _aggregates(evaluated, tasks, algos, sets, endpoints),
+    }
     for name, text in files.items():
         write_atomic(out / name, text)
     budgets = {t: _budgets(groups, t, algos) for t in tasks}
-    curves = {k: [(np.asarray(r["curve"]["env_steps"]), np.asarray(r["curve"]["return"])) for r in v]
-              for k, v in groups.items()}
+    curves = {
+        k: [(np.asarray(r["curve"]["env_steps"]), np.asarray(r["curve"]["return"])) for r in v]
+        for k, v in groups.items()
+    }
     size_sets = [s for s in sets if s in figures.SIZE_SETS]
     names = list(files)
     names += figures.fig4(curves, tasks, algos, budgets, out / "fig4_training_return")
     names += figures.fig5(rows, tasks, algos, sets, budgets, out / "fig5_generalization", episodes_text)
-    names += figures.fig_team_size(_by_team_size(evaluated, size_sets), tasks, algos, budgets,
-                                   out / "fig6_team_size", size_sets, episodes_text)
+    names += figures.fig_team_size(
+        _by_team_size(evaluated, size_sets), tasks, algos, budgets, out / "fig6_team_size", size_sets, episodes_text
+    )
     assert set(names) == set(REPORT_FILES), names
     robust = robustness_rows(runs)
     if robust:  # runs with `comat eval --reality-sweep` files
         write_atomic(out / "robustness.csv", robustness_csv(robust))
         names += ["robustness.csv", *robustness_figure(robust, out / "fig7_robustness")]
-    return {"runs": len(runs), "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()}, "sets": sets,
-            "files": names, "generalization": rows}
+    return {
+        "runs": len(runs),
+        "groups": {f"{a}/{t}": len(v) for (a, t), v in groups.items()},
+        "sets": sets,
+        "files": names,
+        "generalization": rows,
+    }

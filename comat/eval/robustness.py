@@ -38,9 +38,23 @@ from comat.measure.metrics import read_results
 from comat.measure.stats import per_seed_means, t_interval
 from comat.reality.config import LEVELS, RealityConfig
 
-__all__ = ["LEVEL_COMPONENT", "LEVEL_ORDER", "ROBUSTNESS_ENDPOINTS", "ROBUSTNESS_FILES", "SWEEP_VALUES", "load_levels",
-           "load_sweeps", "print_sweep", "robustness_csv", "robustness_figure", "robustness_rows", "run_reality_sweep",
-           "sweep_files", "sweep_values", "write_sweep"]
+__all__ = [
+    "LEVEL_COMPONENT",
+    "LEVEL_ORDER",
+    "ROBUSTNESS_ENDPOINTS",
+    "ROBUSTNESS_FILES",
+    "SWEEP_VALUES",
+    "load_levels",
+    "load_sweeps",
+    "print_sweep",
+    "robustness_csv",
+    "robustness_figure",
+    "robustness_rows",
+    "run_reality_sweep",
+    "sweep_files",
+    "sweep_values",
+    "write_sweep",
+]
 
 ROBUSTNESS_FILES = ("robustness.csv", "fig7_robustness.png", "fig7_robustness.pdf")
 """What ``comat report`` adds when its runs hold reality sweeps."""
@@ -67,8 +81,12 @@ SWEEP_VALUES: dict[str, tuple] = {
 """Default values of each component's sweep: off, nominal, stress and beyond (for the motors'
 acceleration limit, 0 means none, so the sweep runs from no limit to a tighter one)."""
 
-ROBUSTNESS_ENDPOINTS = (("progress", "progress (%)"), ("finished", "finished share (%)"),
-                        ("steps", "episode length (env steps)"), ("collisions", "contact steps per episode"))
+ROBUSTNESS_ENDPOINTS = (
+    ("progress", "progress (%)"),
+    ("finished", "finished share (%)"),
+    ("steps", "episode length (env steps)"),
+    ("collisions", "contact steps per episode"),
+)
 """(metric, axis label) drawn against the component's value."""
 
 _NUMERIC = sorted(k for k, v in LEVELS["off"].items() if not isinstance(v, bool))
@@ -78,12 +96,14 @@ def sweep_values(component: str, values: Sequence[float] | None) -> list:
     """The values a sweep of ``component`` runs at: ``values`` or :data:`SWEEP_VALUES`; one-line
     errors for an unknown component, fewer than three values, or a value the config refuses."""
     if component not in _NUMERIC:
-        raise ValueError(f"--reality-sweep must be one of the reality layer's numeric fields {_NUMERIC}, "
-                         f"got {component!r}")
+        raise ValueError(
+            f"--reality-sweep must be one of the reality layer's numeric fields {_NUMERIC}, got {component!r}"
+        )
     if values is None:
         if component not in SWEEP_VALUES:
-            raise ValueError(f"--reality-sweep {component} has no default values: give three or more with "
-                             "--sweep-values")
+            raise ValueError(
+                f"--reality-sweep {component} has no default values: give three or more with --sweep-values"
+            )
         values = SWEEP_VALUES[component]
     values = list(values)
     if len(values) < 3:
@@ -107,9 +127,19 @@ def _config(component: str, value, base: str) -> RealityConfig:
         raise ValueError(f"--sweep-values: {exc}") from None
 
 
-def run_reality_sweep(checkpoint, task: str, sets, episodes: int, tier: str, seed: int, component: str,
-                      values: Sequence[float] | None = None, base: str = "off", references=(),
-                      progress: Callable[[str], None] = print) -> dict:
+def run_reality_sweep(
+    checkpoint,
+    task: str,
+    sets,
+    episodes: int,
+    tier: str,
+    seed: int,
+    component: str,
+    values: Sequence[float] | None = None,
+    base: str = "off",
+    references=(),
+    progress: Callable[[str], None] = print,
+) -> dict:
     """Evaluate at each value of ``component`` (module docstring); returns the sweep file's dict."""
 
     values = sweep_values(component, values)
@@ -117,11 +147,19 @@ def run_reality_sweep(checkpoint, task: str, sets, episodes: int, tier: str, see
     points = []
     for value, cfg in zip(values, configs):
         progress(f"{component} = {value}")
-        result = evaluate_policies(checkpoint, task, sets, episodes, tier, seed, references=references,
-                                   progress=progress, reality=cfg)
+        result = evaluate_policies(
+            checkpoint, task, sets, episodes, tier, seed, references=references, progress=progress, reality=cfg
+        )
         points.append({"value": value, "rows": result["rows"]})
-    return {"component": component, "base": base, "values": values, "task": task, "tier": tier,
-            "episodes_per_coalition": episodes, "points": points}
+    return {
+        "component": component,
+        "base": base,
+        "values": values,
+        "task": task,
+        "tier": tier,
+        "episodes_per_coalition": episodes,
+        "points": points,
+    }
 
 
 def load_sweeps(folder: str | Path, tier: str) -> list[dict]:
@@ -178,14 +216,26 @@ def robustness_rows(runs: list[dict]) -> list[dict]:
                             key = (run["task"], sweep["component"], row["set"], run["algo"], point["value"], metric)
                             cells.setdefault(key, []).append(v)
     out = []
+
     def order(item):
         task, comp, split, algo, value, metric = item[0]
         return task, comp, split, algo, _x(comp, value), metric
 
     for (task, comp, split, algo, value, metric), vals in sorted(cells.items(), key=order):
         t = t_interval(vals)
-        out.append({"task": task, "component": comp, "set": split, "algo": algo, "value": value, "metric": metric,
-                    "mean": t["mean"], "ci95": t["half"], "seeds": t["n"]})
+        out.append(
+            {
+                "task": task,
+                "component": comp,
+                "set": split,
+                "algo": algo,
+                "value": value,
+                "metric": metric,
+                "mean": t["mean"],
+                "ci95": t["half"],
+                "seeds": t["n"],
+            }
+        )
     return out
 
 
@@ -205,10 +255,14 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
     plt = _plt()
     keys = sorted({(r["task"], r["component"], r["set"]) for r in rows})
     if not keys:
-        return empty_figure("no reality sweeps or level evaluations in these runs (comat eval --reality-sweep "
-                            "COMPONENT, or --reality nominal next to off)", stem)
-    fig, axes = plt.subplots(len(keys), len(ROBUSTNESS_ENDPOINTS), figsize=(4 * len(ROBUSTNESS_ENDPOINTS),
-                                                                             3 * len(keys)), squeeze=False)
+        return empty_figure(
+            "no reality sweeps or level evaluations in these runs (comat eval --reality-sweep "
+            "COMPONENT, or --reality nominal next to off)",
+            stem,
+        )
+    fig, axes = plt.subplots(
+        len(keys), len(ROBUSTNESS_ENDPOINTS), figsize=(4 * len(ROBUSTNESS_ENDPOINTS), 3 * len(keys)), squeeze=False
+    )
     for i, (task, comp, split) in enumerate(keys):
         for j, (metric, label) in enumerate(ROBUSTNESS_ENDPOINTS):
             ax = axes[i][j]
@@ -222,8 +276,14 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
                 if metric in ("progress", "finished"):
                     err = clipped_err(y, err)
                 seeds = min(r["seeds"] for r in pts)
-                ax.errorbar(x, y, yerr=err, marker="o", capsize=3,
-                            label=f"{ALGO_LABELS.get(algo, algo)} ({seeds} seed{'s' if seeds > 1 else ''})")
+                ax.errorbar(
+                    x,
+                    y,
+                    yerr=err,
+                    marker="o",
+                    capsize=3,
+                    label=f"{ALGO_LABELS.get(algo, algo)} ({seeds} seed{'s' if seeds > 1 else ''})",
+                )
             ax.set_xlabel(comp)
             if comp == LEVEL_COMPONENT:
                 ax.set_xticks(range(len(LEVEL_ORDER)), LEVEL_ORDER)
@@ -234,14 +294,28 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
                 ax.set_ylim(bottom=0)
             ax.set_title(f"{task.upper()} {split}", fontsize=9)
             ax.legend(fontsize=7)
-    fig.suptitle("Robustness to one reality component (mean over seeds, 95 % t-interval over per-seed means; "
-                 "no bar with one seed)", fontsize=9)
+    fig.suptitle(
+        "Robustness to one reality component (mean over seeds, 95 % t-interval over per-seed means; "
+        "no bar with one seed)",
+        fontsize=9,
+    )
     fig.tight_layout()
     return save(fig, stem)
 
 
-_EPISODE_KEYS = ("coalition", "team_size", "return", "progress", "finished", "steps", "collisions",
-                 "robotarium_collisions", "interventions", "recoveries", "fallbacks")
+_EPISODE_KEYS = (
+    "coalition",
+    "team_size",
+    "return",
+    "progress",
+    "finished",
+    "steps",
+    "collisions",
+    "robotarium_collisions",
+    "interventions",
+    "recoveries",
+    "fallbacks",
+)
 """What a sweep file keeps of each episode (not the progress curve or the per-robot tables)."""
 
 
@@ -263,9 +337,16 @@ def write_sweep(sweep: dict, out_dir: Path, stem: str) -> list[Path]:
                 m = row["metrics"].get(metric)
                 if m is not None:
                     w.writerow([point["value"], row["policy"], row["set"], metric, m["mean"], m["ci95"]])
-    points = [{"value": p["value"], "rows": [{**r, "per_episode": [{k: e[k] for k in _EPISODE_KEYS if k in e}
-                                                                   for e in r.get("per_episode", [])]}
-                                             for r in p["rows"]]} for p in sweep["points"]]
+    points = [
+        {
+            "value": p["value"],
+            "rows": [
+                {**r, "per_episode": [{k: e[k] for k in _EPISODE_KEYS if k in e} for e in r.get("per_episode", [])]}
+                for r in p["rows"]
+            ],
+        }
+        for p in sweep["points"]
+    ]
     paths = write_json_detail(out_dir / f"{stem}.json", {**sweep, "points": points})
     write_atomic(out_dir / f"{stem}.csv", buf.getvalue())
     return [*paths, out_dir / f"{stem}.csv"]
@@ -273,30 +354,47 @@ def write_sweep(sweep: dict, out_dir: Path, stem: str) -> list[Path]:
 
 def print_sweep(sweep: dict, out=print) -> None:
     """value × policy × set: progress, finished share, steps, contact steps (means over episodes)."""
-    out(f"{sweep['component']:>24} {'policy':<10} {'set':<11} {'progress':>9} {'finished':>9} {'steps':>7} "
-        f"{'contacts':>9}")
+    out(
+        f"{sweep['component']:>24} {'policy':<10} {'set':<11} {'progress':>9} {'finished':>9} {'steps':>7} "
+        f"{'contacts':>9}"
+    )
     for point in sweep["points"]:
         for row in point["rows"]:
             m = row["metrics"]
-            out(f"{point['value']!s:>24} {row['policy']:<10} {row['set']:<11} {100 * m['progress']['mean']:>8.1f}% "
-                f"{100 * m['finished']['mean']:>8.1f}% {m['steps']['mean']:>7.1f} {m['collisions']['mean']:>9.2f}")
+            out(
+                f"{point['value']!s:>24} {row['policy']:<10} {row['set']:<11} {100 * m['progress']['mean']:>8.1f}% "
+                f"{100 * m['finished']['mean']:>8.1f}% {m['steps']['mean']:>7.1f} {m['collisions']['mean']:>9.2f}"
+            )
 
 
 def eval_sweep_command(args, pol, named, tier: str, out: Path, refs: tuple, base: str) -> int:
     """``comat eval --reality-sweep``: run, print, write ``evaluation_<tier>_sweep_<component>``."""
     import sys
 
-
     values = sweep_values(args.reality_sweep, args.sweep_values)
     for v in values:
         _config(args.reality_sweep, v, base)  # every value checked before the first episode
     stem = f"evaluation_{tier}_sweep_{args.reality_sweep}"
     with new_outputs(out, sweep_files(stem), force=args.force):
-        print(f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, "
-              f"{args.episodes} episode(s) per coalition, {tier} tier, {args.reality_sweep} at {values} (others at "
-              f"{base})", file=sys.stderr)
-        sweep = run_reality_sweep(pol.checkpoint, pol.task, named, args.episodes, tier, args.seed, args.reality_sweep,
-                                  values, base, refs, progress=lambda m: print(m, file=sys.stderr))
+        print(
+            f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, "
+            f"{args.episodes} episode(s) per coalition, {tier} tier, {args.reality_sweep} at {values} (others at "
+            f"{base})",
+            file=sys.stderr,
+        )
+        sweep = run_reality_sweep(
+            pol.checkpoint,
+            pol.task,
+            named,
+            args.episodes,
+            tier,
+            args.seed,
+            args.reality_sweep,
+            values,
+            base,
+            refs,
+            progress=lambda m: print(m, file=sys.stderr),
+        )
         print_sweep(sweep)
         paths = write_sweep(sweep, out, stem)
     for path in paths:

@@ -17,18 +17,45 @@ import yaml
 from comat.measure.metrics import mean_ci, read_results, violations
 from comat.measure.stats import cell_means
 
-__all__ = ["ALGO_ORDER", "ALPHA", "COMPARED", "ENDPOINTS", "PAPER_BUDGET", "PAPER_RETENTION", "REFERENCES", "SETS",
-           "SET_NAMES", "episodes_per_coalition", "evaluation_row", "k_text", "load_run", "method_text",
-           "over_seeds", "run_cells", "seed_means"]
+__all__ = [
+    "ALGO_ORDER",
+    "ALPHA",
+    "COMPARED",
+    "ENDPOINTS",
+    "PAPER_BUDGET",
+    "PAPER_RETENTION",
+    "REFERENCES",
+    "SETS",
+    "SET_NAMES",
+    "episodes_per_coalition",
+    "evaluation_row",
+    "k_text",
+    "load_run",
+    "method_text",
+    "over_seeds",
+    "run_cells",
+    "seed_means",
+]
 
 ALGO_ORDER = ("mappo", "qmix", "mat", "comat")
 SETS = ("train", "val", "test", "scale", "size", "capability")
 """Composition sets in table order (``comat.team.COALITION_SETS``); only those present appear."""
-SET_NAMES = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
-             "capability": "U_cap"}
+SET_NAMES = {
+    "train": "U_train",
+    "val": "U_val",
+    "test": "U_test",
+    "scale": "U_scale",
+    "size": "U_size",
+    "capability": "U_cap",
+}
 """The composition sets as the reports name them."""
-ENDPOINTS = (("return", "return"), ("progress", "progress"), ("finished", "finished"),
-             ("progress_auc", "progress_auc"), ("time_to_90", "time_to_90"))
+ENDPOINTS = (
+    ("return", "return"),
+    ("progress", "progress"),
+    ("finished", "finished"),
+    ("progress_auc", "progress_auc"),
+    ("time_to_90", "time_to_90"),
+)
 """(evaluation metric, report key): the per-set endpoints of the generalization table. The last two
 appear only where the evaluation rows carry them (files written before issue 28 do not)."""
 COMPARED = ("progress", "finished", "progress_auc")
@@ -42,6 +69,7 @@ ALPHA = 0.05
 PAPER_RETENTION = {("pcp", "comat"): 0.88, ("hmt", "comat"): 0.95}
 """COMAT's retention of training return on unseen compositions reported in the paper (§IV-B; a
 ratio of returns — ours is of progress, see the module docstring)."""
+
 
 def load_run(folder: str | Path, tier: str | None = None) -> dict:
     """One run folder: config, training curve and (if present) its evaluation rows."""
@@ -62,9 +90,17 @@ def load_run(folder: str | Path, tier: str | None = None) -> dict:
     eval_path = folder / f"evaluation_{tier}.json"
     # The summary with its per-episode detail; files written before issue 32: today's metric names.
     evaluation = read_results(eval_path) if eval_path.is_file() else None
-    return {"folder": str(folder), "algo": config["algo"], "task": config["task"], "seed": config["seed"],
-            "tier": tier, "env_steps": curve["env_steps"][-1] if curve["env_steps"] else 0, "curve": curve,
-            "budget": int(config.get("total_env_steps") or 0), "evaluation": evaluation}
+    return {
+        "folder": str(folder),
+        "algo": config["algo"],
+        "task": config["task"],
+        "seed": config["seed"],
+        "tier": tier,
+        "env_steps": curve["env_steps"][-1] if curve["env_steps"] else 0,
+        "curve": curve,
+        "budget": int(config.get("total_env_steps") or 0),
+        "evaluation": evaluation,
+    }
 
 
 def evaluation_row(run: dict, split: str, policy: str | None = None) -> dict | None:
@@ -104,8 +140,9 @@ def run_cells(run: dict, split: str, metric: str, policy: str | None = None) -> 
     else:  # older files: episode i is coalition i % C (the set repeated K times)
         k = episodes_per_coalition(run)
         if len(eps) % k:
-            raise ValueError(f"{run['folder']}: {split} has {len(eps)} episodes, not a multiple of its "
-                             f"episodes_per_coalition {k}")
+            raise ValueError(
+                f"{run['folder']}: {split} has {len(eps)} episodes, not a multiple of its episodes_per_coalition {k}"
+            )
         coalition = [i % (len(eps) // k) for i in range(len(eps))]
     table, _, coals = cell_means(np.zeros(len(eps)), coalition, values)
     return coals, table[0]
@@ -126,8 +163,10 @@ def over_seeds(runs: list[dict], split: str, metric: str) -> tuple[float, float,
 
 def method_text(seeds: str, k: str) -> str:
     """The interval method, as every caption states it."""
-    return (f"mean over seeds ± 95 % t-interval over per-seed means ({seeds}); each seed's mean first averages "
-            f"its {k} episode(s) per coalition, then its coalitions")
+    return (
+        f"mean over seeds ± 95 % t-interval over per-seed means ({seeds}); each seed's mean first averages "
+        f"its {k} episode(s) per coalition, then its coalitions"
+    )
 
 
 def k_text(runs: list[dict]) -> str:

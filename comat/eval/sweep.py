@@ -51,9 +51,20 @@ from comat.rl.runner import train
 __all__ = ["RECORD", "param_space", "plan", "prepare_sweep", "read_record", "run_job", "run_sweep", "sweep_status"]
 
 RECORD = "sweep.json"
-DEFAULTS = {"algos": ["comat", "mat", "mappo", "qmix"], "tasks": ["pcp", "hmt"], "seeds": None, "preset": "paper",
-            "steps": None, "tier": None, "eval_tiers": ["unicycle"], "eval_sets": ["train", "test"], "episodes": 1,
-            "overrides": [], "max_failures": 2, "device": "auto"}
+DEFAULTS = {
+    "algos": ["comat", "mat", "mappo", "qmix"],
+    "tasks": ["pcp", "hmt"],
+    "seeds": None,
+    "preset": "paper",
+    "steps": None,
+    "tier": None,
+    "eval_tiers": ["unicycle"],
+    "eval_sets": ["train", "test"],
+    "episodes": 1,
+    "overrides": [],
+    "max_failures": 2,
+    "device": "auto",
+}
 """Settings of a new sweep where none is given (``seeds`` None: the preset's)."""
 _PROGRESS_EVERY_S = 30.0
 
@@ -87,8 +98,9 @@ def read_record(root: str | Path) -> dict | None:
     try:
         record = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise ValueError(f"sweep record {str(path)!r} cannot be read ({err}); expected what comat sweep "
-                         "wrote there") from err
+        raise ValueError(
+            f"sweep record {str(path)!r} cannot be read ({err}); expected what comat sweep wrote there"
+        ) from err
     if not isinstance(record, dict) or not {"algos", "tasks", "seeds", "settings"} <= set(record):
         raise ValueError(f"sweep record {str(path)!r} is not a comat sweep record (no grid or settings)")
     return record
@@ -129,11 +141,16 @@ def prepare_sweep(root: str | Path, given: dict, command: list[str] | None = Non
         raise ValueError(f"--out {str(root)!r} is a run folder of comat train; expected a sweep's root folder")
     old = read_record(root)
     if old is not None:
-        differ = [f"--{k.replace('_', '-')} {old.get(k)!r} there, {v!r} given" for k, v in sorted(given.items())
-                  if _plain(v) != _plain(old.get(k))]
+        differ = [
+            f"--{k.replace('_', '-')} {old.get(k)!r} there, {v!r} given"
+            for k, v in sorted(given.items())
+            if _plain(v) != _plain(old.get(k))
+        ]
         if differ:
-            raise ValueError(f"--out {str(root)!r} holds a sweep with other settings ({'; '.join(differ)}); "
-                             f"continue it with `comat sweep --out {root}`, or choose another --out")
+            raise ValueError(
+                f"--out {str(root)!r} holds a sweep with other settings ({'; '.join(differ)}); "
+                f"continue it with `comat sweep --out {root}`, or choose another --out"
+            )
         jobs = len(old["algos"]) * len(old["tasks"]) * len(old["seeds"])
         return old, [f"continuing the sweep recorded in {root / RECORD} ({jobs} jobs)"]
     spec = {**DEFAULTS, **given}
@@ -143,24 +160,35 @@ def prepare_sweep(root: str | Path, given: dict, command: list[str] | None = Non
     _check_grid(list(spec["algos"]), list(spec["tasks"]), seeds)
     if isinstance(spec["max_failures"], bool) or not isinstance(spec["max_failures"], int) or spec["max_failures"] < 0:
         raise ValueError(f"--retries must be an integer >= 0, got {spec['max_failures']!r}")
-    if spec["steps"] is not None and (isinstance(spec["steps"], bool) or not isinstance(spec["steps"], int)
-                                      or spec["steps"] < 1):
+    if spec["steps"] is not None and (
+        isinstance(spec["steps"], bool) or not isinstance(spec["steps"], int) or spec["steps"] < 1
+    ):
         raise ValueError(f"--steps must be an integer >= 1, got {spec['steps']!r}")
     if spec["device"] not in DEVICES:
         raise ValueError(f"--device must be one of {list(DEVICES)}, got {spec['device']!r}")
     if isinstance(spec["episodes"], bool) or not isinstance(spec["episodes"], int) or spec["episodes"] < 1:
         raise ValueError(f"--episodes must be an integer >= 1, got {spec['episodes']!r}")
     cpus = _cpus_per_trial(settings, spec["algos"], spec["tasks"], spec["tier"], spec["steps"])  # checks the preset
-    origin = (f"seeds {seeds} from --seeds (the preset's: {list(preset_seeds)})" if spec["seeds"] is not None
-              else f"seeds {seeds} from the preset {spec['preset']!r} (--seeds changes them)")
-    record = {"format": 1, "command": list(command or sys.argv), "cwd": os.getcwd(), "root": str(root),
-              "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-              **{k: _plain(spec[k]) for k in DEFAULTS if k != "seeds"}, "seeds": seeds,
-              "seeds_from": "--seeds" if spec["seeds"] is not None else "preset",
-              "settings": settings, "cpus_per_trial": cpus,
-              # The driver's code and commit: on a cluster the workers run this code from Ray's copy,
-              # outside any git checkout, so their config.yaml cannot name the commit.
-              "versions": versions()}
+    origin = (
+        f"seeds {seeds} from --seeds (the preset's: {list(preset_seeds)})"
+        if spec["seeds"] is not None
+        else f"seeds {seeds} from the preset {spec['preset']!r} (--seeds changes them)"
+    )
+    record = {
+        "format": 1,
+        "command": list(command or sys.argv),
+        "cwd": os.getcwd(),
+        "root": str(root),
+        "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        **{k: _plain(spec[k]) for k in DEFAULTS if k != "seeds"},
+        "seeds": seeds,
+        "seeds_from": "--seeds" if spec["seeds"] is not None else "preset",
+        "settings": settings,
+        "cpus_per_trial": cpus,
+        # The driver's code and commit: on a cluster the workers run this code from Ray's copy,
+        # outside any git checkout, so their config.yaml cannot name the commit.
+        "versions": versions(),
+    }
     return record, [origin]
 
 
@@ -190,8 +218,14 @@ def sweep_status(root: str | Path, record: dict) -> list[dict]:
 
     rows = []
     for job in plan(root, record["algos"], record["tasks"], record["seeds"], record["eval_tiers"], record["eval_sets"]):
-        total = resolve(record["settings"], job["algo"], job["task"], seed=job["seed"], tier=record["tier"],
-                        total_env_steps=record["steps"]).total_env_steps
+        total = resolve(
+            record["settings"],
+            job["algo"],
+            job["task"],
+            seed=job["seed"],
+            tier=record["tier"],
+            total_env_steps=record["steps"],
+        ).total_env_steps
         done, wall = _trained(Path(job["folder"]))
         rate = done / wall if done and wall > 0 else None
         rows.append({**job, "env_steps": done, "total_env_steps": total, "env_steps_per_s": rate})
@@ -222,13 +256,19 @@ def run_job(params: dict) -> dict:
     ``task`` and ``seed``) and ``sweep`` (the record)."""
     from ray import tune
 
-
     record = params["sweep"]
     algo, task, seed = params["job"]["algo"], params["job"]["task"], params["job"]["seed"]
     folder = _job_dir(Path(record["root"]), algo, task, seed)
     t0 = time.perf_counter()
-    config = resolve(record["settings"], algo, task, seed=seed, tier=record["tier"], total_env_steps=record["steps"],
-                     device=record["device_resolved"])
+    config = resolve(
+        record["settings"],
+        algo,
+        task,
+        seed=seed,
+        tier=record["tier"],
+        total_env_steps=record["steps"],
+        device=record["device_resolved"],
+    )
     eval_sets = record["eval_sets"]
     if plan(record["root"], [algo], [task], [seed], record["eval_tiers"], eval_sets)[0]["state"] == "done":
         ensure_policy(folder)
@@ -236,18 +276,43 @@ def run_job(params: dict) -> dict:
         return {}
     _set_aside_partial(folder)
     resume = (folder / "checkpoint.pt").is_file()
-    summary = train(config, folder, resume=resume, quiet=True, overrides=tuple(record["overrides"]),
-                    command=portable_command(record["command"], record.get("cwd")),  # as typed where it ran
-                    on_update=lambda p: tune.report({"env_steps": p["env_steps"], "wall_s": p["wall_s"],
-                                                     "checkpoint_env_steps": p["checkpoint_env_steps"],
-                                                     "done": False}))
+    summary = train(
+        config,
+        folder,
+        resume=resume,
+        quiet=True,
+        overrides=tuple(record["overrides"]),
+        command=portable_command(record["command"], record.get("cwd")),  # as typed where it ran
+        on_update=lambda p: tune.report(
+            {
+                "env_steps": p["env_steps"],
+                "wall_s": p["wall_s"],
+                "checkpoint_env_steps": p["checkpoint_env_steps"],
+                "done": False,
+            }
+        ),
+    )
     for eval_tier in record["eval_tiers"] if eval_sets else ():
         if not (folder / f"evaluation_{eval_tier}.json").is_file():
-            result = evaluate_policies(folder / "checkpoint.pt", task, tuple(eval_sets), record["episodes"],
-                                       eval_tier, references=False, progress=lambda _m: None)
+            result = evaluate_policies(
+                folder / "checkpoint.pt",
+                task,
+                tuple(eval_sets),
+                record["episodes"],
+                eval_tier,
+                references=False,
+                progress=lambda _m: None,
+            )
             write_results(result, folder, f"evaluation_{eval_tier}")
-    tune.report({"env_steps": summary["env_steps"], "wall_s": summary["wall_s"], "resumed": resume,
-                 "job_wall_s": time.perf_counter() - t0, "done": True})
+    tune.report(
+        {
+            "env_steps": summary["env_steps"],
+            "wall_s": summary["wall_s"],
+            "resumed": resume,
+            "job_wall_s": time.perf_counter() - t0,
+            "done": True,
+        }
+    )
     return {}
 
 
@@ -257,8 +322,10 @@ def param_space(record: dict) -> dict:
     sweep stopped early holds seed 0 of every algorithm and task."""
     from ray import tune
 
-    jobs = [{"algo": a, "task": t, "seed": s}
-            for s, t, a in itertools.product(record["seeds"], record["tasks"], record["algos"])]
+    jobs = [
+        {"algo": a, "task": t, "seed": s}
+        for s, t, a in itertools.product(record["seeds"], record["tasks"], record["algos"])
+    ]
     return {"job": tune.grid_search(jobs), "sweep": record}
 
 
@@ -286,12 +353,16 @@ def _reporter(progress, total_steps: dict):
             self.last[key] = now
             total = total_steps[(trial.config["job"]["algo"], trial.config["job"]["task"])]
             rate = result["env_steps"] / result["wall_s"] if result.get("wall_s") else 0.0
-            progress(f"  {key}: {result['env_steps']:,} / {total:,} env steps ({rate:.0f}/s), checkpoint at "
-                     f"{result.get('checkpoint_env_steps') or 0:,}")
+            progress(
+                f"  {key}: {result['env_steps']:,} / {total:,} env steps ({rate:.0f}/s), checkpoint at "
+                f"{result.get('checkpoint_env_steps') or 0:,}"
+            )
 
         def on_trial_recover(self, iteration, trials, trial, **info):
-            progress(f"  RETRY {self._name(trial)}: its worker failed ({trial.num_failures} failure(s)); it resumes "
-                     "from its checkpoint")
+            progress(
+                f"  RETRY {self._name(trial)}: its worker failed ({trial.num_failures} failure(s)); it resumes "
+                "from its checkpoint"
+            )
 
         def on_trial_complete(self, iteration, trials, trial, **info):
             r = trial.last_result or {}
@@ -299,8 +370,10 @@ def _reporter(progress, total_steps: dict):
             progress(f"  done {self._name(trial)}: {what}")
 
         def on_trial_error(self, iteration, trials, trial, **info):
-            progress(f"  FAILED {self._name(trial)} after {trial.num_failures} failure(s); its folder keeps what it "
-                     "wrote (run the sweep again to resume it)")
+            progress(
+                f"  FAILED {self._name(trial)} after {trial.num_failures} failure(s); its folder keeps what it "
+                "wrote (run the sweep again to resume it)"
+            )
 
     return Lines()
 
@@ -321,8 +394,10 @@ def _write_record(root: Path, record: dict) -> None:
         if not (root / RECORD).is_file():
             write_atomic(root / RECORD, json.dumps(record, indent=2))
     except OSError as err:
-        raise ValueError(f"--out {str(root)!r} cannot be written ({err.strerror or err}); expected a folder this "
-                         "user can create and write") from err
+        raise ValueError(
+            f"--out {str(root)!r} cannot be written ({err.strerror or err}); expected a folder this "
+            "user can create and write"
+        ) from err
 
 
 def _cluster_device(name: str) -> str:
@@ -348,16 +423,16 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
         import ray
         from ray import tune
     except ImportError as err:
-        raise ValueError(f"comat sweep runs on Ray Tune, which cannot be imported here ({err}); install it with "
-                         "pip install 'comat[ray]'") from err
-
+        raise ValueError(
+            f"comat sweep runs on Ray Tune, which cannot be imported here ({err}); install it with "
+            "pip install 'comat[ray]'"
+        ) from err
 
     root = Path(record["root"])
     grid = (record["algos"], record["tasks"], record["seeds"], record["eval_tiers"], record["eval_sets"])
     jobs_now = plan(root, *grid)
     todo = [j for j in jobs_now if j["state"] != "done"]
     if (root / RECORD).is_file() and not todo:
-
         for job in jobs_now:  # finished before policy files existed: keep theirs now
             ensure_policy(job["folder"])
         progress(f"comat sweep: {len(jobs_now)} jobs, all finished, in {root}")
@@ -369,30 +444,41 @@ def run_sweep(record: dict, address: str | None = None, jobs: int | None = None,
         ray.init(num_cpus=None if jobs is None else jobs * cpus, include_dashboard=False, log_to_driver=False)
     else:
         # A cluster's workers get the driver's code, not whatever their node has installed.
-        ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": _code(),
-                                                                   "excludes": ["__pycache__"]})
+        ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": _code(), "excludes": ["__pycache__"]})
     try:
         if address is not None:
             record = {**record, "device_resolved": record.get("device_resolved") or _cluster_device(record["device"])}
             _write_record(root, record)
-        progress(f"comat sweep: {len(jobs_now)} jobs, {len(jobs_now) - len(todo)} finished, {len(todo)} to run "
-                 f"({sum(j['state'] == 'resume' for j in todo)} resumed), {cpus} CPU(s) each, updates on "
-                 f"{record['device_resolved']}, in {root}")
-        totals = {(a, t): resolve(record["settings"], a, t, tier=record["tier"],
-                                  total_env_steps=record["steps"]).total_env_steps
-                  for a, t in itertools.product(record["algos"], record["tasks"])}
+        progress(
+            f"comat sweep: {len(jobs_now)} jobs, {len(jobs_now) - len(todo)} finished, {len(todo)} to run "
+            f"({sum(j['state'] == 'resume' for j in todo)} resumed), {cpus} CPU(s) each, updates on "
+            f"{record['device_resolved']}, in {root}"
+        )
+        totals = {
+            (a, t): resolve(
+                record["settings"], a, t, tier=record["tier"], total_env_steps=record["steps"]
+            ).total_env_steps
+            for a, t in itertools.product(record["algos"], record["tasks"])
+        }
         gpus = 1 if record["device_resolved"] == "cuda" else 0
         trainable = tune.with_resources(run_job, {"cpu": cpus, "gpu": gpus})
-        run_config = tune.RunConfig(name=".tune", storage_path=str(root), verbose=0,
-                                    failure_config=tune.FailureConfig(max_failures=record["max_failures"]),
-                                    callbacks=[_reporter(progress, totals)])
+        run_config = tune.RunConfig(
+            name=".tune",
+            storage_path=str(root),
+            verbose=0,
+            failure_config=tune.FailureConfig(max_failures=record["max_failures"]),
+            callbacks=[_reporter(progress, totals)],
+        )
         experiment = root / ".tune"
         if tune.Tuner.can_restore(str(experiment)):
             tuner = tune.Tuner.restore(str(experiment), trainable, resume_unfinished=True, restart_errored=True)
         else:
-            tuner = tune.Tuner(trainable, run_config=run_config,
-                               tune_config=tune.TuneConfig(max_concurrent_trials=jobs),
-                               param_space=param_space(record))
+            tuner = tune.Tuner(
+                trainable,
+                run_config=run_config,
+                tune_config=tune.TuneConfig(max_concurrent_trials=jobs),
+                param_space=param_space(record),
+            )
         results = tuner.fit()
         errors = {tuple(r.config["job"][k] for k in ("algo", "task", "seed")): r.error for r in results if r.error}
     finally:

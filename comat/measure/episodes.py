@@ -65,8 +65,14 @@ def _row(info: dict, b: int, team: TeamSpec, horizon: int) -> dict:
     return row
 
 
-def run_episodes(env: VectorEnv, act: Policy, teams: list[TeamSpec], seed: int, use_state: bool = False,
-                 n_coalitions: int | None = None) -> list[dict]:
+def run_episodes(
+    env: VectorEnv,
+    act: Policy,
+    teams: list[TeamSpec],
+    seed: int,
+    use_state: bool = False,
+    n_coalitions: int | None = None,
+) -> list[dict]:
     """One episode per entry of ``teams``, ``env.num_envs`` at a time; returns their rows, in the
     order of ``teams``.
 
@@ -83,7 +89,9 @@ def run_episodes(env: VectorEnv, act: Policy, teams: list[TeamSpec], seed: int, 
     """
     n = len(teams) if n_coalitions is None else n_coalitions
     if isinstance(n, bool) or not isinstance(n, int) or n < 1 or len(teams) % n:
-        raise ValueError(f"n_coalitions must be a positive integer dividing the {len(teams)} teams, got {n_coalitions!r}")
+        raise ValueError(
+            f"n_coalitions must be a positive integer dividing the {len(teams)} teams, got {n_coalitions!r}"
+        )
     if any(t != teams[i % n] for i, t in enumerate(teams)):
         raise ValueError(f"teams must be {n} coalitions repeated {len(teams) // n} times (team i = coalition i % {n})")
     if env.task.name not in ROBOT_COUNTS:
@@ -116,5 +124,8 @@ def summarize(episodes: list[dict]) -> dict[str, float]:
     if not episodes:
         raise ValueError("summarize needs at least one episode")
     skip = ("coalition", "episode_in_coalition")
-    return {name: float(np.mean([e[name] for e in episodes])) for name, v in episodes[0].items()
-            if name not in skip and isinstance(v, (int, float))}
+    return {
+        name: float(np.mean([e[name] for e in episodes]))
+        for name, v in episodes[0].items()
+        if name not in skip and isinstance(v, (int, float))
+    }

@@ -2,7 +2,8 @@
 
 Per episode (``EPISODE_METRICS`` of the env): return, steps, progress (the fraction of prey
 captured / material delivered, 1 when the task is done), finished (1 if every prey was captured /
-all material delivered within the horizon: the paper's Table I "completion"), MuJoCo robot–robot collisions, Robotarium-style violations
+all material delivered within the horizon: the paper's Table I "completion"), MuJoCo robot–robot collisions,
+Robotarium-style violations
 (``robotarium_collisions`` + ``boundary_exits`` + ``actuator_errors``: what the real testbed
 would flag) and safety-filter interventions; from the progress curve (:func:`curve_endpoints`)
 the area under it (``progress_auc``) and the env steps to 90 % progress (``time_to_90``),
@@ -23,16 +24,28 @@ import numpy as np
 
 from comat.files import read_json_detail
 
-__all__ = ["PROGRESS_MARK", "REPORTED", "RETIRED_NAMES", "SHARES", "current_names", "curve_endpoints", "interval_text",
-           "mean_ci", "read_results", "summarize_ci", "violations"]
+__all__ = [
+    "PROGRESS_MARK",
+    "REPORTED",
+    "RETIRED_NAMES",
+    "SHARES",
+    "current_names",
+    "curve_endpoints",
+    "interval_text",
+    "mean_ci",
+    "read_results",
+    "summarize_ci",
+    "violations",
+]
 
 SHARES = ("progress", "finished", "progress_auc")
 """Metrics that are shares in [0, 1]: their intervals are cut to that range (the true value lies
 in it, so the cut loses no coverage) instead of printing ``0.33 ± 4.24``."""
 
 
-def interval_text(mean: float, half: float, share: bool = False, scale: float = 1.0, digits: int = 2,
-                  unit: str | None = "seed") -> str:
+def interval_text(
+    mean: float, half: float, share: bool = False, scale: float = 1.0, digits: int = 2, unit: str | None = "seed"
+) -> str:
     """``mean ± half`` as a table shows it: a share's interval cut to [0, 1] and then written
     ``mean [lo, hi]``; no interval (one ``unit``: nothing to estimate a spread from) said in words
     (``unit=None``: a value that has none, e.g. a published figure)."""
@@ -46,8 +59,15 @@ def interval_text(mean: float, half: float, share: bool = False, scale: float = 
         return f"{text} [{scale * lo:.{digits}f}, {scale * hi:.{digits}f}]"
     return f"{text} ± {scale * half:.{digits}f}"
 
-RETIRED_NAMES = {"completion": "progress", "success": "finished", "episode_completion": "episode_progress",
-                 "episode_success": "episode_finished", "completion_points": "progress_points", "brakes": "fallbacks"}
+
+RETIRED_NAMES = {
+    "completion": "progress",
+    "success": "finished",
+    "episode_completion": "episode_progress",
+    "episode_success": "episode_finished",
+    "completion_points": "progress_points",
+    "brakes": "fallbacks",
+}
 """Metric names of files written before the vocabulary was made one (issue 32): ``completion``
 meant progress (fraction done) in the evaluation files and the finished share in some tables;
 ``success`` the finished share. Readers of stored files rename them with :func:`current_names`."""
@@ -72,8 +92,20 @@ def read_results(path, detail: bool = True):
     an older plain JSON file as it is, metric names today's (:func:`current_names`)."""
     return current_names(read_json_detail(path, detail=detail))
 
-REPORTED = ("return", "steps", "progress", "finished", "progress_auc", "time_to_90", "collisions", "violations",
-            "interventions", "fallbacks", "recoveries")
+
+REPORTED = (
+    "return",
+    "steps",
+    "progress",
+    "finished",
+    "progress_auc",
+    "time_to_90",
+    "collisions",
+    "violations",
+    "interventions",
+    "fallbacks",
+    "recoveries",
+)
 """Metrics in evaluation tables, in order."""
 
 PROGRESS_MARK = 0.9
@@ -95,8 +127,11 @@ def curve_endpoints(curve: Sequence[float], horizon: int) -> dict[str, float]:
     if c.ndim != 1 or not 1 <= c.size <= horizon:
         raise ValueError(f"curve must be a 1-D sequence of 1 to horizon={horizon} values, got shape {c.shape}")
     hit = np.flatnonzero(c >= PROGRESS_MARK - 1e-9)
-    return {"progress_auc": float((c.sum() + (horizon - c.size) * c[-1]) / horizon),
-            "time_to_90": float(hit[0] + 1) if hit.size else float(horizon), "reached_90": float(hit.size > 0)}
+    return {
+        "progress_auc": float((c.sum() + (horizon - c.size) * c[-1]) / horizon),
+        "time_to_90": float(hit[0] + 1) if hit.size else float(horizon),
+        "reached_90": float(hit.size > 0),
+    }
 
 
 def violations(episode: dict) -> float:
@@ -127,13 +162,17 @@ def mean_ci(values: Sequence[float], confidence: float = 0.95) -> tuple[float, f
 def _value(episode: dict, name: str) -> float | None:
     """Metric ``name`` of an episode; None where the row predates it (older result files)."""
     if name == "violations":
-        return violations(episode) if all(k in episode for k in ("robotarium_collisions", "boundary_exits",
-                                                                    "actuator_errors")) else None
+        return (
+            violations(episode)
+            if all(k in episode for k in ("robotarium_collisions", "boundary_exits", "actuator_errors"))
+            else None
+        )
     return float(episode[name]) if name in episode else None
 
 
-def summarize_ci(episodes: Sequence[dict], confidence: float = 0.95,
-                 n_coalitions: int | None = None) -> dict[str, dict[str, float]]:
+def summarize_ci(
+    episodes: Sequence[dict], confidence: float = 0.95, n_coalitions: int | None = None
+) -> dict[str, dict[str, float]]:
     """``{metric: {"mean", "ci95", "n"}}`` for every metric of :data:`REPORTED` the episodes carry.
 
     The interval is over coalitions: episodes of one coalition are averaged first, then
@@ -145,11 +184,16 @@ def summarize_ci(episodes: Sequence[dict], confidence: float = 0.95,
     """
     if not episodes:
         raise ValueError("summarize_ci needs at least one episode")
-    if n_coalitions is not None and (isinstance(n_coalitions, bool) or not isinstance(n_coalitions, int)
-                                     or n_coalitions < 1):
+    if n_coalitions is not None and (
+        isinstance(n_coalitions, bool) or not isinstance(n_coalitions, int) or n_coalitions < 1
+    ):
         raise ValueError(f"n_coalitions must be a positive integer or None, got {n_coalitions!r}")
-    units = np.array([int(e["coalition"]) if "coalition" in e else i % n_coalitions if n_coalitions else i
-                      for i, e in enumerate(episodes)])
+    units = np.array(
+        [
+            int(e["coalition"]) if "coalition" in e else i % n_coalitions if n_coalitions else i
+            for i, e in enumerate(episodes)
+        ]
+    )
     keys, which = np.unique(units, return_inverse=True)
     out = {}
     for name in REPORTED:

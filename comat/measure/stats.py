@@ -96,9 +96,11 @@ def cell_means(seed: Sequence, coalition: Sequence, value: Sequence[float]) -> t
     np.add.at(count, (s_idx, c_idx), 1.0)
     if (count == 0).any():
         s, c = np.argwhere(count == 0)[0]
-        raise ValueError(f"seed {seeds[s].item()!r} has no episode of coalition {coals[c].item()!r}: every seed "
-                         f"must play every coalition ({int((count == 0).sum())} of {count.size} seed x coalition "
-                         "cells are empty)")
+        raise ValueError(
+            f"seed {seeds[s].item()!r} has no episode of coalition {coals[c].item()!r}: every seed "
+            f"must play every coalition ({int((count == 0).sum())} of {count.size} seed x coalition "
+            "cells are empty)"
+        )
     return total / count, seeds.tolist(), coals.tolist()
 
 
@@ -134,11 +136,12 @@ def iqm(values) -> float:
     if x.size == 0:
         raise ValueError("iqm needs at least one value")
     cut = int(0.25 * x.size)
-    return float(x[cut:x.size - cut].mean())
+    return float(x[cut : x.size - cut].mean())
 
 
-def hierarchical_bootstrap(table, reps: int = BOOTSTRAP_REPS, seed: int = 0,
-                           confidence: float = 0.95) -> dict[str, float]:
+def hierarchical_bootstrap(
+    table, reps: int = BOOTSTRAP_REPS, seed: int = 0, confidence: float = 0.95
+) -> dict[str, float]:
     """Mean and IQM of ``table`` (S, C) with percentile intervals of a two-stage bootstrap.
 
     Each resample draws S seeds with replacement, then, independently for each drawn seed, C of
@@ -169,9 +172,9 @@ def hierarchical_bootstrap(table, reps: int = BOOTSTRAP_REPS, seed: int = 0,
         rows = rng.integers(0, n_s, size=(r, n_s))
         cols = rng.integers(0, n_c, size=(r, n_s, n_c))
         sample = table[rows[:, :, None], cols].reshape(r, -1)  # (r, S*C)
-        means[start:start + r] = sample.mean(axis=1)
+        means[start : start + r] = sample.mean(axis=1)
         sample.sort(axis=1)
-        iqms[start:start + r] = sample[:, cut:n_s * n_c - cut].mean(axis=1)
+        iqms[start : start + r] = sample[:, cut : n_s * n_c - cut].mean(axis=1)
     tail = 100 * (1 - confidence) / 2
     lo_m, hi_m = np.percentile(means, [tail, 100 - tail])
     lo_i, hi_i = np.percentile(iqms, [tail, 100 - tail])
@@ -192,8 +195,16 @@ def welch(a: Sequence[float], b: Sequence[float], confidence: float = 0.95) -> d
     if not 0 < confidence < 1:
         raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
     diff = float(a.mean() - b.mean())
-    nan = {"diff": diff, "lo": math.nan, "hi": math.nan, "t": math.nan, "df": math.nan, "p": math.nan,
-           "n_a": int(a.size), "n_b": int(b.size)}
+    nan = {
+        "diff": diff,
+        "lo": math.nan,
+        "hi": math.nan,
+        "t": math.nan,
+        "df": math.nan,
+        "p": math.nan,
+        "n_a": int(a.size),
+        "n_b": int(b.size),
+    }
     if a.size < 2 or b.size < 2:
         return nan
     va, vb = a.var(ddof=1) / a.size, b.var(ddof=1) / b.size
@@ -202,8 +213,14 @@ def welch(a: Sequence[float], b: Sequence[float], confidence: float = 0.95) -> d
     # spread: a t of 1e13 from it would read as certainty.
     if math.sqrt(se2) <= 1e-9 * max(1.0, float(np.abs(a).max()), float(np.abs(b).max())):
         return nan
-    df = se2 ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1))
+    df = se2**2 / (va**2 / (a.size - 1) + vb**2 / (b.size - 1))
     t = diff / math.sqrt(se2)
     half = float(stats.t.ppf(0.5 + confidence / 2, df) * math.sqrt(se2))
-    return {**nan, "lo": diff - half, "hi": diff + half, "t": float(t), "df": float(df),
-            "p": float(2 * stats.t.sf(abs(t), df))}
+    return {
+        **nan,
+        "lo": diff - half,
+        "hi": diff + half,
+        "t": float(t),
+        "df": float(df),
+        "p": float(2 * stats.t.sf(abs(t), df)),
+    }

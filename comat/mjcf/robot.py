@@ -64,7 +64,11 @@ def _chassis_geoms(body: mujoco.MjsBody, profile: C.RobotProfile) -> None:
         group=1,
         rgba=[1.0, 1.0, 1.0, 1.0],
     )
-    for name, x in (("centre", 0.0), ("collision_point", C.COLLISION_OFFSET_M), ("projection_point", C.PROJECTION_DISTANCE_M)):
+    for name, x in (
+        ("centre", 0.0),
+        ("collision_point", C.COLLISION_OFFSET_M),
+        ("projection_point", C.PROJECTION_DISTANCE_M),
+    ):
         body.add_site(name=name, pos=[x, 0.0, top], size=[0.005, 0.0, 0.0], group=3)
 
 

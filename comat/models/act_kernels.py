@@ -10,7 +10,8 @@ The torch step (``decode_step``) and ``Comat.encode`` stay the references: these
 their arithmetic in float32 but not its summation order, so logits and values agree to ~1e-6,
 not bit for bit (tests/test_models.py). The encoder kernel pays at small batches, where the
 torch HEAT pass (~60 calls on (B, N, N, ·) tensors) is dispatch-bound: ~4× for one team of 8,
-~1.2× at batch 32, even at 256 (`comat bench learn`). ``AutoregressivePolicy.act`` uses them when no gradient is recorded,
+~1.2× at batch 32, even at 256 (`comat bench learn`). ``AutoregressivePolicy.act`` uses them when no gradient is
+recorded,
 on CPU float32 tensors, with ``comat.kernels.enabled()``. Matrix products go to scipy's
 OpenBLAS, which should run on one thread (the ``comat`` command sets ``OPENBLAS_NUM_THREADS=1``
 before loading it): threads cost more than they save on these sizes, and the cores are the
@@ -39,8 +40,15 @@ from numba import njit
 
 from comat.models.comat_schema import DecisionMode, check_arrays, decoder_shapes, encoder_shapes
 
-__all__ = ["COMAT_DECODE_MATS", "COMAT_DECODE_VECS", "comat_decode", "comat_decode_args", "comat_encode",
-           "comat_encode_args", "mat_decode"]
+__all__ = [
+    "COMAT_DECODE_MATS",
+    "COMAT_DECODE_VECS",
+    "comat_decode",
+    "comat_decode_args",
+    "comat_encode",
+    "comat_encode_args",
+    "mat_decode",
+]
 
 _jit = njit(cache=True, nogil=True)
 _EPS = 1e-5  # torch.nn.LayerNorm's default
@@ -130,15 +138,44 @@ def _choose(logits, mask_m, noise_m, deterministic):
     return actions
 
 
-COMAT_DECODE_MATS = ("token.0.weight", "self_attn.q.weight", "self_attn.kv.weight", "self_attn.o.weight",
-                     "fc.0.weight", "fc.2.weight", "cross_attn.q.weight", "cross_attn.kv.weight",
-                     "cross_attn.o.weight", "fc2.0.weight", "fc2.2.weight", "heads.first.weight", "heads.w2",
-                     "heads.b2")
+COMAT_DECODE_MATS = (
+    "token.0.weight",
+    "self_attn.q.weight",
+    "self_attn.kv.weight",
+    "self_attn.o.weight",
+    "fc.0.weight",
+    "fc.2.weight",
+    "cross_attn.q.weight",
+    "cross_attn.kv.weight",
+    "cross_attn.o.weight",
+    "fc2.0.weight",
+    "fc2.2.weight",
+    "heads.first.weight",
+    "heads.w2",
+    "heads.b2",
+)
 """The arrays :func:`comat_decode` unpacks from ``mats``, in its order (names of the schema)."""
-COMAT_DECODE_VECS = ("self_attn.q.bias", "self_attn.kv.bias", "self_attn.o.bias", "fc.0.bias", "fc.2.bias",
-                     "cross_attn.q.bias", "cross_attn.kv.bias", "cross_attn.o.bias", "fc2.0.bias", "fc2.2.bias",
-                     "heads.first.bias", "ln1.weight", "ln1.bias", "ln2.weight", "ln2.bias", "ln3.weight",
-                     "ln3.bias", "ln4.weight", "ln4.bias")
+COMAT_DECODE_VECS = (
+    "self_attn.q.bias",
+    "self_attn.kv.bias",
+    "self_attn.o.bias",
+    "fc.0.bias",
+    "fc.2.bias",
+    "cross_attn.q.bias",
+    "cross_attn.kv.bias",
+    "cross_attn.o.bias",
+    "fc2.0.bias",
+    "fc2.2.bias",
+    "heads.first.bias",
+    "ln1.weight",
+    "ln1.bias",
+    "ln2.weight",
+    "ln2.bias",
+    "ln3.weight",
+    "ln3.bias",
+    "ln4.weight",
+    "ln4.bias",
+)
 """The arrays :func:`comat_decode` unpacks from ``vecs``, in its order."""
 
 
@@ -149,8 +186,10 @@ def comat_decode_args(arrays: Mapping[str, np.ndarray], config: Mapping) -> tupl
     want = decoder_shapes(config)
     check_arrays(arrays, want, "COMAT decoder weights do not match the compiled kernel's config")
     if set(want) != set(COMAT_DECODE_MATS) | set(COMAT_DECODE_VECS):  # the schema changed, the kernel did not
-        raise ValueError(f"comat_decode takes {sorted(COMAT_DECODE_MATS + COMAT_DECODE_VECS)}, "
-                         f"the weight description lists {sorted(want)}")
+        raise ValueError(
+            f"comat_decode takes {sorted(COMAT_DECODE_MATS + COMAT_DECODE_VECS)}, "
+            f"the weight description lists {sorted(want)}"
+        )
     mats = tuple(arrays[n] for n in COMAT_DECODE_MATS)
     vecs = tuple(arrays[n] for n in COMAT_DECODE_VECS)
     return mats, vecs, DecisionMode(config["decision"]).shared_hidden
@@ -167,8 +206,27 @@ def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_type
     (B, N, D) for type one-hots and capabilities (the task layout: [x, y, cos, sin | types (T) |
     capabilities (C) | …])."""
     tok, sa_q, sa_kv, sa_o, fc_a, fc_b, ca_q, ca_kv, ca_o, fc2_a, fc2_b, act1, act2, act2b = mats
-    (sa_qb, sa_kvb, sa_ob, fc_ab, fc_bb, ca_qb, ca_kvb, ca_ob, fc2_ab, fc2_bb, act1b,
-     ln1w, ln1b, ln2w, ln2b, ln3w, ln3b, ln4w, ln4b) = vecs
+    (
+        sa_qb,
+        sa_kvb,
+        sa_ob,
+        fc_ab,
+        fc_bb,
+        ca_qb,
+        ca_kvb,
+        ca_ob,
+        fc2_ab,
+        fc2_bb,
+        act1b,
+        ln1w,
+        ln1b,
+        ln2w,
+        ln2b,
+        ln3w,
+        ln3b,
+        ln4w,
+        ln4b,
+    ) = vecs
     B, N, E = rep.shape
     T = n_types
     H = act2.shape[1]
@@ -262,8 +320,11 @@ def mat_decode(mats, vecs, rep, mask, noise, deterministic, heads):
             q = _linear(rep_m, mats[w + 3], vecs[v + 3]) * scale
             att = _linear(_attend(q, keys[2 * k + 1], values[2 * k + 1], m + 1, heads), mats[w + 5], vecs[v + 5])
             y = _layer_norm(rep_m + att, vecs[v + 10], vecs[v + 11])
-            y = _layer_norm(y + _linear(_gelu(_linear(y, mats[w + 6], vecs[v + 6])), mats[w + 7], vecs[v + 7]),
-                            vecs[v + 12], vecs[v + 13])
+            y = _layer_norm(
+                y + _linear(_gelu(_linear(y, mats[w + 6], vecs[v + 6])), mats[w + 7], vecs[v + 7]),
+                vecs[v + 12],
+                vecs[v + 13],
+            )
         w, v = 1 + 8 * n_blocks, 2 + 14 * n_blocks
         hidden = _layer_norm(_gelu(_linear(y, mats[w], vecs[v])), vecs[v + 2], vecs[v + 3])
         logits[:, m] = _linear(hidden, mats[w + 1], vecs[v + 1])
@@ -298,8 +359,9 @@ def comat_encode_args(arrays: Mapping[str, np.ndarray], config: Mapping) -> tupl
     for name, shape in want.items():
         node = name.startswith("heat.") and ".node." in name
         (node_ws if node else mats if len(shape) > 1 else vecs).append(arrays[name])
-    flags = tuple(bool(config[k]) for k in ("root_weight", "obs_embed", "reference_messages", "world_edges",
-                                            "node_ffn"))
+    flags = tuple(
+        bool(config[k]) for k in ("root_weight", "obs_embed", "reference_messages", "world_edges", "node_ffn")
+    )
     return tuple(node_ws), tuple(mats), tuple(vecs), flags
 
 
@@ -356,8 +418,16 @@ def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root, obs_embed
         E = node_ws[k * T].shape[0]
         m, v = mo + m_stride * k, vo + v_stride * k
         edge_w, type_tab, att_i, att_a, att_t, att_j, msg_a, msg_t, msg_j = (
-            mats[m], mats[m + 1], mats[m + 2], mats[m + 3], mats[m + 4], mats[m + 5], mats[m + 6], mats[m + 7],
-            mats[m + 8])
+            mats[m],
+            mats[m + 1],
+            mats[m + 2],
+            mats[m + 3],
+            mats[m + 4],
+            mats[m + 5],
+            mats[m + 6],
+            mats[m + 7],
+            mats[m + 8],
+        )
         K = att_i.shape[0]
         xt = np.zeros((B * N, E), dtype=np.float32)
         for t in range(T):

@@ -122,9 +122,14 @@ class AutoregressivePolicy(nn.Module):
         return self.encode(obs, mask)
 
     def _compiled_ok(self, obs: torch.Tensor) -> bool:
-        return (type(self).decode_compiled is not AutoregressivePolicy.decode_compiled and kernels.enabled()
-                and not torch.is_grad_enabled() and obs.device.type == "cpu" and obs.dtype == torch.float32
-                and next(self.parameters()).dtype == torch.float32)
+        return (
+            type(self).decode_compiled is not AutoregressivePolicy.decode_compiled
+            and kernels.enabled()
+            and not torch.is_grad_enabled()
+            and obs.device.type == "cpu"
+            and obs.dtype == torch.float32
+            and next(self.parameters()).dtype == torch.float32
+        )
 
     def act_uncached(self, obs, mask, deterministic: bool = True, generator: torch.Generator | None = None):
         """Reference: the whole decoder re-run on the prefix for every robot (slow)."""

@@ -71,8 +71,15 @@ from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_line
 __all__ = ["PAPER_FORM", "Comat", "ComatConfig"]
 
 
-PAPER_FORM = {"root_weight": False, "obs_embed": False, "message_gain": 1.0, "node_ffn": False, "heat_form": "paper",
-              "edge_frame": "heading", "decision": "type_heads"}
+PAPER_FORM = {
+    "root_weight": False,
+    "obs_embed": False,
+    "message_gain": 1.0,
+    "node_ffn": False,
+    "heat_form": "paper",
+    "edge_frame": "heading",
+    "decision": "type_heads",
+}
 """The architecture options that read the paper's eq. 2–3 literally (COMAT before the encoder
 ablation, results/ablations/): ``ComatConfig(**PAPER_FORM)``."""
 HEAT_FORMS = ("paper", "reference")
@@ -133,8 +140,10 @@ class ComatConfig:
         if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not 0 < gain < float("inf"):
             raise ValueError(f"models.comat.message_gain must be a positive finite number, got {gain!r}")
         if self.heat_form == "reference" and self.embed % self.heads:
-            raise ValueError(f"models.comat.heat_form 'reference' needs embed divisible by heads, "
-                             f"got embed {self.embed}, heads {self.heads}")
+            raise ValueError(
+                f"models.comat.heat_form 'reference' needs embed divisible by heads, "
+                f"got embed {self.embed}, heads {self.heads}"
+            )
 
 
 class HEATBlock(nn.Module):
@@ -147,8 +156,17 @@ class HEATBlock(nn.Module):
     ordered type pair, so its score and its share of the message are looked up per pair.
     """
 
-    def __init__(self, d_in: int, d: int, n_types: int, d_edge: int, heads: int, root: bool = False,
-                 form: str = "paper", message_gain: float = 1.0) -> None:
+    def __init__(
+        self,
+        d_in: int,
+        d: int,
+        n_types: int,
+        d_edge: int,
+        heads: int,
+        root: bool = False,
+        form: str = "paper",
+        message_gain: float = 1.0,
+    ) -> None:
         super().__init__()
         self.n_types, self.heads, self.root, self.form = n_types, heads, root, form
         self.node = nn.ModuleList(init_linear(nn.Linear(d_in, d, bias=False)) for _ in range(n_types))
@@ -206,8 +224,16 @@ class Comat(AutoregressivePolicy):
             D = layout.obs_dim
             self.obs_encoder = nn.Sequential(nn.LayerNorm(D), init_linear(nn.Linear(D, E)), nn.GELU())
         self.heat = nn.ModuleList(
-            HEATBlock(layout.obs_dim if k == 0 and not cfg.obs_embed else E, E, T, cfg.edge_embed, K,
-                      cfg.root_weight, cfg.heat_form, cfg.message_gain)
+            HEATBlock(
+                layout.obs_dim if k == 0 and not cfg.obs_embed else E,
+                E,
+                T,
+                cfg.edge_embed,
+                K,
+                cfg.root_weight,
+                cfg.heat_form,
+                cfg.message_gain,
+            )
             for k in range(cfg.heat_blocks)
         )
         self.heat_norm = nn.ModuleList(nn.LayerNorm(E) for _ in range(cfg.heat_blocks))
@@ -228,8 +254,11 @@ class Comat(AutoregressivePolicy):
         self.decision = DecisionMode(cfg.decision)
         self.heads = TypeHeads(E + layout.n_caps, E, self.n_actions, T, mode=self.decision)
         self.weights_config = weights_config(layout, cfg)  # what fixes every array's shape (comat_schema)
-        check_arrays(self.state_dict(), parameter_shapes(self.weights_config),
-                     "Comat's parameters do not match their description in comat.models.comat_schema")
+        check_arrays(
+            self.state_dict(),
+            parameter_shapes(self.weights_config),
+            "Comat's parameters do not match their description in comat.models.comat_schema",
+        )
 
     # -- encoder ------------------------------------------------------------------------------------
     def encode(self, obs, mask):
@@ -273,9 +302,16 @@ class Comat(AutoregressivePolicy):
         e = self.token(torch.eye(self.n_actions + 1, device=rep.device))[:, None]  # (A+1, 1, E)
         k, v = sa._kv(e, e)
         return _Decoding(
-            rep=rep, types=obs[..., 4 : 4 + self.layout.n_types], e=e, q=sa.step_query(e), k=k, v=v,
-            self_cache=KVCache(), cross_cache=KVCache(),
-            cross_q=self.cross_attn.step_query(rep), caps=self.heads.partial(self.layout.capabilities(obs)),
+            rep=rep,
+            types=obs[..., 4 : 4 + self.layout.n_types],
+            e=e,
+            q=sa.step_query(e),
+            k=k,
+            v=v,
+            self_cache=KVCache(),
+            cross_cache=KVCache(),
+            cross_q=self.cross_attn.step_query(rep),
+            caps=self.heads.partial(self.layout.capabilities(obs)),
         )
 
     def decode_step(self, st: _Decoding, m: int, token):
@@ -296,7 +332,7 @@ class Comat(AutoregressivePolicy):
         for name in names:
             if name.startswith("heads."):
                 heads = self.heads.acting_arrays() if heads is None else heads
-                out[name] = heads[name[len("heads."):]]
+                out[name] = heads[name[len("heads.") :]]
                 continue
             # The modules' own dicts: this runs on every compiled call, and nn.Module's attribute
             # lookup (get_parameter) costs several times more per name.
@@ -315,20 +351,40 @@ class Comat(AutoregressivePolicy):
     @torch.no_grad()
     def encode_compiled(self, obs, mask):
         arrays = self.weight_tensors(encoder_shapes(self.weights_config, critic=True))
-        node_ws, mats, vecs, flags = comat_encode_args({n: numpy_view(t) for n, t in arrays.items()},
-                                                       self.weights_config)
-        rep, values = comat_encode(node_ws, mats, vecs, numpy_view(obs), mask.contiguous().numpy(), self.config.heads,
-                                   self.layout.n_types, *flags)
+        node_ws, mats, vecs, flags = comat_encode_args(
+            {n: numpy_view(t) for n, t in arrays.items()}, self.weights_config
+        )
+        rep, values = comat_encode(
+            node_ws,
+            mats,
+            vecs,
+            numpy_view(obs),
+            mask.contiguous().numpy(),
+            self.config.heads,
+            self.layout.n_types,
+            *flags,
+        )
         return torch.from_numpy(rep), torch.from_numpy(values)
 
     @torch.no_grad()
     def decode_compiled(self, rep, obs, mask, noise):
         arrays = self.weight_tensors(decoder_shapes(self.weights_config))
-        mats, vecs, shared_hidden = comat_decode_args({n: numpy_view(t) for n, t in arrays.items()},
-                                                      self.weights_config)
+        mats, vecs, shared_hidden = comat_decode_args(
+            {n: numpy_view(t) for n, t in arrays.items()}, self.weights_config
+        )
         noise_np, mask_np = self._compiled_inputs(noise, mask)
-        actions, logits = comat_decode(mats, vecs, numpy_view(rep), numpy_view(obs), mask_np, noise_np,
-                                       noise is None, self.config.heads, self.layout.n_types, shared_hidden)
+        actions, logits = comat_decode(
+            mats,
+            vecs,
+            numpy_view(rep),
+            numpy_view(obs),
+            mask_np,
+            noise_np,
+            noise is None,
+            self.config.heads,
+            self.layout.n_types,
+            shared_hidden,
+        )
         return torch.from_numpy(actions), torch.from_numpy(logits)
 
 

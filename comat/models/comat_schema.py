@@ -89,13 +89,23 @@ CONFIG_KEYS = ("obs_dim", "n_types", "n_caps", "embed", "heads", "heat_blocks", 
 def weights_config(layout, config) -> dict:
     """The config of :data:`CONFIG_KEYS` of a COMAT built for ``layout`` (an ``ObsLayout``) and
     ``config`` (a ``ComatConfig``); both are read by attribute only."""
-    return normalize_config({
-        "obs_dim": layout.obs_dim, "n_types": layout.n_types, "n_caps": layout.n_caps,
-        "embed": config.embed, "heads": config.heads, "heat_blocks": config.heat_blocks,
-        "edge_embed": config.edge_embed, "root_weight": config.root_weight, "obs_embed": config.obs_embed,
-        "node_ffn": config.node_ffn, "reference_messages": config.heat_form == "reference",
-        "world_edges": config.edge_frame == "world", "decision": config.decision,
-    })
+    return normalize_config(
+        {
+            "obs_dim": layout.obs_dim,
+            "n_types": layout.n_types,
+            "n_caps": layout.n_caps,
+            "embed": config.embed,
+            "heads": config.heads,
+            "heat_blocks": config.heat_blocks,
+            "edge_embed": config.edge_embed,
+            "root_weight": config.root_weight,
+            "obs_embed": config.obs_embed,
+            "node_ffn": config.node_ffn,
+            "reference_messages": config.heat_form == "reference",
+            "world_edges": config.edge_frame == "world",
+            "decision": config.decision,
+        }
+    )
 
 
 def normalize_config(config: Mapping) -> dict:
@@ -116,15 +126,20 @@ def _key(config: Mapping) -> tuple:
     return tuple((k, config[k]) for k in CONFIG_KEYS)
 
 
-def decision_shapes(mode, d_in: int, hidden: int, d_out: int, n_types: int,
-                    trained: bool = False) -> dict[str, tuple[int, ...]]:
+def decision_shapes(
+    mode, d_in: int, hidden: int, d_out: int, n_types: int, trained: bool = False
+) -> dict[str, tuple[int, ...]]:
     """Shapes of the decision layer's arrays (names relative to it): ``first.weight``
     (T·H or H, in), ``first.bias``, ``w2`` (T, H, out), ``b2`` (T, out); ``trained`` with
     ``adapters``: also ``w2_shared`` (H, out) and ``b2_shared`` (out,)."""
     mode = DecisionMode(mode)
     width = hidden if mode.shared_hidden else n_types * hidden
-    shapes = {"first.weight": (width, d_in), "first.bias": (width,),
-              "w2": (n_types, hidden, d_out), "b2": (n_types, d_out)}
+    shapes = {
+        "first.weight": (width, d_in),
+        "first.bias": (width,),
+        "w2": (n_types, hidden, d_out),
+        "b2": (n_types, d_out),
+    }
     if trained and mode.adapters:
         shapes.update({"w2_shared": (hidden, d_out), "b2_shared": (d_out,)})
     return shapes
@@ -137,28 +152,50 @@ def _encoder(key: tuple, critic: bool) -> dict[str, tuple[int, ...]]:
     de = cfg["edge_embed"]
     shapes: dict[str, tuple[int, ...]] = {}
     if cfg["obs_embed"]:
-        shapes.update({"obs_encoder.0.weight": (D,), "obs_encoder.0.bias": (D,),
-                       "obs_encoder.1.weight": (E, D), "obs_encoder.1.bias": (E,)})
+        shapes.update(
+            {
+                "obs_encoder.0.weight": (D,),
+                "obs_encoder.0.bias": (D,),
+                "obs_encoder.1.weight": (E, D),
+                "obs_encoder.1.bias": (E,),
+            }
+        )
     for k in range(cfg["heat_blocks"]):
         p = f"heat.{k}."
         for t in range(T):
             shapes[f"{p}node.{t}.weight"] = (E, D if k == 0 and not cfg["obs_embed"] else E)
-        shapes.update({
-            f"{p}edge_attr.weight": (de, 5), f"{p}edge_type.weight": (T * T, de),
-            f"{p}att_i.weight": (K, E), f"{p}att_attr.weight": (K, de),
-            f"{p}att_type.weight": (K, de), f"{p}att_j.weight": (K, E),
-            f"{p}msg_attr.weight": (E, de), f"{p}msg_type.weight": (E, de), f"{p}msg_j.weight": (E, E),
-            f"heat_norm.{k}.weight": (E,), f"heat_norm.{k}.bias": (E,),
-        })
+        shapes.update(
+            {
+                f"{p}edge_attr.weight": (de, 5),
+                f"{p}edge_type.weight": (T * T, de),
+                f"{p}att_i.weight": (K, E),
+                f"{p}att_attr.weight": (K, de),
+                f"{p}att_type.weight": (K, de),
+                f"{p}att_j.weight": (K, E),
+                f"{p}msg_attr.weight": (E, de),
+                f"{p}msg_type.weight": (E, de),
+                f"{p}msg_j.weight": (E, E),
+                f"heat_norm.{k}.weight": (E,),
+                f"heat_norm.{k}.bias": (E,),
+            }
+        )
         if cfg["reference_messages"]:
             shapes[f"{p}msg_out.weight"] = (E, E)
         if cfg["node_ffn"]:
-            shapes.update({f"node_ffn.{k}.0.weight": (E, E), f"node_ffn.{k}.0.bias": (E,),
-                           f"node_ffn.{k}.2.weight": (E, E), f"node_ffn.{k}.2.bias": (E,),
-                           f"node_ffn_norm.{k}.weight": (E,), f"node_ffn_norm.{k}.bias": (E,)})
+            shapes.update(
+                {
+                    f"node_ffn.{k}.0.weight": (E, E),
+                    f"node_ffn.{k}.0.bias": (E,),
+                    f"node_ffn.{k}.2.weight": (E, E),
+                    f"node_ffn.{k}.2.bias": (E,),
+                    f"node_ffn_norm.{k}.weight": (E,),
+                    f"node_ffn_norm.{k}.bias": (E,),
+                }
+            )
     if critic:
-        shapes.update({"critic.0.weight": (E, E), "critic.0.bias": (E,), "critic.2.weight": (1, E),
-                       "critic.2.bias": (1,)})
+        shapes.update(
+            {"critic.0.weight": (E, E), "critic.0.bias": (E,), "critic.2.weight": (1, E), "critic.2.bias": (1,)}
+        )
     return shapes
 
 
@@ -168,15 +205,22 @@ def _decoder(key: tuple, trained: bool) -> dict[str, tuple[int, ...]]:
     T, C, E, A = cfg["n_types"], cfg["n_caps"], cfg["embed"], N_ACTIONS
     shapes: dict[str, tuple[int, ...]] = {"token.0.weight": (E, A + 1)}
     for att in ("self_attn", "cross_attn"):
-        shapes.update({
-            f"{att}.q.weight": (E, E), f"{att}.q.bias": (E,), f"{att}.kv.weight": (2 * E, E),
-            f"{att}.kv.bias": (2 * E,), f"{att}.o.weight": (E, E), f"{att}.o.bias": (E,),
-        })
+        shapes.update(
+            {
+                f"{att}.q.weight": (E, E),
+                f"{att}.q.bias": (E,),
+                f"{att}.kv.weight": (2 * E, E),
+                f"{att}.kv.bias": (2 * E,),
+                f"{att}.o.weight": (E, E),
+                f"{att}.o.bias": (E,),
+            }
+        )
     for name in ("ln1", "ln2", "ln3", "ln4"):
         shapes.update({f"{name}.weight": (E,), f"{name}.bias": (E,)})
     for name in ("fc", "fc2"):
-        shapes.update({f"{name}.0.weight": (E, E), f"{name}.0.bias": (E,),
-                       f"{name}.2.weight": (E, E), f"{name}.2.bias": (E,)})
+        shapes.update(
+            {f"{name}.0.weight": (E, E), f"{name}.0.bias": (E,), f"{name}.2.weight": (E, E), f"{name}.2.bias": (E,)}
+        )
     heads = decision_shapes(cfg["decision"], E + C, E, A, T, trained=trained)
     shapes.update({f"heads.{n}": s for n, s in heads.items()})
     return shapes

@@ -43,8 +43,9 @@ class ObsLayout:
         return cls(task.obs_size(), len(task.types), len(task.capabilities))
 
 
-def edge_features(obs: torch.Tensor, mask: torch.Tensor, layout: ObsLayout,
-                  world: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def edge_features(
+    obs: torch.Tensor, mask: torch.Tensor, layout: ObsLayout, world: bool = False
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Dense team graph with self-loops, from observations.
 
     Returns:

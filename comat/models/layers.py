@@ -150,8 +150,15 @@ class TypeHeads(nn.Module):
     gradients say.
     """
 
-    def __init__(self, d_in: int, hidden: int, d_out: int, n_types: int, out_gain: float = 0.01,
-                 mode: DecisionMode | str = DecisionMode.TYPE_HEADS) -> None:
+    def __init__(
+        self,
+        d_in: int,
+        hidden: int,
+        d_out: int,
+        n_types: int,
+        out_gain: float = 0.01,
+        mode: DecisionMode | str = DecisionMode.TYPE_HEADS,
+    ) -> None:
         super().__init__()
         self.mode = DecisionMode(mode)
         self.n_types, self.hidden = n_types, hidden

@@ -42,8 +42,9 @@ class Mappo(nn.Module):
 
     n_actions = 5
 
-    def __init__(self, layout: ObsLayout, state_dim: int, config: MappoConfig | None = None,
-                 critic: bool = True) -> None:
+    def __init__(
+        self, layout: ObsLayout, state_dim: int, config: MappoConfig | None = None, critic: bool = True
+    ) -> None:
         super().__init__()
         cfg = config or MappoConfig()
         self.layout, self.config = layout, cfg
@@ -56,8 +57,10 @@ class Mappo(nn.Module):
 
     def values(self, obs, mask, state):
         if self.critic is None:
-            raise ValueError("this MAPPO has no critic (loaded from a policy file, which keeps the actors only): "
-                             "its values need the run's checkpoint.pt")
+            raise ValueError(
+                "this MAPPO has no critic (loaded from a policy file, which keeps the actors only): "
+                "its values need the run's checkpoint.pt"
+            )
         if state is None:
             raise ValueError("MAPPO's critic needs the global state (env.state())")
         s = state[:, None, :].expand(-1, obs.shape[1], -1)

@@ -41,8 +41,9 @@ class MatConfig:
     def __post_init__(self) -> None:
         check_numbers(self, "models.mat", at_least_one=("embed", "heads", "blocks", "max_robots"))
         if self.embed % self.heads:
-            raise ValueError(f"models.mat.embed must be divisible by models.mat.heads, got embed {self.embed}, "
-                             f"heads {self.heads}")
+            raise ValueError(
+                f"models.mat.embed must be divisible by models.mat.heads, got embed {self.embed}, heads {self.heads}"
+            )
 
 
 class _EncodeBlock(nn.Module):
@@ -84,10 +85,14 @@ class Mat(AutoregressivePolicy):
         cfg = config or MatConfig()
         self.layout, self.config = layout, cfg
         E = cfg.embed
-        self.obs_encoder = nn.Sequential(nn.LayerNorm(layout.obs_dim), init_linear(nn.Linear(layout.obs_dim, E)), nn.GELU())
+        self.obs_encoder = nn.Sequential(
+            nn.LayerNorm(layout.obs_dim), init_linear(nn.Linear(layout.obs_dim, E)), nn.GELU()
+        )
         self.enc_ln = nn.LayerNorm(E)
         self.encoder = nn.ModuleList(_EncodeBlock(E, cfg.heads) for _ in range(cfg.blocks))
-        self.value_head = nn.Sequential(init_linear(nn.Linear(E, E)), nn.GELU(), nn.LayerNorm(E), init_linear(nn.Linear(E, 1)))
+        self.value_head = nn.Sequential(
+            init_linear(nn.Linear(E, E)), nn.GELU(), nn.LayerNorm(E), init_linear(nn.Linear(E, 1))
+        )
         self.action_encoder = nn.Sequential(init_linear(nn.Linear(self.n_actions + 1, E, bias=False)), nn.GELU())
         self.dec_ln = nn.LayerNorm(E)
         self.decoder = nn.ModuleList(_DecodeBlock(E, cfg.heads) for _ in range(cfg.blocks))
@@ -135,9 +140,15 @@ class Mat(AutoregressivePolicy):
         linears += [self.head[0], self.head[3]]
         vecs += [self.head[0].bias, self.head[3].bias, self.head[2].weight, self.head[2].bias]
         noise_np, mask_np = self._compiled_inputs(noise, mask)
-        actions, logits = mat_decode(tuple(numpy_view(layer.weight) for layer in linears),
-                                     tuple(numpy_view(p) for p in vecs), numpy_view(rep), mask_np, noise_np,
-                                     noise is None, self.config.heads)
+        actions, logits = mat_decode(
+            tuple(numpy_view(layer.weight) for layer in linears),
+            tuple(numpy_view(p) for p in vecs),
+            numpy_view(rep),
+            mask_np,
+            noise_np,
+            noise is None,
+            self.config.heads,
+        )
         return torch.from_numpy(actions), torch.from_numpy(logits)
 
     def decode_step(self, state, m: int, token):

@@ -80,16 +80,18 @@ class RealityConfig:
     # made from these declarations). Its docstring says what it is and why it has those values.
 
     # -- pose path (true poses -> what controller, filter and policy see) -------------------------
-    pose_delay_ticks: int | None = _field(0, 0, 1, "derived",
-                                          "Vicon->MQTT every 33 ms, no timestamps (§1.1-1.2, §6 #1)")
+    pose_delay_ticks: int | None = _field(
+        0, 0, 1, "derived", "Vicon->MQTT every 33 ms, no timestamps (§1.1-1.2, §6 #1)"
+    )
     """Minimum measurement delay (ticks): the tracker publishes every 33 ms over MQTT, without
     timestamps (§1.2, §6 #1)."""
     pose_delay_spread_ticks: int | None = _field(0, 2, 2, "derived", "{0,1,2} ticks P .25/.5/.25 (§6 #1)")
     """Extra delay per episode ~ Binomial(spread, 1/2) ticks on top of the minimum: spread 2 gives
     {0, 1, 2} with P .25/.5/.25 (§6 #1), common to the team (one message carries every pose) unless
     ``pose_per_robot``."""
-    pose_delay_jitter_prob: float | None = _field(0.0, 0.2, 0.4, "assumed",
-                                                  "two unsynchronised 33 ms clocks, no timestamps (§1.1)")
+    pose_delay_jitter_prob: float | None = _field(
+        0.0, 0.2, 0.4, "assumed", "two unsynchronised 33 ms clocks, no timestamps (§1.1)"
+    )
     """Per tick, probability that this tick's message is one tick older than the episode's delay
     (two unsynchronised 33 ms clocks, the tracker's and the script's, beat between k and k + 1
     ticks; no timestamps to tell). Common to the team (§1.1)."""
@@ -97,20 +99,21 @@ class RealityConfig:
     """Per tick probability that the measurement is not refreshed (the last measured pose repeats;
     mjlab-style hold): common to the team (a message that did not come repeats every pose) unless
     ``pose_per_robot`` (§6 #1)."""
-    pose_per_robot: bool | None = _field(False, False, False, "measured",
-                                         "structure: one MQTT message with every pose (§1.1)")
+    pose_per_robot: bool | None = _field(
+        False, False, False, "measured", "structure: one MQTT message with every pose (§1.1)"
+    )
     """True: each robot's pose delay, jitter and holds are its own (the structure of the results
     committed before 2026-12-06). False (every level): common to the team, as the testbed's one
     message per tick with every pose. Structure only: it switches nothing on."""
     pose_noise_xy_m: float | None = _field(0.0, 0.001, 0.005, "assumed", "Vicon class (§1.4, §6 #8)")
     """SD of Gaussian position noise per axis per tick (m); nominal is of the Vicon class (§1.4,
     §6 #8)."""
-    pose_noise_theta_rad: float | None = _field(0.0, 0.01, 0.05, "assumed",
-                                                "§6 #8; V2 orientation 0.31° measured")
+    pose_noise_theta_rad: float | None = _field(0.0, 0.01, 0.05, "assumed", "§6 #8; V2 orientation 0.31° measured")
     """SD of Gaussian heading noise per tick (rad) (§6 #8; the V2 simulator's onboard orientation
     noise is 0.31° = 0.0054 rad, measured)."""
-    pose_bias_xy_m: float | None = _field(0.0, 0.0005, 0.0025, "assumed",
-                                          "nominal §6 #8; stress = camera 2.5 mm/px, derived (§1.4)")
+    pose_bias_xy_m: float | None = _field(
+        0.0, 0.0005, 0.0025, "assumed", "nominal §6 #8; stress = camera 2.5 mm/px, derived (§1.4)"
+    )
     """SD of a per-robot, per-episode position offset per axis (m): nominal assumed (§6 #8);
     stress derived, the older camera tracker's 2.5 mm per pixel (§1.4)."""
     pose_freeze_prob: float | None = _field(0.0, 0.002, 0.02, "assumed", "§6 #9")
@@ -118,14 +121,14 @@ class RealityConfig:
     run of ticks) (§6 #9)."""
     pose_freeze_mean_ticks: float | None = _field(3.0, 3.0, 10.0, "assumed", "§6 #9")
     """Mean length of a freeze (geometric, ticks >= 1) (§6 #9)."""
-    pose_freeze_max_ticks: int | None = _field(150, 150, 30, "measured",
-                                               "tracker timeout 5000 ms (§1.1); stress 30 assumed (§6 #9)")
+    pose_freeze_max_ticks: int | None = _field(
+        150, 150, 30, "measured", "tracker timeout 5000 ms (§1.1); stress 30 assumed (§6 #9)"
+    )
     """Longest freeze (ticks): nominal the tracker's, which drops a marker after 5000 ms
     (vicon_tracker ``timeout_millis``, §1.1); stress the proposal's "bursts up to 30" (§6 #9)."""
 
     # -- command path (filtered command -> what reaches the robot) --------------------------------
-    command_delay_ticks: int | None = _field(0, 0, 1, "derived",
-                                             "Pi poll + ISR + execute-then-sense (§1.2, §6 #2)")
+    command_delay_ticks: int | None = _field(0, 0, 1, "derived", "Pi poll + ISR + execute-then-sense (§1.2, §6 #2)")
     """Minimum command delay (ticks): the Pi's 16 ms poll + the ISR's 10 ms + execute-then-sense
     10 ms (§1.2, §6 #2)."""
     command_delay_spread_ticks: int | None = _field(0, 1, 1, "derived", "{0,1} / {1,2} ticks (§6 #2)")
@@ -137,49 +140,49 @@ class RealityConfig:
     command_loss_mean_ticks: float | None = _field(1.0, 1.0, 5.0, "assumed", "§6 #10 (stress: bursts)")
     """Mean length of a run of losses (geometric, ticks >= 1); stress has bursts (§6 #10)."""
     script_miss_prob: float | None = _field(
-        0.0, 0.002, 0.02, "derived", "the deployed loop's measured compute time (§6 #11); server speed assumed")
+        0.0, 0.002, 0.02, "derived", "the deployed loop's measured compute time (§6 #11); server speed assumed"
+    )
     """Per tick probability that the script's iteration overruns the 0.033 s tick (a long QP, the
     policy's inference at a step boundary): that tick no command goes out to any robot of the team
     (each keeps its last; it counts toward the brake) and the pose it reads next is one tick
     staler (a hold). Derived from the deployed loop's measured compute time (docs/reality.md)
     with the server's speed assumed."""
-    script_stall_prob: float | None = _field(0.0, 0.0, 0.001, "assumed",
-                                             "stalls and interrupts of the user's script (§1.1, §6 #11)")
+    script_stall_prob: float | None = _field(
+        0.0, 0.0, 0.001, "assumed", "stalls and interrupts of the user's script (§1.1, §6 #11)"
+    )
     """Per tick probability that the script stalls (garbage collection, I/O, the server's load):
     no command to any robot of the team for a run of ticks; a run past the brake time stops every
     robot (§1.1; CASH's server logs end in interrupts)."""
-    script_stall_mean_ticks: float | None = _field(10.0, 10.0, 10.0, "assumed",
-                                                   "shorter than the brake (§6 #11)")
+    script_stall_mean_ticks: float | None = _field(10.0, 10.0, 10.0, "assumed", "shorter than the brake (§6 #11)")
     """Mean length of a stall (geometric, ticks >= 1; 10 ticks = 0.33 s)."""
-    command_brake_after_s: float | None = _field(0.5, 0.5, 0.5, "measured",
-                                                 "GTernal communicationCheck(500) (§1.1)")
+    command_brake_after_s: float | None = _field(0.5, 0.5, 0.5, "measured", "GTernal communicationCheck(500) (§1.1)")
     """A robot without a command for this long brakes (v = ω = 0) until one arrives: it brakes
     from the tick during which the timeout expires (15 lost ticks at 0.5 s). The GTernal firmware's
     ``communicationCheck(500)`` (§1.1)."""
 
     # -- motors (wheel speeds the robot asks for -> wheel speeds it gets) -------------------------
-    motor_tau_min_s: float | None = _field(0.0, 0.04, 0.08, "derived",
-                                           "firmware PI + slew toy model (§1.2, §6 #3)")
+    motor_tau_min_s: float | None = _field(0.0, 0.04, 0.08, "derived", "firmware PI + slew toy model (§1.2, §6 #3)")
     """First-order wheel-speed lag: time constant per wheel and episode ~ U(min, max) (s); 0 =
     no lag. Derived from the firmware's PI loop and slew (a toy model: 60–80 ms to 63 %, §1.2,
     §6 #3)."""
-    motor_tau_max_s: float | None = _field(0.0, 0.08, 0.12, "derived",
-                                           "firmware PI + slew toy model (§1.2, §6 #3)")
+    motor_tau_max_s: float | None = _field(0.0, 0.08, 0.12, "derived", "firmware PI + slew toy model (§1.2, §6 #3)")
     """Upper end of the lag's time constant (s); see ``motor_tau_min_s``."""
-    motor_accel_limit_radps2: float | None = _field(0.0, 200.0, 200.0, "derived",
-                                                    "PWM slew 50/255 per 10 ms (§1.1, §6 #3)")
+    motor_accel_limit_radps2: float | None = _field(
+        0.0, 200.0, 200.0, "derived", "PWM slew 50/255 per 10 ms (§1.1, §6 #3)"
+    )
     """Largest change of a wheel's speed (rad/s per s); 0 = no limit. The firmware's PWM slew of
     50/255 per 10 ms: 12.5 rad/s in ~60 ms (§1.1, §6 #3)."""
     motor_dead_zone_radps: float | None = _field(
-        0.0, 1.9, 3.0, "derived", "guide minimum speed 0.03 m/s (§1.1, §6 #4); stress assumed")
+        0.0, 1.9, 3.0, "derived", "guide minimum speed 0.03 m/s (§1.1, §6 #4); stress assumed"
+    )
     """A wheel asked for less than this speed (rad/s) does not turn. Nominal: 0.03 m/s at the
     rim, the user guide's minimum speed (§1.1, §6 #4); stress assumed."""
-    wheel_gain_spread: float | None = _field(0.0, 0.03, 0.07, "assumed",
-                                             "guide Fig. 13 curved open-loop path (§6 #5)")
+    wheel_gain_spread: float | None = _field(0.0, 0.03, 0.07, "assumed", "guide Fig. 13 curved open-loop path (§6 #5)")
     """Per wheel and episode, speed gain ~ U(1 - spread, 1 + spread) (radius, calibration):
     a straight command drives a curve, as in the user guide's Fig. 13 (§6 #5)."""
-    top_speed_derate_min: float | None = _field(1.0, 0.9, 0.75, "assumed",
-                                                "battery thresholds, PID saturation (§1.1, §6 #6)")
+    top_speed_derate_min: float | None = _field(
+        1.0, 0.9, 0.75, "assumed", "battery thresholds, PID saturation (§1.1, §6 #6)"
+    )
     """Per robot and episode, the reachable wheel speed is 12.5 rad/s × U(min, 1) (battery,
     wear); 1 = none (the firmware's battery thresholds, PID saturation: §1.1, §6 #6)."""
     wheel_disturbance_radps: float | None = _field(0.0, 0.5, 2.0, "assumed", "§6 #7")
@@ -188,18 +191,19 @@ class RealityConfig:
     wheel_disturbance_corr_s: float | None = _field(0.2, 0.2, 0.2, "assumed", "§6 #7")
     """Correlation time of that disturbance (s) (§6 #7)."""
     wheel_disturbance_bound_radps: float | None = _field(
-        5.0, 5.0, 5.0, "measured", "robust barrier disturbance=5 rad/s, a design bound (§1.1)")
+        5.0, 5.0, 5.0, "measured", "robust barrier disturbance=5 rad/s, a design bound (§1.1)"
+    )
     """The disturbance is clipped to ± this (rad/s): measured as a design bound (the Robotarium's
     robust barrier, ``disturbance=5``, §1.1, §6 #7)."""
 
     # -- faults -----------------------------------------------------------------------------------
-    fault_prob: float | None = _field(0.0, 0.0, 0.0, "assumed",
-                                      "opt-in; CASH-MARBLER motor_failure (§2.3, §6 #6)")
+    fault_prob: float | None = _field(0.0, 0.0, 0.0, "assumed", "opt-in; CASH-MARBLER motor_failure (§2.3, §6 #6)")
     """Probability that an episode has one faulty robot (drawn uniformly from the team). 0 at
     every level: faults change the team under the policy, an experiment of its own (set it to
     1 to run CASH-MARBLER's ``motor_failure``, §2.3)."""
-    fault_speed_fraction: float | None = _field(0.25, 0.25, 0.25, "measured",
-                                                "CASH-MARBLER motor_failure setting (§2.3)")
+    fault_speed_fraction: float | None = _field(
+        0.25, 0.25, 0.25, "measured", "CASH-MARBLER motor_failure setting (§2.3)"
+    )
     """The faulty robot's wheels turn at this fraction of their speed from the fault on (0 =
     the motors fail): CASH-MARBLER's ``motor_failure`` setting (§2.3)."""
     fault_start_min_s: float | None = _field(0.0, 0.0, 0.0, "assumed", "comat's choice (§6 #6)")
@@ -213,28 +217,29 @@ class RealityConfig:
     factor); the env decides what a capability vector says."""
 
     # -- start ------------------------------------------------------------------------------------
-    start_xy_m: float | None = _field(0.0, 0.05, 0.05, "measured",
-                                      "V2 initializer at_pose radial tolerance (§1.3, §6 #12)")
+    start_xy_m: float | None = _field(
+        0.0, 0.05, 0.05, "measured", "V2 initializer at_pose radial tolerance (§1.3, §6 #12)"
+    )
     """A robot starts up to this far from its requested position (uniform in the disc of this
     radius, m: the start-up drive's radial tolerance, the V2 initializer's ``at_pose``, a norm,
     §1.3, §6 #12)."""
-    start_theta_rad: float | None = _field(0.0, 0.2, 0.2, "measured",
-                                           "V2 initializer at_pose tolerance (§1.3, §6 #12)")
+    start_theta_rad: float | None = _field(0.0, 0.2, 0.2, "measured", "V2 initializer at_pose tolerance (§1.3, §6 #12)")
     """Heading start error, uniform ± this (rad): the V2 initializer's ``at_pose`` tolerance (§1.3)."""
 
     # -- physics (wheels tier only: the unicycle tier has no contacts or masses to vary) ----------
-    floor_friction_min: float | None = _field(0.0, 0.6, 0.4, "assumed",
-                                              "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)")
+    floor_friction_min: float | None = _field(
+        0.0, 0.6, 0.4, "assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"
+    )
     """Per robot and episode, the friction between its wheels and the floor ~ U(min, max) (the
     model's own is 1.5); max 0 = unchanged. MuJoCo Playground's, legged_gym's and Isaac Lab's
     ranges scaled to a 0.1 kg robot (§3.8, §6 #13)."""
-    floor_friction_max: float | None = _field(0.0, 1.5, 1.5, "assumed",
-                                              "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)")
+    floor_friction_max: float | None = _field(
+        0.0, 1.5, 1.5, "assumed", "peers' ranges scaled to a 0.1 kg robot (§3.8, §6 #13)"
+    )
     """Upper end of the floor friction (see ``floor_friction_min``)."""
     chassis_mass_spread: float | None = _field(0.0, 0.1, 0.1, "assumed", "peers' ×U(0.9, 1.1) (§3.8, §6 #13)")
     """Per robot and episode, the chassis mass × U(1 - spread, 1 + spread) (§6 #13)."""
-    com_offset_m: float | None = _field(0.0, 0.005, 0.005, "assumed",
-                                        "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)")
+    com_offset_m: float | None = _field(0.0, 0.005, 0.005, "assumed", "peers' ±5 cm scaled to a 0.11 m robot (§6 #13)")
     """Per robot and episode, the chassis centre of mass moves U(-c, c) along x and y (m) (§6 #13)."""
 
     def __post_init__(self) -> None:
@@ -280,18 +285,56 @@ class RealityConfig:
         return "custom" if self.overrides() else self.level
 
 
-_INT_FIELDS = ("pose_delay_ticks", "pose_delay_spread_ticks", "pose_freeze_max_ticks", "command_delay_ticks",
-               "command_delay_spread_ticks")
-_PROB_FIELDS = ("pose_hold_prob", "pose_delay_jitter_prob", "pose_freeze_prob", "command_loss_prob", "script_miss_prob",
-                "script_stall_prob", "fault_prob", "fault_speed_fraction")
-_NONNEG_FIELDS = ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_bias_xy_m", "motor_tau_min_s", "motor_tau_max_s",
-                  "motor_accel_limit_radps2", "motor_dead_zone_radps", "wheel_disturbance_radps",
-                  "wheel_disturbance_bound_radps", "fault_start_min_s", "fault_start_max_s", "start_xy_m",
-                  "start_theta_rad", "floor_friction_min", "floor_friction_max", "com_offset_m")
+_INT_FIELDS = (
+    "pose_delay_ticks",
+    "pose_delay_spread_ticks",
+    "pose_freeze_max_ticks",
+    "command_delay_ticks",
+    "command_delay_spread_ticks",
+)
+_PROB_FIELDS = (
+    "pose_hold_prob",
+    "pose_delay_jitter_prob",
+    "pose_freeze_prob",
+    "command_loss_prob",
+    "script_miss_prob",
+    "script_stall_prob",
+    "fault_prob",
+    "fault_speed_fraction",
+)
+_NONNEG_FIELDS = (
+    "pose_noise_xy_m",
+    "pose_noise_theta_rad",
+    "pose_bias_xy_m",
+    "motor_tau_min_s",
+    "motor_tau_max_s",
+    "motor_accel_limit_radps2",
+    "motor_dead_zone_radps",
+    "wheel_disturbance_radps",
+    "wheel_disturbance_bound_radps",
+    "fault_start_min_s",
+    "fault_start_max_s",
+    "start_xy_m",
+    "start_theta_rad",
+    "floor_friction_min",
+    "floor_friction_max",
+    "com_offset_m",
+)
 _POSITIVE_FIELDS = ("command_brake_after_s", "wheel_disturbance_corr_s")
-_INERT = ("fault_speed_fraction", "fault_start_min_s", "fault_start_max_s", "fault_known", "pose_freeze_mean_ticks",
-          "pose_freeze_max_ticks", "command_loss_mean_ticks", "command_brake_after_s", "wheel_disturbance_corr_s",
-          "wheel_disturbance_bound_radps", "pose_per_robot", "script_stall_mean_ticks")
+_INERT = (
+    "fault_speed_fraction",
+    "fault_start_min_s",
+    "fault_start_max_s",
+    "fault_known",
+    "pose_freeze_mean_ticks",
+    "pose_freeze_max_ticks",
+    "command_loss_mean_ticks",
+    "command_brake_after_s",
+    "wheel_disturbance_corr_s",
+    "wheel_disturbance_bound_radps",
+    "pose_per_robot",
+    "script_stall_mean_ticks",
+)
 """Fields that shape a component without switching it on (a component is on through its
 probability, SD, delay or range). The upper ends of ranges are not among them: a lag drawn from
 [0, motor_tau_max_s] or a delay from [0, spread] ticks is on with its lower end at 0 (were they
@@ -308,9 +351,19 @@ def _check(c: RealityConfig) -> None:
         v = getattr(c, name)
         if isinstance(v, bool) or not isinstance(v, int) or v < 0:
             fail(name, "an integer >= 0 (ticks)")
-    for name in _PROB_FIELDS + _NONNEG_FIELDS + _POSITIVE_FIELDS + ("pose_freeze_mean_ticks", "command_loss_mean_ticks",
-                                                                      "wheel_gain_spread", "top_speed_derate_min",
-                                                                      "chassis_mass_spread", "script_stall_mean_ticks"):
+    for name in (
+        _PROB_FIELDS
+        + _NONNEG_FIELDS
+        + _POSITIVE_FIELDS
+        + (
+            "pose_freeze_mean_ticks",
+            "command_loss_mean_ticks",
+            "wheel_gain_spread",
+            "top_speed_derate_min",
+            "chassis_mass_spread",
+            "script_stall_mean_ticks",
+        )
+    ):
         v = getattr(c, name)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             fail(name, "a finite number")
@@ -386,7 +439,8 @@ def read_profile(path: str, name: str = "reality") -> dict[str, Any]:
     if not isinstance(data, dict) or not isinstance(data.get("reality"), dict):
         raise ValueError(  # noqa: TRY004 (a file of the wrong kind: a value error to the user)
             f"{name}: {path!r} is not a reality profile (a mapping with a 'reality' mapping of fields, "
-            "as comat calibrate writes)")
+            "as comat calibrate writes)"
+        )
     return dict(data["reality"])
 
 
@@ -404,14 +458,18 @@ def resolve_reality(value: Any, name: str = "reality") -> RealityConfig:
         return load(RealityConfig, read_profile(value, name), prefix=name)
     if isinstance(value, str):
         if value not in LEVELS:
-            raise ValueError(f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its "
-                             f"fields, got {value!r}")
+            raise ValueError(
+                f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its "
+                f"fields, got {value!r}"
+            )
         return RealityConfig(level=value)
     if isinstance(value, Mapping):
         fields = dict(value)
         return load(RealityConfig, fields, prefix=name)
-    raise TypeError(f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its fields, "
-                    f"got {type(value).__name__}")
+    raise TypeError(
+        f"{name} must be one of {list(REALITY_LEVELS)}, a RealityConfig or a mapping of its fields, "
+        f"got {type(value).__name__}"
+    )
 
 
 def field_docs() -> dict[str, str]:
@@ -421,7 +479,12 @@ def field_docs() -> dict[str, str]:
     body = tree.body[0].body
     docs = {}
     for node, after in itertools.pairwise(body):
-        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) and isinstance(after, ast.Expr)
-                and isinstance(after.value, ast.Constant) and isinstance(after.value.value, str)):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(node.target, ast.Name)
+            and isinstance(after, ast.Expr)
+            and isinstance(after.value, ast.Constant)
+            and isinstance(after.value.value, str)
+        ):
             docs[node.target.id] = " ".join(after.value.value.split())
     return docs

@@ -67,8 +67,25 @@ def _motor_wheel(wheel, r, i, dead_zone, gain, fault_scale, c, alpha, step, spee
 
 
 @_jit
-def motors_step(dxu, wheel_radius, half_length, length, dead_zone, gain, fault_scale, cap, alpha, step, speed,
-                noise, rho, kick, bound, noise_n, out):
+def motors_step(
+    dxu,
+    wheel_radius,
+    half_length,
+    length,
+    dead_zone,
+    gain,
+    fault_scale,
+    cap,
+    alpha,
+    step,
+    speed,
+    noise,
+    rho,
+    kick,
+    bound,
+    noise_n,
+    out,
+):
     """:func:`~comat.sim.kinematics.uni_to_diff`, :meth:`comat.reality.motors.Motors.update` and
     :func:`~comat.sim.kinematics.diff_to_uni` in one pass: unicycle commands (R, 2) in, executed
     ones into out (R, 2); wheel speeds ``speed`` and disturbance ``noise`` (R, 2) advanced in
@@ -76,10 +93,40 @@ def motors_step(dxu, wheel_radius, half_length, length, dead_zone, gain, fault_s
     for r in range(dxu.shape[0]):
         v, w = dxu[r, 0], dxu[r, 1]
         c = cap[r]
-        left = _motor_wheel((v - half_length * w) / wheel_radius, r, 0, dead_zone, gain, fault_scale, c, alpha, step,
-                            speed, noise, rho, kick, bound, noise_n)
-        right = _motor_wheel((v + half_length * w) / wheel_radius, r, 1, dead_zone, gain, fault_scale, c, alpha, step,
-                             speed, noise, rho, kick, bound, noise_n)
+        left = _motor_wheel(
+            (v - half_length * w) / wheel_radius,
+            r,
+            0,
+            dead_zone,
+            gain,
+            fault_scale,
+            c,
+            alpha,
+            step,
+            speed,
+            noise,
+            rho,
+            kick,
+            bound,
+            noise_n,
+        )
+        right = _motor_wheel(
+            (v + half_length * w) / wheel_radius,
+            r,
+            1,
+            dead_zone,
+            gain,
+            fault_scale,
+            c,
+            alpha,
+            step,
+            speed,
+            noise,
+            rho,
+            kick,
+            bound,
+            noise_n,
+        )
         out[r, 0] = wheel_radius * (left + right) / 2.0
         out[r, 1] = wheel_radius * (right - left) / length
 
@@ -130,7 +177,9 @@ def command_step(sent_now, ticks, delay, sent, last, lost_run, lost_left, loss_p
 
 
 @_jit
-def pose_step(true, ticks, history, delay, bias, scale, noise, measured, freeze_left, freeze_prob, hold_prob, u, starts):
+def pose_step(
+    true, ticks, history, delay, bias, scale, noise, measured, freeze_left, freeze_prob, hold_prob, u, starts
+):
     """:meth:`comat.reality.paths.PosePath.update` for true poses (R, 3): the ``history`` ring
     (R, L, 3), ``freeze_left`` and ``measured`` (R, 3) advanced in place (``noise`` (R, 3) or
     None), except the length of each freeze that starts this tick: returns k, the number of

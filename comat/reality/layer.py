@@ -40,7 +40,16 @@ _MOTOR = slice(0, 2)
 _POSE_N = slice(2, 5)
 # Per-episode stream offsets (tick = rr.EPISODE).
 _EP_POSE_DELAY, _EP_BIAS, _EP_POSE0, _EP_CMD_DELAY, _EP_MOTOR, _EP_MOTOR_N, _EP_FAULT, _EP_START, _EP_PHYSICS = (
-    100, 200, 250, 300, 400, 450, 500, 600, 700)
+    100,
+    200,
+    250,
+    300,
+    400,
+    450,
+    500,
+    600,
+    700,
+)
 # Per-tick team streams, drawn from each team's first robot (its key and its clock): the script's
 # timing (missed tick, stall start, stall length) and the pose message's jitter.
 _TEAM_STREAM = 20
@@ -64,13 +73,29 @@ class RealityLayer:
         self.config = config
         self.profile = profile
         self.seed = int(seed)
-        self.pose_on = any(getattr(config, k) for k in (
-            "pose_delay_ticks", "pose_delay_spread_ticks", "pose_hold_prob", "pose_noise_xy_m", "pose_noise_theta_rad",
-            "pose_bias_xy_m", "pose_freeze_prob", "pose_delay_jitter_prob"))
+        self.pose_on = any(
+            getattr(config, k)
+            for k in (
+                "pose_delay_ticks",
+                "pose_delay_spread_ticks",
+                "pose_hold_prob",
+                "pose_noise_xy_m",
+                "pose_noise_theta_rad",
+                "pose_bias_xy_m",
+                "pose_freeze_prob",
+                "pose_delay_jitter_prob",
+            )
+        )
         self.command_on = bool(config.command_delay_max_ticks or config.command_loss_prob)
-        self.motors_on = bool(config.motor_tau_max_s or config.motor_accel_limit_radps2 or config.motor_dead_zone_radps
-                              or config.wheel_gain_spread or config.top_speed_derate_min < 1
-                              or config.wheel_disturbance_radps or config.fault_prob)
+        self.motors_on = bool(
+            config.motor_tau_max_s
+            or config.motor_accel_limit_radps2
+            or config.motor_dead_zone_radps
+            or config.wheel_gain_spread
+            or config.top_speed_derate_min < 1
+            or config.wheel_disturbance_radps
+            or config.fault_prob
+        )
         self.physics_on = bool(config.floor_friction_max or config.chassis_mass_spread or config.com_offset_m)
         self.script_on = bool(config.script_miss_prob or config.script_stall_prob)
         """The script's own timing: ticks it misses (overruns) and stalls, common to a team."""
@@ -163,8 +188,10 @@ class RealityLayer:
         teams = np.asarray(teams, np.int64)
         if keys is None:
             seed = np.array([self.seed], np.uint64)
-            keys = [rr._mix(seed ^ rr._mix(np.array([(int(b) << 32) + int(self._episodes[b])], np.uint64)))[0]
-                    for b in teams]
+            keys = [
+                rr._mix(seed ^ rr._mix(np.array([(int(b) << 32) + int(self._episodes[b])], np.uint64)))[0]
+                for b in teams
+            ]
         self._episodes[teams] += 1
         rows_of = [np.arange(lay.offsets[b], lay.offsets[b + 1]) for b in teams]
         for b, key, rows in zip(teams, keys, rows_of):
@@ -182,8 +209,12 @@ class RealityLayer:
         self.stall_left[teams] = 0
         spread = max(c.command_delay_spread_ticks, 1)
         self.command.begin(rows, rr.uniforms(k, rr.EPISODE, spread, _EP_CMD_DELAY)[:, : c.command_delay_spread_ticks])
-        self.motors.begin(rows, rr.uniforms(k, rr.EPISODE, 5, _EP_MOTOR), rr.normals(k, rr.EPISODE, 2, _EP_MOTOR_N),
-                          self._fault_ticks(rows_of))
+        self.motors.begin(
+            rows,
+            rr.uniforms(k, rr.EPISODE, 5, _EP_MOTOR),
+            rr.normals(k, rr.EPISODE, 2, _EP_MOTOR_N),
+            self._fault_ticks(rows_of),
+        )
         if self.physics_on:
             u = rr.uniforms(k, rr.EPISODE, 4, _EP_PHYSICS)
             friction, mass, com = self._physics
@@ -218,8 +249,9 @@ class RealityLayer:
         c = self.config
         u = rr.uniforms(keys, rr.EPISODE, 3, _EP_START)
         radius, angle = c.start_xy_m * np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
-        out = poses + np.column_stack([radius * np.cos(angle), radius * np.sin(angle),
-                                       (2.0 * u[:, 2] - 1.0) * c.start_theta_rad])
+        out = poses + np.column_stack(
+            [radius * np.cos(angle), radius * np.sin(angle), (2.0 * u[:, 2] - 1.0) * c.start_theta_rad]
+        )
         out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
         r = self.profile.radius_m
         x0, x1, y0, y1 = C.ARENA_BOUNDS_M
@@ -248,15 +280,19 @@ class RealityLayer:
         self.stall_left -= stalled
         start = ~stalled & (u[:, _T_STALL] < c.script_stall_prob)
         if start.any():
-            self.stall_left[start] = run_lengths(u[start, _T_STALL_LEN], c.script_stall_mean_ticks,
-                                                 np.iinfo(np.int32).max) - 1
+            self.stall_left[start] = (
+                run_lengths(u[start, _T_STALL_LEN], c.script_stall_mean_ticks, np.iinfo(np.int32).max) - 1
+            )
         return stalled | start | (u[:, _T_MISS] < c.script_miss_prob)
 
     def begin_measuring(self, true: np.ndarray, teams: np.ndarray) -> None:
         """After the world placed the reset teams: their first measurement from true poses (R, 3)."""
         lay = self.layout
-        rows = np.concatenate([np.arange(lay.offsets[b], lay.offsets[b + 1]) for b in teams]) if len(teams) else \
-            np.zeros(0, np.int64)
+        rows = (
+            np.concatenate([np.arange(lay.offsets[b], lay.offsets[b + 1]) for b in teams])
+            if len(teams)
+            else np.zeros(0, np.int64)
+        )
         self._true = true
         if self.pose_on and rows.size:
             self.pose.history[rows] = true[rows][:, None, :]
@@ -326,7 +362,11 @@ class RealityLayer:
                 continue
             new_rows = slice(layout.offsets[b], layout.offsets[b + 1])
             old_rows = slice(old_layout.offsets[b], old_layout.offsets[b + 1])
-            self.keys[new_rows], self.ticks[new_rows], self._true[new_rows] = keys[old_rows], ticks[old_rows], true[old_rows]
+            self.keys[new_rows], self.ticks[new_rows], self._true[new_rows] = (
+                keys[old_rows],
+                ticks[old_rows],
+                true[old_rows],
+            )
             self.stall_left[b] = old_stall[b]
             self.stale.remap(new_rows, old_stale, old_rows)
             self._sent[new_rows] = old_sent[old_rows]

@@ -79,8 +79,15 @@ class PosePath:
             out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
         return out
 
-    def update(self, true: np.ndarray, ticks: np.ndarray, noise: np.ndarray, u: np.ndarray,
-               hold: np.ndarray | None = None, extra_delay: np.ndarray | None = None) -> None:
+    def update(
+        self,
+        true: np.ndarray,
+        ticks: np.ndarray,
+        noise: np.ndarray,
+        u: np.ndarray,
+        hold: np.ndarray | None = None,
+        extra_delay: np.ndarray | None = None,
+    ) -> None:
         """After a tick: record true poses (R, 3) at the robots' ticks (R,) (already advanced)
         and measure; ``noise`` (R, >= 3) normals (None: no noise), ``u`` (R, 3) uniforms (hold,
         freeze start, length). ``hold`` (R,) bool: the robots whose measurement is held this
@@ -95,8 +102,21 @@ class PosePath:
         delay = self.delay if extra_delay is None else self.delay + extra_delay
         if kernels.enabled():
             starts = np.empty(true.shape[0], np.int64)
-            k = rk.pose_step(true, ticks, self.history, delay, self.bias, self._scale, noise, self.measured,
-                                  self.freeze_left, c.pose_freeze_prob, hold_prob, u, starts)
+            k = rk.pose_step(
+                true,
+                ticks,
+                self.history,
+                delay,
+                self.bias,
+                self._scale,
+                noise,
+                self.measured,
+                self.freeze_left,
+                c.pose_freeze_prob,
+                hold_prob,
+                u,
+                starts,
+            )
             if k:  # a started freeze repeats the pose it holds now, so its length is only needed from the next tick
                 rows = starts[:k]
                 self.freeze_left[rows] = run_lengths(u[rows, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
@@ -113,7 +133,9 @@ class PosePath:
         if c.pose_freeze_prob > 0:
             start = ~frozen & (u[:, 1] < c.pose_freeze_prob)
             if start.any():
-                self.freeze_left[start] = run_lengths(u[start, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
+                self.freeze_left[start] = (
+                    run_lengths(u[start, 2], c.pose_freeze_mean_ticks, c.pose_freeze_max_ticks) - 1
+                )
                 frozen |= start
         if hold_prob > 0:
             frozen |= u[:, 0] < hold_prob
@@ -155,7 +177,9 @@ class CommandPath:
         self.lost_run[rows] = 0
         self.lost_left[rows] = 0
 
-    def update(self, sent: np.ndarray, ticks: np.ndarray, u: np.ndarray, missed: np.ndarray | None = None) -> np.ndarray:
+    def update(
+        self, sent: np.ndarray, ticks: np.ndarray, u: np.ndarray, missed: np.ndarray | None = None
+    ) -> np.ndarray:
         """Commands (R, 2) the robots execute this tick, given those sent now (R, 2) at the robots'
         ticks (R,) and uniforms (R, 2) (loss start, run length). ``missed`` (R,) bool: robots to
         which the script sent nothing this tick (its iteration overran or stalled): as a lost
@@ -164,8 +188,20 @@ class CommandPath:
         forced = missed is not None and bool(missed.any())
         if kernels.enabled() and not forced:
             starts, out = np.empty(sent.shape[0], np.int64), np.empty_like(sent)
-            k = rk.command_step(sent, ticks, self.delay, self.sent, self.last, self.lost_run, self.lost_left,
-                                     c.command_loss_prob, self.brake_after, u, starts, out)
+            k = rk.command_step(
+                sent,
+                ticks,
+                self.delay,
+                self.sent,
+                self.last,
+                self.lost_run,
+                self.lost_left,
+                c.command_loss_prob,
+                self.brake_after,
+                u,
+                starts,
+                out,
+            )
             if k:  # a started run's length only matters from the next tick on
                 rows = starts[:k]
                 self.lost_left[rows] = run_lengths(u[rows, 1], c.command_loss_mean_ticks, np.iinfo(np.int32).max) - 1

@@ -18,8 +18,19 @@ import numpy as np
 from comat import kernels
 from comat.reality import kernels as rk
 
-__all__ = ["EPISODE", "NORMAL_BOUND", "bits", "episode_key", "normal_table", "normals", "robot_keys", "tick_draws",
-           "to_normal", "to_uniform", "uniforms"]
+__all__ = [
+    "EPISODE",
+    "NORMAL_BOUND",
+    "bits",
+    "episode_key",
+    "normal_table",
+    "normals",
+    "robot_keys",
+    "tick_draws",
+    "to_normal",
+    "to_uniform",
+    "uniforms",
+]
 
 _M0 = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

@@ -24,8 +24,17 @@ from comat.rl.config import RunConfig
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
 
-__all__ = ["ACTING_MODULES", "BASELINE_ROBOTS", "Dims", "Learner", "build_modules", "env_slots", "make_learner",
-           "policy_act", "robot_slots"]
+__all__ = [
+    "ACTING_MODULES",
+    "BASELINE_ROBOTS",
+    "Dims",
+    "Learner",
+    "build_modules",
+    "env_slots",
+    "make_learner",
+    "policy_act",
+    "robot_slots",
+]
 
 BASELINE_ROBOTS = 8
 """Default robot slots of the fixed-size baselines (``max_robots`` of their model configs)."""
@@ -144,11 +153,11 @@ def make_learner(config, env, dims: Dims) -> Learner:
     modules = build_modules(config.algo, dims, config.model)
     device = None if config.device == "cpu" else config.device  # on the CPU the update trains in place
     if config.algo == "qmix":
-        trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, seed=config.seed,
-                              device=device)
+        trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, seed=config.seed, device=device)
     else:
-        trainer = PPOTrainer(modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo),
-                             device=device)
+        trainer = PPOTrainer(
+            modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo), device=device
+        )
     return Learner(config.algo, modules, trainer)
 
 
@@ -158,6 +167,14 @@ def make_run_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"
     ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
     safety = None if config.loop == "comat" else SafetyConfig(loop=config.loop)
-    return make_vec_env(config.env_id, num_envs, workers=min(config.env_workers, num_envs), seed=seed,
-                              sim=sim, coalitions=coalitions, reality=config.reality, safety=safety,
-                              **env_slots(config))
+    return make_vec_env(
+        config.env_id,
+        num_envs,
+        workers=min(config.env_workers, num_envs),
+        seed=seed,
+        sim=sim,
+        coalitions=coalitions,
+        reality=config.reality,
+        safety=safety,
+        **env_slots(config),
+    )

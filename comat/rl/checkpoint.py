@@ -44,8 +44,17 @@ import torch
 from comat._version import __version__
 from comat.models.comat import PAPER_FORM
 
-__all__ = ["POLICY_FORMAT", "CheckpointError", "load_checkpoint", "load_policy_file", "load_trained",
-           "save_checkpoint", "save_policy_file", "to_plain", "versions"]
+__all__ = [
+    "POLICY_FORMAT",
+    "CheckpointError",
+    "load_checkpoint",
+    "load_policy_file",
+    "load_trained",
+    "save_checkpoint",
+    "save_policy_file",
+    "to_plain",
+    "versions",
+]
 
 FORMAT = "comat-checkpoint"
 FORMAT_VERSION = 1
@@ -104,9 +113,14 @@ def source_commit(root: str | Path | None = None) -> str:
 
     def git(*args: str) -> str:
         # safe.directory: a checkout owned by another user (a shared or mounted tree) is still read
-        return subprocess.run(["git", "-c", f"safe.directory={root}", "-C", str(root), *args], capture_output=True,
-                              text=True, check=True, timeout=10, env={**os.environ, "GIT_OPTIONAL_LOCKS": "0"}
-                              ).stdout.strip()
+        return subprocess.run(
+            ["git", "-c", f"safe.directory={root}", "-C", str(root), *args],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+            env={**os.environ, "GIT_OPTIONAL_LOCKS": "0"},
+        ).stdout.strip()
 
     reason = "not a git checkout"
     try:
@@ -145,10 +159,16 @@ def versions() -> dict[str, str]:
     different kernels: recorded so that such a difference can be traced."""
     import mujoco
 
-
-    return {"comat": __version__, "commit": source_commit(), "torch": str(torch.__version__),
-            "mujoco": str(mujoco.__version__), "numpy": str(np.__version__), "python": platform.python_version(),
-            "torch_cpu": str(torch.backends.cpu.get_cpu_capability()), "cpu": cpu_model()}
+    return {
+        "comat": __version__,
+        "commit": source_commit(),
+        "torch": str(torch.__version__),
+        "mujoco": str(mujoco.__version__),
+        "numpy": str(np.__version__),
+        "python": platform.python_version(),
+        "torch_cpu": str(torch.backends.cpu.get_cpu_capability()),
+        "cpu": cpu_model(),
+    }
 
 
 def to_plain(obj: Any) -> Any:
@@ -165,15 +185,23 @@ def to_plain(obj: Any) -> Any:
     return obj
 
 
-def save_checkpoint(path: str | Path, *, algo: str, task: str, config: dict, progress: dict,
-                    trainer: dict, env_rngs: list[dict]) -> Path:
+def save_checkpoint(
+    path: str | Path, *, algo: str, task: str, config: dict, progress: dict, trainer: dict, env_rngs: list[dict]
+) -> Path:
     """Atomically write a checkpoint to ``path``; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {
-        "format": FORMAT, "format_version": FORMAT_VERSION, "algo": algo, "task": task,
-        "config": config, "versions": versions(), "progress": progress,
-        "trainer": to_plain(trainer), "env_rngs": env_rngs, "torch_rng": torch.get_rng_state(),
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "algo": algo,
+        "task": task,
+        "config": config,
+        "versions": versions(),
+        "progress": progress,
+        "trainer": to_plain(trainer),
+        "env_rngs": env_rngs,
+        "torch_rng": torch.get_rng_state(),
     }
     return _save(path, payload)
 
@@ -192,9 +220,18 @@ def _save(path: Path, payload: dict) -> Path:
     return path
 
 
-def save_policy_file(path: str | Path, *, algo: str, task: str, config: dict, dims: dict,
-                     weights: dict[str, dict[str, torch.Tensor]], env_steps: int, updates: int,
-                     trained_by: dict | None = None) -> Path:
+def save_policy_file(
+    path: str | Path,
+    *,
+    algo: str,
+    task: str,
+    config: dict,
+    dims: dict,
+    weights: dict[str, dict[str, torch.Tensor]],
+    env_steps: int,
+    updates: int,
+    trained_by: dict | None = None,
+) -> Path:
     """Atomically write a policy file (see the module docstring) to ``path``; returns the path.
 
     ``weights``: module name -> state dict, copied here into tensors of their own (a view would
@@ -202,13 +239,22 @@ def save_policy_file(path: str | Path, *, algo: str, task: str, config: dict, di
     versions of the code that trained the weights (default: this code's)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    plain = {name: {k: v.detach().to("cpu", copy=True).contiguous() for k, v in state.items()}
-             for name, state in weights.items()}
+    plain = {
+        name: {k: v.detach().to("cpu", copy=True).contiguous() for k, v in state.items()}
+        for name, state in weights.items()
+    }
     now = versions()
     payload = {
-        "format": POLICY_FORMAT, "format_version": POLICY_FORMAT_VERSION, "algo": algo, "task": task,
-        "config": config, "dims": dict(dims), "versions": dict(trained_by or now), "written_by": now,
-        "env_steps": int(env_steps), "updates": int(updates),
+        "format": POLICY_FORMAT,
+        "format_version": POLICY_FORMAT_VERSION,
+        "algo": algo,
+        "task": task,
+        "config": config,
+        "dims": dict(dims),
+        "versions": dict(trained_by or now),
+        "written_by": now,
+        "env_steps": int(env_steps),
+        "updates": int(updates),
         "parameters": sum(v.numel() for state in plain.values() for v in state.values() if v.is_floating_point()),
         "weights": plain,
     }
@@ -230,22 +276,31 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as err:  # torch raises several types (and paragraphs) for foreign files
-        raise CheckpointError(f"{noun} {str(path)!r} ({size} bytes) is corrupt or not a comat {noun}: "
-                              f"torch.load could not read it ({type(err).__name__})") from err
+        raise CheckpointError(
+            f"{noun} {str(path)!r} ({size} bytes) is corrupt or not a comat {noun}: "
+            f"torch.load could not read it ({type(err).__name__})"
+        ) from err
     kind = data.get("format") if isinstance(data, dict) else None
     if kind == POLICY_FORMAT and kind not in formats:
-        raise CheckpointError(f"{str(path)!r} is a comat policy file (the weights to act and their config; no "
-                              "optimizer, normalizers, critic or replay buffer): this needs the run's checkpoint.pt")
+        raise CheckpointError(
+            f"{str(path)!r} is a comat policy file (the weights to act and their config; no "
+            "optimizer, normalizers, critic or replay buffer): this needs the run's checkpoint.pt"
+        )
     if kind == FORMAT and kind not in formats:
-        raise CheckpointError(f"{str(path)!r} is a comat checkpoint, not a policy file; make its policy file with "
-                              f"`comat policy {path}`, or load it with load_checkpoint")
+        raise CheckpointError(
+            f"{str(path)!r} is a comat checkpoint, not a policy file; make its policy file with "
+            f"`comat policy {path}`, or load it with load_checkpoint"
+        )
     if kind not in formats:
-        raise CheckpointError(f"{str(path)!r} is not a comat {noun} (expected format "
-                              f"{' or '.join(repr(f) for f in formats)})")
+        raise CheckpointError(
+            f"{str(path)!r} is not a comat {noun} (expected format {' or '.join(repr(f) for f in formats)})"
+        )
     noun = _NOUN[kind]
     if data.get("format_version") != _VERSIONS[kind]:
-        raise CheckpointError(f"{noun} {str(path)!r} has format_version {data.get('format_version')!r}, "
-                              f"this comat reads {_VERSIONS[kind]}")
+        raise CheckpointError(
+            f"{noun} {str(path)!r} has format_version {data.get('format_version')!r}, "
+            f"this comat reads {_VERSIONS[kind]}"
+        )
     for key, want in (("algo", algo), ("task", task)):
         if want is not None and data.get(key) != want:
             raise CheckpointError(f"{noun} {str(path)!r} is for {key} {data.get(key)!r}, expected {want!r}")
@@ -259,11 +314,18 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
 def _check_policy(path: Path, data: dict) -> None:
     """The keys a policy file must hold, with the types acting reads."""
     where = f"policy file {str(path)!r}"
-    for key, kind in (("algo", str), ("task", str), ("config", dict), ("dims", dict), ("weights", dict),
-                      ("env_steps", int)):
+    for key, kind in (
+        ("algo", str),
+        ("task", str),
+        ("config", dict),
+        ("dims", dict),
+        ("weights", dict),
+        ("env_steps", int),
+    ):
         if not isinstance(data.get(key), kind):
-            raise CheckpointError(f"{where} lacks {key!r} (expected a {kind.__name__}, got "
-                                  f"{type(data.get(key)).__name__})")
+            raise CheckpointError(
+                f"{where} lacks {key!r} (expected a {kind.__name__}, got {type(data.get(key)).__name__})"
+            )
     missing = [k for k in _DIMS if not isinstance(data["dims"].get(k), int)]
     if missing:
         raise CheckpointError(f"{where}: dims lack {missing} (expected integers {list(_DIMS)})")

@@ -35,8 +35,17 @@ from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 
-__all__ = ["ALGOS", "PRESETS_DIR", "TASKS", "RunConfig", "apply_overrides", "load_preset", "preset_names", "resolve",
-           "run_reality"]
+__all__ = [
+    "ALGOS",
+    "PRESETS_DIR",
+    "TASKS",
+    "RunConfig",
+    "apply_overrides",
+    "load_preset",
+    "preset_names",
+    "resolve",
+    "run_reality",
+]
 
 ALGOS = ("comat", "mat", "mappo", "qmix")
 TASKS = ("hmt", "pcp")
@@ -45,8 +54,15 @@ PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 """The named presets. They ship inside the package (a wheel has no ``train/``); the checkout's
 ``train/configs`` is a link to this folder, so there is one copy to edit."""
 MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
-_RUN_KEYS = ("total_env_steps", "eval_every_steps", "eval_episodes_per_team", "checkpoint_every_steps",
-             "env_workers", "torch_threads", "physics_threads")
+_RUN_KEYS = (
+    "total_env_steps",
+    "eval_every_steps",
+    "eval_episodes_per_team",
+    "checkpoint_every_steps",
+    "env_workers",
+    "torch_threads",
+    "physics_threads",
+)
 _PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "loop", "ppo", "qmix", "models", "reality", "base", "by_task")
 _TASK_KEYS = tuple(k for k in _PRESET_KEYS if k not in ("base", "by_task", "seeds"))
 """What ``by_task: {hmt: {...}}`` may change for one task (the budget, the trainer, the models ...)."""
@@ -129,7 +145,7 @@ def run_reality(value: Any) -> RealityConfig:
     except (TypeError, ValueError) as err:
         text = str(err)
         if text.startswith("RealityConfig."):
-            raise type(err)("reality." + text[len("RealityConfig."):]) from err
+            raise type(err)("reality." + text[len("RealityConfig.") :]) from err
         raise
 
 
@@ -167,8 +183,7 @@ def load_preset(preset: str | Path, _seen: tuple[str, ...] = ()) -> dict[str, An
         raise ValueError(f"preset {str(path)!r} is not a text (YAML) file: {err.reason}") from err
     if data is None:
         # An empty file would silently mean every default, e.g. a 4,000,000-step run.
-        raise ValueError(f"preset {str(path)!r} is empty; expected a mapping of settings "
-                         f"(see {PRESETS_DIR}/*.yaml)")
+        raise ValueError(f"preset {str(path)!r} is empty; expected a mapping of settings (see {PRESETS_DIR}/*.yaml)")
     if not isinstance(data, dict):
         raise TypeError(f"preset {str(path)!r} must be a mapping of settings, got {type(data).__name__}")
     _check_preset_keys(data, f"preset {str(path)!r}")
@@ -210,7 +225,6 @@ def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
     if value is None or isinstance(value, Mapping):
         return data
     if isinstance(value, str) and value.endswith((".yaml", ".yml")):  # a calibrated profile: its fields
-
         return {**data, "reality": read_profile(value)}
     return {**data, "reality": {"level": value}}
 
@@ -267,8 +281,16 @@ def for_task(preset: dict[str, Any], task: str) -> dict[str, Any]:
     return _merge(rest, by_task[task]) if by_task.get(task) else rest
 
 
-def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = None, tier: str | None = None,
-            total_env_steps: int | None = None, env_workers: int | None = None, device: str | None = None) -> RunConfig:
+def resolve(
+    preset: dict[str, Any],
+    algo: str,
+    task: str,
+    seed: int | None = None,
+    tier: str | None = None,
+    total_env_steps: int | None = None,
+    env_workers: int | None = None,
+    device: str | None = None,
+) -> RunConfig:
     """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it
     (``device``: "cpu" or "cuda", as :func:`comat.rl.device.resolve_device` gives)."""
     _check_choice("algo", algo, ALGOS)
@@ -285,8 +307,15 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         run["total_env_steps"] = total_env_steps
     if env_workers is not None:
         run["env_workers"] = env_workers
-    defaults = {"total_env_steps": 4_000_000, "eval_every_steps": 200_000, "eval_episodes_per_team": 1,
-                "checkpoint_every_steps": 100_000, "env_workers": 1, "torch_threads": 2, "physics_threads": 1}
+    defaults = {
+        "total_env_steps": 4_000_000,
+        "eval_every_steps": 200_000,
+        "eval_episodes_per_team": 1,
+        "checkpoint_every_steps": 100_000,
+        "env_workers": 1,
+        "torch_threads": 2,
+        "physics_threads": 1,
+    }
     for key, default in defaults.items():
         value = run.setdefault(key, default)
         least = 0 if key == "eval_episodes_per_team" else 1
@@ -297,17 +326,28 @@ def resolve(preset: dict[str, Any], algo: str, task: str, seed: int | None = Non
         run["device"] = device
     section = "qmix" if algo == "qmix" else "ppo"
     try:
-        return RunConfig.from_dict({
-            "algo": algo, "task": task, "seed": seed, "tier": tier, **run,
-            "trainer": preset.get(section), "model": (preset.get("models") or {}).get(algo),
-            "reality": preset.get("reality"), "loop": preset.get("loop", "comat"),
-        })
+        return RunConfig.from_dict(
+            {
+                "algo": algo,
+                "task": task,
+                "seed": seed,
+                "tier": tier,
+                **run,
+                "trainer": preset.get(section),
+                "model": (preset.get("models") or {}).get(algo),
+                "reality": preset.get("reality"),
+                "loop": preset.get("loop", "comat"),
+            }
+        )
     except (TypeError, ValueError) as err:  # name the key as presets and overrides spell it
         text = str(err)
         for stored, spelled in (("trainer", section), ("model", f"models.{algo}")):
             if text.startswith(stored + "."):
-                raise type(err)(spelled + text[len(stored):]) from err
+                raise type(err)(spelled + text[len(stored) :]) from err
             if f" for {stored};" in text or text.startswith(f"{stored} must be"):
-                raise type(err)(text.replace(f" for {stored};", f" for {spelled};").replace(
-                    f"{stored} must be", f"{spelled} must be", 1)) from err
+                raise type(err)(
+                    text.replace(f" for {stored};", f" for {spelled};").replace(
+                        f"{stored} must be", f"{spelled} must be", 1
+                    )
+                ) from err
         raise

@@ -25,8 +25,10 @@ def resolve_device(name: str) -> str:
     if name == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
     if name == "cuda" and not torch.cuda.is_available():
-        raise ValueError(f"--device cuda: PyTorch {torch.__version__} sees no CUDA device here "
-                         f"(built with CUDA {torch.version.cuda}); use --device cpu or auto")
+        raise ValueError(
+            f"--device cuda: PyTorch {torch.__version__} sees no CUDA device here "
+            f"(built with CUDA {torch.version.cuda}); use --device cpu or auto"
+        )
     return name
 
 

@@ -115,8 +115,10 @@ class ProgressLine:
         eta = max(self.total - steps, 0) / rate if rate > 0 else math.inf  # the last rollout may overshoot
         frac = min(1.0, steps / self.total)
         bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
-        line = (f"[{bar}] {steps:,}/{self.total:,} steps | {rate:,.0f} steps/s | return {ret:.2f} | "
-                f"finished {finished:.0%} (progress {progress:.0%}) | ETA {_clock(eta)}")
+        line = (
+            f"[{bar}] {steps:,}/{self.total:,} steps | {rate:,.0f} steps/s | return {ret:.2f} | "
+            f"finished {finished:.0%} (progress {progress:.0%}) | ETA {_clock(eta)}"
+        )
         if self.tty:
             self.stream.write("\r" + line + ("\n" if final else ""))
             self.stream.flush()

@@ -53,14 +53,26 @@ CHECKPOINT_FILE = "checkpoint.pt"
 
 PRETRAINED_DIR = Path(__file__).parent.parent / "data" / "pretrained"
 PRETRAINED: dict[str, dict[str, str]] = {
-    "comat-pcp": {"file": "comat_pcp_s0.pt", "what": "COMAT on PCP, seed 0, 302 k env steps (sweep preset); "
-                  "U_train progress 99.5 %, finished 97 %; U_test 96.5 % / 85 % (results/policies/comat_pcp_s0)"},
-    "comat-hmt": {"file": "comat_hmt_s0.pt", "what": "COMAT on HMT, seed 0, 300 k env steps (sweep preset); "
-                  "U_train progress 97.9 %, finished 52 %; U_test 96.4 % / 41 % (results/policies/comat_hmt_s0)"},
-    "mat-pcp": {"file": "mat_pcp_s1.pt", "what": "MAT (20 robot slots) on PCP, seed 1, 300 k env steps; "
-                "U_train progress 100 %, finished 100 %; U_test 99.0 % / 94 % (results/policies/mat_pcp_s1)"},
-    "mat-hmt": {"file": "mat_hmt_s1.pt", "what": "MAT (20 robot slots) on HMT, seed 1, 300 k env steps; "
-                "U_train progress 97.7 %, finished 68 %; U_test 97.9 % / 65 % (results/policies/mat_hmt_s1)"},
+    "comat-pcp": {
+        "file": "comat_pcp_s0.pt",
+        "what": "COMAT on PCP, seed 0, 302 k env steps (sweep preset); "
+        "U_train progress 99.5 %, finished 97 %; U_test 96.5 % / 85 % (results/policies/comat_pcp_s0)",
+    },
+    "comat-hmt": {
+        "file": "comat_hmt_s0.pt",
+        "what": "COMAT on HMT, seed 0, 300 k env steps (sweep preset); "
+        "U_train progress 97.9 %, finished 52 %; U_test 96.4 % / 41 % (results/policies/comat_hmt_s0)",
+    },
+    "mat-pcp": {
+        "file": "mat_pcp_s1.pt",
+        "what": "MAT (20 robot slots) on PCP, seed 1, 300 k env steps; "
+        "U_train progress 100 %, finished 100 %; U_test 99.0 % / 94 % (results/policies/mat_pcp_s1)",
+    },
+    "mat-hmt": {
+        "file": "mat_hmt_s1.pt",
+        "what": "MAT (20 robot slots) on HMT, seed 1, 300 k env steps; "
+        "U_train progress 97.7 %, finished 68 %; U_test 97.9 % / 65 % (results/policies/mat_hmt_s1)",
+    },
 }
 """The policies that ship with comat (``pretrained:NAME`` wherever a policy is taken): copies of the
 kept policy files under ``results/policies/`` (their READMEs say how each was trained and what it
@@ -81,8 +93,10 @@ def shipped_name(path: str | Path) -> str | None:
     """``pretrained:NAME`` when ``path`` is the file of a policy that ships with comat, else None
     (recordings and videos name a shipped policy as such, not by its file)."""
     resolved = Path(path).resolve()
-    return next((PREFIX + key for key, entry in PRETRAINED.items()
-                 if resolved == (PRETRAINED_DIR / entry["file"]).resolve()), None)
+    return next(
+        (PREFIX + key for key, entry in PRETRAINED.items() if resolved == (PRETRAINED_DIR / entry["file"]).resolve()),
+        None,
+    )
 
 
 def format_size(n_bytes: int) -> str:
@@ -110,22 +124,37 @@ def acting_weights(algo: str, dims: Dims, model_config, state: dict) -> dict[str
     return out
 
 
-def save_policy(path: str | Path, config: RunConfig, dims: Dims, state: dict, progress: dict,
-                trained_by: dict | None = None) -> Path:
+def save_policy(
+    path: str | Path, config: RunConfig, dims: Dims, state: dict, progress: dict, trained_by: dict | None = None
+) -> Path:
     """Write the policy file of a learner (``state``: module name -> state dict) at ``progress``
     (``env_steps``, ``updates``) to ``path``, atomically; returns the path."""
     weights = acting_weights(config.algo, dims, config.model, state)
-    return save_policy_file(path, algo=config.algo, task=config.task, config=config.to_dict(), dims=dims.to_dict(),
-                            weights=weights, env_steps=progress["env_steps"], updates=progress.get("updates", 0),
-                            trained_by=trained_by)
+    return save_policy_file(
+        path,
+        algo=config.algo,
+        task=config.task,
+        config=config.to_dict(),
+        dims=dims.to_dict(),
+        weights=weights,
+        env_steps=progress["env_steps"],
+        updates=progress.get("updates", 0),
+        trained_by=trained_by,
+    )
 
 
 def policy_from_checkpoint(checkpoint: str | Path | dict, out: str | Path) -> Path:
     """Write the policy file of a checkpoint (a path, or what :func:`load_checkpoint` read) to ``out``."""
     data = checkpoint if isinstance(checkpoint, dict) else load_checkpoint(checkpoint)
     config = RunConfig.from_dict(data["config"])
-    return save_policy(out, config, Dims(**data["progress"]["dims"]), data["trainer"], data["progress"],
-                       trained_by=data.get("versions"))
+    return save_policy(
+        out,
+        config,
+        Dims(**data["progress"]["dims"]),
+        data["trainer"],
+        data["progress"],
+        trained_by=data.get("versions"),
+    )
 
 
 def ensure_policy(run: str | Path) -> Path | None:
@@ -141,7 +170,8 @@ def ensure_policy(run: str | Path) -> Path | None:
 
 def policy_file_of(path: str | Path, need_checkpoint: str | None = None, flag: str = "--policy") -> Path:
     """The file ``--policy PATH`` names: the file itself, a shipped policy's (``pretrained:NAME``,
-    :data:`PRETRAINED`), or in a run folder its ``checkpoint.pt``, else its ``policy.pt`` (a folder of committed small files has only that). ``need_checkpoint``:
+    :data:`PRETRAINED`), or in a run folder its ``checkpoint.pt``, else its ``policy.pt`` (a folder of committed
+    small files has only that). ``need_checkpoint``:
     why the caller needs the checkpoint (then a folder's ``policy.pt`` is not taken); ``flag``: the
     argument named in errors.
 
@@ -155,13 +185,16 @@ def policy_file_of(path: str | Path, need_checkpoint: str | None = None, flag: s
         if (path / CHECKPOINT_FILE).is_file():
             return path / CHECKPOINT_FILE
         if need_checkpoint and (path / POLICY_FILE).is_file():
-            raise ValueError(f"{flag} {str(path)!r} holds a policy.pt but no checkpoint.pt: {need_checkpoint}, which "
-                             "a policy file (the weights to act only) does not keep")
+            raise ValueError(
+                f"{flag} {str(path)!r} holds a policy.pt but no checkpoint.pt: {need_checkpoint}, which "
+                "a policy file (the weights to act only) does not keep"
+            )
         if not need_checkpoint and (path / POLICY_FILE).is_file():
             return path / POLICY_FILE
         files = "a checkpoint.pt" + ("" if need_checkpoint else " or a policy.pt")
-        raise ValueError(f"{flag} {str(path)!r} is a folder without {files} (not a run folder, or its run has not "
-                         "saved one yet)")
+        raise ValueError(
+            f"{flag} {str(path)!r} is a folder without {files} (not a run folder, or its run has not saved one yet)"
+        )
     if not path.is_file():
         raise ValueError(f"{flag} {str(path)!r}: no such file or folder")
     return path
@@ -185,14 +218,16 @@ def policy_modules(data: dict, path: str | Path = "policy") -> tuple[dict[str, t
     modules = build_modules(config.algo, dims, config.model, acting_only=acting_only)
     for name, module in modules.items():
         if name not in state:
-            raise CheckpointError(f"{str(path)!r} has no weights for the {config.algo} {name!r} module "
-                                  f"(has {sorted(state)})")
+            raise CheckpointError(
+                f"{str(path)!r} has no weights for the {config.algo} {name!r} module (has {sorted(state)})"
+            )
         try:
             module.load_state_dict(state[name])
         except RuntimeError as err:
             first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-            raise CheckpointError(f"{str(path)!r}: the {name!r} weights do not fit the {config.algo} model its config "
-                                  f"builds ({first})") from err
+            raise CheckpointError(
+                f"{str(path)!r}: the {name!r} weights do not fit the {config.algo} model its config builds ({first})"
+            ) from err
         module.eval()
     return modules, config
 
@@ -200,13 +235,16 @@ def policy_modules(data: dict, path: str | Path = "policy") -> tuple[dict[str, t
 def describe_policy(path: str | Path, data: dict) -> str:
     """One line: what a policy file holds and what it weighs."""
     size = Path(path).stat().st_size
-    return (f"{path} ({format_size(size)}): {data['algo']} on {data['task']}, {data['env_steps']:,} env steps, "
-            f"{data.get('parameters', 0):,} parameters ({', '.join(data['weights'])}), trained by comat "
-            f"{data['versions'].get('comat', '?')} ({data['versions'].get('commit', '?')})")
+    return (
+        f"{path} ({format_size(size)}): {data['algo']} on {data['task']}, {data['env_steps']:,} env steps, "
+        f"{data.get('parameters', 0):,} parameters ({', '.join(data['weights'])}), trained by comat "
+        f"{data['versions'].get('comat', '?')} ({data['versions'].get('commit', '?')})"
+    )
 
 
-def policy_weights(preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "hmt"), folder: str | Path | None = None,
-                   seed: int = 0) -> list[dict]:
+def policy_weights(
+    preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "hmt"), folder: str | Path | None = None, seed: int = 0
+) -> list[dict]:
     """What one policy file weighs per algorithm and task with a preset's model config: each
     model built (seeded, untrained: the size does not depend on the values) for the task's
     environments, its policy file written to ``folder`` (a temporary one if None) and measured.
@@ -214,7 +252,6 @@ def policy_weights(preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "h
     Rows: ``algo``, ``task``, ``parameters`` (kept in the policy file), ``learner_parameters``
     (all the learner's modules, critic and mixer included), ``bytes`` (the file)."""
     import tempfile
-
 
     settings = load_preset(preset)
     rows = []
@@ -232,12 +269,19 @@ def policy_weights(preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "h
                 torch.manual_seed(seed)
                 modules = build_modules(algo, dims, config.model)
                 state = {name: m.state_dict() for name, m in modules.items()}
-                path = save_policy(where / f"{algo}_{task}" / POLICY_FILE, config, dims, state,
-                                   {"env_steps": 0, "updates": 0})
+                path = save_policy(
+                    where / f"{algo}_{task}" / POLICY_FILE, config, dims, state, {"env_steps": 0, "updates": 0}
+                )
                 data = torch.load(path, map_location="cpu", weights_only=True)
-                rows.append({"algo": algo, "task": task, "parameters": data["parameters"],
-                             "learner_parameters": sum(p.numel() for m in modules.values() for p in m.parameters()),
-                             "bytes": path.stat().st_size})
+                rows.append(
+                    {
+                        "algo": algo,
+                        "task": task,
+                        "parameters": data["parameters"],
+                        "learner_parameters": sum(p.numel() for m in modules.values() for p in m.parameters()),
+                        "bytes": path.stat().st_size,
+                    }
+                )
     return rows
 
 

@@ -71,9 +71,15 @@ class PPOConfig:
     rewards reach the episode start in one update instead of one step per target refresh."""
 
     def __post_init__(self) -> None:
-        check_numbers(self, "ppo", positive=("lr", "clip", "max_grad_norm", "huber_delta"),
-                      non_negative=("entropy_coef", "value_coef"), unit=("gae_lambda",), discount=("gamma",),
-                      at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"))
+        check_numbers(
+            self,
+            "ppo",
+            positive=("lr", "clip", "max_grad_norm", "huber_delta"),
+            non_negative=("entropy_coef", "value_coef"),
+            unit=("gae_lambda",),
+            discount=("gamma",),
+            at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"),
+        )
         if self.value_target not in VALUE_TARGETS:
             raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
         if self.lr_schedule not in LR_SCHEDULES:
@@ -149,8 +155,9 @@ class PPOTrainer:
             on this device, mirrored to the CPU policy after every update (:mod:`comat.rl.device`).
     """
 
-    def __init__(self, policy, env, config: PPOConfig, seed: int, use_state: bool = False,
-                 device: str | None = None) -> None:
+    def __init__(
+        self, policy, env, config: PPOConfig, seed: int, use_state: bool = False, device: str | None = None
+    ) -> None:
         if env.num_envs != config.num_envs:
             raise ValueError(f"env has {env.num_envs} environments, config.num_envs is {config.num_envs}")
         self.policy, self.env, self.config = policy, env, config
@@ -191,8 +198,14 @@ class PPOTrainer:
         obs_np, info = env.reset()
         state_all = self._state()
         # Per part: current obs (b, N, D), mask (b, N), state (b, S) or None.
-        cur = [(torch.as_tensor(obs_np[sl], dtype=torch.float32), torch.as_tensor(info["agent_mask"][sl]),
-                None if state_all is None else state_all[sl]) for sl in parts.slices]
+        cur = [
+            (
+                torch.as_tensor(obs_np[sl], dtype=torch.float32),
+                torch.as_tensor(info["agent_mask"][sl]),
+                None if state_all is None else state_all[sl],
+            )
+            for sl in parts.slices
+        ]
         keys = tuple(f.name for f in fields(Rollout) if f.name != "episodes")
         steps: list[dict[str, list]] = [{k: [] for k in keys} for _ in parts.slices]
         episodes: list[dict] = []
@@ -221,19 +234,30 @@ class PPOTrainer:
                             ep_state[d] = torch.as_tensor(info["final_state"], dtype=torch.float32)[d]
                         for b in np.flatnonzero(done):
                             episodes.append({k: float(v[b]) for k, v in info["episode"].items()})
-                    for key, value in (("obs", obs), ("mask", mask), ("state", state), ("actions", actions),
-                                       ("logp", logp), ("values", values),
-                                       ("rewards", torch.as_tensor(rewards, dtype=torch.float32)),
-                                       ("terminated", torch.as_tensor(terminated)), ("dones", torch.as_tensor(done)),
-                                       ("next_obs", ep_obs), ("next_mask", ep_mask), ("next_state", ep_state)):
+                    for key, value in (
+                        ("obs", obs),
+                        ("mask", mask),
+                        ("state", state),
+                        ("actions", actions),
+                        ("logp", logp),
+                        ("values", values),
+                        ("rewards", torch.as_tensor(rewards, dtype=torch.float32)),
+                        ("terminated", torch.as_tensor(terminated)),
+                        ("dones", torch.as_tensor(done)),
+                        ("next_obs", ep_obs),
+                        ("next_mask", ep_mask),
+                        ("next_state", ep_state),
+                    ):
                         steps[p][key].append(value)
                     cur[p] = (next_obs, next_mask, next_state)
                     if t + 1 < T:
                         acted[p] = self._act_send(parts, p, *cur[p])
         finally:
             torch.set_num_threads(threads)
-        stacked = {k: (torch.cat([torch.stack(s[k]) for s in steps], dim=1) if steps[0][k][0] is not None else None)
-                   for k in keys}
+        stacked = {
+            k: (torch.cat([torch.stack(s[k]) for s in steps], dim=1) if steps[0][k][0] is not None else None)
+            for k in keys
+        }
         return Rollout(**stacked, episodes=episodes)
 
     # -- 2-4. update ----------------------------------------------------------------------------
@@ -259,8 +283,12 @@ class PPOTrainer:
     def _on_device(self, ro: Rollout) -> Rollout:
         if self.device is None:
             return ro
-        return Rollout(**{f.name: (v.to(self.device) if isinstance(v := getattr(ro, f.name), torch.Tensor) else v)
-                          for f in fields(Rollout)})
+        return Rollout(
+            **{
+                f.name: (v.to(self.device) if isinstance(v := getattr(ro, f.name), torch.Tensor) else v)
+                for f in fields(Rollout)
+            }
+        )
 
     def update(self, ro: Rollout) -> dict[str, float]:
         cfg = self.config
@@ -275,14 +303,26 @@ class PPOTrainer:
             "logp": ro.logp.reshape(T * B, N),
             "adv": adv.reshape(T * B),
         }
-        stats: dict[str, list[float]] = {"policy_loss": [], "value_loss": [], "entropy": [], "approx_kl": [], "clip_frac": []}
+        stats: dict[str, list[float]] = {
+            "policy_loss": [],
+            "value_loss": [],
+            "entropy": [],
+            "approx_kl": [],
+            "clip_frac": [],
+        }
         targets = None
         if cfg.value_target == "gae":
             with torch.no_grad():
                 # Per robot: the team reward, the robot's own values; padded slots are masked out.
                 v = self._denorm_values(ro.values)
-                _, raw = gae(ro.rewards[..., None].expand_as(v), v, next_values, ro.dones[..., None].expand_as(v),
-                             cfg.gamma, cfg.gae_lambda)
+                _, raw = gae(
+                    ro.rewards[..., None].expand_as(v),
+                    v,
+                    next_values,
+                    ro.dones[..., None].expand_as(v),
+                    cfg.gamma,
+                    cfg.gae_lambda,
+                )
                 self.value_norm.update(raw[ro.mask])
                 targets = self.value_norm.normalize(raw).reshape(T * B, N)
         for epoch in range(cfg.epochs):
@@ -303,13 +343,17 @@ class PPOTrainer:
                 mf = m.to(torch.float32)
                 n_real = mf.sum().clamp(min=1)
                 state = None if flat["state"] is None else flat["state"][idx_t]
-                logp, entropy, values = self.learner.evaluate_actions(flat["obs"][idx_t], m, flat["actions"][idx_t], state)
+                logp, entropy, values = self.learner.evaluate_actions(
+                    flat["obs"][idx_t], m, flat["actions"][idx_t], state
+                )
                 ratio = torch.exp(logp - flat["logp"][idx_t])
                 a = flat["adv"][idx_t][:, None]
                 surrogate = torch.min(ratio * a, ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * a)
                 policy_loss = -(surrogate * mf).sum() / n_real
                 entropy_mean = (entropy * mf).sum() / n_real
-                value_loss = (F.huber_loss(values, targets[idx_t], reduction="none", delta=cfg.huber_delta) * mf).sum() / n_real
+                value_loss = (
+                    F.huber_loss(values, targets[idx_t], reduction="none", delta=cfg.huber_delta) * mf
+                ).sum() / n_real
                 loss = policy_loss - cfg.entropy_coef * entropy_mean + cfg.value_coef * value_loss
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()

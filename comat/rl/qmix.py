@@ -64,10 +64,20 @@ class QmixConfig:
     False: bootstrap there, the textbook choice for a policy that does not see the time."""
 
     def __post_init__(self) -> None:
-        check_numbers(self, "qmix", positive=("lr", "max_grad_norm", "updates_per_episode"),
-                      unit=("epsilon_start", "epsilon_finish"), discount=("gamma",),
-                      at_least_one=("num_envs", "buffer_episodes", "batch_episodes", "target_update_interval",
-                                    "epsilon_anneal_steps"))
+        check_numbers(
+            self,
+            "qmix",
+            positive=("lr", "max_grad_norm", "updates_per_episode"),
+            unit=("epsilon_start", "epsilon_finish"),
+            discount=("gamma",),
+            at_least_one=(
+                "num_envs",
+                "buffer_episodes",
+                "batch_episodes",
+                "target_update_interval",
+                "epsilon_anneal_steps",
+            ),
+        )
 
 
 class EpisodeBuffer:
@@ -105,14 +115,21 @@ class EpisodeBuffer:
 
     def sample(self, batch: int, rng: np.random.Generator) -> dict[str, torch.Tensor]:
         idx = rng.integers(self.size, size=batch)
-        return {name: torch.as_tensor(getattr(self, name)[idx])
-                for name in ("obs", "state", "mask", "actions", "rewards", "terminated", "filled")}
+        return {
+            name: torch.as_tensor(getattr(self, name)[idx])
+            for name in ("obs", "state", "mask", "actions", "rewards", "terminated", "filled")
+        }
 
     def state_dict(self) -> dict:
         n = self.size
-        return {"next_index": self.next_index, "size": n,
-                **{name: getattr(self, name)[:n].copy()
-                   for name in ("obs", "state", "mask", "actions", "rewards", "terminated", "filled")}}
+        return {
+            "next_index": self.next_index,
+            "size": n,
+            **{
+                name: getattr(self, name)[:n].copy()
+                for name in ("obs", "state", "mask", "actions", "rewards", "terminated", "filled")
+            },
+        }
 
     def load_state_dict(self, state: dict) -> None:
         n = state["size"]
@@ -162,8 +179,13 @@ class QmixTrainer:
         self.target_agents = copy.deepcopy(self.learn_agents).requires_grad_(False)
         self.target_mixer = copy.deepcopy(self.learn_mixer).requires_grad_(False)
         env.reset()
-        self.buffer = EpisodeBuffer(config.buffer_episodes, env.task.horizon, env.max_robots,
-                                    env.single_observation_space.shape[0], env.state().shape[-1])
+        self.buffer = EpisodeBuffer(
+            config.buffer_episodes,
+            env.task.horizon,
+            env.max_robots,
+            env.single_observation_space.shape[0],
+            env.state().shape[-1],
+        )
         self.reward_stats = _RunningStats()
         self.rng = np.random.default_rng(seed)
         self.env_steps = 0
@@ -202,8 +224,13 @@ class QmixTrainer:
             actions = self.act(obs, mask, eps)
             next_obs, rewards, terminated, truncated, info = env.step(actions)
             stops = terminated | truncated if self.config.horizon_terminal else terminated
-            for k, v in (("obs", obs), ("state", state), ("actions", actions), ("rewards", rewards),
-                         ("terminated", stops)):
+            for k, v in (
+                ("obs", obs),
+                ("state", state),
+                ("actions", actions),
+                ("rewards", rewards),
+                ("terminated", stops),
+            ):
                 traj[k].append(v)
             done = (terminated | truncated) & (ended < 0)
             for b in np.flatnonzero(done):
@@ -216,14 +243,16 @@ class QmixTrainer:
         stacked = {k: np.stack(v, 1) for k, v in traj.items()}  # (B, t, ...)
         for b in range(B):
             L = ended[b] + 1
-            self.buffer.add({
-                "obs": np.concatenate([stacked["obs"][b, :L], final_obs[b][None]]),
-                "state": np.concatenate([stacked["state"][b, :L], final_state[b][None]]),
-                "mask": start_mask[b],
-                "actions": stacked["actions"][b, :L],
-                "rewards": stacked["rewards"][b, :L],
-                "terminated": stacked["terminated"][b, :L],
-            })
+            self.buffer.add(
+                {
+                    "obs": np.concatenate([stacked["obs"][b, :L], final_obs[b][None]]),
+                    "state": np.concatenate([stacked["state"][b, :L], final_state[b][None]]),
+                    "mask": start_mask[b],
+                    "actions": stacked["actions"][b, :L],
+                    "rewards": stacked["rewards"][b, :L],
+                    "terminated": stacked["terminated"][b, :L],
+                }
+            )
             self.reward_stats.update(stacked["rewards"][b, :L])
             self.env_steps += int(L)
         self._update_credit += B * self.config.updates_per_episode
@@ -280,8 +309,11 @@ class QmixTrainer:
         if self.device is not None:  # the next rollout acts with these weights
             self.agents.load_state_dict(self.learn_agents.state_dict())
             self.mixer.load_state_dict(self.learn_mixer.state_dict())
-        return {"td_loss": loss.item(), "grad_norm": float(grad_norm),
-                "q_taken": float((q_tot.detach() * filled).sum() / filled.sum())}
+        return {
+            "td_loss": loss.item(),
+            "grad_norm": float(grad_norm),
+            "q_taken": float((q_tot.detach() * filled).sum() / filled.sum()),
+        }
 
     def update(self) -> dict[str, float]:
         """The learner steps owed for the episodes collected so far."""
@@ -298,12 +330,16 @@ class QmixTrainer:
     # -- checkpoint state -------------------------------------------------------------------------
     def state_dict(self) -> dict:
         return {
-            "agents": self.agents.state_dict(), "mixer": self.mixer.state_dict(),
+            "agents": self.agents.state_dict(),
+            "mixer": self.mixer.state_dict(),
             "target_agents": to_cpu(self.target_agents.state_dict()),
             "target_mixer": to_cpu(self.target_mixer.state_dict()),
-            "optimizer": to_cpu(self.optimizer.state_dict()), "buffer": self.buffer.state_dict(),
-            "reward_stats": vars(self.reward_stats).copy(), "rng": self.rng.bit_generator.state,
-            "env_steps": self.env_steps, "learner_steps": self.learner_steps,
+            "optimizer": to_cpu(self.optimizer.state_dict()),
+            "buffer": self.buffer.state_dict(),
+            "reward_stats": vars(self.reward_stats).copy(),
+            "rng": self.rng.bit_generator.state,
+            "env_steps": self.env_steps,
+            "learner_steps": self.learner_steps,
             "update_credit": self._update_credit,
         }
 

@@ -51,15 +51,25 @@ of the modules being trained (:func:`comat.viz.record_training`)."""
 _SUMMARY_KEYS = ("return", "steps", "progress", "finished", "collisions", "interventions", "fallbacks")
 
 
-def _write_config(out: Path, config: RunConfig, resumed_at: int | None, overrides: tuple[str, ...] = (),
-                  command: list[str] | None = None) -> None:
+def _write_config(
+    out: Path,
+    config: RunConfig,
+    resumed_at: int | None,
+    overrides: tuple[str, ...] = (),
+    command: list[str] | None = None,
+) -> None:
     """``config.yaml``: the resolved config, versions (the source's commit among them) and command
     line of this sitting (no absolute paths: :func:`comat.files.portable_command`); a
     resumed run keeps those of its earlier sittings under ``earlier_sittings`` (which code trained what)."""
     import yaml
 
-    doc = {"config": config.to_dict(), "versions": versions(), "command": portable_command(command or sys.argv),
-           "overrides": list(overrides), "resumed_at_env_steps": resumed_at}
+    doc = {
+        "config": config.to_dict(),
+        "versions": versions(),
+        "command": portable_command(command or sys.argv),
+        "overrides": list(overrides),
+        "resumed_at_env_steps": resumed_at,
+    }
     path = out / "config.yaml"
     if resumed_at is not None and path.is_file():
         old = yaml.safe_load(path.read_text()) or {}
@@ -105,9 +115,17 @@ def _next_multiple(steps: int, every: int) -> int:
     return (steps // every + 1) * every
 
 
-def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool = False, rrd_every: int = 0,
-          overrides: tuple[str, ...] = (), command: list[str] | None = None, on_update=None,
-          record: Recorder | None = None) -> dict:
+def train(
+    config: RunConfig,
+    out: str | Path,
+    resume: bool = False,
+    quiet: bool = False,
+    rrd_every: int = 0,
+    overrides: tuple[str, ...] = (),
+    command: list[str] | None = None,
+    on_update=None,
+    record: Recorder | None = None,
+) -> dict:
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
     the final evaluation on the training coalitions (None if evaluation is off). A finished run
     (or a finished one resumed) writes ``out/policy.pt`` (:func:`comat.rl.policy.save_policy`).
@@ -135,35 +153,49 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         # Not a run stopped early: a finished one whose checkpoint is gone (e.g. its committed files).
         raise (CheckpointError if resume else FileExistsError)(
             f"{str(out)!r} holds a finished run's {POLICY_FILE} but no checkpoint.pt: "
-            + ("a policy file keeps the weights to act, not the optimizer, normalizers, buffers or generators a "
-               "run resumes from" if resume else "it is not trained into again")
-            + "; train a new run in another --out")
+            + (
+                "a policy file keeps the weights to act, not the optimizer, normalizers, buffers or generators a "
+                "run resumes from"
+                if resume
+                else "it is not trained into again"
+            )
+            + "; train a new run in another --out"
+        )
     if resume and not ckpt_path.exists() and (out / "config.yaml").is_file():
         # Killed before its first checkpoint: nothing to continue, so the run starts over.
         resume = False
         if not quiet:
-            print(f"{str(out)!r} has no checkpoint yet (stopped before the first one): starting it from step 0",
-                  file=sys.stderr)
+            print(
+                f"{str(out)!r} has no checkpoint yet (stopped before the first one): starting it from step 0",
+                file=sys.stderr,
+            )
     elif resume:
         data = load_checkpoint(ckpt_path, algo=config.algo, task=config.task)
         saved = RunConfig.from_dict(data["config"])
         # Neither the step budget nor MuJoCo's thread count changes what the run computes.
         same = {**config.to_dict(), "total_env_steps": saved.total_env_steps, "physics_threads": saved.physics_threads}
         if saved.to_dict() != same:
-            raise CheckpointError(f"checkpoint {str(ckpt_path)!r} was written with another configuration; "
-                                  "resume it with its own (see config.yaml), or start a new run in another --out")
+            raise CheckpointError(
+                f"checkpoint {str(ckpt_path)!r} was written with another configuration; "
+                "resume it with its own (see config.yaml), or start a new run in another --out"
+            )
     if isinstance(rrd_every, bool) or not isinstance(rrd_every, int) or rrd_every < 0:
         raise ValueError(f"rrd_every must be an integer >= 0 (every K-th evaluation; 0 = never), got {rrd_every!r}")
     if rrd_every and record is None:
-        raise ValueError("rrd_every needs record= (comat.viz.record_training): the trainer does not import the "
-                         "recorder")
+        raise ValueError(
+            "rrd_every needs record= (comat.viz.record_training): the trainer does not import the recorder"
+        )
     if rrd_every and not config.eval_episodes_per_team:
         raise ValueError("rrd_every records evaluation episodes, but this run's eval_episodes_per_team is 0")
     if not resume and data is None and ckpt_path.exists():
-        raise FileExistsError(f"{str(out)!r} already holds a run; pass --resume to continue it, or choose another --out")
+        raise FileExistsError(
+            f"{str(out)!r} already holds a run; pass --resume to continue it, or choose another --out"
+        )
     if not resume and (out / "config.yaml").exists() and not ckpt_path.exists() and not _restarting(out, config):
-        raise FileExistsError(f"{str(out)!r} already holds a run (stopped before its first checkpoint) with another "
-                              "configuration; pass --resume to start that run over, or choose another --out")
+        raise FileExistsError(
+            f"{str(out)!r} already holds a run (stopped before its first checkpoint) with another "
+            "configuration; pass --resume to start that run over, or choose another --out"
+        )
     out.mkdir(parents=True, exist_ok=True)
     for stale in out.glob(f".{ckpt_path.name}.*.tmp"):  # left by a kill during a checkpoint write
         stale.unlink()
@@ -171,13 +203,21 @@ def train(config: RunConfig, out: str | Path, resume: bool = False, quiet: bool 
         warning = busy_warning(others, usable_cpus())
         if warning and not quiet:
             print(warning, file=sys.stderr)
-        return _train_registered(config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update,
-                                     record)
+        return _train_registered(config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update, record)
 
 
-def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bool, rrd_every: int,
-                      overrides: tuple[str, ...], command: list[str] | None, ckpt_path: Path, on_update,
-                      record: Recorder | None) -> dict:
+def _train_registered(
+    config: RunConfig,
+    out: Path,
+    data: dict | None,
+    quiet: bool,
+    rrd_every: int,
+    overrides: tuple[str, ...],
+    command: list[str] | None,
+    ckpt_path: Path,
+    on_update,
+    record: Recorder | None,
+) -> dict:
     """The training loop of :func:`train`, once the run is checked and registered."""
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
@@ -196,18 +236,27 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
     if config.algo != "qmix" and not quiet:
         per = config.trainer.num_envs * (config.trainer.rollout_steps or env.task.horizon)
         if config.total_env_steps % per:
-            print(f"note: PPO trains in whole rollouts of {per:,} env steps ({config.trainer.num_envs} environments × "
-                  f"{per // config.trainer.num_envs} steps): {config.total_env_steps:,} env steps run as "
-                  f"{-(-config.total_env_steps // per) * per:,}", file=sys.stderr)
+            print(
+                f"note: PPO trains in whole rollouts of {per:,} env steps ({config.trainer.num_envs} environments × "
+                f"{per // config.trainer.num_envs} steps): {config.total_env_steps:,} env steps run as "
+                f"{-(-config.total_env_steps // per) * per:,}",
+                file=sys.stderr,
+            )
     bar = None if quiet else ProgressLine(config.total_env_steps, start=progress["env_steps"])
     next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
     next_ckpt = _next_multiple(progress["env_steps"], config.checkpoint_every_steps)
     last_eval: dict | None = None
 
     def checkpoint() -> None:
-        save_checkpoint(ckpt_path, algo=config.algo, task=config.task, config=config.to_dict(),
-                        progress={**progress, "dims": dims.to_dict()}, trainer=learner.state_dict(),
-                        env_rngs=env.rng_state())
+        save_checkpoint(
+            ckpt_path,
+            algo=config.algo,
+            task=config.task,
+            config=config.to_dict(),
+            progress={**progress, "dims": dims.to_dict()},
+            trainer=learner.state_dict(),
+            env_rngs=env.rng_state(),
+        )
 
     recent: list[dict] = []
     saved_at = progress["env_steps"] if data is not None else None
@@ -222,9 +271,14 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
             progress["wall_s"] += dt
             recent = (recent + episodes)[-200:]
             ep = summarize(episodes) if episodes else {}
-            row = {"updates": progress["updates"], "wall_s": round(progress["wall_s"], 3),
-                   "env_steps_per_s": n / dt, "episodes": len(episodes),
-                   **{f"episode_{k}": ep.get(k, float("nan")) for k in _SUMMARY_KEYS}, **stats}
+            row = {
+                "updates": progress["updates"],
+                "wall_s": round(progress["wall_s"], 3),
+                "env_steps_per_s": n / dt,
+                "episodes": len(episodes),
+                **{f"episode_{k}": ep.get(k, float("nan")) for k in _SUMMARY_KEYS},
+                **stats,
+            }
             logger.log("progress", progress["env_steps"], row)
             steps = progress["env_steps"]
             finished = steps >= config.total_env_steps
@@ -241,9 +295,13 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
                     if not quiet:
                         print(f"\nrecorded {rrd}; {hint}", file=sys.stderr)
                 if not quiet:
-                    print(f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, finished "
-                          f"{last_eval['finished']:.0%} (progress {last_eval['progress']:.0%}), steps {last_eval['steps']:.1f}, collisions "
-                          f"{last_eval['collisions']:.2f}", file=sys.stderr)
+                    print(
+                        f"\neval @ {steps:,} steps: return {last_eval['return']:.2f}, finished "
+                        f"{last_eval['finished']:.0%} (progress {last_eval['progress']:.0%}), "
+                        f"steps {last_eval['steps']:.1f}, collisions "
+                        f"{last_eval['collisions']:.2f}",
+                        file=sys.stderr,
+                    )
             if steps >= next_ckpt or finished:
                 checkpoint()
                 saved_at = steps
@@ -257,9 +315,17 @@ def _train_registered(config: RunConfig, out: Path, data: dict | None, quiet: bo
         last_eval = evaluate(config, learner.modules)
     # The policy to keep, from the weights the final checkpoint holds (before summary.json, which
     # marks the run finished).
-    save_policy(out / POLICY_FILE, config, dims, {name: m.state_dict() for name, m in learner.modules.items()},
-                progress)
-    summary = {"algo": config.algo, "task": config.task, "seed": config.seed, "tier": config.tier,
-               "env_steps": progress["env_steps"], "wall_s": progress["wall_s"], "eval_train": last_eval}
+    save_policy(
+        out / POLICY_FILE, config, dims, {name: m.state_dict() for name, m in learner.modules.items()}, progress
+    )
+    summary = {
+        "algo": config.algo,
+        "task": config.task,
+        "seed": config.seed,
+        "tier": config.tier,
+        "env_steps": progress["env_steps"],
+        "wall_s": progress["wall_s"],
+        "eval_train": last_eval,
+    }
     write_atomic(out / "summary.json", json.dumps(summary, indent=2))
     return summary

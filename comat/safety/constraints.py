@@ -30,8 +30,18 @@ from comat import kernels
 from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE, wheel_rhombus
 from comat.sim.layout import TeamLayout, team_layout
 
-__all__ = ["OSQP_INFINITY", "Layout", "RowValues", "binding_distance", "edge_binding_distance", "make_layout",
-           "point_speed_bound", "reference_rows", "row_constants", "row_values"]
+__all__ = [
+    "OSQP_INFINITY",
+    "Layout",
+    "RowValues",
+    "binding_distance",
+    "edge_binding_distance",
+    "make_layout",
+    "point_speed_bound",
+    "reference_rows",
+    "row_constants",
+    "row_values",
+]
 
 OSQP_INFINITY = 1e30
 """OSQP's infinity: bounds at or beyond it are treated as absent (pair rows have no lower bound)."""
@@ -250,7 +260,9 @@ def reference_rows(team_sizes: Sequence[int], points: np.ndarray, headings: np.n
         for axis, (lo, hi) in enumerate(((x0 + m, x1 - m), (y0 + m, y1 - m))):
             a = np.zeros(2 * R)
             a[2 * r + axis] = 1.0
-            bound_rows.append((a, -cfg.boundary_gain * (points[r, axis] - lo), cfg.boundary_gain * (hi - points[r, axis])))
+            bound_rows.append(
+                (a, -cfg.boundary_gain * (points[r, axis] - lo), cfg.boundary_gain * (hi - points[r, axis]))
+            )
     for r in range(R):
         ehat = np.array([np.cos(headings[r]), np.sin(headings[r])])
         nhat = np.array([-np.sin(headings[r]), np.cos(headings[r])])

@@ -44,8 +44,21 @@ import math
 
 import numpy as np
 
-__all__ = ["GENERATIONS", "DeadlockTieBreak", "DeployedLoop", "PortableBarrier", "RobotWatch", "ShippedFilter", "cvxopt_qp",
-           "robotarium_barrier", "robotarium_loop", "si_to_uni", "uni_to_si", "wheel_projected", "wheel_scaled"]
+__all__ = [
+    "GENERATIONS",
+    "DeadlockTieBreak",
+    "DeployedLoop",
+    "PortableBarrier",
+    "RobotWatch",
+    "ShippedFilter",
+    "cvxopt_qp",
+    "robotarium_barrier",
+    "robotarium_loop",
+    "si_to_uni",
+    "uni_to_si",
+    "wheel_projected",
+    "wheel_scaled",
+]
 
 GENERATIONS = ("v2", "legacy")
 """The rps generations whose barrier this module runs."""
@@ -158,8 +171,12 @@ def points_apart_and_inside(points: np.ndarray, distance: float, margin: float) 
     """Points (2, N) pairwise >= ``distance`` apart and >= ``margin`` inside the arena."""
     x0, x1, y0, y1 = ARENA
     p = points
-    if (p[0] < x0 + margin).any() or (p[0] > x1 - margin).any() or (p[1] < y0 + margin).any() \
-            or (p[1] > y1 - margin).any():
+    if (
+        (p[0] < x0 + margin).any()
+        or (p[0] > x1 - margin).any()
+        or (p[1] < y0 + margin).any()
+        or (p[1] > y1 - margin).any()
+    ):
         return False
     i, j = np.triu_indices(p.shape[1], 1)
     return bool((np.hypot(*(p[:, i] - p[:, j])) >= distance).all())
@@ -190,8 +207,14 @@ def _rows(points: np.ndarray, radius: float, gain: float, arena) -> tuple[np.nda
     walls[4 * k + 3, 2 * k] = -1
     x0, x1, y0, y1 = arena
     margin = radius / 2
-    wall_b = 0.4 * gain * np.stack([y1 - margin - points[1], points[1] - y0 - margin,
-                                    x1 - margin - points[0], points[0] - x0 - margin], 1).ravel() ** 3
+    wall_b = (
+        0.4
+        * gain
+        * np.stack(
+            [y1 - margin - points[1], points[1] - y0 - margin, x1 - margin - points[0], points[0] - x0 - margin], 1
+        ).ravel()
+        ** 3
+    )
     return np.vstack([pairs, walls]), np.concatenate([gain * h**3, wall_b])
 
 
@@ -289,9 +312,19 @@ class RobotWatch:
     the unicycle commands (N, 2) sent after.
     """
 
-    def __init__(self, n: int, projection: float, lag: int, window: int = 15, stale_limit: int = 8,
-                 min_path_m: float = 0.03, ratio: float = 0.15, release_ratio: float = 0.5, dt: float = 0.033,
-                 dead_reckon: bool = True) -> None:
+    def __init__(
+        self,
+        n: int,
+        projection: float,
+        lag: int,
+        window: int = 15,
+        stale_limit: int = 8,
+        min_path_m: float = 0.03,
+        ratio: float = 0.15,
+        release_ratio: float = 0.5,
+        dt: float = 0.033,
+        dead_reckon: bool = True,
+    ) -> None:
         self.n, self.d, self.lag, self.window = n, float(projection), int(lag), int(window)
         self.stale_limit, self.min_path = int(stale_limit), min_path_m
         self.ratio, self.release_ratio = ratio, release_ratio
@@ -346,8 +379,8 @@ class RobotWatch:
             # the lag is put on probation.
             recent = self._ask[:, (self.tick - np.arange(self.window + self.lag)) % span]  # newest first
             sums = np.cumsum(recent, axis=1)
-            before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, :-self.window]], axis=1)
-            windows = sums[:, self.window - 1:] - before
+            before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, : -self.window]], axis=1)
+            windows = sums[:, self.window - 1 :] - before
             asked = np.hypot(windows[..., 0], windows[..., 1]).min(axis=1)
             moved = np.hypot(*(self._points[:, k] - self._points[:, then]).T)
             judged = old & ~stale & (asked >= self.min_path)
@@ -396,9 +429,13 @@ def cvxopt_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray, weights: np.ndarra
 
     w = np.ones(vhat.size) if weights is None else weights
     try:
-        sol = solvers.qp(matrix(np.diag(w)), matrix(-w * vhat), matrix(A), matrix(b),
-                         options={"show_progress": False, "abstol": 1e-9, "reltol": 1e-9, "feastol": 1e-9,
-                                  "maxiters": 100})
+        sol = solvers.qp(
+            matrix(np.diag(w)),
+            matrix(-w * vhat),
+            matrix(A),
+            matrix(b),
+            options={"show_progress": False, "abstol": 1e-9, "reltol": 1e-9, "feastol": 1e-9, "maxiters": 100},
+        )
     except (ValueError, ArithmeticError):
         return None, "error"
     if sol["status"] != "optimal":
@@ -440,8 +477,9 @@ class PortableBarrier:
         self.failures = 0
         self.recoveries = 0
 
-    def __call__(self, poses: np.ndarray, u_nom: np.ndarray, probation: np.ndarray | None = None,
-                 extra: np.ndarray | None = None) -> np.ndarray:
+    def __call__(
+        self, poses: np.ndarray, u_nom: np.ndarray, probation: np.ndarray | None = None, extra: np.ndarray | None = None
+    ) -> np.ndarray:
         """Filtered point velocities (N, 2) for poses (N, 3) and nominal ones (N, 2)."""
         s, n = self.s, poses.shape[0]
         probation = np.zeros(n, dtype=bool) if probation is None else probation
@@ -455,9 +493,13 @@ class PortableBarrier:
         rows, bounds = [], []
         pi, pj = probation[i], probation[j]
         trusted = ~pi & ~pj
-        for sel, use_i, use_j, bound in ((trusted, True, True, g * h), (pj & ~pi, True, False, g * h),
-                                         (pi & ~pj, False, True, g * h), (pi, True, False, 0.0 * h),
-                                         (pj, False, True, 0.0 * h)):
+        for sel, use_i, use_j, bound in (
+            (trusted, True, True, g * h),
+            (pj & ~pi, True, False, g * h),
+            (pi & ~pj, False, True, g * h),
+            (pi, True, False, 0.0 * h),
+            (pj, False, True, 0.0 * h),
+        ):
             k = np.flatnonzero(sel)
             if k.size == 0:
                 continue
@@ -496,9 +538,12 @@ class PortableBarrier:
             m = A.shape[0]
             relaxed = np.hstack([A, np.vstack([-np.eye(soft), np.zeros((m - soft, soft))])])
             positive = np.hstack([np.zeros((soft, 2 * n)), -np.eye(soft)])
-            z, _ = self.solve(np.concatenate([u0, np.zeros(soft)]), np.vstack([relaxed, positive]),
-                                   np.concatenate([b, np.zeros(soft)]),
-                                   np.concatenate([np.ones(2 * n), np.full(soft, SLACK_WEIGHT)]))
+            z, _ = self.solve(
+                np.concatenate([u0, np.zeros(soft)]),
+                np.vstack([relaxed, positive]),
+                np.concatenate([b, np.zeros(soft)]),
+                np.concatenate([np.ones(2 * n), np.full(soft, SLACK_WEIGHT)]),
+            )
             if z is None:
                 self.failures += 1
                 return np.zeros((n, 2))
@@ -569,8 +614,17 @@ class DeployedLoop:
         projection: how far ahead of the axles the controlled points sit (m).
     """
 
-    def __init__(self, barrier, si_to_uni_map, wheel_radius: float, axle: float, wheel_limit: float, gain: float,
-                 max_speed: float, projection: float) -> None:
+    def __init__(
+        self,
+        barrier,
+        si_to_uni_map,
+        wheel_radius: float,
+        axle: float,
+        wheel_limit: float,
+        gain: float,
+        max_speed: float,
+        projection: float,
+    ) -> None:
         self.barrier, self.si_to_uni = barrier, si_to_uni_map
         self.shipped = isinstance(barrier, ShippedFilter)
         """comat's pipeline (wheel projection, :class:`ShippedFilter` on the points, si→uni)
@@ -605,11 +659,24 @@ class DeployedLoop:
         return self.commands(x, self.controller(x, waypoints))[1]
 
 
-def robotarium_loop(generation: str = "v2", gain: float = 4.0, projection: float = 0.025,
-                    wheel_limit: float = 0.999 * 12.5, max_speed: float = 0.2, barrier=None) -> DeployedLoop:
+def robotarium_loop(
+    generation: str = "v2",
+    gain: float = 4.0,
+    projection: float = 0.025,
+    wheel_limit: float = 0.999 * 12.5,
+    max_speed: float = 0.2,
+    barrier=None,
+) -> DeployedLoop:
     """The exported loop as it runs under rps ``generation``: with the Robotarium's own barrier,
     or with ``barrier`` (e.g. a :class:`ShippedFilter`) in its place."""
     limit = None if generation == "v2" else math.pi
-    return DeployedLoop(robotarium_barrier(generation) if barrier is None else barrier,
-                        lambda dxi, x: si_to_uni(dxi, x, projection, limit),
-                        WHEEL_RADIUS_M, AXLE_M[generation], wheel_limit, gain, max_speed, projection)
+    return DeployedLoop(
+        robotarium_barrier(generation) if barrier is None else barrier,
+        lambda dxi, x: si_to_uni(dxi, x, projection, limit),
+        WHEEL_RADIUS_M,
+        AXLE_M[generation],
+        wheel_limit,
+        gain,
+        max_speed,
+        projection,
+    )

@@ -82,8 +82,9 @@ class SafetyInfo:
             computed on first access.
     """
 
-    def __init__(self, filt: SafetyFilter, vals, Au, intervention, robot_intervened, fallback, status, solve_time_s,
-                 recovery):
+    def __init__(
+        self, filt: SafetyFilter, vals, Au, intervention, robot_intervened, fallback, status, solve_time_s, recovery
+    ):
         self.intervention = intervention
         self.robot_intervened = robot_intervened
         self.fallback = fallback
@@ -181,7 +182,9 @@ class SafetyFilter:
         lay = self.layout
         t = lay.teams
         self._sizes = np.array(t.team_sizes, np.int64)
-        kind = np.concatenate([np.zeros(t.n_pairs, np.int64), np.ones(2 * t.n_robots, np.int64), np.full(2 * t.n_robots, 2)])
+        kind = np.concatenate(
+            [np.zeros(t.n_pairs, np.int64), np.ones(2 * t.n_robots, np.int64), np.full(2 * t.n_robots, 2)]
+        )
         self._row_kind_team = kind * t.n_teams + lay.row_team  # (n_rows,) for counting per kind and team
         self._nnz_kind_team = self._row_kind_team[lay.rows]
         self._teams_with_pairs = np.flatnonzero(np.array(t.team_sizes) > 1)
@@ -189,8 +192,14 @@ class SafetyFilter:
         self._row_constants = row_constants(self.config, profile)
         self._sparse_team = self._sizes >= sparse_from  # (B,)
         _, _, lo, hi = self._row_constants
-        self._pattern = CouplingPattern(t, self._sparse_team, binding_distance(self.config, profile),
-                                        edge_binding_distance(self.config, profile), lo, hi)
+        self._pattern = CouplingPattern(
+            t,
+            self._sparse_team,
+            binding_distance(self.config, profile),
+            edge_binding_distance(self.config, profile),
+            lo,
+            hi,
+        )
         self._pattern_qp: tuple[CoupledRows, BarrierQP] | None = None
         self.last_solver_s = 0.0
         self.last_solver_c_s = 0.0
@@ -296,7 +305,9 @@ class SafetyFilter:
     def _scatter(self, need, teams, good, sub, rows, cols, x, Ax, out, Au) -> None:
         """Teams that needed the QP take its answer (padding teams keep their stage-2 answer)."""
         if kernels.enabled():
-            kernels.sub_problem_scatter(need, teams, good, sub.teams.robot_team, sub.row_team, rows, cols, x, Ax, out, Au)
+            kernels.sub_problem_scatter(
+                need, teams, good, sub.teams.robot_team, sub.row_team, rows, cols, x, Ax, out, Au
+            )
             return
         take = need[teams] & good
         take_c = np.repeat(take[sub.teams.robot_team], 2)
@@ -335,7 +346,8 @@ class SafetyFilter:
         left = kernels.filter_stages(
             poses, c, s, u_nom, cfg.projection_distance_m, t.pair_i, t.pair_j, cfg.safety_distance_m**2,
             cfg.barrier_gain, -cfg.boundary_gain, cfg.boundary_gain, lo, hi, speed, k, cfg.feasibility_tol,
-            self._full.wheel_factor, lay.row_team, t.robot_team, points, e, lower, upper, out, Au, u_wheel, Au_wheel, need,
+            self._full.wheel_factor, lay.row_team, t.robot_team, points, e, lower, upper, out, Au, u_wheel, Au_wheel,
+            need,
         )  # fmt: skip
         return points, RowValues(lay, e, c, s, k, lower, upper), out, Au, need, u_wheel, left
 
@@ -476,8 +488,9 @@ class SafetyFilter:
             diff = out - u_nom
             robot_norm2 = diff[0::2] ** 2 + diff[1::2] ** 2
             intervention = np.sqrt(np.bincount(t.robot_team, weights=robot_norm2, minlength=t.n_teams))
-        return SafetyInfo(self, vals, Au, intervention, robot_norm2 > 0.0, fallback, status, self.last_solver_c_s,
-                          recovery)
+        return SafetyInfo(
+            self, vals, Au, intervention, robot_norm2 > 0.0, fallback, status, self.last_solver_c_s, recovery
+        )
 
     def _explain(self, teams: np.ndarray, points: np.ndarray, status: str) -> str:
         t, cfg = self.layout.teams, self.config

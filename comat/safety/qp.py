@@ -25,7 +25,9 @@ def matrix_of(layout: Layout) -> tuple[sp.csc_matrix, np.ndarray]:
     """CSC pattern of the layout's rows and the permutation from our data order to CSC order."""
     R = layout.teams.n_robots
     nnz = layout.rows.size
-    coo = sp.coo_matrix((np.arange(1, nnz + 1, dtype=np.float64), (layout.rows, layout.cols)), shape=(layout.n_rows, 2 * R))
+    coo = sp.coo_matrix(
+        (np.arange(1, nnz + 1, dtype=np.float64), (layout.rows, layout.cols)), shape=(layout.n_rows, 2 * R)
+    )
     csc = coo.tocsc()
     return csc, csc.data.astype(np.int64) - 1
 
@@ -47,8 +49,13 @@ class BarrierQP:
     """The barrier QP of :mod:`comat.safety.constraints` for teams of ``team_sizes`` robots (with
     pair rows for all their pairs, or for the given ``pairs`` only)."""
 
-    def __init__(self, team_sizes: tuple[int, ...], config: SafetyConfig, profile: C.RobotProfile,
-                 pairs: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    def __init__(
+        self,
+        team_sizes: tuple[int, ...],
+        config: SafetyConfig,
+        profile: C.RobotProfile,
+        pairs: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         self.layout = make_layout(team_sizes, pairs)
         self.config = config
         self.profile = profile
@@ -88,8 +95,14 @@ class BarrierQP:
         wheel_factor = self.wheel_factor
         if kernels.enabled():
             return kernels.team_violations(
-                Au, vals.lower, vals.upper, tol, self.layout.n_pair_rows + 2 * t.n_robots, wheel_factor,
-                self.layout.row_team, t.n_teams,
+                Au,
+                vals.lower,
+                vals.upper,
+                tol,
+                self.layout.n_pair_rows + 2 * t.n_robots,
+                wheel_factor,
+                self.layout.row_team,
+                t.n_teams,
             )
         viol = (Au > vals.upper + tol) | (Au < vals.lower - tol)
         w = slice(self.layout.n_pair_rows + 2 * t.n_robots, None)
@@ -151,7 +164,9 @@ class BarrierQP:
         B = self.layout.teams.n_teams
         if status_val != _SOLVED or not np.all(np.isfinite(x)):
             m = vals.lower.size
-            return QPResult(np.zeros_like(u_nom), np.zeros(m), np.zeros(m), np.zeros(B, dtype=bool), status, wall, c_time)
+            return QPResult(
+                np.zeros_like(u_nom), np.zeros(m), np.zeros(m), np.zeros(B, dtype=bool), status, wall, c_time
+            )
         # A polished answer is exact; an unpolished one may miss rows by ~eps: repair it.
         if not polished:
             x = self._repair(A, vals, x)
@@ -187,15 +202,26 @@ class BarrierQP:
         return x * np.repeat(alpha[lay.teams.robot_team], 2)
 
 
-def dense_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray,
-             weights: np.ndarray | None = None) -> tuple[np.ndarray | None, str]:
+def dense_qp(
+    vhat: np.ndarray, A: np.ndarray, b: np.ndarray, weights: np.ndarray | None = None
+) -> tuple[np.ndarray | None, str]:
     """min ½·Σ w_k (v_k − v̂_k)² (w = 1 by default) s.t. A v <= b for one small dense problem (the
     portable barrier of a team with a robot on probation,
     :class:`comat.safety.deployed.PortableBarrier`): (v or None, status)."""
     w = np.ones(vhat.size) if weights is None else weights
     solver = osqp.OSQP()
-    solver.setup(sp.diags(w, format="csc"), -w * vhat, sp.csc_matrix(A), np.full(b.size, -1e30), b,
-                 verbose=False, eps_abs=1e-7, eps_rel=1e-7, max_iter=20000, polishing=True)
+    solver.setup(
+        sp.diags(w, format="csc"),
+        -w * vhat,
+        sp.csc_matrix(A),
+        np.full(b.size, -1e30),
+        b,
+        verbose=False,
+        eps_abs=1e-7,
+        eps_rel=1e-7,
+        max_iter=20000,
+        polishing=True,
+    )
     res = solver.solve(raise_error=False)
     if res.info.status_val != _SOLVED or not np.all(np.isfinite(res.x)):
         return None, str(res.info.status)

@@ -38,7 +38,10 @@ cost as much as a 0.1 m/s deviation."""
 
 
 def recovery_command(
-    points: np.ndarray, headings: np.ndarray, u_nom: np.ndarray, config: SafetyConfig,
+    points: np.ndarray,
+    headings: np.ndarray,
+    u_nom: np.ndarray,
+    config: SafetyConfig,
     profile: C.RobotProfile = C.DEFAULT_PROFILE,
 ) -> np.ndarray | None:
     """The softened problem above for one team of n robots.
@@ -59,21 +62,34 @@ def recovery_command(
     pair, bound, wheel = A[:P], A[P : P + R2], A[P + R2 :]
     I_s = sp.identity(m, format="csr")
     zero_ws = sp.csr_matrix((R2, m))
-    rows = sp.vstack([
-        sp.hstack([pair, -I_s[:P]]),  # a·u − s <= b
-        sp.hstack([bound, I_s[P:]]),  # u + s >= l
-        sp.hstack([bound, -I_s[P:]]),  # u − s <= h
-        sp.hstack([wheel, zero_ws]),  # hard
-        sp.hstack([sp.csr_matrix((m, R2)), I_s]),  # s >= 0
-    ], format="csc")
+    rows = sp.vstack(
+        [
+            sp.hstack([pair, -I_s[:P]]),  # a·u − s <= b
+            sp.hstack([bound, I_s[P:]]),  # u + s >= l
+            sp.hstack([bound, -I_s[P:]]),  # u − s <= h
+            sp.hstack([wheel, zero_ws]),  # hard
+            sp.hstack([sp.csr_matrix((m, R2)), I_s]),  # s >= 0
+        ],
+        format="csc",
+    )
     inf = OSQP_INFINITY
     lo, up = vals.lower, vals.upper
     lower = np.concatenate([np.full(P, -inf), lo[P : P + R2], np.full(R2, -inf), lo[P + R2 :], np.zeros(m)])
     upper = np.concatenate([up[:P], np.full(R2, inf), up[P : P + R2], up[P + R2 :], np.full(m, inf)])
     cost = sp.diags(np.concatenate([np.ones(R2), np.full(m, SLACK_WEIGHT)]), format="csc")
     solver = osqp.OSQP()
-    solver.setup(cost, np.concatenate([-u_nom, np.zeros(m)]), rows, lower, upper, verbose=False,
-                 eps_abs=config.eps * 1e-2, eps_rel=config.eps * 1e-2, max_iter=10 * config.max_iter, polishing=True)
+    solver.setup(
+        cost,
+        np.concatenate([-u_nom, np.zeros(m)]),
+        rows,
+        lower,
+        upper,
+        verbose=False,
+        eps_abs=config.eps * 1e-2,
+        eps_rel=config.eps * 1e-2,
+        max_iter=10 * config.max_iter,
+        polishing=True,
+    )
     result = solver.solve(raise_error=False)  # failures are handled below (the caller brakes)
     if result.info.status_val != osqp.SolverStatus.OSQP_SOLVED or not np.all(np.isfinite(result.x)):
         return None

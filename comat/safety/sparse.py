@@ -103,8 +103,9 @@ class CouplingPattern:
         lo, hi: (2,) corners of the arena shrunk by the boundary margin.
     """
 
-    def __init__(self, t: TeamLayout, large: np.ndarray, pair_d: float, edge_d: float, lo, hi,
-                 slack: float = PATTERN_SLACK_M) -> None:
+    def __init__(
+        self, t: TeamLayout, large: np.ndarray, pair_d: float, edge_d: float, lo, hi, slack: float = PATTERN_SLACK_M
+    ) -> None:
         self.t, self.large = t, large
         self._large_pair, self._large_robot = large[t.pair_team], large[t.robot_team]
         self._pair_d2, self._pair_wide2 = pair_d**2, (pair_d + slack) ** 2

@@ -72,11 +72,13 @@ class _Group:
         both are equal bit for bit (tests/test_kernels.py)."""
         buf = self.record(self.sims.size)
         if not _DIRECT_ROLLOUT:
-            return self.batch.rollout(self.substeps, record=("sensordata",), ids=None if self.in_order else self.sims,
-                                      out=buf)["sensordata"]
+            return self.batch.rollout(
+                self.substeps, record=("sensordata",), ids=None if self.in_order else self.sims, out=buf
+            )["sensordata"]
         ids = None if self.in_order else self.sims32
-        failed = self.batch._b.rollout(ids, self.substeps, None, mujoco.mjtState.mjSTATE_CTRL.value,
-                                       [("sensordata", 0, buf["sensordata"])])
+        failed = self.batch._b.rollout(
+            ids, self.substeps, None, mujoco.mjtState.mjSTATE_CTRL.value, [("sensordata", 0, buf["sensordata"])]
+        )
         if failed:
             self.batch._check(ids, failed)  # raises SimulationError, as the wrapper does
         return buf["sensordata"]
@@ -172,8 +174,9 @@ class BatchWorld(_TickMixin):
         self.violations = Violations(self.layout.robot_team, self.layout.n_teams)
         self.ticks = 0
 
-    def set_robot_physics(self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray,
-                          teams: Sequence[int] | None = None) -> None:
+    def set_robot_physics(
+        self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray, teams: Sequence[int] | None = None
+    ) -> None:
         """Wheels tier: per-robot floor friction (R,), chassis mass scale (R,) and centre-of-mass
         offset (R, 2) m of ``teams`` (all if None; rows of the others are ignored), written into
         their simulations' own model fields (``Batch.expand``; the first call makes those fields
@@ -188,7 +191,9 @@ class BatchWorld(_TickMixin):
             sims, rows = g.sims[sel], g.rows[sel]
             base = compiled_scene(g.n, self.config.tier, self.config.profile, g.substeps)
             for s_i, r in zip(sims, rows):
-                for name, (index, values) in g.binding.physics_fields(friction[r], mass_scale[r], com_xy[r], base).items():
+                for name, (index, values) in g.binding.physics_fields(
+                    friction[r], mass_scale[r], com_xy[r], base
+                ).items():
                     field = g.batch.expand(name)
                     if name == "geom_friction":
                         field[s_i, index, 0] = values
@@ -258,11 +263,15 @@ class BatchWorld(_TickMixin):
         for g in self.groups:
             b = g.binding
             unicycle = b.tier == "unicycle"
-            kernels.group_ctrl(dxu, g.rows, g.sims, unicycle, b.half_timestep, b.lateral_gain, *b.wheel_geometry, g.ctrl)
+            kernels.group_ctrl(
+                dxu, g.rows, g.sims, unicycle, b.half_timestep, b.lateral_gain, *b.wheel_geometry, g.ctrl
+            )
             t0 = time.perf_counter()
             rec = g.rollout()
             self.last_physics_s += time.perf_counter() - t0
-            kernels.group_read(rec, g.qpos, g.sims, b.qadr, b.sensor_all, b.sensor_wall, g.rows, unicycle, poses, robot, wall)
+            kernels.group_read(
+                rec, g.qpos, g.sims, b.qadr, b.sensor_all, b.sensor_wall, g.rows, unicycle, poses, robot, wall
+            )
             if not unicycle:  # the yaw from the quaternion: arctan2 stays in numpy
                 poses[g.rows.ravel(), 2] = b.poses(g.qpos[g.sims])[..., 2].ravel()
         return poses, robot, wall

@@ -29,7 +29,11 @@ class Binding:
         # Wheel hinge angles of the wheeled tier are reset to 0 (irrelevant to the dynamics).
         self.wheel_qadr = (
             np.array(
-                [model.jnt_qposadr[model.joint(f"robot_{i}/{s}_wheel").id] for i in range(n_robots) for s in ("left", "right")]
+                [
+                    model.jnt_qposadr[model.joint(f"robot_{i}/{s}_wheel").id]
+                    for i in range(n_robots)
+                    for s in ("left", "right")
+                ]
             )
             if tier == "wheels"
             else np.zeros(0, np.int64)
@@ -41,9 +45,7 @@ class Binding:
             else np.zeros((0, 2), np.int64)
         )
         """(N, 2) each robot's wheel geoms (wheels tier; their friction is the wheel-floor contact's)."""
-        self.sensor_all = np.array(
-            [model.sensor_adr[model.sensor(f"robot_{i}/contacts").id] for i in range(n_robots)]
-        )
+        self.sensor_all = np.array([model.sensor_adr[model.sensor(f"robot_{i}/contacts").id] for i in range(n_robots)])
         self.sensor_wall = np.array(
             [model.sensor_adr[model.sensor(f"robot_{i}/wall_contacts").id] for i in range(n_robots)]
         )
@@ -59,8 +61,9 @@ class Binding:
         self.z0 = profile.wheel_radius_m
         self._pose_cols = (self.qadr[:, None] + np.arange(7 if tier == "wheels" else 3)).ravel()
 
-    def physics_fields(self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray,
-                       base: mujoco.MjModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    def physics_fields(
+        self, friction: np.ndarray, mass_scale: np.ndarray, com_xy: np.ndarray, base: mujoco.MjModel
+    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Per-robot physics of the wheels tier as model-field writes: {field: (index, values)}
         for wheel friction (N,) (wheel-floor μ: the wheel geoms have the contact's priority),
         chassis mass scale (N,) and centre-of-mass offset (N, 2) (m), relative to ``base``."""

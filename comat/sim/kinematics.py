@@ -54,9 +54,7 @@ def diff_to_uni(dxdd: np.ndarray, profile: C.RobotProfile = C.DEFAULT_PROFILE) -
     return np.stack([r * (left + right) / 2.0, r * (right - left) / l], axis=-1)
 
 
-def threshold_wheels(
-    dxu: np.ndarray, profile: C.RobotProfile = C.DEFAULT_PROFILE
-) -> tuple[np.ndarray, np.ndarray]:
+def threshold_wheels(dxu: np.ndarray, profile: C.RobotProfile = C.DEFAULT_PROFILE) -> tuple[np.ndarray, np.ndarray]:
     """Clip each wheel to ±12.5 rad/s independently, as rps ``step()`` does since 2024.
 
     Returns:
@@ -113,11 +111,15 @@ def si_to_uni(
     return np.stack([c * dx + s * dy, (-s * dx + c * dy) / distance], axis=-1)
 
 
-def wheel_rhombus(distance: float, profile: C.RobotProfile = C.DEFAULT_PROFILE, fraction: float = 1.0) -> tuple[float, float]:
+def wheel_rhombus(
+    distance: float, profile: C.RobotProfile = C.DEFAULT_PROFILE, fraction: float = 1.0
+) -> tuple[float, float]:
     """(k, v) of the per-wheel limit seen at the projected point: |a| + k|b| <= v for velocity
     components a along and b across the heading, k = l_axle / (2·distance) (1), v =
     r·φ̇_max·fraction (m/s)."""
-    return profile.base_length_m / (2.0 * distance), profile.wheel_radius_m * profile.max_wheel_velocity_radps * fraction
+    return profile.base_length_m / (
+        2.0 * distance
+    ), profile.wheel_radius_m * profile.max_wheel_velocity_radps * fraction
 
 
 def limit_to_wheels(

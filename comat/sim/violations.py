@@ -64,7 +64,9 @@ def check_tick(
         R = poses.shape[0]
         collision, boundary, pairs = np.empty(R, dtype=bool), np.empty(R, dtype=bool), np.empty(n_teams, np.int64)
         d2 = C.COLLISION_DIAMETER_M**2
-        kernels.check_tick_into(poses, c, s, C.COLLISION_OFFSET_M, d2, pair_i, pair_j, pair_team, _BOUNDS, collision, pairs, boundary)
+        kernels.check_tick_into(
+            poses, c, s, C.COLLISION_OFFSET_M, d2, pair_i, pair_j, pair_team, _BOUNDS, collision, pairs, boundary
+        )
         return TickEvents(collision, pairs, boundary, actuator, robot_contact, wall_contact)
     pts = projected_points(poses, C.COLLISION_OFFSET_M)
     d = np.take(pts, pair_i, axis=0) - np.take(pts, pair_j, axis=0)

@@ -94,8 +94,8 @@ class _TickMixin:
         dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
         length = p.base_length_m
         kernels.si_to_wheels(
-            dxi, c, s, distance, p.wheel_radius_m, length / 2.0, length, p.max_wheel_velocity_radps, WHEEL_LIMIT_TOLERANCE,
-            dxu, clipped, overrun,
+            dxi, c, s, distance, p.wheel_radius_m, length / 2.0, length, p.max_wheel_velocity_radps,
+            WHEEL_LIMIT_TOLERANCE, dxu, clipped, overrun,
         )  # fmt: skip
         return self._advance(clipped, overrun)
 

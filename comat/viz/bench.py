@@ -149,7 +149,8 @@ def run_viz_bench(
 def format_table(results: list[dict]) -> str:
     """The results as a fixed-width text table (overheads: median paired ratio, and minima)."""
     head = (
-        f"{'task':<5} {'steps':>5} {'robot-steps':>11} {'cpu plain/rec s':>15} {'overhead':>8} {'(min)':>6} {'attributed':>10} "
+        f"{'task':<5} {'steps':>5} {'robot-steps':>11} {'cpu plain/rec s':>15} {'overhead':>8} {'(min)':>6} "
+        f"{'attributed':>10} "
         f"{'wall plain/rec s':>16} {'overhead':>8} {'(min)':>6} {'file KiB':>8} {'B/robot-step':>12} {'payload':>7}"
     )
     rows = [

@@ -24,9 +24,7 @@ _LEGEND_M = 0.1
 def _history() -> rrb.VisibleTimeRanges:
     """From the start of the timeline to the cursor, on both timelines."""
     start, end = rrb.TimeRangeBoundary.infinite(), rrb.TimeRangeBoundary.cursor_relative()
-    return rrb.VisibleTimeRanges(
-        [rrb.VisibleTimeRange(t, start=start, end=end) for t in ("step", "sim_time")]
-    )
+    return rrb.VisibleTimeRanges([rrb.VisibleTimeRange(t, start=start, end=end) for t in ("step", "sim_time")])
 
 
 def episode_view(index: int) -> rrb.Horizontal:

@@ -43,8 +43,14 @@ from comat.viz.scene import (
     meta_markdown,
 )
 
-__all__ = ["CAPABILITY_RING_SEGMENTS", "HEADING_ARROW_M", "NO_EVENTS", "SAFETY_ARROW_S", "TRAIL_POINTS_PER_STEP",
-           "EpisodeRecorder"]
+__all__ = [
+    "CAPABILITY_RING_SEGMENTS",
+    "HEADING_ARROW_M",
+    "NO_EVENTS",
+    "SAFETY_ARROW_S",
+    "TRAIL_POINTS_PER_STEP",
+    "EpisodeRecorder",
+]
 
 TRAIL_POINTS_PER_STEP = 8
 """Path points kept per robot and env step (evenly spaced ticks, the last one always)."""
@@ -94,9 +100,7 @@ class EpisodeRecorder:
 
     def __init__(self, recording: rr.RecordingStream | None) -> None:
         if recording is not None and not isinstance(recording, rr.RecordingStream):
-            raise TypeError(
-                f"recording must be a rerun.RecordingStream or None, got {type(recording).__name__}"
-            )
+            raise TypeError(f"recording must be a rerun.RecordingStream or None, got {type(recording).__name__}")
         self.recording = recording
         self.cpu_s = 0.0
         self._core = None
@@ -220,9 +224,7 @@ class EpisodeRecorder:
         xy = poses[..., :2].reshape(-1, 2)
         every = [n] * (T + 1)
         rec.send_columns(f"{w}/robots", states, rr.Points2D.columns(positions=xy).partition(every))
-        heading = HEADING_ARROW_M * np.stack([np.cos(poses[..., 2]), np.sin(poses[..., 2])], -1).reshape(
-            -1, 2
-        )
+        heading = HEADING_ARROW_M * np.stack([np.cos(poses[..., 2]), np.sin(poses[..., 2])], -1).reshape(-1, 2)
         rec.send_columns(
             f"{w}/robots/heading", states, rr.Arrows2D.columns(origins=xy, vectors=heading).partition(every)
         )
@@ -242,16 +244,28 @@ class EpisodeRecorder:
         rec = self.recording
         seen = np.stack([v["measured"] for v in self._reality])  # (T+1, n, 3)
         mxy = seen[..., :2].reshape(-1, 2)
-        rec.send_columns(f"{w}/robots/measured", states, rr.Points2D.columns(
-            positions=mxy, radii=[0.055] * len(mxy), colors=[(90, 90, 90, 110)] * len(mxy)).partition(every))
+        rec.send_columns(
+            f"{w}/robots/measured",
+            states,
+            rr.Points2D.columns(
+                positions=mxy, radii=[0.055] * len(mxy), colors=[(90, 90, 90, 110)] * len(mxy)
+            ).partition(every),
+        )
         strips = np.stack([poses[..., :2], seen[..., :2]], axis=2).reshape(-1, 2, 2)
-        rec.send_columns(f"{w}/robots/pose_error", states, rr.LineStrips2D.columns(
-            strips=list(strips), colors=[(210, 20, 20, 255)] * len(strips)).partition(every))
+        rec.send_columns(
+            f"{w}/robots/pose_error",
+            states,
+            rr.LineStrips2D.columns(strips=list(strips), colors=[(210, 20, 20, 255)] * len(strips)).partition(every),
+        )
         faulty = [np.flatnonzero(v["faulty"]) for v in self._reality]
         fxy = np.concatenate([poses[t, f, :2] for t, f in enumerate(faulty)]) if faulty else np.zeros((0, 2))
-        rec.send_columns(f"{w}/robots/fault", states, rr.Points2D.columns(
-            positions=fxy, radii=[0.075] * len(fxy), colors=[(0, 0, 0, 200)] * len(fxy),
-            labels=["fault"] * len(fxy)).partition([len(f) for f in faulty]))
+        rec.send_columns(
+            f"{w}/robots/fault",
+            states,
+            rr.Points2D.columns(
+                positions=fxy, radii=[0.075] * len(fxy), colors=[(0, 0, 0, 200)] * len(fxy), labels=["fault"] * len(fxy)
+            ).partition([len(f) for f in faulty]),
+        )
 
     def _send_steps(self, after, chosen, poses: np.ndarray) -> None:
         rec, p, n = self.recording, self._prefix, self._n
@@ -285,9 +299,7 @@ class EpisodeRecorder:
                 after,
                 rr.Arrows2D.columns(origins=origin, vectors=vec).partition(lengths),
             )
-        counts = {
-            k: np.array([s.counts[k] for s in self._summaries], dtype=np.float64) for k in SAFETY_COUNTS
-        }
+        counts = {k: np.array([s.counts[k] for s in self._summaries], dtype=np.float64) for k in SAFETY_COUNTS}
         _series(rec, f"{p}/safety/counts", after, counts)
         # Events: a marker at each robot that had one, and a log line per step that had any.
         ev = np.stack([s.events for s in self._summaries])  # (T, n, E)
@@ -314,13 +326,9 @@ class EpisodeRecorder:
             for (t, _), text in zip(where, labels):
                 by_step[int(t)].append(text)
             for t in np.flatnonzero(fallback):
-                by_step[int(t)].append(
-                    f"barrier fallback (team braked) in {int(counts['fallbacks'][t])} ticks"
-                )
+                by_step[int(t)].append(f"barrier fallback (team braked) in {int(counts['fallbacks'][t])} ticks")
             for t in np.flatnonzero(recovery):
-                by_step[int(t)].append(
-                    f"outside the safe set: recovering in {int(counts['recoveries'][t])} ticks"
-                )
+                by_step[int(t)].append(f"outside the safe set: recovering in {int(counts['recoveries'][t])} ticks")
             text = [f"step {t + 1}: " + "; ".join(v) for t, v in by_step.items()]
             level = ["ERROR" if fallback[t] else "WARN" for t in by_step]
             idx = np.array(list(by_step)) + 1
@@ -332,14 +340,14 @@ class EpisodeRecorder:
             )
 
 
-NO_EVENTS = ("no events in this episode: no contact, Robotarium collision, boundary exit, wall contact or "
-             "actuator error, and the filter never recovered or braked")
+NO_EVENTS = (
+    "no events in this episode: no contact, Robotarium collision, boundary exit, wall contact or "
+    "actuator error, and the filter never recovered or braked"
+)
 """The event log's one line when nothing happened."""
 
 
-def _series(
-    rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], series: dict[str, np.ndarray]
-) -> None:
+def _series(rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], series: dict[str, np.ndarray]) -> None:
     """Several named time series (T,) on one entity: one row of len(series) scalars per time,
     so the per-row index is paid once rather than once per series."""
     values = np.stack([np.asarray(v, dtype=np.float64) for v in series.values()], axis=1)  # (T, S)

@@ -134,7 +134,8 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         return PolicySpec(getattr(policy, "__name__", "policy"), lambda env, seed: policy)
     if not isinstance(policy, (str, Path)):
         raise TypeError(
-            f"policy must be 'heuristic', 'random', 'constant', a checkpoint path or a callable, got {type(policy).__name__}"
+            "policy must be 'heuristic', 'random', 'constant', a checkpoint path or a callable, "
+            f"got {type(policy).__name__}"
         )
     if str(policy) == "heuristic":
         return PolicySpec("heuristic", _heuristic)
@@ -182,9 +183,7 @@ def check_rrd_path(path: str | Path, flag: str = "out", folder: bool = True) -> 
         os.close(fd)
         os.unlink(probe)
     except OSError as err:
-        raise ValueError(
-            f"{flag}: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}"
-        ) from err
+        raise ValueError(f"{flag}: cannot write in folder {str(parent)!r} ({err.strerror}), got {str(p)!r}") from err
     if p.exists() and not os.access(p, os.W_OK):
         raise ValueError(f"{flag}: {str(p)!r} exists and is not writable")
     return p
@@ -218,23 +217,17 @@ def play_episodes(
     for k in range(episodes):
         options = {"team": teams[k]} if teams is not None else None
         env.reset(seed=seed + k, options=options)
-        recorder.begin(
-            core, 0, episode=k, metadata={**(metadata or {}), "seed": seed + k, "team_size": env.team.size}
-        )
+        recorder.begin(core, 0, episode=k, metadata={**(metadata or {}), "seed": seed + k, "team_size": env.team.size})
         n = env.team.size
         if on_frame is not None:
             env.render_caption = f"{(metadata or {}).get('policy', '')} · episode {k}: {n} robots, seed {seed + k}"
             on_frame(env.render())
         metrics: dict[str, float] = {}
         while env.agents:
-            actions = np.asarray(act(core.observe(), core.mask, core.global_state() if use_state else None))[
-                0, :n
-            ]
+            actions = np.asarray(act(core.observe(), core.mask, core.global_state() if use_state else None))[0, :n]
             _, rewards, _, _, infos = env.step({a: int(actions[i]) for i, a in enumerate(env.agents)})
             info = infos["robot_0"]
-            recorder.step(
-                actions, rewards["robot_0"], {t: info[f"reward/{t}"] for t in core.task.reward_terms}
-            )
+            recorder.step(actions, rewards["robot_0"], {t: info[f"reward/{t}"] for t in core.task.reward_terms})
             if on_frame is not None:
                 on_frame(env.render())
             if not env.agents:
@@ -287,7 +280,6 @@ def record_episodes(
     """
     out = None if path is None else check_rrd_path(path)
     if video is not None:
-
         video = check_video_path(video)
     spec = policy if isinstance(policy, PolicySpec) else resolve_policy(policy, task)
     if teams is not None:
@@ -296,9 +288,7 @@ def record_episodes(
             raise ValueError(f"teams must be a non-empty list of TeamSpec, got {teams!r:.200}")
         wrong = [i for i, t in enumerate(teams) if t.task != task]
         if wrong:
-            raise ValueError(
-                f"teams[{wrong[0]}] is a {teams[wrong[0]].task!r} team, but the rollout runs {task!r}"
-            )
+            raise ValueError(f"teams[{wrong[0]}] is a {teams[wrong[0]].task!r} team, but the rollout runs {task!r}")
     episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
     if teams is not None and len(teams) < episodes:
         raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
@@ -310,18 +300,28 @@ def record_episodes(
     pool = teams if teams is not None else coalitions
     largest = max(t.size for t in resolve_coalitions(pool, task))
     if slots is not None and largest > slots:
-        raise ValueError(f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
-                         f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)")
+        raise ValueError(
+            f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
+            f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)"
+        )
     env = make_env(
-        f"{task}_v0", coalitions=pool, tier=tier, ticks_per_step=ticks_per_step, max_robots=slots,
+        f"{task}_v0",
+        coalitions=pool,
+        tier=tier,
+        ticks_per_step=ticks_per_step,
+        max_robots=slots,
         state_robots=slots or 8,  # a baseline's centralized state covers all its slots
-        render_mode=None if video is None else "rgb_array", reality=reality,
+        render_mode=None if video is None else "rgb_array",
+        reality=reality,
     )
     act = spec.bind(env, seed)
     meta = {
         "policy": policy_name or spec.name,
         "reality": env.core.reality_config.label,
-        "coalition set": "given teams" if teams is not None else coalitions if isinstance(coalitions, str)
+        "coalition set": "given teams"
+        if teams is not None
+        else coalitions
+        if isinstance(coalitions, str)
         else f"{len(coalitions)} teams given",
     }
     state = spec.use_state if use_state is None else use_state
@@ -345,7 +345,14 @@ def record_episodes(
         recorder = EpisodeRecorder(rec)
         writer = None if video is None else VideoWriter(video, fps)
         results = play_episodes(
-            env, act, recorder, episodes=episodes, seed=seed, use_state=state, teams=teams, metadata=meta,
+            env,
+            act,
+            recorder,
+            episodes=episodes,
+            seed=seed,
+            use_state=state,
+            teams=teams,
+            metadata=meta,
             on_frame=None if writer is None else writer.append,
         )
         if writer is not None:
@@ -386,11 +393,17 @@ def record_training(config: RunConfig, modules: dict, out: Path, steps: int, epi
     for m in modules.values():
         m.eval()
     try:
-        record_episodes(path, config.task, policy_act(config.algo, modules),
-                        teams=resolve_coalitions("train", config.task)[:episodes],
-                        seed=config.seed + EVAL_SEED_OFFSET, tier=config.tier,
-                        max_robots=robot_slots(config), reality=config.reality,
-                        policy_name=f"{config.algo} after {steps:,} env steps")
+        record_episodes(
+            path,
+            config.task,
+            policy_act(config.algo, modules),
+            teams=resolve_coalitions("train", config.task)[:episodes],
+            seed=config.seed + EVAL_SEED_OFFSET,
+            tier=config.tier,
+            max_robots=robot_slots(config),
+            reality=config.reality,
+            policy_name=f"{config.algo} after {steps:,} env steps",
+        )
     finally:
         for m in modules.values():
             m.train()

@@ -139,9 +139,7 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     if task.name == "hmt":
         rec.log(
             f"{zones}/material_1",
-            rr.LineStrips2D(
-                [circle_strip(ZONE1_CENTRE, ZONE1_RADIUS)], colors=[(230, 170, 20)], radii=[0.006]
-            ),
+            rr.LineStrips2D([circle_strip(ZONE1_CENTRE, ZONE1_RADIUS)], colors=[(230, 170, 20)], radii=[0.006]),
             static=True,
         )
         rec.log(
@@ -149,9 +147,7 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
             rr.Boxes2D(**_box(ZONE2_X, X1, Y0, Y1), colors=[(230, 170, 20)]),
             static=True,
         )
-        rec.log(
-            f"{zones}/dropoff", rr.Boxes2D(**_box(X0, -ZONE2_X, Y0, Y1), colors=[(50, 170, 80)]), static=True
-        )
+        rec.log(f"{zones}/dropoff", rr.Boxes2D(**_box(X0, -ZONE2_X, Y0, Y1), colors=[(50, 170, 80)]), static=True)
     else:
         rec.log(
             f"{zones}/spawn",
@@ -166,9 +162,7 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
         prey = core.state["prey"][b][core.state["active"][b]]  # padded slots of a smaller team: not drawn
         rec.log(
             f"{w}/prey",
-            rr.Points2D(
-                prey, radii=[0.035], labels=[f"prey {k}" for k in range(prey.shape[0])], show_labels=False
-            ),
+            rr.Points2D(prey, radii=[0.035], labels=[f"prey {k}" for k in range(prey.shape[0])], show_labels=False),
             static=True,
         )
     colors = np.array([TYPE_COLORS.get(r.type, (200, 200, 200)) for r in team.robots], dtype=np.uint8)
@@ -189,9 +183,12 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
             rgb = TYPE_COLORS[name]
             rec.log(  # outlines, not discs: a filled disc hides the robots in the web viewer
                 f"{w}/capabilities/{name}",
-                rr.LineStrips2D.from_fields(radii=[0.004], colors=[(*rgb, 170)],
-                                            labels=[f"robot_{i}: {name} radius {caps[i, k]:.2f} m"
-                                                    for i in np.flatnonzero(types == k)], show_labels=False),
+                rr.LineStrips2D.from_fields(
+                    radii=[0.004],
+                    colors=[(*rgb, 170)],
+                    labels=[f"robot_{i}: {name} radius {caps[i, k]:.2f} m" for i in np.flatnonzero(types == k)],
+                    show_labels=False,
+                ),
                 static=True,
             )
     else:
@@ -209,16 +206,12 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     rec.log(f"{w}/actions", _action_names(), rr.Arrows2D.from_fields(radii=[0.006]), static=True)
     rec.log(
         f"{w}/safety/nominal",
-        rr.Arrows2D.from_fields(
-            colors=[(120, 120, 120)], radii=[0.007], labels=["nominal"], show_labels=False
-        ),
+        rr.Arrows2D.from_fields(colors=[(120, 120, 120)], radii=[0.007], labels=["nominal"], show_labels=False),
         static=True,
     )
     rec.log(
         f"{w}/safety/filtered",
-        rr.Arrows2D.from_fields(
-            colors=[(220, 30, 30)], radii=[0.007], labels=["filtered"], show_labels=False
-        ),
+        rr.Arrows2D.from_fields(colors=[(220, 30, 30)], radii=[0.007], labels=["filtered"], show_labels=False),
         static=True,
     )
     rec.log(f"{w}/events", rr.Points2D.from_fields(radii=[0.09], colors=[(255, 0, 0, 90)]), static=True)
@@ -230,8 +223,10 @@ def legend_items(task: str, types: list[str], measured: bool) -> list[tuple[str,
     present, the task's marks, the filter's arrows and, under the reality layer, the measured pose."""
     items = [(kind, TYPE_COLORS.get(kind, (200, 200, 200))) for kind in dict.fromkeys(types)]
     if task == "pcp":
-        items += [(f"prey {name}", tuple(int(c) for c in PREY_COLORS[k, :3]))
-                  for k, name in enumerate(("free", "sensed", "captured"))]
+        items += [
+            (f"prey {name}", tuple(int(c) for c in PREY_COLORS[k, :3]))
+            for k, name in enumerate(("free", "sensed", "captured"))
+        ]
         items.append(("ring: sensing / capture radius", (120, 120, 120)))
     else:
         items.append(("bar: load / payload", (230, 170, 20)))
@@ -251,7 +246,10 @@ def log_legend(rec: rr.RecordingStream, world: str, core, b: int) -> None:
         f"{world}/legend",
         rr.Points2D(
             np.column_stack([x, np.full(len(items), Y0 - C.WALL_THICKNESS_M * 2 - LEGEND_DROP_M)]),
-            radii=[0.02], colors=[c for _, c in items], labels=[label for label, _ in items], show_labels=True,
+            radii=[0.02],
+            colors=[c for _, c in items],
+            labels=[label for label, _ in items],
+            show_labels=True,
         ),
         static=True,
     )

@@ -59,8 +59,15 @@ class VideoWriter:
             import imageio.v2 as imageio
 
             self._mp4 = imageio.get_writer(
-                self._tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", pixelformat="yuv420p",
-                quality=7, macro_block_size=16, ffmpeg_log_level="error",
+                self._tmp,
+                format="FFMPEG",
+                mode="I",
+                fps=fps,
+                codec="libx264",
+                pixelformat="yuv420p",
+                quality=7,
+                macro_block_size=16,
+                ffmpeg_log_level="error",
             )
 
     def append(self, frame: np.ndarray) -> None:
@@ -90,8 +97,9 @@ class VideoWriter:
             self._mp4.close()
         else:
             first, *rest = self._gif
-            first.save(self._tmp, format="GIF", save_all=True, append_images=rest, duration=round(1000 / self.fps),
-                       loop=0)
+            first.save(
+                self._tmp, format="GIF", save_all=True, append_images=rest, duration=round(1000 / self.fps), loop=0
+            )
         os.replace(self._tmp, self.path)
         return self.path
 

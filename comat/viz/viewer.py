@@ -20,6 +20,8 @@ def viewer_hint(path, environ=None) -> str:
     quoted = shlex.quote(str(path))
     if env.get("DISPLAY") or env.get("WAYLAND_DISPLAY") or sys.platform in ("darwin", "win32"):
         return f"open it with: rerun {quoted}"
-    return (f"no display here (DISPLAY and WAYLAND_DISPLAY unset): serve it with  rerun --serve-web {quoted}  and open "
-            f"{WEB_VIEWER_URL} in a browser (from another machine: ssh -L 9090:localhost:9090 -L 9876:localhost:9876 "
-            "HOST first)")
+    return (
+        f"no display here (DISPLAY and WAYLAND_DISPLAY unset): serve it with  rerun --serve-web {quoted}  and open "
+        f"{WEB_VIEWER_URL} in a browser (from another machine: ssh -L 9090:localhost:9090 -L 9876:localhost:9876 "
+        "HOST first)"
+    )

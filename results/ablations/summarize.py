@@ -40,10 +40,15 @@ HERE = ROOT / "results" / "ablations"
 SWEEP = ROOT / "results" / "sweep"
 NAME = re.compile(r"(?P<variant>.+)_(?P<task>hmt|pcp)_s(?P<seed>\d+)_(?P<steps>\d+)$")
 LABELS = {
-    "mat": "MAT (sweep)", "a_control": "(a) COMAT, paper form (sweep)", "b_root": "(b) root term",
-    "c_embed": "(c) obs embedding + residual", "d_embed_small": "(d) (c) + messages at gain 0.01",
-    "d2_tblock": "(d2) (d) + per-robot FFN", "e_reference": "(e) (d2) + reference HEAT messages",
-    "f_world": "(f) (d2) + world-frame edges", "g_shared": "(g) (d2) + shared decision trunk",
+    "mat": "MAT (sweep)",
+    "a_control": "(a) COMAT, paper form (sweep)",
+    "b_root": "(b) root term",
+    "c_embed": "(c) obs embedding + residual",
+    "d_embed_small": "(d) (c) + messages at gain 0.01",
+    "d2_tblock": "(d2) (d) + per-robot FFN",
+    "e_reference": "(e) (d2) + reference HEAT messages",
+    "f_world": "(f) (d2) + world-frame edges",
+    "g_shared": "(g) (d2) + shared decision trunk",
     "h_gae": "(h) (d2) + GAE(λ) value target",
     "i_reference_shared": "(i) (d2) + (e) + (g)",
 }
@@ -52,9 +57,15 @@ LABELS = {
 def _curve(folder: Path) -> dict[str, np.ndarray]:
     with open(folder / "progress.csv") as fh:
         rows = current_names(list(csv.DictReader(fh)))
-    return {k: np.array([float(r[c]) for r in rows]) for k, c in
-            (("steps", "env_steps"), ("progress", "episode_progress"), ("finished", "episode_finished"),
-             ("return", "episode_return"))}
+    return {
+        k: np.array([float(r[c]) for r in rows])
+        for k, c in (
+            ("steps", "env_steps"),
+            ("progress", "episode_progress"),
+            ("finished", "episode_finished"),
+            ("return", "episode_return"),
+        )
+    }
 
 
 def _evals(folder: Path) -> list[dict[str, float]]:
@@ -67,8 +78,11 @@ def _final_eval(folder: Path, algo: str) -> dict[str, dict[str, float]] | None:
     if not path.is_file():
         return None
     rows = read_results(path)["rows"]
-    return {r["set"]: {m: r["metrics"][m]["mean"] for m in ("finished", "progress", "return")}
-            for r in rows if r["policy"] == algo}
+    return {
+        r["set"]: {m: r["metrics"][m]["mean"] for m in ("finished", "progress", "return")}
+        for r in rows
+        if r["policy"] == algo
+    }
 
 
 def load_runs() -> list[dict]:
@@ -76,13 +90,31 @@ def load_runs() -> list[dict]:
     for folder in sorted((HERE / "runs").glob("*")):
         m = NAME.match(folder.name)
         if m and (folder / "progress.csv").is_file():
-            runs.append({"variant": m["variant"], "task": m["task"], "seed": int(m["seed"]), "budget": int(m["steps"]),
-                         "curve": _curve(folder), "evals": _evals(folder), "final": _final_eval(folder, "comat")})
+            runs.append(
+                {
+                    "variant": m["variant"],
+                    "task": m["task"],
+                    "seed": int(m["seed"]),
+                    "budget": int(m["steps"]),
+                    "curve": _curve(folder),
+                    "evals": _evals(folder),
+                    "final": _final_eval(folder, "comat"),
+                }
+            )
     for algo, variant in (("mat", "mat"), ("comat", "a_control")):
         for folder in sorted(SWEEP.glob(f"{algo}_*_s*")):
             task, seed = folder.name.split("_")[1], int(folder.name.split("_s")[-1])
-            runs.append({"variant": variant, "task": task, "seed": seed, "budget": 300_000, "curve": _curve(folder),
-                         "evals": _evals(folder), "final": _final_eval(folder, algo)})
+            runs.append(
+                {
+                    "variant": variant,
+                    "task": task,
+                    "seed": seed,
+                    "budget": 300_000,
+                    "curve": _curve(folder),
+                    "evals": _evals(folder),
+                    "final": _final_eval(folder, algo),
+                }
+            )
     return runs
 
 
@@ -113,17 +145,26 @@ def _order(variants) -> list[str]:
 
 
 def screen_table(runs: list[dict]) -> str:
-    lines = ["# Screen: one seed per variant at ~100 k env steps (sweep preset otherwise)", "",
-             ("Training rollouts (stochastic policy, U_train): progress = share of prey captured / material "
-             "delivered, finished = share of episodes with every prey captured / all material delivered; "
-             "mean of the 3 updates ending at the step. Deterministic evaluation: `eval.csv` (one episode "
-             "per U_train coalition) at ~100 k. Several seeds: values per seed, s0/s1/s2. References (a) "
-             "and MAT: the first 100 k steps of the sweep's 300 k-step runs (3 seeds, same preset)."), ""]
+    lines = [
+        "# Screen: one seed per variant at ~100 k env steps (sweep preset otherwise)",
+        "",
+        (
+            "Training rollouts (stochastic policy, U_train): progress = share of prey captured / material "
+            "delivered, finished = share of episodes with every prey captured / all material delivered; "
+            "mean of the 3 updates ending at the step. Deterministic evaluation: `eval.csv` (one episode "
+            "per U_train coalition) at ~100 k. Several seeds: values per seed, s0/s1/s2. References (a) "
+            "and MAT: the first 100 k steps of the sweep's 300 k-step runs (3 seeds, same preset)."
+        ),
+        "",
+    ]
     for task in ("hmt", "pcp"):
         sel = [r for r in runs if r["task"] == task]
-        lines += [f"## {task.upper()}", "",
-                  "| variant | seeds | progress 25 k | 50 k | 100 k | finished 100 k | eval progress 100 k | eval finished 100 k |",
-                  "|---|---|---|---|---|---|---|---|"]
+        lines += [
+            f"## {task.upper()}",
+            "",
+            "| variant | seeds | progress 25 k | 50 k | 100 k | finished 100 k | eval progress 100 k | eval finished 100 k |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for v in _order({r["variant"] for r in sel}):
             rs = sorted((r for r in sel if r["variant"] == v), key=lambda r: r["seed"])
             cells = [_cell([_at(r["curve"], "progress", s) for r in rs]) for s in (25_000, 50_000, 100_000)]
@@ -138,12 +179,18 @@ def confirm_table(runs: list[dict]) -> tuple[str, str]:
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(["task", "variant", "set", "metric", "seeds", "mean", "ci95_over_seeds", "per_seed"])
-    lines = ["# Confirmation: 3 seeds at 300 k env steps, deterministic evaluation", "",
-             ("One episode per coalition (20 per set), mean over seeds ± 95 % Student-t interval over seeds "
-             "(per-seed values in confirm.csv). Finished = share of episodes with every prey captured / all "
-             "material delivered (the paper's completion); progress = share captured / delivered."), "",
-             "| task | variant | seeds | U_train finished | U_train progress | U_test finished | U_test progress |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "# Confirmation: 3 seeds at 300 k env steps, deterministic evaluation",
+        "",
+        (
+            "One episode per coalition (20 per set), mean over seeds ± 95 % Student-t interval over seeds "
+            "(per-seed values in confirm.csv). Finished = share of episodes with every prey captured / all "
+            "material delivered (the paper's completion); progress = share captured / delivered."
+        ),
+        "",
+        "| task | variant | seeds | U_train finished | U_train progress | U_test finished | U_test progress |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for task in ("pcp", "hmt"):
         sel = [r for r in runs if r["task"] == task and r["budget"] >= 300_000 and r["final"]]
         for v in _order({r["variant"] for r in sel}):
@@ -155,8 +202,18 @@ def confirm_table(runs: list[dict]) -> tuple[str, str]:
                 for metric in ("finished", "progress"):
                     vals = [r["final"][split][metric] for r in rs]
                     mean, half = mean_ci(vals)
-                    writer.writerow([task, v, split, metric, len(vals), f"{mean:.4f}", f"{half:.4f}",
-                                     " ".join(f"{x:.4f}" for x in vals)])
+                    writer.writerow(
+                        [
+                            task,
+                            v,
+                            split,
+                            metric,
+                            len(vals),
+                            f"{mean:.4f}",
+                            f"{half:.4f}",
+                            " ".join(f"{x:.4f}" for x in vals),
+                        ]
+                    )
                     cells.append(f"{100 * mean:.1f}% ± {100 * half:.1f}")
             lines.append(f"| {task.upper()} | {LABELS.get(v, v)} | {len(rs)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n", buf.getvalue()
@@ -195,8 +252,10 @@ def curves(runs: list[dict], path: Path, budget: float, variants: list[str] | No
         ax.set_ylim(0, 1)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
-    fig.suptitle("Mean over seeds (number of seeds in brackets); band: min–max over seeds; trailing mean of 3 updates",
-                 fontsize=9)
+    fig.suptitle(
+        "Mean over seeds (number of seeds in brackets); band: min–max over seeds; trailing mean of 3 updates",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

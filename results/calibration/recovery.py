@@ -32,35 +32,43 @@ warnings.simplefilter("ignore")  # rps's own warnings
 
 def main() -> None:
     rng = np.random.default_rng(2026)
-    print("| setting | delay (ticks) truth → fit: steps, spin | τ (s) truth → fit | noise x,y (mm) truth → fit | "
-          "noise θ (rad) truth → fit | hold truth → fit | dead zone (rad/s) truth → fit | gain spread: largest "
-          "error of (g_r − g_l)/2 | within tolerance |")
+    print(
+        "| setting | delay (ticks) truth → fit: steps, spin | τ (s) truth → fit | noise x,y (mm) truth → fit | "
+        "noise θ (rad) truth → fit | hold truth → fit | dead zone (rad/s) truth → fit | gain spread: largest "
+        "error of (g_r − g_l)/2 | within tolerance |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for k in range(6):
         t = setting(rng)
         g = recover(t, seed=k)
         ok = check(t, g)
         total = t["pose_delay_ticks"] + t["command_delay_ticks"]
-        print(f"| {k} | {total} ({t['pose_delay_ticks']}+{t['command_delay_ticks']}) → {g['delay_median']}, "
-              f"{g['spin_delay_median']} | {t['motor_tau_min_s']:.3f} → {g['tau']:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → "
-              f"{1e3 * g['noise_xy']:.2f} | {t['pose_noise_theta_rad']:.3f} → {g['noise_theta']:.4f} | "
-              f"{t['pose_hold_prob']:.2f} → {g['hold']:.3f} | {t['motor_dead_zone_radps']:.1f} → {g['dead_zone']:.2f} | "
-              f"{t['wheel_gain_spread']:.3f}: {g['gain_diff_error']:.4f} | "
-              f"{'all' if all(ok.values()) else 'not: ' + ', '.join(k for k, v in ok.items() if not v)} |")
+        print(
+            f"| {k} | {total} ({t['pose_delay_ticks']}+{t['command_delay_ticks']}) → {g['delay_median']}, "
+            f"{g['spin_delay_median']} | {t['motor_tau_min_s']:.3f} → {g['tau']:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → "
+            f"{1e3 * g['noise_xy']:.2f} | {t['pose_noise_theta_rad']:.3f} → {g['noise_theta']:.4f} | "
+            f"{t['pose_hold_prob']:.2f} → {g['hold']:.3f} | {t['motor_dead_zone_radps']:.1f} → {g['dead_zone']:.2f} | "
+            f"{t['wheel_gain_spread']:.3f}: {g['gain_diff_error']:.4f} | "
+            f"{'all' if all(ok.values()) else 'not: ' + ', '.join(k for k, v in ok.items() if not v)} |"
+        )
     steps, still = fit_steps(run_under_rps("steps")), fit_still(run_under_rps("still"))
     spin, ramp = fit_spin(run_under_rps("spin")), fit_ramp(run_under_rps("ramp"))
     moving = steps + spin
-    print(f"| rps (no gap) | 0 → {max(r['delay_ticks'] for r in moving)} (max over robots, both) | 0 → "
-          f"{max(r['tau_own_s'] for r in moving):.4f} | 0 → {1e3 * max(r['noise_xy_m'] for r in still):.2f} | 0 → "
-          f"{max(r['noise_theta_rad'] for r in still):.4f} | not identified (poses never change) | 0 → "
-          f"{max(r['dead_zone_radps'] for r in ramp):.2f} | 0: {max(abs(r['half_gain_diff']) for r in moving):.1e} | "
-          f"speed gain {min(r['gain'] for r in steps):.3f}–{max(r['gain'] for r in steps):.3f}, turn gain "
-          f"{min(r['gain'] for r in spin):.3f}–{max(r['gain'] for r in spin):.3f}; no cap below the fastest commanded |")
+    print(
+        f"| rps (no gap) | 0 → {max(r['delay_ticks'] for r in moving)} (max over robots, both) | 0 → "
+        f"{max(r['tau_own_s'] for r in moving):.4f} | 0 → {1e3 * max(r['noise_xy_m'] for r in still):.2f} | 0 → "
+        f"{max(r['noise_theta_rad'] for r in still):.4f} | not identified (poses never change) | 0 → "
+        f"{max(r['dead_zone_radps'] for r in ramp):.2f} | 0: {max(abs(r['half_gain_diff']) for r in moving):.1e} | "
+        f"speed gain {min(r['gain'] for r in steps):.3f}–{max(r['gain'] for r in steps):.3f}, turn gain "
+        f"{min(r['gain'] for r in spin):.3f}–{max(r['gain'] for r in spin):.3f}; no cap below the fastest commanded |"
+    )
     print()
     print("What comat's MuJoCo tiers add at reality `off` (the same experiments, four robots; all robots alike):")
     print()
-    print("| tier | delay (ticks) | τ (s) | speed gain | turn gain | slew (rad/s²) | reachable / commanded full | "
-          "(g_r − g_l)/2 | dead zone (rad/s) |")
+    print(
+        "| tier | delay (ticks) | τ (s) | speed gain | turn gain | slew (rad/s²) | reachable / commanded full | "
+        "(g_r − g_l)/2 | dead zone (rad/s) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     own_tau = {}
     for tier in ("unicycle", "wheels"):
@@ -69,10 +77,12 @@ def main() -> None:
         ra = fit_ramp(simulate("ramp", "off", n=4, seed=0, tier=tier))
         a, b = st[0], sp[0]
         own_tau[tier] = a["tau_s"]
-        print(f"| {tier} | {a['delay_ticks']}, {b['delay_ticks']} | {a['tau_s']:.4f}, {b['tau_s']:.4f} | {a['gain']:.3f} | "
-              f"{b['gain']:.3f} | {a['accel_radps2']:.0f} | {a['cap_fraction'] * a['gain'] / a['full_fraction']:.2f}, "
-              f"{b['cap_fraction'] * b['gain'] / b['full_fraction']:.2f} | {max(abs(r['half_gain_diff']) for r in st + sp):.1e} | "
-              f"{np.median([r['dead_zone_radps'] for r in ra]):.2f} |")
+        print(
+            f"| {tier} | {a['delay_ticks']}, {b['delay_ticks']} | {a['tau_s']:.4f}, {b['tau_s']:.4f} | {a['gain']:.3f} | "
+            f"{b['gain']:.3f} | {a['accel_radps2']:.0f} | {a['cap_fraction'] * a['gain'] / a['full_fraction']:.2f}, "
+            f"{b['cap_fraction'] * b['gain'] / b['full_fraction']:.2f} | {max(abs(r['half_gain_diff']) for r in st + sp):.1e} | "
+            f"{np.median([r['dead_zone_radps'] for r in ra]):.2f} |"
+        )
 
     tiers_table(own_tau)
 
@@ -83,8 +93,10 @@ def tiers_table(own_tau: dict) -> None:
     print()
     print("The six settings in comat's MuJoCo tiers (the layer plus the tier's own actuator):")
     print()
-    print("| setting | tier | delay truth → steps, spin (median robot) | τ layer (+ tier's own) → steps, spin | "
-          "noise x,y (mm) truth → fit | hold truth → fit | within tolerance |")
+    print(
+        "| setting | tier | delay truth → steps, spin (median robot) | τ layer (+ tier's own) → steps, spin | "
+        "noise x,y (mm) truth → fit | hold truth → fit | within tolerance |"
+    )
     print("|---|---|---|---|---|---|---|")
     for k in range(6):
         t = setting(rng)
@@ -96,13 +108,17 @@ def tiers_table(own_tau: dict) -> None:
             d = [int(np.median([r["delay_ticks"] for r in f])) for f in (st, sp)]
             taus = [st[0]["tau_s"], sp[0]["tau_s"]]
             noise, hold = np.mean([r["noise_xy_m"] for r in sl]), np.mean([r["repeat_share"] for r in sl])
-            ok = {"delay": total in d,
-                  "tau": any(0.8 * tau <= x <= 1.2 * (tau + own_tau[tier]) for x, dd in zip(taus, d) if dd == total),
-                  "noise": abs(noise - t["pose_noise_xy_m"]) <= 0.2 * t["pose_noise_xy_m"],
-                  "hold": abs(hold - t["pose_hold_prob"]) <= 0.2 * t["pose_hold_prob"]}
-            print(f"| {k} | {tier} | {total} → {d[0]}, {d[1]} | {tau:.3f} (+{own_tau[tier]:.4f}) → {taus[0]:.4f}, "
-                  f"{taus[1]:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → {1e3 * noise:.2f} | {t['pose_hold_prob']:.2f} → "
-                  f"{hold:.3f} | {'all' if all(ok.values()) else 'not: ' + ', '.join(n for n, v in ok.items() if not v)} |")
+            ok = {
+                "delay": total in d,
+                "tau": any(0.8 * tau <= x <= 1.2 * (tau + own_tau[tier]) for x, dd in zip(taus, d) if dd == total),
+                "noise": abs(noise - t["pose_noise_xy_m"]) <= 0.2 * t["pose_noise_xy_m"],
+                "hold": abs(hold - t["pose_hold_prob"]) <= 0.2 * t["pose_hold_prob"],
+            }
+            print(
+                f"| {k} | {tier} | {total} → {d[0]}, {d[1]} | {tau:.3f} (+{own_tau[tier]:.4f}) → {taus[0]:.4f}, "
+                f"{taus[1]:.4f} | {1e3 * t['pose_noise_xy_m']:.2f} → {1e3 * noise:.2f} | {t['pose_hold_prob']:.2f} → "
+                f"{hold:.3f} | {'all' if all(ok.values()) else 'not: ' + ', '.join(n for n, v in ok.items() if not v)} |"
+            )
 
 
 if __name__ == "__main__":

@@ -26,8 +26,20 @@ from comat.files import write_atomic
 from sim2real.export import check_submission, export_submission
 
 HERE = Path(__file__).resolve().parent
-FIELDS = ("task", "team", "robots", "filter", "level", "deployed_progress", "deployed_steps", "comat_progress",
-          "comat_steps", "collision_runs", "closest_m", "rps_errors")
+FIELDS = (
+    "task",
+    "team",
+    "robots",
+    "filter",
+    "level",
+    "deployed_progress",
+    "deployed_steps",
+    "comat_progress",
+    "comat_steps",
+    "collision_runs",
+    "closest_m",
+    "rps_errors",
+)
 
 
 def measure(task: str, k: int, filter_name: str, level: str, repeats: int, scratch: Path) -> dict:
@@ -38,16 +50,30 @@ def measure(task: str, k: int, filter_name: str, level: str, repeats: int, scrat
         export_submission(str(policy.checkpoint), task, team, folder, filter_name=filter_name)
     report = check_submission(folder, tier="unicycle", repeats=repeats, reality=level)
     rec = report["rps"]["reality"]
-    return {"task": task, "team": k, "robots": team.size, "filter": filter_name, "level": level,
-            "deployed_progress": report["rps"]["progress"], "deployed_steps": report["rps"]["steps"],
-            "comat_progress": report["mujoco"]["progress"], "comat_steps": report["mujoco"]["steps"],
-            "collision_runs": rec["runs_with_collisions"], "closest_m": rec["min_offset_centre_distance_m"],
-            "rps_errors": sum(report["rps"]["rps_errors"].values())}
+    return {
+        "task": task,
+        "team": k,
+        "robots": team.size,
+        "filter": filter_name,
+        "level": level,
+        "deployed_progress": report["rps"]["progress"],
+        "deployed_steps": report["rps"]["steps"],
+        "comat_progress": report["mujoco"]["progress"],
+        "comat_steps": report["mujoco"]["steps"],
+        "collision_runs": rec["runs_with_collisions"],
+        "closest_m": rec["min_offset_centre_distance_m"],
+        "rps_errors": sum(report["rps"]["rps_errors"].values()),
+    }
 
 
 def table(rows: list[dict]) -> str:
-    out = [("| task | filter | level | teams | progress %: deployed | comat's loop | steps: deployed | comat's loop | "
-            "runs with collisions | closest (m) | rps errors |"), "|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        (
+            "| task | filter | level | teams | progress %: deployed | comat's loop | steps: deployed | comat's loop | "
+            "runs with collisions | closest (m) | rps errors |"
+        ),
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for task in ("hmt", "pcp"):
         for f in ("robotarium", "comat"):
             for level in ("off", "nominal"):
@@ -58,10 +84,12 @@ def table(rows: list[dict]) -> str:
                 def mean(key: str, sel: list[dict] = sel) -> float:
                     return float(np.mean([float(r[key]) for r in sel]))
 
-                out.append(f"| {task.upper()} | {f} | {level} | {len(sel)} | {100 * mean('deployed_progress'):.1f} | "
-                           f"{100 * mean('comat_progress'):.1f} | {mean('deployed_steps'):.1f} | "
-                           f"{mean('comat_steps'):.1f} | {sum(int(r['collision_runs']) for r in sel)} | "
-                           f"{min(float(r['closest_m']) for r in sel):.3f} | {sum(int(r['rps_errors']) for r in sel)} |")
+                out.append(
+                    f"| {task.upper()} | {f} | {level} | {len(sel)} | {100 * mean('deployed_progress'):.1f} | "
+                    f"{100 * mean('comat_progress'):.1f} | {mean('deployed_steps'):.1f} | "
+                    f"{mean('comat_steps'):.1f} | {sum(int(r['collision_runs']) for r in sel)} | "
+                    f"{min(float(r['closest_m']) for r in sel):.3f} | {sum(int(r['rps_errors']) for r in sel)} |"
+                )
     return "\n".join(out) + "\n"
 
 

@@ -36,18 +36,38 @@ from sim2real.export import _load_config, export_submission, run_mujoco, run_rps
 from sim2real.runtime import ComatRuntime
 
 HERE = Path(__file__).resolve().parent
-FIELDS = ("task", "team", "robots", "filter", "rps_progress", "rps_steps", "rps_errors", "mujoco_comat_progress",
-          "mujoco_comat_steps", "mujoco_deployed_progress", "mujoco_deployed_steps")
+FIELDS = (
+    "task",
+    "team",
+    "robots",
+    "filter",
+    "rps_progress",
+    "rps_steps",
+    "rps_errors",
+    "mujoco_comat_progress",
+    "mujoco_comat_steps",
+    "mujoco_deployed_progress",
+    "mujoco_deployed_steps",
+)
 LOOP = {"comat": "shipped_v2", "robotarium": "robotarium_v2"}
 
 
 def deployed_in_mujoco(folder: Path, loop: str) -> dict:
     """The folder's policy, team and start poses in comat's unicycle world with ``loop`` in its tick."""
     cfg = _load_config(folder)
-    team = TeamSpec.from_dict({"task": cfg["task"], "robots": [{"type": t, "capabilities": c}
-                                                               for t, c in zip(cfg["types"], cfg["capabilities"])]})
-    env = make_env(f"{cfg['task']}_v0", team=team, tier="unicycle", ticks_per_step=cfg["ticks_per_step"],
-                   safety=SafetyConfig(loop=loop))
+    team = TeamSpec.from_dict(
+        {
+            "task": cfg["task"],
+            "robots": [{"type": t, "capabilities": c} for t, c in zip(cfg["types"], cfg["capabilities"])],
+        }
+    )
+    env = make_env(
+        f"{cfg['task']}_v0",
+        team=team,
+        tier="unicycle",
+        ticks_per_step=cfg["ticks_per_step"],
+        safety=SafetyConfig(loop=loop),
+    )
     env.reset(seed=cfg["seed"])
     core = env.core
     core.safe.reset(np.array(cfg["start_poses"], dtype=float).T)
@@ -65,34 +85,54 @@ def deployed_in_mujoco(folder: Path, loop: str) -> dict:
 def measure(task: str, k: int, filter_name: str, rps: str, scratch: Path) -> dict:
     team = parse_team(f"scale:{k}", task)
     policy = resolve_policy_arg(f"pretrained:comat-{task}", task, references=(), algos=("comat",))
-    folder = export_submission(str(policy.checkpoint), task, team, scratch / f"{task}_{k}_{filter_name}",
-                               filter_name=filter_name)
+    folder = export_submission(
+        str(policy.checkpoint), task, team, scratch / f"{task}_{k}_{filter_name}", filter_name=filter_name
+    )
     r = run_rps(folder, rps_path=rps)
     mine = run_mujoco(folder, tier="unicycle")
     theirs = deployed_in_mujoco(folder, LOOP[filter_name])
-    return {"task": task, "team": k, "robots": team.size, "filter": filter_name, "rps_progress": r["progress"],
-            "rps_steps": r["steps"], "rps_errors": sum(r["rps_errors"].values()), "mujoco_comat_progress": mine["progress"],
-            "mujoco_comat_steps": mine["steps"], "mujoco_deployed_progress": theirs["progress"],
-            "mujoco_deployed_steps": theirs["steps"]}
+    return {
+        "task": task,
+        "team": k,
+        "robots": team.size,
+        "filter": filter_name,
+        "rps_progress": r["progress"],
+        "rps_steps": r["steps"],
+        "rps_errors": sum(r["rps_errors"].values()),
+        "mujoco_comat_progress": mine["progress"],
+        "mujoco_comat_steps": mine["steps"],
+        "mujoco_deployed_progress": theirs["progress"],
+        "mujoco_deployed_steps": theirs["steps"],
+    }
 
 
 def table(rows: list[dict]) -> str:
-    out = [("| task | robots | teams | filter | progress %: V2 rps | MuJoCo, deployed loop | MuJoCo, comat's loop | "
-            "rps − comat's loop | of which the loop | steps: V2 rps | deployed | comat's | rps errors |"),
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        (
+            "| task | robots | teams | filter | progress %: V2 rps | MuJoCo, deployed loop | MuJoCo, comat's loop | "
+            "rps − comat's loop | of which the loop | steps: V2 rps | deployed | comat's | rps errors |"
+        ),
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for task in ("hmt", "pcp"):
         for n in sorted({r["robots"] for r in rows if r["task"] == task}):
             for f in ("robotarium", "comat"):
                 sel = [r for r in rows if r["task"] == task and r["robots"] == n and r["filter"] == f]
                 if not sel:
                     continue
-                rps, dep, com = (100 * np.mean([float(r[k]) for r in sel]) for k in
-                                 ("rps_progress", "mujoco_deployed_progress", "mujoco_comat_progress"))
-                s_rps, s_dep, s_com = (np.mean([float(r[k]) for r in sel]) for k in
-                                       ("rps_steps", "mujoco_deployed_steps", "mujoco_comat_steps"))
+                rps, dep, com = (
+                    100 * np.mean([float(r[k]) for r in sel])
+                    for k in ("rps_progress", "mujoco_deployed_progress", "mujoco_comat_progress")
+                )
+                s_rps, s_dep, s_com = (
+                    np.mean([float(r[k]) for r in sel])
+                    for k in ("rps_steps", "mujoco_deployed_steps", "mujoco_comat_steps")
+                )
                 errors = sum(int(r["rps_errors"]) for r in sel)
-                out.append(f"| {task.upper()} | {n} | {len(sel)} | {f} | {rps:.1f} | {dep:.1f} | {com:.1f} | "
-                           f"{rps - com:+.1f} | {dep - com:+.1f} | {s_rps:.1f} | {s_dep:.1f} | {s_com:.1f} | {errors} |")
+                out.append(
+                    f"| {task.upper()} | {n} | {len(sel)} | {f} | {rps:.1f} | {dep:.1f} | {com:.1f} | "
+                    f"{rps - com:+.1f} | {dep - com:+.1f} | {s_rps:.1f} | {s_dep:.1f} | {s_com:.1f} | {errors} |"
+                )
     return "\n".join(out) + "\n"
 
 

@@ -10,6 +10,7 @@ gives per run and set the progress in each tier, the difference (wheels − unic
 finished shares and collisions, then per task and set the mean difference over seeds with its
 95 % Student-t half-width.
 """
+
 from __future__ import annotations
 
 import json
@@ -32,8 +33,10 @@ def _rows(run: Path, tier: str) -> dict[str, dict]:
 
 
 def main(runs: list[Path]) -> str:
-    head = ("| run | set | unicycle progress (%) | wheels progress (%) | gap (points) "
-            "| finished unicycle / wheels (%) | collisions unicycle / wheels |")
+    head = (
+        "| run | set | unicycle progress (%) | wheels progress (%) | gap (points) "
+        "| finished unicycle / wheels (%) | collisions unicycle / wheels |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|"]
     gaps: dict[tuple[str, str], list[float]] = {}
     for run in runs:
@@ -56,15 +59,21 @@ def main(runs: list[Path]) -> str:
 
 
 if __name__ == "__main__":
-    grid = [HERE / "comat_wheels" / "runs" / r.name if (HERE / "comat_wheels" / "runs" / r.name).is_dir() else r
-            for r in sorted(HERE.glob("runs/comat_*_s*"))]
+    grid = [
+        HERE / "comat_wheels" / "runs" / r.name if (HERE / "comat_wheels" / "runs" / r.name).is_dir() else r
+        for r in sorted(HERE.glob("runs/comat_*_s*"))
+    ]
     folders = [Path(a) for a in sys.argv[1:]] or grid
     both = [f for f in folders if all((f / f"evaluation_{t}.json").is_file() for t in ("unicycle", "wheels"))]
     for f in sorted(set(folders) - set(both)):
-        print(f"wheels_gap: {f} left out: it needs evaluation_unicycle.json and evaluation_wheels.json", file=sys.stderr)
+        print(
+            f"wheels_gap: {f} left out: it needs evaluation_unicycle.json and evaluation_wheels.json", file=sys.stderr
+        )
     folders = both
     if not folders:
-        sys.exit("wheels_gap: no run folder has both evaluations (run `comat eval --policy RUN --teams all --tier wheels`)")
+        sys.exit(
+            "wheels_gap: no run folder has both evaluations (run `comat eval --policy RUN --teams all --tier wheels`)"
+        )
     text = main(folders)
     if not sys.argv[1:]:
         (HERE / "comat_wheels" / "gap.md").write_text(text)

@@ -25,10 +25,18 @@ sys.path.insert(0, str(HERE.parents[1]))
 from comat.measure.metrics import read_results
 from comat.measure.stats import per_seed_means, t_interval, welch
 
-NAME = re.compile(r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
-                  r"(?:_(?P<k>\d+)k)?$")
-SETS = {"train": "U_train", "val": "U_val", "test": "U_test", "scale": "U_scale", "size": "U_size",
-        "capability": "U_cap"}
+NAME = re.compile(
+    r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
+    r"(?:_(?P<k>\d+)k)?$"
+)
+SETS = {
+    "train": "U_train",
+    "val": "U_val",
+    "test": "U_test",
+    "scale": "U_scale",
+    "size": "U_size",
+    "capability": "U_cap",
+}
 SESOI = 10.0
 """Smallest effect of interest, progress points."""
 ALPHA = 0.05
@@ -109,9 +117,11 @@ def holm(ps: list[float]) -> list[float]:
 
 
 def _fmt(c: dict, unit: str = "") -> str:
-    return (f"{c['a'].mean():.1f} ({c['a'].size}) | {c['b'].mean():.1f} ({c['b'].size}) | {c['diff']:+.1f}{unit} "
-            f"[{c['lo']:+.1f}, {c['hi']:+.1f}] | [{c['lo90']:+.1f}, {c['hi90']:+.1f}] | {c['t']:+.2f} | {c['df']:.1f} | "
-            f"{c['p']:.3f} | {c['g']:+.2f}")
+    return (
+        f"{c['a'].mean():.1f} ({c['a'].size}) | {c['b'].mean():.1f} ({c['b'].size}) | {c['diff']:+.1f}{unit} "
+        f"[{c['lo']:+.1f}, {c['hi']:+.1f}] | [{c['lo90']:+.1f}, {c['hi90']:+.1f}] | {c['t']:+.2f} | {c['df']:.1f} | "
+        f"{c['p']:.3f} | {c['g']:+.2f}"
+    )
 
 
 HEAD = "| A (seeds) | B (seeds) | A − B [95 %] | [90 %] | t | df | p | Hedges' g |"
@@ -119,30 +129,54 @@ HEAD = "| A (seeds) | B (seeds) | A − B [95 %] | [90 %] | t | df | p | Hedges'
 
 
 def primary(table: dict) -> list[str]:
-    lines = ["## Primary: HMT progress on U_size and U_scale, COMAT − MAT (trained and evaluated at `off`)", "",
-             "| set " + HEAD + " Holm p | verdict |", "|" + "---|" * 11]
-    found = [(s, compare(table.get(("comat", "hmt", "off", 300, "off", s, "progress"), {}),
-                         table.get(("mat", "hmt", "off", 300, "off", s, "progress"), {}))) for s in ("size", "scale")]
+    lines = [
+        "## Primary: HMT progress on U_size and U_scale, COMAT − MAT (trained and evaluated at `off`)",
+        "",
+        "| set " + HEAD + " Holm p | verdict |",
+        "|" + "---|" * 11,
+    ]
+    found = [
+        (
+            s,
+            compare(
+                table.get(("comat", "hmt", "off", 300, "off", s, "progress"), {}),
+                table.get(("mat", "hmt", "off", 300, "off", s, "progress"), {}),
+            ),
+        )
+        for s in ("size", "scale")
+    ]
     tested = [(s, c) for s, c in found if c is not None]
     adjusted = holm([c["p"] if not math.isnan(c["p"]) else 1.0 for _, c in tested])
     for (s, c), p in zip(tested, adjusted):
         lines.append(f"| {SETS[s]} | {_fmt(c)} | {p:.3f} | **{verdict(c, p)}** |")
     lines += [f"| {SETS[s]} | not yet: fewer than 2 seeds of either learner |" for s, c in found if c is None]
-    note = (f"Verdicts: Holm-adjusted p < {ALPHA:g} decides better/worse; otherwise 'no difference of {SESOI:g} "
-            f"points or more' where the 90 % interval lies inside ±{SESOI:g} (two one-sided tests), else inconclusive.")
+    note = (
+        f"Verdicts: Holm-adjusted p < {ALPHA:g} decides better/worse; otherwise 'no difference of {SESOI:g} "
+        f"points or more' where the 90 % interval lies inside ±{SESOI:g} (two one-sided tests), else inconclusive."
+    )
     return [*lines, "", note, ""]
 
 
 def secondary(table: dict) -> list[str]:
-    lines = ["## Secondary (no multiplicity correction)", "",
-             "| task | set | endpoint | other " + HEAD + " verdict |", "|" + "---|" * 13]
+    lines = [
+        "## Secondary (no multiplicity correction)",
+        "",
+        "| task | set | endpoint | other " + HEAD + " verdict |",
+        "|" + "---|" * 13,
+    ]
     rows = [(t, s, "progress", o) for t in ("hmt", "pcp") for s in ("capability",) for o in ("mat",)]
     rows += [(t, s, "progress", "mappo") for t in ("hmt", "pcp") for s in ("size", "scale", "capability")]
-    rows += [(t, s, k, "mat") for t in ("hmt", "pcp") for s in ("size", "scale", "capability")
-             for k in ("progress_auc", "time_to_90")]
+    rows += [
+        (t, s, k, "mat")
+        for t in ("hmt", "pcp")
+        for s in ("size", "scale", "capability")
+        for k in ("progress_auc", "time_to_90")
+    ]
     for task, s, key, other in rows:
-        c = compare(table.get(("comat", task, "off", 300, "off", s, key), {}),
-                    table.get((other, task, "off", 300, "off", s, key), {}))
+        c = compare(
+            table.get(("comat", task, "off", 300, "off", s, key), {}),
+            table.get((other, task, "off", 300, "off", s, key), {}),
+        )
         if c is not None:
             unit = " steps" if key == "time_to_90" else ""
             v = verdict(c, c["p"]) if key == "progress" else ("p < 0.05" if c["p"] < ALPHA else "not separated")
@@ -151,8 +185,12 @@ def secondary(table: dict) -> list[str]:
 
 
 def reality(table: dict) -> list[str]:
-    lines = ["## The reality gap (progress, `nominal` − `off`, the same policies)", "",
-             "| task | set | learner (trained) | seeds | gap, mean [95 % t] |", "|---|---|---|---|---|"]
+    lines = [
+        "## The reality gap (progress, `nominal` − `off`, the same policies)",
+        "",
+        "| task | set | learner (trained) | seeds | gap, mean [95 % t] |",
+        "|---|---|---|---|---|",
+    ]
     gaps: dict[tuple, dict[int, float]] = {}
     for task in ("hmt", "pcp"):
         for s, name in SETS.items():
@@ -165,10 +203,14 @@ def reality(table: dict) -> list[str]:
                         continue
                     d, t = change
                     gaps[(task, s, algo, trained)] = dict(zip(sorted(set(off) & set(nom)), d))
-                    lines.append(f"| {task.upper()} | {name} | {algo.upper()} ({trained}) | {d.size} | "
-                                 f"{t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |")
-    note = ("COMAT's gap − MAT's (trained at `off`), and what training at `nominal` recovers (at `nominal`, "
-            "trained at `nominal` − trained at `off`):")
+                    lines.append(
+                        f"| {task.upper()} | {name} | {algo.upper()} ({trained}) | {d.size} | "
+                        f"{t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |"
+                    )
+    note = (
+        "COMAT's gap − MAT's (trained at `off`), and what training at `nominal` recovers (at `nominal`, "
+        "trained at `nominal` − trained at `off`):"
+    )
     lines += ["", note, "", "| task | set | comparison " + HEAD, "|" + "---|" * 11]
     for task in ("hmt", "pcp"):
         for s, name in SETS.items():
@@ -176,16 +218,22 @@ def reality(table: dict) -> list[str]:
             if c is not None:
                 lines.append(f"| {task.upper()} | {name} | gap: COMAT − MAT | {_fmt(c)} |")
             for algo in ("comat", "mat"):
-                c = compare(table.get((algo, task, "nominal", 300, "nominal", s, "progress"), {}),
-                            table.get((algo, task, "off", 300, "nominal", s, "progress"), {}))
+                c = compare(
+                    table.get((algo, task, "nominal", 300, "nominal", s, "progress"), {}),
+                    table.get((algo, task, "off", 300, "nominal", s, "progress"), {}),
+                )
                 if c is not None:
                     lines.append(f"| {task.upper()} | {name} | {algo.upper()}: trained nominal − off | {_fmt(c)} |")
     return lines + [""]
 
 
 def budget(table: dict) -> list[str]:
-    lines = ["## The budget: 1 M − 300 k env steps within seed (HMT progress, `off`)", "",
-             "| learner | set | seeds | 300 k | 1 M | change, mean [95 % t] |", "|---|---|---|---|---|---|"]
+    lines = [
+        "## The budget: 1 M − 300 k env steps within seed (HMT progress, `off`)",
+        "",
+        "| learner | set | seeds | 300 k | 1 M | change, mean [95 % t] |",
+        "|---|---|---|---|---|---|",
+    ]
     for algo in ("comat", "mat"):
         for s in ("size", "scale", "train"):
             a = table.get((algo, "hmt", "off", 300, "off", s, "progress"), {})
@@ -194,8 +242,10 @@ def budget(table: dict) -> list[str]:
             if change is None:
                 continue
             (d, t), seeds = change, sorted(set(a) & set(b))
-            lines.append(f"| {algo.upper()} | {SETS[s]} | {d.size} | {np.mean([a[k] for k in seeds]):.1f} | "
-                         f"{np.mean([b[k] for k in seeds]):.1f} | {t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |")
+            lines.append(
+                f"| {algo.upper()} | {SETS[s]} | {d.size} | {np.mean([a[k] for k in seeds]):.1f} | "
+                f"{np.mean([b[k] for k in seeds]):.1f} | {t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |"
+            )
     return lines + [""]
 
 
@@ -209,17 +259,28 @@ def missing(folder: Path) -> list[str]:
             name = f"{algo}_{task}_{trained}_s{seed}" + ("" if steps == "300000" else f"_{int(steps) // 1000}k")
             planned.append(name)
     left = [n for n in planned if n not in kept]
-    return [f"## Runs: {len(planned) - len(left)} of {len(planned)} planned jobs kept", "",
-            ("Not yet kept: " + ", ".join(left) + ".") if left else "Every planned job is kept.", ""]
+    return [
+        f"## Runs: {len(planned) - len(left)} of {len(planned)} planned jobs kept",
+        "",
+        ("Not yet kept: " + ", ".join(left) + ".") if left else "Every planned job is kept.",
+        "",
+    ]
 
 
 def main(folder: Path = HERE / "runs") -> None:
     table = load(folder)
     print("# Issue 33: the plan's tests (`analyze.py`, PLAN.md)\n")
-    print("Per-seed values: mean over coalitions of each coalition's 5 episodes; progress in %, time to 90 % "
-          "in env steps.\n")
-    for part in (missing(folder) if folder == HERE / "runs" else [], primary(table), secondary(table),
-                 reality(table), budget(table)):
+    print(
+        "Per-seed values: mean over coalitions of each coalition's 5 episodes; progress in %, time to 90 % "
+        "in env steps.\n"
+    )
+    for part in (
+        missing(folder) if folder == HERE / "runs" else [],
+        primary(table),
+        secondary(table),
+        reality(table),
+        budget(table),
+    ):
         print("\n".join(part))
 
 

@@ -33,7 +33,9 @@ def confirmation_sd(task: str, learner: str) -> tuple[float, int]:
     values = []
     for folder in sorted(CONFIRM.glob(f"{'mat_control' if learner == 'mat' else 'adapters'}_{task}_s*")):
         data = read_results(folder / "evaluation_unicycle.json")
-        row = next(r for r in data["rows"] if r["set"] == "val" and r["policy"] not in ("heuristic", "constant", "random"))
+        row = next(
+            r for r in data["rows"] if r["set"] == "val" and r["policy"] not in ("heuristic", "constant", "random")
+        )
         values.append(100 * np.mean([e["progress"] for e in row["per_episode"]]))
     return float(np.std(values, ddof=1)), len(values)
 
@@ -59,14 +61,18 @@ def main() -> None:
             plan_sd[task, learner] = max(INFLATION * sd, FLOOR)
             print(f"| {task} | {learner} | {sd:.2f} ({n}) | {plan_sd[task, learner]:.1f} |")
         plan_sd[task, "mappo"] = plan_sd[task, "mat"]
-    print("\n| task | COMAT seeds | baseline seeds | planning SDs | power Δ = 10 | power Δ = 5 | "
-          "power Δ = 10 at twice COMAT's SD |")
+    print(
+        "\n| task | COMAT seeds | baseline seeds | planning SDs | power Δ = 10 | power Δ = 5 | "
+        "power Δ = 10 at twice COMAT's SD |"
+    )
     print("|---|---|---|---|---|---|---|")
     for task in ("hmt", "pcp"):
         sc, sb = plan_sd[task, "comat"], plan_sd[task, "mat"]
         for nc, nb in ((3, 3), (4, 4), (5, 5), (6, 4), (6, 6), (8, 6), (8, 8), (12, 6)):
-            print(f"| {task} | {nc} | {nb} | {sc:.1f} / {sb:.1f} | {welch_power(nc, nb, sc, sb, 10):.2f} | "
-                  f"{welch_power(nc, nb, sc, sb, 5):.2f} | {welch_power(nc, nb, 2 * sc, sb, 10):.2f} |")
+            print(
+                f"| {task} | {nc} | {nb} | {sc:.1f} / {sb:.1f} | {welch_power(nc, nb, sc, sb, 10):.2f} | "
+                f"{welch_power(nc, nb, sc, sb, 5):.2f} | {welch_power(nc, nb, 2 * sc, sb, 10):.2f} |"
+            )
 
 
 if __name__ == "__main__":

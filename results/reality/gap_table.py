@@ -44,22 +44,31 @@ def fmt(m: dict, key: str, scale: float = 1.0, digits: int = 1) -> str:
 
 
 def main(folders: list[str]) -> None:
-    print("| policy | task | set | level | progress % | finished % | steps | Δ steps | contacts/ep | violations/ep | trained at |")
+    print(
+        "| policy | task | set | level | progress % | finished % | steps | Δ steps | contacts/ep | violations/ep | trained at |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for folder in map(Path, folders):
         got = rows(folder)
         trained = read_results(folder / "evaluation_unicycle.json", detail=False).get("trained_reality", "off") or "off"
-        for (policy, task, split, level), m in sorted(got.items(), key=lambda kv: (kv[0][1], kv[0][2], LEVELS.index(kv[0][3]))):
+        for (policy, task, split, level), m in sorted(
+            got.items(), key=lambda kv: (kv[0][1], kv[0][2], LEVELS.index(kv[0][3]))
+        ):
             off = got.get((policy, task, split, "off"))
-            delta = "" if off is None or level == "off" else \
-                f"{100 * (m['steps']['mean'] / off['steps']['mean'] - 1):+.1f} %"
-            print(f"| {folder.name} | {task.upper()} | {SETS[split]} | {level} | {fmt(m, 'progress', 100)} | "
-                  f"{fmt(m, 'finished', 100)} | {fmt(m, 'steps')} | {delta} | {fmt(m, 'collisions', 1, 2)} | "
-                  f"{fmt(m, 'violations', 1, 2)} | {trained} |")
+            delta = (
+                ""
+                if off is None or level == "off"
+                else f"{100 * (m['steps']['mean'] / off['steps']['mean'] - 1):+.1f} %"
+            )
+            print(
+                f"| {folder.name} | {task.upper()} | {SETS[split]} | {level} | {fmt(m, 'progress', 100)} | "
+                f"{fmt(m, 'finished', 100)} | {fmt(m, 'steps')} | {delta} | {fmt(m, 'collisions', 1, 2)} | "
+                f"{fmt(m, 'violations', 1, 2)} | {trained} |"
+            )
 
 
 def by_arm(folders: list[str]) -> None:
-    cells: dict = defaultdict(list)        # (arm, task, set, level) -> [(seed, metrics, off metrics)]
+    cells: dict = defaultdict(list)  # (arm, task, set, level) -> [(seed, metrics, off metrics)]
     for folder in map(Path, folders):
         match = re.fullmatch(r"(.+)_s(\d+)", folder.name)
         if match is None:
@@ -70,7 +79,9 @@ def by_arm(folders: list[str]) -> None:
             cells[(arm, task, split, level)].append((seed, m, got.get((_, task, split, "off"))))
     print("| arm | set | level | seeds | progress % | finished % | Δ steps vs off | contacts/ep | violations/ep |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for (arm, task, split, level), got in sorted(cells.items(), key=lambda kv: (kv[0][0], kv[0][2], LEVELS.index(kv[0][3]))):
+    for (arm, task, split, level), got in sorted(
+        cells.items(), key=lambda kv: (kv[0][0], kv[0][2], LEVELS.index(kv[0][3]))
+    ):
         got.sort(key=lambda g: g[0])
 
         def cell(values: list[float], digits: int = 1, unit: str = "") -> str:
@@ -80,12 +91,17 @@ def by_arm(folders: list[str]) -> None:
 
         prog = [100 * m["progress"]["mean"] for _, m, _ in got]
         fin = [100 * m["finished"]["mean"] for _, m, _ in got]
-        delta = ([100 * (m["steps"]["mean"] / off["steps"]["mean"] - 1) for _, m, off in got]
-                 if level != "off" and all(off is not None for *_, off in got) else None)
+        delta = (
+            [100 * (m["steps"]["mean"] / off["steps"]["mean"] - 1) for _, m, off in got]
+            if level != "off" and all(off is not None for *_, off in got)
+            else None
+        )
         coll = sum(m["collisions"]["mean"] for _, m, _ in got) / len(got)
         viol = sum(m["violations"]["mean"] for _, m, _ in got) / len(got)
-        print(f"| {arm} | {SETS[split]} | {level} | {', '.join(str(s) for s, *_ in got)} | {cell(prog)} | "
-              f"{cell(fin, 0)} | {cell(delta, 1, ' %') if delta else ''} | {coll:.2f} | {viol:.2f} |")
+        print(
+            f"| {arm} | {SETS[split]} | {level} | {', '.join(str(s) for s, *_ in got)} | {cell(prog)} | "
+            f"{cell(fin, 0)} | {cell(delta, 1, ' %') if delta else ''} | {coll:.2f} | {viol:.2f} |"
+        )
 
 
 if __name__ == "__main__":

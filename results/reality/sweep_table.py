@@ -49,19 +49,23 @@ def main(folders: list[str]) -> None:
             raise SystemExit(f"sweep_table.py: folder names must end in _s<seed>, got {folder.name!r}")
         for key, rows in _seed_rows(folder).items():
             cells[(*key, match.group(1))].append((int(match.group(2)), rows))
-    print("| task | component | values | arm | seeds | progress % at first | at last | steps at first | at last "
-          "| Δ steps | contacts, violations (all values) |")
+    print(
+        "| task | component | values | arm | seeds | progress % at first | at last | steps at first | at last "
+        "| Δ steps | contacts, violations (all values) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for (task, component, arm), got in sorted(cells.items()):
         got.sort(key=lambda g: g[0])
         rows = [r for _, r in got]
         values = rows[0]["values"]
         delta = [100 * (r["steps"][-1] / r["steps"][0] - 1) for r in rows]
-        print(f"| {task.upper()} | {component} | {values[0]:g} → {values[-1]:g} | {arm} | "
-              f"{', '.join(str(s) for s, _ in got)} | {_cell([r['progress'][0] for r in rows], '.1f')} | "
-              f"{_cell([r['progress'][-1] for r in rows], '.1f')} | {_cell([r['steps'][0] for r in rows], '.1f')} | "
-              f"{_cell([r['steps'][-1] for r in rows], '.1f')} | {_cell(delta, '+.0f')} % | "
-              f"{sum(r['collisions'] for r in rows):.2f}, {sum(r['violations'] for r in rows):.2f} |")
+        print(
+            f"| {task.upper()} | {component} | {values[0]:g} → {values[-1]:g} | {arm} | "
+            f"{', '.join(str(s) for s, _ in got)} | {_cell([r['progress'][0] for r in rows], '.1f')} | "
+            f"{_cell([r['progress'][-1] for r in rows], '.1f')} | {_cell([r['steps'][0] for r in rows], '.1f')} | "
+            f"{_cell([r['steps'][-1] for r in rows], '.1f')} | {_cell(delta, '+.0f')} % | "
+            f"{sum(r['collisions'] for r in rows):.2f}, {sum(r['violations'] for r in rows):.2f} |"
+        )
 
 
 if __name__ == "__main__":

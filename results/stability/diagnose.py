@@ -55,8 +55,10 @@ def shares(episodes: list[dict]) -> dict:
 
 
 def main(folders: list[str]) -> None:
-    print("| policy | set | episodes | type | idle % | held % | carrying % | moving empty % | delivered % "
-          "| unfinished: idle % | held % | carrying % | moving empty % |")
+    print(
+        "| policy | set | episodes | type | idle % | held % | carrying % | moving empty % | delivered % "
+        "| unfinished: idle % | held % | carrying % | moving empty % |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     slopes = []
     for folder in map(Path, folders):
@@ -70,8 +72,13 @@ def main(folders: list[str]) -> None:
             allv, fail = shares(eps), shares([e for e in eps if e["finished"] < 1])
             for t in sorted(allv):
                 f = fail.get(t, [float("nan")] * 5)
-                print(f"| {folder.name} | {row['set']} | {len(eps)} | {t} | " + " | ".join(f"{v:.1f}" for v in allv[t])
-                      + " | " + " | ".join(f"{v:.1f}" for v in f[:4]) + " |")
+                print(
+                    f"| {folder.name} | {row['set']} | {len(eps)} | {t} | "
+                    + " | ".join(f"{v:.1f}" for v in allv[t])
+                    + " | "
+                    + " | ".join(f"{v:.1f}" for v in f[:4])
+                    + " |"
+                )
             x = np.array([_team_slow_payload("hmt", row["set"], e["coalition"]) for e in eps])
             y = np.array([100 * e["progress"] for e in eps])
             if x.std() > 0:

@@ -31,8 +31,23 @@ def held_table(folder: str, envs: int = 40, seed: int = 2_000_003) -> dict:
     obs, info = vec.reset()
     core = vec.core
     live = np.ones(envs, dtype=bool)
-    counts = {k: 0 for k in ("slow_steps", "held", "wall", "crowd", "other", "loaded", "drop", "zone1", "zone2",
-                             "between", "fast_steps", "fast_held")}
+    counts = {
+        k: 0
+        for k in (
+            "slow_steps",
+            "held",
+            "wall",
+            "crowd",
+            "other",
+            "loaded",
+            "drop",
+            "zone1",
+            "zone2",
+            "between",
+            "fast_steps",
+            "fast_held",
+        )
+    }
     for _ in range(core.task.horizon):
         mask = info["agent_mask"]
         actions = policy.act(obs, mask)
@@ -49,8 +64,12 @@ def held_table(folder: str, envs: int = 40, seed: int = 2_000_003) -> dict:
         held = (actions != 0) & (moved < 0.1 * step) & ok
         goal = before[..., :2] + ACTIONS[actions] * step[..., None]
         x, y = before[..., 0], before[..., 1]
-        near_edge = (goal[..., 0] < C.ARENA_X_MIN_M + EDGE_M) | (goal[..., 0] > C.ARENA_X_MAX_M - EDGE_M) | \
-                    (goal[..., 1] < C.ARENA_Y_MIN_M + EDGE_M) | (goal[..., 1] > C.ARENA_Y_MAX_M - EDGE_M)
+        near_edge = (
+            (goal[..., 0] < C.ARENA_X_MIN_M + EDGE_M)
+            | (goal[..., 0] > C.ARENA_X_MAX_M - EDGE_M)
+            | (goal[..., 1] < C.ARENA_Y_MIN_M + EDGE_M)
+            | (goal[..., 1] > C.ARENA_Y_MAX_M - EDGE_M)
+        )
         d = np.linalg.norm(before[:, :, None, :2] - before[:, None, :, :2], axis=-1)
         d[~(mask[:, :, None] & mask[:, None, :])] = np.inf
         d[:, np.arange(d.shape[1]), np.arange(d.shape[1])] = np.inf
@@ -78,16 +97,21 @@ def held_table(folder: str, envs: int = 40, seed: int = 2_000_003) -> dict:
 
 
 def main(folders: list[str]) -> None:
-    print("| policy | slow robots' steps held % | of the held: wall % | crowd % | other % | loaded % | in drop-off % "
-          "| zone 1 % | zone 2 % | between % | fast robots' steps held % |")
+    print(
+        "| policy | slow robots' steps held % | of the held: wall % | crowd % | other % | loaded % | in drop-off % "
+        "| zone 1 % | zone 2 % | between % | fast robots' steps held % |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for f in folders:
         c = held_table(f)
         h = max(c["held"], 1)
         shares = [100 * c[k] / h for k in ("wall", "crowd", "other", "loaded", "drop", "zone1", "zone2", "between")]
-        print(f"| {f.rstrip('/').split('/')[-1]} | {100 * c['held'] / max(c['slow_steps'], 1):.1f} | "
-              + " | ".join(f"{v:.0f}" for v in shares) + f" | {100 * c['fast_held'] / max(c['fast_steps'], 1):.1f} |",
-              flush=True)
+        print(
+            f"| {f.rstrip('/').split('/')[-1]} | {100 * c['held'] / max(c['slow_steps'], 1):.1f} | "
+            + " | ".join(f"{v:.0f}" for v in shares)
+            + f" | {100 * c['fast_held'] / max(c['fast_steps'], 1):.1f} |",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -35,19 +35,28 @@ def make_barrier():
         return rps_barriers.create_uni_barrier_certificate_with_boundary(), "v2"
     if hasattr(rps_barriers, "create_unicycle_barrier_certificate_with_boundary"):
         return rps_barriers.create_unicycle_barrier_certificate_with_boundary(), "legacy"
-    raise RuntimeError("rps has neither create_uni_barrier_certificate_with_boundary (V2) nor "
-                       "create_unicycle_barrier_certificate_with_boundary (legacy)")
+    raise RuntimeError(
+        "rps has neither create_uni_barrier_certificate_with_boundary (V2) nor "
+        "create_unicycle_barrier_certificate_with_boundary (legacy)"
+    )
 
 
 def errors(r, generation):
     """The simulator's own error counts (boundary, collision, actuator)."""
     e = getattr(r, "_errors", {}) or {}
     if generation == "legacy":
-        return {k: int(e.get(k, 0)) if not isinstance(e.get(k, 0), dict) else int(max(e[k].values(), default=0))
-                for k in ("boundary", "collision", "actuator")}
-    return {key: int(e.get(name, 0)) for key, name in (("boundary", "robots_outside_boundaries"),
-                                                        ("collision", "robots_too_close"),
-                                                        ("actuator", "exceeded_actuator_limits"))}
+        return {
+            k: int(e.get(k, 0)) if not isinstance(e.get(k, 0), dict) else int(max(e[k].values(), default=0))
+            for k in ("boundary", "collision", "actuator")
+        }
+    return {
+        key: int(e.get(name, 0))
+        for key, name in (
+            ("boundary", "robots_outside_boundaries"),
+            ("collision", "robots_too_close"),
+            ("actuator", "exceeded_actuator_limits"),
+        )
+    }
 
 
 def main(argv):
@@ -56,8 +65,9 @@ def main(argv):
     barrier, generation = make_barrier()
     if show and rps_compat.fix_legacy_drawing():
         print("rps_compat: the legacy rps's robot drawing adapted to this matplotlib (keyword-only radius)")
-    r = robotarium.Robotarium(number_of_robots=n, show_figure=show, sim_in_real_time=show,
-                              initial_conditions=lane_poses(n).T.copy())
+    r = robotarium.Robotarium(
+        number_of_robots=n, show_figure=show, sim_in_real_time=show, initial_conditions=lane_poses(n).T.copy()
+    )
     log = np.zeros((iterations, n, 6))
     ids = np.arange(n)
     for k in range(iterations):
@@ -70,9 +80,19 @@ def main(argv):
         r.step()
     name = f"calib_{experiment}.npy"
     np.save(name, log)
-    print("COMAT_RESULT " + json.dumps({"experiment": experiment, "iterations": iterations, "robots": n,
-                                         "log": name, "rps_generation": generation,
-                                         "rps_errors": errors(r, generation)}))
+    print(
+        "COMAT_RESULT "
+        + json.dumps(
+            {
+                "experiment": experiment,
+                "iterations": iterations,
+                "robots": n,
+                "log": name,
+                "rps_generation": generation,
+                "rps_errors": errors(r, generation),
+            }
+        )
+    )
     if hasattr(r, "debug"):
         r.debug()
     else:

@@ -33,8 +33,8 @@ coloured by state and each robot's sensing/capture radius, HMT zones, material l
 robot's load); off with the argument ``--no-figure`` or the environment variable
 ``COMAT_SHOW_FIGURE=0`` (then the simulator also stops pacing to real time).
 ``COMAT_MAX_STEPS=K`` stops after K env steps (a quick look at the figure);
-``COMAT_SAVE_FIGURE=file.png`` saves the last frame. Works with the legacy ``rps`` (PyPI 0.0.0 / 2020-2025: ``call_at_scripts_end``,
-``create_unicycle_barrier_certificate_with_boundary``) and with V2 (2026: ``debug``,
+``COMAT_SAVE_FIGURE=file.png`` saves the last frame. Works with the legacy ``rps`` (PyPI 0.0.0 / 2020-2025:
+``call_at_scripts_end``, ``create_unicycle_barrier_certificate_with_boundary``) and with V2 (2026: ``debug``,
 ``create_uni_barrier_certificate_with_boundary``), chosen by what the installed ``rps`` has.
 ``rps_compat.py`` lets the legacy ``rps`` draw under a current matplotlib. Imports: numpy, rps,
 cvxopt (comat's filter; both on the Robotarium's server) and the standard library only.
@@ -68,8 +68,10 @@ class RpsAdapter:
             self.generation = "legacy"
             self.barrier = rps_barriers.create_unicycle_barrier_certificate_with_boundary()
         else:
-            raise RuntimeError("rps has neither create_uni_barrier_certificate_with_boundary (V2) nor "
-                               "create_unicycle_barrier_certificate_with_boundary (legacy)")
+            raise RuntimeError(
+                "rps has neither create_uni_barrier_certificate_with_boundary (V2) nor "
+                "create_unicycle_barrier_certificate_with_boundary (legacy)"
+            )
         mapping = rps_transformations.create_si_to_uni_mapping(projection_distance=projection_distance)
         self.si_to_uni = mapping[0]
 
@@ -78,8 +80,12 @@ class RpsAdapter:
         verifier does)."""
         if show_figure and rps_compat.fix_legacy_drawing():
             print("rps_compat: the legacy rps's robot drawing adapted to this matplotlib (keyword-only radius)")
-        return robotarium.Robotarium(number_of_robots=int(n), show_figure=bool(show_figure),
-                                     initial_conditions=np.array(poses, dtype=float), sim_in_real_time=bool(show_figure))
+        return robotarium.Robotarium(
+            number_of_robots=int(n),
+            show_figure=bool(show_figure),
+            initial_conditions=np.array(poses, dtype=float),
+            sim_in_real_time=bool(show_figure),
+        )
 
     @staticmethod
     def wheel_constants(r):
@@ -99,11 +105,18 @@ class RpsAdapter:
         counters (steps with a robot outside, too-close pairs, steps over the actuator limit)."""
         e = getattr(r, "_errors", {}) or {}
         if self.generation == "legacy":
-            return {k: int(e.get(k, 0)) if not isinstance(e.get(k, 0), dict) else int(max(e[k].values(), default=0))
-                    for k in ("boundary", "collision", "actuator")}
-        return {key: int(e.get(name, 0)) for key, name in (("boundary", "robots_outside_boundaries"),
-                                                            ("collision", "robots_too_close"),
-                                                            ("actuator", "exceeded_actuator_limits"))}
+            return {
+                k: int(e.get(k, 0)) if not isinstance(e.get(k, 0), dict) else int(max(e[k].values(), default=0))
+                for k in ("boundary", "collision", "actuator")
+            }
+        return {
+            key: int(e.get(name, 0))
+            for key, name in (
+                ("boundary", "robots_outside_boundaries"),
+                ("collision", "robots_too_close"),
+                ("actuator", "exceeded_actuator_limits"),
+            )
+        }
 
     def finish(self, r):
         if hasattr(r, "debug"):
@@ -138,8 +151,16 @@ def make_loop(adapter, n, wheel):
         barrier = adapter.barrier
     else:
         raise ValueError(f"CONFIG['filter'] must be 'comat' or 'robotarium', got {CONFIG['filter']!r}")
-    return deployed_loop.DeployedLoop(barrier, adapter.si_to_uni, radius, axle, CONFIG["max_wheel_radps"],
-                                      CONFIG["waypoint_gain"], CONFIG["max_speed_mps"], CONFIG["projection_distance_m"])
+    return deployed_loop.DeployedLoop(
+        barrier,
+        adapter.si_to_uni,
+        radius,
+        axle,
+        CONFIG["max_wheel_radps"],
+        CONFIG["waypoint_gain"],
+        CONFIG["max_speed_mps"],
+        CONFIG["projection_distance_m"],
+    )
 
 
 def offset_collisions(x):
@@ -153,9 +174,11 @@ def offset_collisions(x):
 def make_policy(task):
     """actions(obs (N, D), state, poses (N, 3), type_ids (1, N), caps (1, N, C)) -> (N,) ints."""
     if CONFIG["policy"] == "heuristic":
+
         def scripted(obs, state, poses, type_ids, caps):
             mask = np.ones(type_ids.shape, dtype=bool)
             return task.scripted_actions(state, poses[None], type_ids, caps, mask)[0]
+
         return scripted
     if CONFIG["policy"] != "comat":
         raise ValueError(f"CONFIG['policy'] must be 'comat' or 'heuristic', got {CONFIG['policy']!r}")
@@ -165,8 +188,15 @@ def make_policy(task):
     return lambda obs, *_: runtime.action_probs(obs)[0]
 
 
-COLOURS = {"prey": "0.55", "sensed": "tab:orange", "captured": "tab:green", "sensing": "tab:blue",
-           "capture": "tab:red", "fast": "tab:purple", "slow": "tab:brown"}
+COLOURS = {
+    "prey": "0.55",
+    "sensed": "tab:orange",
+    "captured": "tab:green",
+    "sensing": "tab:blue",
+    "capture": "tab:red",
+    "fast": "tab:purple",
+    "slow": "tab:brown",
+}
 """Figure colours: prey by state, robots' radii and loads by type."""
 
 
@@ -180,21 +210,27 @@ class TaskFigure:
         self.artists = []
         self.radii = []
         if task.name == "pcp":
-            self.prey = [ax.add_patch(patches.Circle(p, 0.04, color=COLOURS["prey"], zorder=1))
-                         for p in state["prey"][0]]
+            self.prey = [
+                ax.add_patch(patches.Circle(p, 0.04, color=COLOURS["prey"], zorder=1)) for p in state["prey"][0]
+            ]
             for i, t in enumerate(types):
                 radius = caps[0, i, 0] if t == "sensing" else caps[0, i, 1]
-                self.radii.append(ax.add_patch(patches.Circle((0, 0), radius, fill=False, linestyle="--",
-                                                              color=COLOURS[t], zorder=1)))
+                self.radii.append(
+                    ax.add_patch(patches.Circle((0, 0), radius, fill=False, linestyle="--", color=COLOURS[t], zorder=1))
+                )
             self.artists += self.prey
         else:
             z1 = patches.Circle(task_logic.ZONE1_CENTRE, task_logic.ZONE1_RADIUS, color="tab:olive", alpha=0.25)
             x0, x1, y0, y1 = task_logic.ARENA
-            z2 = patches.Rectangle((task_logic.ZONE2_X, y0), x1 - task_logic.ZONE2_X, y1 - y0, color="tab:olive", alpha=0.15)
+            z2 = patches.Rectangle(
+                (task_logic.ZONE2_X, y0), x1 - task_logic.ZONE2_X, y1 - y0, color="tab:olive", alpha=0.15
+            )
             drop = patches.Rectangle((x0, y0), -task_logic.ZONE2_X - x0, y1 - y0, color="tab:cyan", alpha=0.15)
             self.artists += [ax.add_patch(a) for a in (z1, z2, drop)]
-            self.left = [ax.text(*task_logic.ZONE1_CENTRE, "", ha="center", va="center", fontsize=9),
-                         ax.text(task_logic.ZONE2_X + 0.3, 0.0, "", ha="center", va="center", fontsize=9)]
+            self.left = [
+                ax.text(*task_logic.ZONE1_CENTRE, "", ha="center", va="center", fontsize=9),
+                ax.text(task_logic.ZONE2_X + 0.3, 0.0, "", ha="center", va="center", fontsize=9),
+            ]
             self.loads = [ax.text(0, 0, "", fontsize=7, color=COLOURS[t]) for t in types]
             self.artists += self.left + self.loads
         self.artists += self.radii
@@ -274,11 +310,22 @@ def main(argv):
         own["offset_collision_pair_iterations"] += pairs
         violation = violation or bool(out or pairs)
 
-    result = {"task": CONFIG["task"], "policy": CONFIG["policy"], "robots": n, "rps": adapter.generation,
-              "filter": CONFIG.get("filter", "robotarium"), "filter_failures": int(getattr(loop.barrier, "failures", 0)),
-              "return": ret, "steps": env_steps, "progress": float(task.progress(state)[0]), "finished": float(done),
-              "terms": terms, "rps_errors": adapter.errors(r), "figure_artists": 0 if figure is None else len(figure.artists),
-              **own}
+    result = {
+        "task": CONFIG["task"],
+        "policy": CONFIG["policy"],
+        "robots": n,
+        "rps": adapter.generation,
+        "filter": CONFIG.get("filter", "robotarium"),
+        "filter_failures": int(getattr(loop.barrier, "failures", 0)),
+        "return": ret,
+        "steps": env_steps,
+        "progress": float(task.progress(state)[0]),
+        "finished": float(done),
+        "terms": terms,
+        "rps_errors": adapter.errors(r),
+        "figure_artists": 0 if figure is None else len(figure.artists),
+        **own,
+    }
     if figure is not None and os.environ.get("COMAT_SAVE_FIGURE"):
         ax.figure.savefig(os.environ["COMAT_SAVE_FIGURE"], dpi=100)
     print("COMAT_RESULT " + json.dumps(result))

@@ -42,6 +42,7 @@ def clipped(act, box):
         lo, hi = box[kind, :, 0], box[kind, :, 1]
         obs[..., CAPS] = np.clip(obs[..., CAPS], lo, hi)
         return act(obs, mask, state)
+
     return wrapped
 
 
@@ -56,7 +57,9 @@ def per_coalition(episodes, n):
 
 def main(folders):
     box = training_box()
-    print("| policy | set | progress % (own) | clipped | Δ progress (points) | finished % (own) | clipped | Δ finished (points) |")
+    print(
+        "| policy | set | progress % (own) | clipped | Δ progress (points) | finished % (own) | clipped | Δ finished (points) |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for folder in map(Path, folders):
         act, config = load_policy(folder / "policy.pt", task="hmt")
@@ -66,10 +69,18 @@ def main(folders):
             teams = coalitions * EPISODES
             out = {}
             for name, policy in (("own", act), ("clipped", clipped(act, box))):
-                env = make_vec_env("hmt_v0", min(len(teams), 32), seed=EVAL_SEED, tier="unicycle", coalitions=coalitions,
-                                   max_robots=slots, state_robots=slots or BASELINE_ROBOTS)
-                out[name] = per_coalition(run_episodes(env, policy, teams, EVAL_SEED, n_coalitions=len(coalitions)),
-                                          len(coalitions))
+                env = make_vec_env(
+                    "hmt_v0",
+                    min(len(teams), 32),
+                    seed=EVAL_SEED,
+                    tier="unicycle",
+                    coalitions=coalitions,
+                    max_robots=slots,
+                    state_robots=slots or BASELINE_ROBOTS,
+                )
+                out[name] = per_coalition(
+                    run_episodes(env, policy, teams, EVAL_SEED, n_coalitions=len(coalitions)), len(coalitions)
+                )
                 env.close()
             cells = []
             for k in (0, 1):

@@ -34,9 +34,13 @@ def main() -> None:
     for pol in ("comat_hmt_s0", "mat_hmt_s0"):
         algo = pol.split("_")[0]
         for split in ("train", "capability"):
-            base = {m: per_coalition(ROOT / "results/policies" / pol / "evaluation_unicycle.json", split, algo, m)
-                    for m in ("progress", "finished")}
-            print(f"| {pol} | {split} | own | {100 * base['progress'].mean():.1f} | | {100 * base['finished'].mean():.1f} | |")
+            base = {
+                m: per_coalition(ROOT / "results/policies" / pol / "evaluation_unicycle.json", split, algo, m)
+                for m in ("progress", "finished")
+            }
+            print(
+                f"| {pol} | {split} | own | {100 * base['progress'].mean():.1f} | | {100 * base['finished'].mean():.1f} | |"
+            )
             for order in ("reversed", "slow_first"):
                 name = f"hmt_{split}_{order}"
                 path = ROOT / "results/stability/orders" / pol / name / "evaluation_unicycle.json"
