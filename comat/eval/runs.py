@@ -16,6 +16,7 @@ import yaml
 
 from comat.measure.metrics import mean_ci, read_results, violations
 from comat.measure.stats import cell_means
+from comat.team import COALITION_SETS, SET_LABELS
 
 __all__ = [
     "ALGO_ORDER",
@@ -38,17 +39,10 @@ __all__ = [
 ]
 
 ALGO_ORDER = ("mappo", "qmix", "mat", "comat")
-SETS = ("train", "val", "test", "scale", "size", "capability")
+SETS = COALITION_SETS
 """Composition sets in table order (``comat.team.COALITION_SETS``); only those present appear."""
-SET_NAMES = {
-    "train": "U_train",
-    "val": "U_val",
-    "test": "U_test",
-    "scale": "U_scale",
-    "size": "U_size",
-    "capability": "U_cap",
-}
-"""The composition sets as the reports name them."""
+SET_NAMES = SET_LABELS
+"""The composition sets as the reports name them (``comat.team.SET_LABELS``)."""
 ENDPOINTS = (
     ("return", "return"),
     ("progress", "progress"),

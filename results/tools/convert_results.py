@@ -22,12 +22,20 @@ What it does, per file:
   ``/tmp/x`` → ``../../tmp/x``). The file is rewritten only where ``yaml.safe_dump`` gives back
   its text unchanged (all of them do: ``comat train`` wrote them with it).
 
+* a run's CSV (``eval.csv``, ``progress.csv``, ``evaluation_*.csv``): the metric names of before the
+  vocabulary was made one (``completion``, ``success``, ...: :data:`comat.measure.metrics.RETIRED_NAMES`)
+  in its header and, in an evaluation's ``metric`` column, as today's (``progress``, ``finished``);
+  in these files ``completion`` always meant progress. Report tables (``table1.csv``,
+  ``aggregates.csv``, ...) are left as they were written (their README says so).
+
 Any other absolute path left in a JSON or YAML file is listed at the end.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import io
 import json
 import os
 import sys
@@ -46,6 +54,7 @@ from comat.files import (
     read_json_detail,
     write_atomic,
 )
+from comat.measure.metrics import RETIRED_NAMES
 
 WAS = "/work/main"
 """The checkout root of the machine that wrote the committed files (their working directory)."""
@@ -101,6 +110,34 @@ def convert_json(path: Path, check: bool) -> tuple[bool, list[str]]:
     return changed, _absolute(new)
 
 
+RUN_CSVS = ("eval.csv", "progress.csv")
+"""A run's CSV files by name; evaluation CSVs by their prefix ``evaluation_``."""
+
+
+def convert_csv(path: Path, check: bool) -> bool:
+    """Whether a run's CSV held retired metric names (renamed in place unless ``check``)."""
+    with open(path, newline="") as fh:  # keep the file's own line endings (csv writes \r\n)
+        text = fh.read()
+    newline = "\r\n" if "\r\n" in text else "\n"
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        return False
+    metric = rows[0].index("metric") if "metric" in rows[0] else None
+    renamed = [[RETIRED_NAMES.get(c, c) for c in rows[0]]]
+    for row in rows[1:]:
+        row = list(row)
+        if metric is not None and metric < len(row):
+            row[metric] = RETIRED_NAMES.get(row[metric], row[metric])
+        renamed.append(row)
+    if renamed == rows:
+        return False
+    if not check:
+        out = io.StringIO()
+        csv.writer(out, lineterminator=newline).writerows(renamed)
+        write_atomic(path, out.getvalue())
+    return True
+
+
 def convert_yaml(path: Path, check: bool) -> tuple[bool, list[str]]:
     text = path.read_text()
     doc = yaml.safe_load(text)
@@ -129,6 +166,8 @@ def main(argv: list[str] | None = None) -> int:
                 did, absolute = convert_json(path, args.check)
             elif path.suffix in (".yaml", ".yml"):
                 did, absolute = convert_yaml(path, args.check)
+            elif path.suffix == ".csv" and (path.name in RUN_CSVS or path.name.startswith("evaluation_")):
+                did, absolute = convert_csv(path, args.check), []
             else:
                 continue
             seen += 1
@@ -137,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
             left += [(path, s) for s in absolute]
     rel = [str(p.relative_to(ROOT)) for p in changed]
     verb = "would change" if args.check else "changed"
-    print(f"{seen} JSON/YAML files read, {len(changed)} {verb}" + (":" if changed and args.check else ""))
+    print(f"{seen} JSON/YAML/CSV files read, {len(changed)} {verb}" + (":" if changed and args.check else ""))
     if args.check:
         for r in rel:
             print(f"  {r}")
