@@ -250,14 +250,15 @@ def test_calibration_folders_under_rps_v2_show_no_gap(tmp_path, capsys):
     folders = [str(out / e) for e in ("steps", "still", "ramp", "spin")]
     assert main(["export", "--check", *folders, "--rps", os.environ["COMAT_RPS_V2"]]) == 0
     assert capsys.readouterr().out.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4
-    fit = fit_logs([str(next((out / e).glob("calib_*.npy"))) for e in ("steps", "still", "ramp", "spin")])
+    fit = fit_logs([str(out / f"calib_{e}.rps-{e}.npy") for e in ("steps", "still", "ramp", "spin")])  # beside
     est = {p["name"]: p for p in fit["parameters"]}
     assert est["pose_delay_ticks"]["hi"] == 0 and est["motor_tau_s"]["estimate"] <= 0.005
     assert est["pose_noise_xy_m"]["estimate"] < 1e-7 and est["motor_dead_zone_radps"]["estimate"] == 0
     assert abs(est["turn_gain"]["estimate"] - 1) < 1e-3 and abs(est["speed_gain"]["estimate"] - 1) < 0.01
     assert all(abs(r["half_gain_diff"]) < 1e-3 for r in fit["per_robot"]["spin"])
     assert all(abs(r["half_gain_diff"]) < 0.01 for r in fit["per_robot"]["steps"])
-    assert load_log(next((out / "spin").glob("calib_*.npy")))[1].shape == (1000, 4, 6)
+    assert load_log(out / "calib_spin.rps-spin.npy")[1].shape == (1000, 4, 6)
+    assert not list((out / "spin").glob("calib_*.npy"))  # the uploaded folder stays as exported
 
 
 def test_calibration_folders_follow_the_export_rules(tmp_path):
