@@ -40,6 +40,7 @@ sets of metrics.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import pprint
@@ -53,9 +54,11 @@ from typing import Any
 
 import numpy as np
 
+import comat.runlog as runlog_module
 import comat.safety.deployed as deployed_module
 import comat.task_logic as task_logic_module
 from comat import constants as C
+from comat._version import __version__ as comat_version
 from comat.config import SafetyConfig
 from comat.control import portable_settings
 from comat.envs import make_env
@@ -101,11 +104,19 @@ SHIPPED_FILES = (
     "comat_schema.py",
     "task_logic.py",
     "deployed_loop.py",
+    "run_log.py",
     "submission_config.py",
     "weights.npy",
 )
 """The folder of a COMAT policy."""
-HEURISTIC_FILES = ("main.py", "rps_compat.py", "task_logic.py", "deployed_loop.py", "submission_config.py")
+HEURISTIC_FILES = (
+    "main.py",
+    "rps_compat.py",
+    "task_logic.py",
+    "deployed_loop.py",
+    "run_log.py",
+    "submission_config.py",
+)
 """The folder of the scripted policy."""
 FILTERS = ("comat", "robotarium")
 """What an export's main.py filters its commands with: comat's filter (the default: it meets the
@@ -347,11 +358,18 @@ def export_submission(
             shutil.copyfile(HERE / "templates" / name, tmp / name)
         shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
         shutil.copyfile(Path(deployed_module.__file__), tmp / "deployed_loop.py")
+        shutil.copyfile(Path(runlog_module.__file__), tmp / "run_log.py")
+        sha = "heuristic"
         if model is not None:
             shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
             shutil.copyfile(Path(comat_schema.__file__), tmp / "comat_schema.py")
             export_weights(model, tmp / "weights.npy")
-        config = _config(policy, task, team, poses, prey, ticks, seed, filters)
+            sha = hashlib.sha256((tmp / "weights.npy").read_bytes()).hexdigest()
+        config = {
+            **_config(policy, task, team, poses, prey, ticks, seed, filters),
+            "policy_sha256": sha,
+            "comat_version": comat_version,
+        }
         text = (
             '"""Exported by comat (sim2real/export.py): the submission\'s settings."""\n\n'
             f"CONFIG = {pprint.pformat(config, sort_dicts=False, width=110)}\n"
@@ -416,6 +434,8 @@ def run_rps(
 
     ``rps_path``: a folder holding an ``rps`` package (e.g. a checkout of the 2026 V2 simulator)
     used instead of the installed one. ``max_steps``: stop after that many env steps.
+    A folder whose ``main.py`` logs its run writes the log beside it, in
+    ``<folder>.rps-log/run<seed>/`` (``result["run_log"]``).
     ``reality`` (a level or profile file): the reality layer around ``get_poses`` and
     ``set_velocities`` (:mod:`sim2real.reality_rps`, seeded by ``seed``; ``drive`` "unicycle" or
     "wheels" moves the robots in comat's MuJoCo world); the dict then has ``reality``, that run's
@@ -439,6 +459,11 @@ def run_rps(
         env["PYTHONPATH"] = str(rps_path)
     if max_steps is not None:
         env["COMAT_MAX_STEPS"] = str(int(max_steps))
+    # The run's log goes beside the folder, never into the folder a user uploads.
+    log_dir = folder.parent / f"{folder.name}.rps-log" / f"run{int(seed)}"
+    if (folder / "run_log.py").is_file():
+        shutil.rmtree(log_dir, ignore_errors=True)
+        env["COMAT_LOG_DIR"] = str(log_dir.resolve())
     argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
     if reality is not None:
         argv = [
@@ -473,6 +498,8 @@ def run_rps(
             )
         result["reality"] = json.loads(records[-1][len("COMAT_REALITY ") :])
     result["stdout"] = "\n".join(ln for ln in proc.stdout.splitlines() if not ln.startswith("COMAT_REALITY "))
+    if "COMAT_LOG_DIR" in env:
+        result["run_log"] = str(log_dir)
     return result
 
 
@@ -541,12 +568,16 @@ def check_submission(
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
     folder = Path(folder)
-    missing = [f for f in HEURISTIC_FILES if f != "deployed_loop.py" and not (folder / f).is_file()]  # every folder's
+    missing = [
+        f for f in HEURISTIC_FILES if f not in ("deployed_loop.py", "run_log.py") and not (folder / f).is_file()
+    ]  # every folder's
     if not missing:
         config = _load_config(folder)
         wanted = _files(config.get("policy", "comat"))
         if "filter" not in config:  # exported before issue 45: main.py had the loop inline
             wanted = tuple(f for f in wanted if f != "deployed_loop.py")
+        if "run_log" not in (folder / "main.py").read_text(errors="replace"):  # exported before runs logged
+            wanted = tuple(f for f in wanted if f != "run_log.py")
         runtime_py = folder / "runtime.py"
         if runtime_py.is_file() and "comat_schema" not in runtime_py.read_text(errors="replace"):
             wanted = tuple(f for f in wanted if f != "comat_schema.py")  # its runtime describes the arrays itself

@@ -109,6 +109,7 @@ def test_shipped_code_imports_only_allowed(exported):
 
 def test_shipped_files_are_the_sources(exported):
     folder = exported["hmt"][1]
+    import comat.runlog
     import comat.task_logic
     import sim2real.runtime
     from comat.models import comat_schema
@@ -116,6 +117,7 @@ def test_shipped_files_are_the_sources(exported):
     assert (folder / "task_logic.py").read_bytes() == Path(comat.task_logic.__file__).read_bytes()
     assert (folder / "runtime.py").read_bytes() == Path(sim2real.runtime.__file__).read_bytes()
     assert (folder / "comat_schema.py").read_bytes() == Path(comat_schema.__file__).read_bytes()
+    assert (folder / "run_log.py").read_bytes() == Path(comat.runlog.__file__).read_bytes()
 
 
 def _no_leftovers(tmp_path):

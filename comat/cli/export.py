@@ -45,6 +45,22 @@ def _print_check(report: dict, tier: str) -> None:
     print(f"{'actuator errors':<22}{errors.get('actuator', float('nan')):>16}{mj['actuator_errors']:>18.0f}")
     gap = report["gap"]
     print(f"gap rps - MuJoCo: progress {gap['progress_points']:+.1f} points, return {gap['return']:+.3f}")
+    if "run_log" in rps:  # the run's own log, as the Robotarium returns it
+        print(_log_line(rps["run_log"]))
+
+
+def _log_line(folder: str) -> str:
+    """Where a checked run's log is, how large, and its size per robot-minute."""
+    from comat.runlog import LOG_FILE, META_FILE, bytes_per_robot_minute, read_run_log
+
+    log = read_run_log(folder)
+    size = sum((Path(folder) / f).stat().st_size for f in (LOG_FILE, META_FILE))
+    minutes = len(log.t) * 0.033 / 60
+    return (
+        f"run log: {folder} ({size / 1e3:.0f} kB for {len(log.t)} iterations of {log.n} robots: "
+        f"{size / max(minutes * log.n, 1e-9) / 1e3:.0f} kB per robot-minute; "
+        f"{bytes_per_robot_minute() / 1e3:.0f} kB plus the metadata)"
+    )
 
 
 def _print_checks(folders: list[str], reports: list[dict], tier: str) -> None:

@@ -8,8 +8,9 @@ and ``submission_config.py`` (``CONFIG``: experiment, robots, iterations, what i
 Robots start in lanes 0.4 m apart facing +x; every iteration (0.033 s): ``x = r.get_poses()``,
 the experiment's unicycle commands for this iteration, the Robotarium's own unicycle barrier
 certificate with boundary, ``set_velocities``, ``step``. Each iteration logs the time
-(``time.time()``), the commands sent (after the barrier) and the poses received; at the end the
-log is saved as ``calib_<experiment>.npy`` (a float array (iterations, robots, 6): t, v, ω, x, y,
+(``time.time()``), the commands sent (after the barrier) and the poses received; the log so far is
+saved about every 2 s and at the end as ``calib_<experiment>.npy`` (in ``COMAT_LOG_DIR`` where
+that is set) (a float array (iterations, robots, 6): t, v, ω, x, y,
 θ), which the Robotarium sends back, then one line ``COMAT_RESULT {json}`` and the simulator's
 debug report. Figures on by default; off with ``--no-figure`` or ``COMAT_SHOW_FIGURE=0``.
 Works with the legacy ``rps`` and with V2, like every comat export. Imports: numpy, rps and the
@@ -59,6 +60,16 @@ def errors(r, generation):
     }
 
 
+SAVE_EVERY = 60
+"""Iterations between saves of the log so far (about 2 s)."""
+
+
+def save(path, log):
+    """The log so far, replacing the last save at once (a reader never sees half a file)."""
+    np.save(path + ".tmp.npy", log)
+    os.replace(path + ".tmp.npy", path)
+
+
 def main(argv):
     show = "--no-figure" not in argv and os.environ.get("COMAT_SHOW_FIGURE", "1") not in ("0", "false", "no")
     n, experiment, iterations = int(CONFIG["robots"]), CONFIG["experiment"], int(CONFIG["iterations"])
@@ -70,6 +81,8 @@ def main(argv):
     )
     log = np.zeros((iterations, n, 6))
     ids = np.arange(n)
+    name = f"calib_{experiment}.npy"
+    path = os.path.join(os.environ.get("COMAT_LOG_DIR") or ".", name)
     for k in range(iterations):
         x = r.get_poses()
         dxu = barrier(schedule(experiment, k, n).T.copy(), x)
@@ -78,8 +91,9 @@ def main(argv):
         log[k, :, 3:] = np.asarray(x).T
         r.set_velocities(ids, dxu)
         r.step()
-    name = f"calib_{experiment}.npy"
-    np.save(name, log)
+        if (k + 1) % SAVE_EVERY == 0:  # a run cut short still returns what it logged
+            save(path, log[: k + 1])
+    save(path, log)
     print(
         "COMAT_RESULT "
         + json.dumps(
