@@ -191,6 +191,8 @@ def read_run_log(path: str) -> RunLog:
         RunLogError: a missing file, a file that is not a comat run log, a log of another format
             version, or rows that do not match the metadata (one line naming the file).
     """
+    if not os.path.exists(path):
+        raise RunLogError(f"{path}: no such file or folder (a run's log is {LOG_FILE} and {META_FILE}, side by side)")
     folder = path if os.path.isdir(path) else os.path.dirname(path) or "."
     log_path, meta_path = os.path.join(folder, LOG_FILE), os.path.join(folder, META_FILE)
     for p in (log_path, meta_path):

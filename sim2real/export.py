@@ -507,6 +507,13 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
     """The same policy (the folder's weights through the numpy runtime, or the scripted policy),
     team, start poses and prey in the MuJoCo env, comat's own loop (at ``reality``, its layer
     seeded by ``seed``); its episode metrics."""
+    return mujoco_twin(folder, tier, reality, seed)["metrics"]
+
+
+def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0) -> dict:
+    """:func:`run_mujoco`'s episode with what it did: ``{"metrics", "poses" (S + 1, N, 3) true poses
+    at every env step's start and at the end, "actions" (S, N)}`` (a real run's simulated twin,
+    ``comat replay``)."""
 
     folder = Path(folder)
     cfg = _load_config(folder)
@@ -538,10 +545,16 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
             act[0, : team.size] = policy.action_probs(core.observe()[0, : team.size])[0]
             return act
 
+    poses, actions = [core.poses()[0, : team.size].copy()], []
     while True:
-        res = core.step(act_fn())
+        act = act_fn()
+        res = core.step(act)
+        actions.append(act[0, : team.size].copy())
         if res.terminated[0] or res.truncated[0]:
-            return core.episode_metrics(0)
+            # the episode's last poses: an autoreset has not happened (PettingZoo-level env, one team)
+            poses.append(core.poses()[0, : team.size].copy())
+            return {"metrics": core.episode_metrics(0), "poses": np.stack(poses), "actions": np.stack(actions)}
+        poses.append(core.poses()[0, : team.size].copy())
 
 
 def check_submission(

@@ -6,6 +6,7 @@ Commands, by the module that declares and runs them:
 * :mod:`comat.cli.evaluate`: ``eval``, ``probe``, ``report``, ``sweep``;
 * :mod:`comat.cli.rollout`: ``rollout`` (Rerun recordings and videos);
 * :mod:`comat.cli.export`: ``export`` (Robotarium submissions, ``--check``);
+* :mod:`comat.cli.replay`: ``replay`` (a run's log beside its simulated twin);
 * :mod:`comat.cli.calibrate`: ``calibrate`` (fit the reality layer to calibration logs);
 * :mod:`comat.cli.bench`: ``bench`` (sim, env, learn, soak, fidelity, safety, viz);
 * here: ``demo`` (:mod:`comat.cli.demo`), ``mjcf`` (the golden MJCF files), ``coalitions``.
@@ -24,6 +25,7 @@ from comat.cli.bench import add_bench_parser
 from comat.cli.calibrate import add_calibrate_parser
 from comat.cli.evaluate import add_evaluate_parsers
 from comat.cli.export import add_export_parser
+from comat.cli.replay import add_replay_parser
 from comat.cli.rollout import add_rollout_parser
 from comat.cli.train import add_train_parsers
 from comat.team import COALITION_SETS, COALITIONS_DIR
@@ -157,6 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_evaluate_parsers(sub)
     add_bench_parser(sub)
 
+    add_replay_parser(sub)
     add_calibrate_parser(sub)
     return parser
 

@@ -1,0 +1,75 @@
+"""``comat replay LOG --export DIR``: a real run beside its simulated twin (:mod:`comat.eval.replay`).
+
+Handlers import their floors when they run: ``comat --help`` loads neither torch nor Rerun.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from comat.cli.args import TIERS, add_force, add_reality
+
+__all__ = ["add_replay_parser"]
+
+
+def _cmd(args: argparse.Namespace) -> int:
+    from comat.cli.args import reality_arg
+    from comat.eval.replay import check_twin, replay
+    from comat.files import new_outputs
+    from comat.runlog import read_run_log
+    from comat.viz.rollout import check_rrd_path
+    from comat.viz.viewer import viewer_hint
+
+    reality = reality_arg(args.reality)
+    log = read_run_log(args.log)  # a one-line error before anything runs
+    if not Path(args.export).is_dir():
+        raise ValueError(
+            f"--export must be the exported folder the run came from, got {args.export!r} (no such folder)"
+        )
+    check_twin(log, Path(args.export))  # the folder is the run's, before anything is announced
+    folder = Path(args.log) if Path(args.log).is_dir() else Path(args.log).parent
+    out = check_rrd_path(args.out or folder / "replay.rrd", "--out", folder=False)
+    names = [out.name, f"{out.stem}_gap.md", f"{out.stem}_gap.csv"]
+    print(
+        f"comat replay: {args.log} ({log.n} robots, {len(log.t)} iterations, "
+        f"{'finished' if log.complete else 'cut short'}) beside its twin from {args.export} in MuJoCo "
+        f"({args.tier} tier, reality {reality})",
+        file=sys.stderr,
+    )
+    with new_outputs(out.parent, names, force=args.force, flag="--out"):
+        result = replay(args.log, args.export, str(out), tier=args.tier, reality=reality, seed=args.seed)
+    print(result["markdown"])
+    for path in result["files"]:
+        print(f"wrote {path}")
+    print(viewer_hint(out))
+    return 0
+
+
+def add_replay_parser(subparsers) -> argparse.ArgumentParser:
+    """``comat replay`` on the top-level sub-parsers."""
+    p = subparsers.add_parser(
+        "replay",
+        help="a run's log (Robotarium or rps) beside its simulated twin: a Rerun file and a gap table",
+        description="Reads the log an exported main.py wrote (comat_run.npy and comat_run.meta.npy, "
+        "docs/export.md) and runs its twin: the same team, start poses, prey and policy (the export folder "
+        "--export, whose weights must be the run's) closed-loop in MuJoCo at --reality. Writes a Rerun "
+        "recording of both (the real robots solid, the twin's hollow, per-step position and heading "
+        "divergence) and a gap table (steps, return, progress, finished; divergence mean, p95, max) as "
+        "Markdown and CSV beside it.",
+    )
+    p.add_argument("log", metavar="LOG", help="the run's log: its folder, or its comat_run.npy")
+    p.add_argument("--export", required=True, metavar="DIR", help="the exported folder the run came from")
+    p.add_argument("--tier", choices=TIERS, default="unicycle", help="the twin's dynamics tier (default: %(default)s)")
+    add_reality(p)
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="the twin's reality-layer seed (default: %(default)s, that of export --check's first run)",
+    )
+    p.add_argument("--out", default=None, help="the recording, FILE.rrd (default: replay.rrd beside the log)")
+    add_force(p)
+    p.set_defaults(func=_cmd)
+    return p

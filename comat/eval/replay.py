@@ -1,0 +1,167 @@
+"""A real run beside its simulated twin: ``comat replay LOG --export DIR``.
+
+The run's log (:mod:`comat.runlog`, what the exported ``main.py`` saw and did on the Robotarium, or
+under ``rps`` standing in for it) is laid next to the same team, start poses, prey and policy run
+closed-loop in comat's MuJoCo world (:func:`sim2real.export.mujoco_twin`) at a reality level or a
+calibrated profile. Both are compared at every env step's start (the poses the real script received
+against the twin's true poses; the real run has no others) and at the end (the task metrics):
+
+* a Rerun recording: the arena, each robot of the real run (solid) and of the twin (hollow) with
+  their trails, and per step the position and heading divergence (mean and max over robots);
+* a gap table (CSV and Markdown): steps, return, progress, finished, and the divergence's mean,
+  95th percentile and maximum over steps.
+
+The twin must be the run's: the export folder's weights have the sha256 the log records and its
+team, start poses and prey are the log's (else one line says which differs).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+
+from comat import constants as C
+from comat.files import write_atomic
+from comat.runlog import RunLog, read_run_log
+from sim2real.export import _load_config, mujoco_twin
+
+__all__ = ["GAP_METRICS", "ReplayError", "check_twin", "gap_rows", "replay", "step_poses"]
+
+GAP_METRICS = ("steps", "return", "progress", "finished")
+"""Task metrics the gap table puts side by side (the real run's from its log's result)."""
+_REAL, _TWIN = (30, 110, 220), (240, 140, 30)
+
+
+class ReplayError(ValueError):
+    """A log and an export folder that do not belong together (one line: what differs)."""
+
+
+def check_twin(log: RunLog, export: Path) -> dict:
+    """The export folder's CONFIG once it is known to be the run's: the same policy weights, team,
+    start poses and prey (ReplayError naming what differs)."""
+    config = _load_config(export)
+    meta = log.meta
+    weights = export / "weights.npy"
+    sha = hashlib.sha256(weights.read_bytes()).hexdigest() if weights.is_file() else "heuristic"
+    if meta.get("policy_sha256") not in (None, sha):
+        raise ReplayError(
+            f"--export {str(export)!r}: its policy (sha256 {sha[:12]}…) is not the one the run logged "
+            f"({str(meta['policy_sha256'])[:12]}…)"
+        )
+    for key in ("task", "types", "capabilities", "ticks_per_step"):
+        if meta.get(key) != config.get(key):
+            raise ReplayError(
+                f"--export {str(export)!r}: {key} {config.get(key)!r}, but the run logged {meta.get(key)!r}"
+            )
+    start = np.asarray(meta["start_poses"], dtype=float)
+    if start.shape != np.shape(config["start_poses"]) or not np.allclose(start, config["start_poses"], atol=1e-9):
+        raise ReplayError(f"--export {str(export)!r}: its start poses are not the run's")
+    if not np.allclose(np.asarray(meta.get("prey") or []), np.asarray(config.get("prey") or []), atol=1e-9):
+        raise ReplayError(f"--export {str(export)!r}: its prey are not the run's")
+    return config
+
+
+def step_poses(log: RunLog) -> np.ndarray:
+    """(S, N, 3) the poses the real run's script received where each env step started."""
+    return log.poses[(log.actions >= 0).all(axis=1)]
+
+
+def _divergence(real: np.ndarray, twin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per step and robot: position distance (m) and heading difference (rad), (S, N) each."""
+    dist = np.hypot(*(real[..., :2] - twin[..., :2]).transpose(2, 0, 1))
+    heading = np.abs(np.angle(np.exp(1j * (real[..., 2] - twin[..., 2]))))
+    return dist, heading
+
+
+def gap_rows(log: RunLog, twin: dict, dist: np.ndarray) -> list[dict]:
+    """The gap table: the task metrics of the real run and its twin, and the position divergence."""
+    real = log.meta.get("result") or {}
+    rows = []
+    for name in GAP_METRICS:
+        r, t = real.get(name), float(twin["metrics"][name])
+        rows.append({"quantity": name, "real": r, "twin": t, "gap": None if r is None else float(r) - t})
+    per_step = dist.mean(axis=1)
+    for label, value in (("mean", per_step.mean()), ("p95", np.percentile(per_step, 95)), ("max", dist.max())):
+        rows.append({"quantity": f"position divergence {label} (m)", "real": None, "twin": None, "gap": float(value)})
+    return rows
+
+
+def _table(rows: list[dict], note: str) -> tuple[str, str]:
+    def cell(v):
+        return "" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    md = ["| quantity | real | twin | real − twin |", "|---|---|---|---|"]
+    md += [f"| {r['quantity']} | {cell(r['real'])} | {cell(r['twin'])} | {cell(r['gap'])} |" for r in rows]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=["quantity", "real", "twin", "gap"], lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return "\n".join(md) + f"\n\n{note}\n", buf.getvalue()
+
+
+def _record(path: Path, real: np.ndarray, twin: np.ndarray, dist: np.ndarray, heading: np.ndarray, note: str) -> None:
+    """The two runs in one recording (timeline ``step``; y mirrored as comat's recordings are)."""
+    rec = rr.RecordingStream("comat", recording_id=f"replay-{path.stem}")
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
+    rec.log(
+        "world/arena",
+        rr.Boxes2D(
+            centers=[((x0 + x1) / 2, (y0 + y1) / 2)], half_sizes=[((x1 - x0) / 2, (y1 - y0) / 2)], colors=[(60, 60, 60)]
+        ),
+        static=True,
+    )
+    rec.log("meta", rr.TextDocument(note, media_type=rr.MediaType.MARKDOWN), static=True)
+    n = real.shape[1]
+    labels = [f"robot_{i}" for i in range(n)]
+    for k in range(real.shape[0]):
+        rec.set_time("step", sequence=k)
+        for name, poses, colour in (("real", real, _REAL), ("twin", twin, _TWIN)):
+            rec.log(f"world/{name}/robots", rr.Points2D(poses[k, :, :2], radii=[0.055], colors=[colour], labels=labels))
+            trail = poses[: k + 1, :, :2].transpose(1, 0, 2)
+            rec.log(f"world/{name}/trails", rr.LineStrips2D(list(trail), colors=[colour], radii=[0.005]))
+        rec.log("divergence/position_mean_m", rr.Scalars(float(dist[k].mean())))
+        rec.log("divergence/position_max_m", rr.Scalars(float(dist[k].max())))
+        rec.log("divergence/heading_mean_rad", rr.Scalars(float(heading[k].mean())))
+    rec.save(str(path))
+
+
+def replay(log_path: str, export: str, out: str, tier: str = "unicycle", reality: str = "off", seed: int = 0) -> dict:
+    """Lay the run logged at ``log_path`` beside its twin from the export folder ``export`` (module
+    docstring); writes ``out`` (``.rrd``) and the gap table beside it (``<stem>_gap.md``/``.csv``).
+
+    Returns ``{"rows": gap rows, "steps": compared steps, "complete": the run finished, "files": [...]}``.
+
+    Raises:
+        comat.runlog.RunLogError: the log cannot be read; ReplayError: the folder is not the run's.
+    """
+    log = read_run_log(log_path)
+    export_dir = Path(export)
+    check_twin(log, export_dir)
+    twin = mujoco_twin(export_dir, tier=tier, reality=None if reality == "off" else reality, seed=seed)
+    real = step_poses(log)
+    steps = min(len(real), len(twin["poses"]))
+    if steps == 0:
+        raise ReplayError(f"{log_path}: the log holds no env step start to compare (a run stopped at once)")
+    real, twin_poses = real[:steps], twin["poses"][:steps]
+    dist, heading = _divergence(real, twin_poses)
+    rows = gap_rows(log, twin, dist)
+    note = (
+        f"Real run: {log.meta.get('task')} with {log.n} robots under rps {log.meta.get('rps')} "
+        f"({'finished' if log.complete else 'cut short: no result, compared as far as it logged'}), "
+        f"{len(log.t)} iterations. Twin: the same team, start and policy in MuJoCo ({tier} tier, reality "
+        f"{reality}, comat's loop). Divergence: the real script's received poses against the twin's true "
+        f"poses at the start of each of {steps} env steps."
+    )
+    md, table_csv = _table(rows, note)
+    out_path = Path(out)
+    files = [out_path, out_path.with_name(out_path.stem + "_gap.md"), out_path.with_name(out_path.stem + "_gap.csv")]
+    _record(files[0], real, twin_poses, dist, heading, md)
+    write_atomic(files[1], md)
+    write_atomic(files[2], table_csv)
+    return {"rows": rows, "steps": steps, "complete": log.complete, "files": files, "markdown": md}

@@ -1,0 +1,63 @@
+"""comat replay: a run's log (here a run under rps standing in for the Robotarium) beside its twin in
+MuJoCo, as a Rerun file and a gap table; a folder that is not the run's, and a run cut short."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from comat.cli import main
+from comat.runlog import LOG_FILE, META_FILE, read_run_log
+from sim2real.export import run_rps
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("replay")
+    folder = root / "pcp"
+    assert main(["export", "--policy", "pretrained:comat-pcp", "--team", "test:3", "--out", str(folder)]) == 0
+    return folder, Path(run_rps(folder, max_steps=6)["run_log"])
+
+
+def test_replay_writes_the_run_beside_its_twin(run, capsys):
+    folder, log = run
+    out = log.parent / "r.rrd"
+    assert main(["replay", str(log), "--export", str(folder), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "| steps | 6 |" in printed and "position divergence mean (m)" in printed
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    assert subprocess.run([rerun, "rrd", "verify", str(out)], capture_output=True, check=False).returncode == 0
+    rows = (log.parent / "r_gap.csv").read_text().splitlines()
+    assert rows[0] == "quantity,real,twin,gap" and rows[1].startswith("steps,6,")
+    divergence = [float(r.split(",")[-1]) for r in rows if r.startswith("position divergence")]
+    assert len(divergence) == 3 and all(np.isfinite(divergence)) and divergence[0] <= divergence[2]
+
+
+def test_a_folder_that_is_not_the_runs_is_refused(run, tmp_path, capsys):
+    log = run[1]
+    other = tmp_path / "other"
+    assert main(["export", "--policy", "pretrained:comat-pcp", "--team", "test:4", "--out", str(other)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(log), "--export", str(other), "--out", str(tmp_path / "x.rrd")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("comat replay: error: --export") and "but the run logged" in err
+    assert not (tmp_path / "x.rrd").exists()  # nothing half-written
+
+
+def test_a_run_cut_short_is_compared_as_far_as_it_logged(run, tmp_path, capsys):
+    folder, log = run
+    cut = tmp_path / "cut"
+    shutil.copytree(log, cut)
+    full = read_run_log(str(log))
+    rows = 2 * full.meta["ticks_per_step"] + 5  # killed during its third env step
+    np.save(cut / LOG_FILE, full.data[:rows])
+    meta = {k: v for k, v in full.meta.items() if k != "result"}
+    np.save(cut / META_FILE, np.frombuffer(json.dumps(meta).encode(), np.uint8))
+    assert main(["replay", str(cut), "--export", str(folder)]) == 0
+    printed = capsys.readouterr().out
+    assert "cut short" in printed and "| steps |  |" in printed  # no result: the twin's alone
+    assert "3 env steps" in printed
