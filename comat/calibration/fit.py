@@ -35,7 +35,7 @@ import numpy as np
 
 from comat import constants as C
 from comat.calibration.experiments import load_log
-from comat.calibration.schedule import FULL_FRACTION, TOP_TURN_RATE_RADPS
+from comat.calibration.schedule import TOP_TURN_RATE_RADPS
 from comat.measure.stats import t_interval
 
 __all__ = [
@@ -57,6 +57,9 @@ FIT_RANGES = {
     "accel_radps2": (0.0, 200.0),
 }
 """The grids of the ``steps`` fit; the slew limit is either none (0) or the firmware's 200 rad/s²."""
+CAP_MARGIN = 0.02
+"""How far below the fastest commanded wheel speed (a fraction of the top) a fitted cap must lie to
+count as a derate: two steps of the cap grid, as the pose noise moves the best cap by about one."""
 DEAD_ZONE_GRID = np.round(np.arange(0.0, 4.5001, 0.05), 4)
 """Dead zones (rad/s) the ``ramp`` fit tries: up to 4.5 of the ramp's 5 rad/s."""
 
@@ -149,7 +152,9 @@ def fit_steps(log: np.ndarray) -> list[dict]:
         ds = dist[m, i]
         kappa = float(np.polyfit(ds, dth[m, i], 1)[0]) if np.ptp(ds) > 0.05 else float("nan")
         row["half_gain_diff"] = kappa * C.GRITSBOT.base_length_m / 2.0  # kappa = (g_r - g_l) / l
-        row["full_fraction"] = FULL_FRACTION  # the steps experiment's full speed
+        # the fastest wheel speed the robot was sent, as a fraction of the top: the schedule asks for
+        # FULL_FRACTION, but a barrier may have cut it (V2's does, to ~0.93): a cap is only seen below it
+        row["full_fraction"] = float(np.abs(log[:, i, 1]).max()) / C.GRITSBOT.max_linear_velocity_mps
     return out
 
 
@@ -441,8 +446,11 @@ def profile_fields(fit: dict) -> dict:
         fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(*shared, *own)), float(max(*shared, *own))
         fields["motor_accel_limit_radps2"] = float(np.median([r["accel_radps2"] for r in timed]))
         # a cap at or above the fastest commanded wheel speed (steps: 95 % of the top; spin: 91 %) is not seen
+        # a cap counts only clearly below the fastest speed sent (CAP_MARGIN)
         seen = [
-            r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - 0.01
+            r["cap_fraction"] * r["gain"]
+            for r in moving
+            if r["cap_fraction"] * r["gain"] < r["full_fraction"] - CAP_MARGIN
         ]
         fields["top_speed_derate_min"] = float(min(1.0, min(seen))) if seen else 1.0
     if "wheel_gain_spread" in est:
