@@ -38,6 +38,10 @@ MEASURES = {
     "gain, reachable wheel speed, wheel gain difference (the circle the robot's centre draws)",
 }
 _TEMPLATE = Path(__file__).parent / "templates" / "calibration_main.py"
+STARTUP_DRIVE_S = 60.0
+"""Time allowed for the robots' drive from their chargers to the lanes before the loop starts, in the
+duration an experiment declares: the V2 simulator's start-up took 21-29 s for 4 robots in three draws
+(measured, 2026-12-06); twice the longest, as a too-short declaration may cut the run."""
 
 
 def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
@@ -53,12 +57,13 @@ def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
         for experiment, iterations in EXPERIMENTS.items():
             folder = tmp / experiment
             folder.mkdir()
-            duration = round(iterations * CONTROL_DT_S, 1)
+            loop_s = round(iterations * CONTROL_DT_S, 1)
+            duration = round(loop_s + STARTUP_DRIVE_S)  # what the experiment form must be told
             # The template with its first line naming this experiment, what it measures and its length.
             body = _TEMPLATE.read_text().split("\n", 1)[1]
             (folder / "main.py").write_text(
                 f'"""Calibration run on the Robotarium, experiment {experiment!r}: {iterations} iterations, '
-                f"{duration} s.\n"
+                f"{loop_s} s, after the robots' drive to their lanes: declare {duration} s.\n"
                 f"Measures: {MEASURES[experiment]}.\n" + body
             )
             shutil.copyfile(schedule_module.__file__, folder / "calibration_schedule.py")
@@ -68,6 +73,7 @@ def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:
                 "experiment": experiment,
                 "robots": robots,
                 "iterations": iterations,
+                "loop_s": loop_s,
                 "duration_s": duration,
                 "measures": MEASURES[experiment],
             }

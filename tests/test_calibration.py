@@ -4,6 +4,7 @@ take and that round-trips through a run's config.yaml; bad logs get one-line err
 
 import json
 import os
+import runpy
 import sys
 import warnings
 
@@ -15,6 +16,7 @@ from comat.calibration.experiments import run_under_rps, simulate
 from comat.calibration.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still, profile_fields
 from comat.calibration.recovery import check, recover, setting, true_half_gain_diff
 from comat.cli import main
+from sim2real.calibration import STARTUP_DRIVE_S
 from comat.reality import RealityConfig, resolve_reality
 
 
@@ -219,7 +221,9 @@ def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_
     for experiment in ("steps", "still", "ramp", "spin"):
         files = sorted(p.name for p in (out / experiment).iterdir())
         assert files == ["calibration_schedule.py", "main.py", "rps_compat.py", "submission_config.py"]
-    capsys.readouterr()
+        config = runpy.run_path(str(out / experiment / "submission_config.py"))["CONFIG"]
+        assert config["duration_s"] == round(config["loop_s"] + STARTUP_DRIVE_S)  # the start-up drive counted
+    assert capsys.readouterr().out.count(" s and 2 robots") == 4  # what to declare, said per folder
     assert main(["export", "--check", *(str(out / e) for e in ("steps", "still", "ramp", "spin"))]) == 0
     printed = capsys.readouterr().out
     assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4

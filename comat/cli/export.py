@@ -20,6 +20,7 @@ Wired into ``comat/cli.py`` by ``add_export_parser(sub)`` in ``build_parser``.
 from __future__ import annotations
 
 import argparse
+import runpy
 from pathlib import Path
 
 __all__ = ["add_export_parser", "load_start_poses", "parse_team"]
@@ -172,7 +173,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if args.calibration:
         folders = export_calibration(args.calibration, args.robots)
         for f in folders:
-            print(f"wrote {f}: " + ", ".join(sorted(p.name for p in f.iterdir())))
+            config = runpy.run_path(str(f / "submission_config.py"))["CONFIG"]
+            print(
+                f"wrote {f}: "
+                + ", ".join(sorted(p.name for p in f.iterdir()))
+                + f"; declare {config['duration_s']:.0f} s and {config['robots']} robots"
+            )
         print(
             "upload each folder to the Robotarium, download the calib_<experiment>.npy it saves, then fit: "
             "comat calibrate calib_steps.npy calib_still.npy calib_ramp.npy calib_spin.npy --out my_robots.yaml"
@@ -313,8 +319,9 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
         "--calibration",
         metavar="OUT",
         default=None,
-        help="instead: write the calibration experiments as Robotarium submission folders OUT/steps and "
-        "OUT/still (each logs commands and poses to calib_<experiment>.npy for comat calibrate)",
+        help="instead: write the four calibration experiments as Robotarium submission folders OUT/steps, "
+        "OUT/still, OUT/ramp and OUT/spin (each logs commands and poses to calib_<experiment>.npy for comat "
+        "calibrate; its submission_config.py says the duration to declare, the start-up drive included)",
     )
     p.add_argument(
         "--robots", type=int, default=4, help="--calibration: robots per experiment, 1-4 (default: %(default)s)"
