@@ -16,8 +16,8 @@ from comat.calibration.experiments import run_under_rps, simulate
 from comat.calibration.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still, profile_fields
 from comat.calibration.recovery import check, recover, setting, true_half_gain_diff
 from comat.cli import main
-from sim2real.calibration import STARTUP_DRIVE_S
 from comat.reality import RealityConfig, resolve_reality
+from sim2real.calibration import STARTUP_DRIVE_S
 
 
 def test_known_truth_is_recovered_within_tolerance():
