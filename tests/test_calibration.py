@@ -143,7 +143,12 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
     fields = data["reality"]
     assert fields["pose_delay_ticks"] == 1 and abs(fields["motor_tau_max_s"] - 0.05) <= 0.01
     assert abs(fields["motor_dead_zone_radps"] - 1.9) <= 0.4 and "motor_dead_zone_radps" not in data["not_identified"]
-    assert "pose_bias_xy_m" in data["not_identified"]
+    # what the logs cannot show keeps nominal's value (not the ideal world's), said field by field
+    assert data["not_identified"]["pose_bias_xy_m"].startswith("nominal's 0.0005: not identified")
+    nominal = RealityConfig(level="nominal")
+    layer = resolve_reality(str(profile))
+    assert layer.command_loss_prob == nominal.command_loss_prob > 0 and layer.fault_prob == nominal.fault_prob
+    assert layer.command_delay_ticks == 0  # the fitted delay holds the command path's too
     config = resolve_reality(str(profile))
     assert config == RealityConfig(**fields)
     # a run trained with reality=PROFILE.yaml stores the same parameters in its config.yaml

@@ -37,6 +37,7 @@ from comat import constants as C
 from comat.calibration.experiments import load_log
 from comat.calibration.schedule import TOP_TURN_RATE_RADPS
 from comat.measure.stats import t_interval
+from comat.reality.config import LEVELS
 
 __all__ = [
     "FIT_RANGES",
@@ -48,6 +49,7 @@ __all__ = [
     "loop_timing",
     "profile_fields",
     "truth_of",
+    "unidentified_fields",
 ]
 
 FIT_RANGES = {
@@ -57,6 +59,10 @@ FIT_RANGES = {
     "accel_radps2": (0.0, 200.0),
 }
 """The grids of the ``steps`` fit; the slew limit is either none (0) or the firmware's 200 rad/s²."""
+PROFILE_BASE = "nominal"
+"""The level a fitted profile starts from: a field the logs cannot identify (faults, freezes, start
+error, command loss, the wheel disturbance, ...) keeps this level's value rather than becoming the
+ideal world's, and the profile says so field by field (:func:`unidentified_fields`)."""
 CAP_MARGIN = 0.02
 """How far below the fastest commanded wheel speed (a fraction of the top) a fitted cap must lie to
 count as a derate: two steps of the cap grid, as the pose noise moves the best cap by about one."""
@@ -430,14 +436,17 @@ def fit_logs(paths: Sequence[str]) -> dict:
 
 
 def profile_fields(fit: dict) -> dict:
-    """The RealityConfig fields (level ``off`` plus what the logs identified) a fit writes into a
-    profile file (:func:`comat.reality.config.read_profile` reads them back)."""
+    """The RealityConfig fields a fit writes into a profile file (:func:`comat.reality.config.read_profile`
+    reads them back): level :data:`PROFILE_BASE` (``nominal``: what the logs cannot show keeps nominal's
+    value, not the ideal world's, :func:`unidentified_fields`) and the fields the logs identified."""
     est = {p["name"]: p for p in fit["parameters"] if p["estimate"] is not None and np.isfinite(p["estimate"])}
-    fields: dict = {"level": "off"}
+    fields: dict = {"level": PROFILE_BASE}
     if "pose_delay_ticks" in est:
         p = est["pose_delay_ticks"]
         fields["pose_delay_ticks"] = int(p["lo"])
         fields["pose_delay_spread_ticks"] = int(p["hi"] - p["lo"])
+        # the fitted delay is pose + command together (not separable): all of it on the pose path
+        fields["command_delay_ticks"], fields["command_delay_spread_ticks"] = 0, 0
     steps, spin = fit["per_robot"]["steps"], fit["per_robot"].get("spin", [])
     moving, timed = steps + spin, steps or spin  # the lag from steps when given (see fit_logs)
     if moving:
@@ -488,4 +497,15 @@ def truth_of(config) -> dict[str, str]:
         "command_loss_prob": f"{c.command_loss_prob:.4g}",
         "wheel_disturbance_radps": f"{c.wheel_disturbance_radps:.4g}",
         "fault_prob": f"{c.fault_prob:.4g}",
+    }
+
+
+def unidentified_fields(fields: dict) -> dict[str, str]:
+    """Each :class:`~comat.reality.RealityConfig` field a profile does not set from the logs: the
+    value it keeps (:data:`PROFILE_BASE`'s) and why, field by field, for the profile file."""
+    base = LEVELS[PROFILE_BASE]
+    return {
+        name: f"{PROFILE_BASE}'s {base[name]!r}: not identified by the calibration experiments"
+        for name in base
+        if name not in fields
     }

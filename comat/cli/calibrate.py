@@ -6,8 +6,8 @@ estimate, its interval and what kind it is: the 95 % t-interval over robots, or 
 robots' range; robots and runs used; with ``--truth``, the known value; a note) and writes a
 profile, with a comment header saying what each field it sets means, that
 ``comat train ... reality=PROFILE.yaml`` and ``comat eval --reality PROFILE.yaml`` take: the
-layer at ``off`` with the identified fields set (what the logs cannot show stays off and is
-listed under ``not_identified``). ``--simulate REALITY`` instead writes the logs of the
+layer at ``nominal`` with the identified fields set (what the logs cannot show keeps nominal's
+value, and ``not_identified`` says so field by field). ``--simulate REALITY`` instead writes the logs of the
 experiments run in comat with the layer at a level, profile or field mapping, and the layer's
 resolved fields as ``truth.yaml`` beside them: the known truth a fit is checked against
 (``--truth``).
@@ -62,8 +62,8 @@ def _header(fields: dict, logs: list[str]) -> str:
     docs = field_docs()
     lines = textwrap.wrap(
         f"comat calibrate: a reality profile fitted to {len(logs)} calibration log(s): the "
-        "layer at 'off' with the fields below set (fit: the estimates behind them; "
-        "not_identified: what stays off). The fields:",
+        "layer at 'nominal' with the fields below set (fit: the estimates behind them; not_identified: "
+        "the fields the logs cannot show, which keep nominal's values). The fields:",
         100,
     ) + [""]
     for name in fields:
@@ -110,7 +110,7 @@ def _cmd(args: argparse.Namespace) -> int:
             f"{out}/calib_*.npy --truth {out / 'truth.yaml'} --out PROFILE.yaml"
         )
         return 0
-    from comat.calibration.fit import fit_logs, profile_fields, truth_of
+    from comat.calibration.fit import fit_logs, profile_fields, truth_of, unidentified_fields
     from comat.reality import RealityConfig, resolve_reality
 
     if not args.logs:
@@ -124,7 +124,7 @@ def _cmd(args: argparse.Namespace) -> int:
     print(_table(fit["parameters"], truth))
     profile = {
         "reality": {k: v for k, v in dataclasses.asdict(config).items() if k in fields},
-        "not_identified": [p["name"] for p in fit["parameters"] if p["estimate"] is None],
+        "not_identified": unidentified_fields(fields),
         "fit": [{k: v for k, v in p.items()} for p in fit["parameters"]],
         "logs": [str(Path(p)) for p in args.logs],
     }
