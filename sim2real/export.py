@@ -510,10 +510,12 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
     return mujoco_twin(folder, tier, reality, seed)["metrics"]
 
 
-def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0) -> dict:
+def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0, loop: str = "comat") -> dict:
     """:func:`run_mujoco`'s episode with what it did: ``{"metrics", "poses" (S + 1, N, 3) true poses
-    at every env step's start and at the end, "actions" (S, N)}`` (a real run's simulated twin,
-    ``comat replay``)."""
+    at every env step's start and at the end, "measured" (S + 1, N, 3) the poses its script saw then
+    (the true ones at reality off), "actions" (S, N)}`` (a real run's simulated twin, ``comat replay``).
+    ``loop``: what turns waypoints into wheel commands (:data:`comat.config.LOOPS`): comat's, or the
+    one the export runs (``shipped_<rps>``, ``robotarium_<rps>``)."""
 
     folder = Path(folder)
     cfg = _load_config(folder)
@@ -527,6 +529,7 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
         tier=tier,
         ticks_per_step=cfg["ticks_per_step"],
         reality="off" if reality is None else reality,
+        safety=None if loop == "comat" else SafetyConfig(loop=loop),
     )
     env.reset(seed=cfg["seed"])
     core = env.core
@@ -545,16 +548,22 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
             act[0, : team.size] = policy.action_probs(core.observe()[0, : team.size])[0]
             return act
 
-    poses, actions = [core.poses()[0, : team.size].copy()], []
+    n = team.size
+    poses, measured, actions = [core.poses()[0, :n].copy()], [core.measured_poses()[0, :n].copy()], []
     while True:
         act = act_fn()
         res = core.step(act)
-        actions.append(act[0, : team.size].copy())
+        actions.append(act[0, :n].copy())
+        # the poses after the step (the episode's last too: the core does not reset by itself)
+        poses.append(core.poses()[0, :n].copy())
+        measured.append(core.measured_poses()[0, :n].copy())
         if res.terminated[0] or res.truncated[0]:
-            # the episode's last poses: an autoreset has not happened (PettingZoo-level env, one team)
-            poses.append(core.poses()[0, : team.size].copy())
-            return {"metrics": core.episode_metrics(0), "poses": np.stack(poses), "actions": np.stack(actions)}
-        poses.append(core.poses()[0, : team.size].copy())
+            return {
+                "metrics": core.episode_metrics(0),
+                "poses": np.stack(poses),
+                "measured": np.stack(measured),
+                "actions": np.stack(actions),
+            }
 
 
 def check_submission(

@@ -61,3 +61,22 @@ def test_a_run_cut_short_is_compared_as_far_as_it_logged(run, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "cut short" in printed and "| steps |  |" in printed  # no result: the twin's alone
     assert "3 env steps" in printed
+
+
+def test_the_divergence_a_known_profile_adds_and_the_twin_at_that_profile_removes(run, tmp_path):
+    """A stand-in run under a known layer (3 ticks of pose delay, the robots moved by MuJoCo's
+    unicycle tier): the twin in the ideal world diverges from it, the twin at the run's profile does
+    not (the same poses to the log's float32 precision over the steps both take the same actions)."""
+    from comat.eval.replay import replay
+
+    folder = run[0]
+    profile = tmp_path / "late.yaml"
+    profile.write_text("reality:\n  level: 'off'\n  pose_delay_ticks: 3\n")
+    log = run_rps(folder, max_steps=8, reality=str(profile), seed=0, drive="unicycle")["run_log"]
+
+    def divergence(reality):
+        rows = replay(log, str(folder), str(tmp_path / f"{reality.split('/')[-1]}.rrd"), reality=reality)["rows"]
+        return next(r["gap"] for r in rows if r["quantity"] == "position divergence mean (m)")
+
+    ideal, late = divergence("off"), divergence(str(profile))
+    assert late < 1e-4 and ideal > 0.005  # 0.1 mm: the log's float32 poses; the delay alone is centimetres

@@ -3,8 +3,9 @@
 The run's log (:mod:`comat.runlog`, what the exported ``main.py`` saw and did on the Robotarium, or
 under ``rps`` standing in for it) is laid next to the same team, start poses, prey and policy run
 closed-loop in comat's MuJoCo world (:func:`sim2real.export.mujoco_twin`) at a reality level or a
-calibrated profile. Both are compared at every env step's start (the poses the real script received
-against the twin's true poses; the real run has no others) and at the end (the task metrics):
+calibrated profile. Both are compared at every env step's start, like with like: the poses the real
+script received (the real run has no others) against those the twin's script saw (its true poses
+seen through its reality layer: the true ones at ``off``), and at the end (the task metrics):
 
 * a Rerun recording: the arena, each robot of the real run (solid) and of the twin (hollow) with
   their trails, and per step the position and heading divergence (mean and max over robots);
@@ -30,7 +31,7 @@ from comat.files import write_atomic
 from comat.runlog import RunLog, read_run_log
 from sim2real.export import _load_config, mujoco_twin
 
-__all__ = ["GAP_METRICS", "ReplayError", "check_twin", "gap_rows", "replay", "step_poses"]
+__all__ = ["GAP_METRICS", "ReplayError", "check_twin", "deployed_loop_of", "gap_rows", "replay", "step_poses"]
 
 GAP_METRICS = ("steps", "return", "progress", "finished")
 """Task metrics the gap table puts side by side (the real run's from its log's result)."""
@@ -64,6 +65,13 @@ def check_twin(log: RunLog, export: Path) -> dict:
     if not np.allclose(np.asarray(meta.get("prey") or []), np.asarray(config.get("prey") or []), atol=1e-9):
         raise ReplayError(f"--export {str(export)!r}: its prey are not the run's")
     return config
+
+
+def deployed_loop_of(meta: dict) -> str:
+    """The loop the logged run ran, as comat runs it (:data:`comat.config.LOOPS`): its filter under its
+    rps generation's constants, so the twin's commands are the run's for the same poses."""
+    generation = "v2" if meta.get("rps") == "v2" else "legacy"
+    return f"{'shipped' if meta.get('filter', 'comat') == 'comat' else 'robotarium'}_{generation}"
 
 
 def step_poses(log: RunLog) -> np.ndarray:
@@ -143,20 +151,21 @@ def replay(log_path: str, export: str, out: str, tier: str = "unicycle", reality
     log = read_run_log(log_path)
     export_dir = Path(export)
     check_twin(log, export_dir)
-    twin = mujoco_twin(export_dir, tier=tier, reality=None if reality == "off" else reality, seed=seed)
+    loop = deployed_loop_of(log.meta)
+    twin = mujoco_twin(export_dir, tier=tier, reality=None if reality == "off" else reality, seed=seed, loop=loop)
     real = step_poses(log)
     steps = min(len(real), len(twin["poses"]))
     if steps == 0:
         raise ReplayError(f"{log_path}: the log holds no env step start to compare (a run stopped at once)")
-    real, twin_poses = real[:steps], twin["poses"][:steps]
+    real, twin_poses = real[:steps], twin["measured"][:steps]
     dist, heading = _divergence(real, twin_poses)
     rows = gap_rows(log, twin, dist)
     note = (
         f"Real run: {log.meta.get('task')} with {log.n} robots under rps {log.meta.get('rps')} "
         f"({'finished' if log.complete else 'cut short: no result, compared as far as it logged'}), "
         f"{len(log.t)} iterations. Twin: the same team, start and policy in MuJoCo ({tier} tier, reality "
-        f"{reality}, comat's loop). Divergence: the real script's received poses against the twin's true "
-        f"poses at the start of each of {steps} env steps."
+        f"{reality}, the run's loop {loop}). Divergence: the poses the real script received against those the twin's "
+        f"script saw, at the start of each of {steps} env steps."
     )
     md, table_csv = _table(rows, note)
     out_path = Path(out)
