@@ -281,11 +281,25 @@ def _interval(values: Sequence[float]) -> tuple[float, float, float]:
     return t["mean"], t["lo"], t["hi"]
 
 
+def _spread_interval(diffs: Sequence[float], draws: int = 2000) -> tuple[float | None, float | None]:
+    """95 % percentile bootstrap over robots of sqrt(6) · SD of the half gain differences (a spread
+    is estimated from all robots at once, so no t-interval over robots exists); None with < 3 robots.
+    The resampling stream is seeded: the same logs give the same interval."""
+    d = np.asarray(diffs, dtype=float)
+    if d.size < 3:
+        return None, None
+    rng = np.random.default_rng(0)
+    samples = d[rng.integers(0, d.size, size=(draws, d.size))]
+    spreads = math.sqrt(6.0) * samples.std(axis=1, ddof=1)
+    return float(np.percentile(spreads, 2.5)), float(np.percentile(spreads, 97.5))
+
+
 def fit_logs(paths: Sequence[str]) -> dict:
     """Fit every log (one or many runs of each experiment) and return
     ``{"parameters": [{name, estimate, lo, hi, interval, robots, runs, note}], "per_robot": {...}, "timing": [...]}``;
     ``interval`` says what [lo, hi] is: ``"t95"`` the 95 % t-interval over robots (``"t95_runs"``: over
-    runs, the loop's tick), ``"range"`` the
+    runs, the loop's tick), ``"bootstrap95"`` a 95 % bootstrap over robots (the wheels' gain spread),
+    ``"range"`` the
     per-robot range (the delay, whose spread the profile keeps), None no interval (one robot, or a
     spread estimated from all robots at once; lo and hi None).
     ``steps`` and ``spin`` measure the same wheels: the delay and the lag come from ``steps`` (from
@@ -372,13 +386,14 @@ def fit_logs(paths: Sequence[str]) -> dict:
         )
         diffs = [r["half_gain_diff"] for r in paired if np.isfinite(r["half_gain_diff"])]
         spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
+        lo, hi = _spread_interval(diffs)
         params.append(
             {
                 "name": "wheel_gain_spread",
                 "estimate": spread,
-                "lo": None,
-                "hi": None,
-                "interval": None,
+                "lo": lo,
+                "hi": hi,
+                "interval": None if lo is None else "bootstrap95",
                 "robots": len(diffs),
                 "runs": paired_runs,
                 "note": "sqrt(6) x SD over robots of the half gain difference (triangular)"

@@ -25,7 +25,13 @@ from pathlib import Path
 
 __all__ = ["add_calibrate_parser"]
 
-INTERVAL_KINDS = {"t95": "95 % t, robots", "t95_runs": "95 % t, runs", "range": "robots' range", None: ""}
+INTERVAL_KINDS = {
+    "t95": "95 % t, robots",
+    "t95_runs": "95 % t, runs",
+    "bootstrap95": "95 % bootstrap, robots",
+    "range": "robots' range",
+    None: "",
+}
 """How the table names each kind of interval (:func:`comat.calibration.fit.fit_logs`)."""
 
 
