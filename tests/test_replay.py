@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 
@@ -25,8 +26,8 @@ def run(tmp_path_factory):
 
 def test_replay_writes_the_run_beside_its_twin(run, capsys):
     folder, log = run
-    out = log.parent / "r.rrd"
-    assert main(["replay", str(log), "--export", str(folder), "--out", str(out)]) == 0
+    out, video = log.parent / "r.rrd", log.parent / "r.gif"
+    assert main(["replay", str(log), "--export", str(folder), "--out", str(out), "--video", str(video)]) == 0
     printed = capsys.readouterr().out
     assert "| steps | 6 |" in printed and "position divergence mean (m)" in printed
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
@@ -35,6 +36,7 @@ def test_replay_writes_the_run_beside_its_twin(run, capsys):
     assert rows[0] == "quantity,real,twin,gap" and rows[1].startswith("steps,6,")
     divergence = [float(r.split(",")[-1]) for r in rows if r.startswith("position divergence")]
     assert len(divergence) == 3 and all(np.isfinite(divergence)) and divergence[0] <= divergence[2]
+    assert iio.imread(video, index=None).shape[0] == 6  # a frame per compared env step
 
 
 def test_a_folder_that_is_not_the_runs_is_refused(run, tmp_path, capsys):

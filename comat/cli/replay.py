@@ -6,6 +6,7 @@ Handlers import their floors when they run: ``comat --help`` loads neither torch
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
@@ -20,6 +21,7 @@ def _cmd(args: argparse.Namespace) -> int:
     from comat.files import new_outputs
     from comat.runlog import read_run_log
     from comat.viz.rollout import check_rrd_path
+    from comat.viz.video import check_video_path
     from comat.viz.viewer import viewer_hint
 
     reality = reality_arg(args.reality)
@@ -32,6 +34,7 @@ def _cmd(args: argparse.Namespace) -> int:
     folder = Path(args.log) if Path(args.log).is_dir() else Path(args.log).parent
     out = check_rrd_path(args.out or folder / "replay.rrd", "--out", folder=False)
     names = [out.name, f"{out.stem}_gap.md", f"{out.stem}_gap.csv"]
+    video = None if args.video is None else check_video_path(args.video)
     print(
         f"comat replay: {args.log} ({log.n} robots, {len(log.t)} iterations, "
         f"{'finished' if log.complete else 'cut short'}) beside its twin from {args.export} in MuJoCo "
@@ -39,7 +42,20 @@ def _cmd(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     with new_outputs(out.parent, names, force=args.force, flag="--out"):
-        result = replay(args.log, args.export, str(out), tier=args.tier, reality=reality, seed=args.seed)
+        stack = contextlib.ExitStack()
+        if video is not None:
+            stack.enter_context(new_outputs(video.parent, [video.name], force=args.force, flag="--video"))
+        with stack:
+            result = replay(
+                args.log,
+                args.export,
+                str(out),
+                tier=args.tier,
+                reality=reality,
+                seed=args.seed,
+                video=None if video is None else str(video),
+                fps=args.fps,
+            )
     print(result["markdown"])
     for path in result["files"]:
         print(f"wrote {path}")
@@ -70,6 +86,13 @@ def add_replay_parser(subparsers) -> argparse.ArgumentParser:
         help="the twin's reality-layer seed (default: %(default)s, that of export --check's first run)",
     )
     p.add_argument("--out", default=None, help="the recording, FILE.rrd (default: replay.rrd beside the log)")
+    p.add_argument(
+        "--video",
+        default=None,
+        metavar="FILE.mp4|FILE.gif",
+        help="also draw both runs top-down into a video, a frame per env step",
+    )
+    p.add_argument("--fps", type=int, default=5, help="--video: frames (env steps) per second (default: %(default)s)")
     add_force(p)
     p.set_defaults(func=_cmd)
     return p

@@ -29,6 +29,7 @@ import rerun as rr
 from comat import constants as C
 from comat.files import write_atomic
 from comat.runlog import RunLog, read_run_log
+from comat.viz.video import VideoWriter
 from sim2real.export import _load_config, mujoco_twin
 
 __all__ = ["GAP_METRICS", "ReplayError", "check_twin", "deployed_loop_of", "gap_rows", "replay", "step_poses"]
@@ -139,9 +140,61 @@ def _record(path: Path, real: np.ndarray, twin: np.ndarray, dist: np.ndarray, he
     rec.save(str(path))
 
 
-def replay(log_path: str, export: str, out: str, tier: str = "unicycle", reality: str = "off", seed: int = 0) -> dict:
+def _video(path: Path, real: np.ndarray, twin: np.ndarray, dist: np.ndarray, fps: int) -> Path:
+    """Both runs top-down, a frame per env step: the real robots filled, the twin's hollow, their
+    trails, and the step's mean divergence in the title (:class:`comat.viz.video.VideoWriter`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    x0, x1, y0, y1 = C.ARENA_BOUNDS_M
+    fig = Figure(figsize=(6.4, 4.48), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    with VideoWriter(path, fps=fps) as writer:
+        for k in range(real.shape[0]):
+            fig.clear()
+            ax = fig.add_axes((0.02, 0.02, 0.96, 0.88))
+            ax.set_xlim(x0 - 0.05, x1 + 0.05)
+            ax.set_ylim(y0 - 0.05, y1 + 0.05)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="0.3", lw=1)
+            for poses, colour, filled, name in ((real, _REAL, True, "real"), (twin, _TWIN, False, "twin")):
+                c = np.array(colour) / 255
+                for i in range(poses.shape[1]):
+                    ax.plot(poses[: k + 1, i, 0], poses[: k + 1, i, 1], color=c, lw=0.8, alpha=0.6)
+                ax.scatter(
+                    poses[k, :, 0],
+                    poses[k, :, 1],
+                    s=60,
+                    facecolors=c if filled else "none",
+                    edgecolors=c,
+                    linewidths=1.5,
+                    label=name,
+                )
+            ax.legend(loc="lower right", fontsize=7)
+            fig.suptitle(
+                f"step {k}: position divergence mean {dist[k].mean() * 100:.1f} cm, max {dist[k].max() * 100:.1f} cm",
+                fontsize=9,
+            )
+            canvas.draw()
+            writer.append(np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[..., :3]))
+    return path
+
+
+def replay(
+    log_path: str,
+    export: str,
+    out: str,
+    tier: str = "unicycle",
+    reality: str = "off",
+    seed: int = 0,
+    video: str | None = None,
+    fps: int = 5,
+) -> dict:
     """Lay the run logged at ``log_path`` beside its twin from the export folder ``export`` (module
-    docstring); writes ``out`` (``.rrd``) and the gap table beside it (``<stem>_gap.md``/``.csv``).
+    docstring); writes ``out`` (``.rrd``) and the gap table beside it (``<stem>_gap.md``/``.csv``), and
+    with ``video`` (``.mp4``/``.gif``) both runs drawn top-down, a frame per env step at ``fps``.
 
     Returns ``{"rows": gap rows, "steps": compared steps, "complete": the run finished, "files": [...]}``.
 
@@ -173,4 +226,6 @@ def replay(log_path: str, export: str, out: str, tier: str = "unicycle", reality
     _record(files[0], real, twin_poses, dist, heading, md)
     write_atomic(files[1], md)
     write_atomic(files[2], table_csv)
+    if video is not None:
+        files.append(_video(Path(video), real, twin_poses, dist, fps))
     return {"rows": rows, "steps": steps, "complete": log.complete, "files": files, "markdown": md}
