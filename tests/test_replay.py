@@ -27,7 +27,8 @@ def run(tmp_path_factory):
 def test_replay_writes_the_run_beside_its_twin(run, capsys):
     folder, log = run
     out, video = log.parent / "r.rrd", log.parent / "r.gif"
-    assert main(["replay", str(log), "--export", str(folder), "--out", str(out), "--video", str(video)]) == 0
+    argv = ["replay", str(log), "--export", str(folder), "--out", str(out), "--video", str(video), "--open-loop"]
+    assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "| steps | 6 |" in printed and "position divergence mean (m)" in printed
     rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
@@ -36,6 +37,10 @@ def test_replay_writes_the_run_beside_its_twin(run, capsys):
     assert rows[0] == "quantity,real,twin,gap" and rows[1].startswith("steps,6,")
     divergence = [float(r.split(",")[-1]) for r in rows if r.startswith("position divergence")]
     assert len(divergence) == 3 and all(np.isfinite(divergence)) and divergence[0] <= divergence[2]
+    # the logged commands played open-loop to MuJoCo's unicycle robots track rps's kinematic ones closely
+    played = {r.split(",")[0]: float(r.split(",")[-1]) for r in rows if r.startswith("open-loop divergence")}
+    assert set(played) == {"open-loop divergence mean (m)", "open-loop divergence max (m)"}
+    assert played["open-loop divergence max (m)"] < 0.01  # 2 mm here over 6 steps
     assert iio.imread(video, index=None).shape[0] == 6  # a frame per compared env step
 
 

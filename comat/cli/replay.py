@@ -55,6 +55,7 @@ def _cmd(args: argparse.Namespace) -> int:
                 seed=args.seed,
                 video=None if video is None else str(video),
                 fps=args.fps,
+                replay_commands=args.open_loop,
             )
     print(result["markdown"])
     for path in result["files"]:
@@ -91,6 +92,12 @@ def add_replay_parser(subparsers) -> argparse.ArgumentParser:
         default=None,
         metavar="FILE.mp4|FILE.gif",
         help="also draw both runs top-down into a video, a frame per env step",
+    )
+    p.add_argument(
+        "--open-loop",
+        action="store_true",
+        help="also play the logged commands open-loop to MuJoCo's robots: how far the simulated robot "
+        "alone departs from the real one (rows in the gap table, grey robots in the recording)",
     )
     p.add_argument("--fps", type=int, default=5, help="--video: frames (env steps) per second (default: %(default)s)")
     add_force(p)

@@ -27,16 +27,27 @@ import numpy as np
 import rerun as rr
 
 from comat import constants as C
+from comat.config import SimConfig
 from comat.files import write_atomic
 from comat.runlog import RunLog, read_run_log
+from comat.sim import World
 from comat.viz.video import VideoWriter
 from sim2real.export import _load_config, mujoco_twin
 
-__all__ = ["GAP_METRICS", "ReplayError", "check_twin", "deployed_loop_of", "gap_rows", "replay", "step_poses"]
+__all__ = [
+    "GAP_METRICS",
+    "ReplayError",
+    "check_twin",
+    "deployed_loop_of",
+    "gap_rows",
+    "open_loop",
+    "replay",
+    "step_poses",
+]
 
 GAP_METRICS = ("steps", "return", "progress", "finished")
 """Task metrics the gap table puts side by side (the real run's from its log's result)."""
-_REAL, _TWIN = (30, 110, 220), (240, 140, 30)
+_REAL, _TWIN, _OPEN = (30, 110, 220), (240, 140, 30), (120, 120, 120)
 
 
 class ReplayError(ValueError):
@@ -66,6 +77,21 @@ def check_twin(log: RunLog, export: Path) -> dict:
     if not np.allclose(np.asarray(meta.get("prey") or []), np.asarray(config.get("prey") or []), atol=1e-9):
         raise ReplayError(f"--export {str(export)!r}: its prey are not the run's")
     return config
+
+
+def open_loop(log: RunLog, tier: str = "unicycle") -> np.ndarray:
+    """(S, N, 3) the poses MuJoCo's robots reach, at each env step's start, when the run's logged
+    commands (as sent) are played to them open-loop from its start poses: how far the simulated robot
+    alone, without the policy or the filter in the loop, departs from what the real one did."""
+    world = World(log.n, SimConfig(tier=tier))
+    world.reset(np.asarray(log.meta["start_poses"], dtype=float).T)
+    starts = (log.actions >= 0).all(axis=1)
+    out = []
+    for k in range(len(log.t)):
+        if starts[k]:
+            out.append(world.poses)
+        world.step(log.sent[k].astype(float))
+    return np.stack(out)
 
 
 def deployed_loop_of(meta: dict) -> str:
@@ -113,7 +139,15 @@ def _table(rows: list[dict], note: str) -> tuple[str, str]:
     return "\n".join(md) + f"\n\n{note}\n", buf.getvalue()
 
 
-def _record(path: Path, real: np.ndarray, twin: np.ndarray, dist: np.ndarray, heading: np.ndarray, note: str) -> None:
+def _record(
+    path: Path,
+    real: np.ndarray,
+    twin: np.ndarray,
+    dist: np.ndarray,
+    heading: np.ndarray,
+    note: str,
+    played: np.ndarray | None = None,
+) -> None:
     """The two runs in one recording (timeline ``step``; y mirrored as comat's recordings are)."""
     rec = rr.RecordingStream("comat", recording_id=f"replay-{path.stem}")
     x0, x1, y0, y1 = C.ARENA_BOUNDS_M
@@ -130,7 +164,10 @@ def _record(path: Path, real: np.ndarray, twin: np.ndarray, dist: np.ndarray, he
     labels = [f"robot_{i}" for i in range(n)]
     for k in range(real.shape[0]):
         rec.set_time("step", sequence=k)
-        for name, poses, colour in (("real", real, _REAL), ("twin", twin, _TWIN)):
+        runs = [("real", real, _REAL), ("twin", twin, _TWIN)] + (
+            [] if played is None else [("open_loop", played, _OPEN)]
+        )
+        for name, poses, colour in runs:
             rec.log(f"world/{name}/robots", rr.Points2D(poses[k, :, :2], radii=[0.055], colors=[colour], labels=labels))
             trail = poses[: k + 1, :, :2].transpose(1, 0, 2)
             rec.log(f"world/{name}/trails", rr.LineStrips2D(list(trail), colors=[colour], radii=[0.005]))
@@ -191,10 +228,13 @@ def replay(
     seed: int = 0,
     video: str | None = None,
     fps: int = 5,
+    replay_commands: bool = False,
 ) -> dict:
     """Lay the run logged at ``log_path`` beside its twin from the export folder ``export`` (module
     docstring); writes ``out`` (``.rrd``) and the gap table beside it (``<stem>_gap.md``/``.csv``), and
     with ``video`` (``.mp4``/``.gif``) both runs drawn top-down, a frame per env step at ``fps``.
+    ``replay_commands``: also the logged commands played open-loop (:func:`open_loop`), their
+    divergence in the table and their robots in the recording.
 
     Returns ``{"rows": gap rows, "steps": compared steps, "complete": the run finished, "files": [...]}``.
 
@@ -213,6 +253,14 @@ def replay(
     real, twin_poses = real[:steps], twin["measured"][:steps]
     dist, heading = _divergence(real, twin_poses)
     rows = gap_rows(log, twin, dist)
+    played = None
+    if replay_commands:
+        played = open_loop(log, tier)[:steps]
+        open_dist = _divergence(real, played)[0]
+        rows += [
+            {"quantity": f"open-loop divergence {label} (m)", "real": None, "twin": None, "gap": float(value)}
+            for label, value in (("mean", open_dist.mean()), ("max", open_dist.max()))
+        ]
     note = (
         f"Real run: {log.meta.get('task')} with {log.n} robots under rps {log.meta.get('rps')} "
         f"({'finished' if log.complete else 'cut short: no result, compared as far as it logged'}), "
@@ -223,7 +271,7 @@ def replay(
     md, table_csv = _table(rows, note)
     out_path = Path(out)
     files = [out_path, out_path.with_name(out_path.stem + "_gap.md"), out_path.with_name(out_path.stem + "_gap.csv")]
-    _record(files[0], real, twin_poses, dist, heading, md)
+    _record(files[0], real, twin_poses, dist, heading, md, played)
     write_atomic(files[1], md)
     write_atomic(files[2], table_csv)
     if video is not None:
