@@ -23,7 +23,7 @@ from comat.calibration import schedule as schedule_module
 from comat.calibration.experiments import load_log
 from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still
 from comat.calibration.schedule import CONTROL_DT_S, EXPERIMENTS, MAX_ROBOTS
-from sim2real.export import run_rps
+from sim2real.check import run_rps
 
 __all__ = ["CALIBRATION_FILES", "MEASURES", "check_calibration", "export_calibration", "is_calibration"]
 
@@ -96,7 +96,7 @@ def is_calibration(folder) -> bool:
 
 
 def check_calibration(folder, timeout_s: float = 1800.0, rps_path=None) -> dict:
-    """Run the folder under rps (:func:`sim2real.export.run_rps`) and fit the log it saved:
+    """Run the folder under rps (:func:`sim2real.check.run_rps`) and fit the log it saved:
     ``{"rps": its COMAT_RESULT, "fit": per-robot estimates}``. The run happens in a copy of the folder,
     so the folder a user uploads stays as exported; the log is kept beside it, as
     ``calib_<experiment>.rps-<folder name>.npy`` (a log ``comat calibrate`` reads; ``result["rps"]["log"]``

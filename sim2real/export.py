@@ -1,5 +1,5 @@
 """Robotarium submission folder from a COMAT policy (or the scripted one): ``export_submission``
-and ``check_submission``.
+(checked offline by :mod:`sim2real.check`).
 
 =====================  ========================================================================
 Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/``, verbatim: the
@@ -32,21 +32,16 @@ Atomicity              written into ``<out>.tmp-*`` next to ``out`` and renamed 
                        error nothing is left; an existing ``out`` is an error
 =====================  ========================================================================
 
-``check_submission(folder)`` runs the folder's ``main.py`` with the installed ``rps`` (or the
-one in ``rps_path``, e.g. a checkout of the 2026 V2 simulator) in a subprocess (figures off) and
-the same policy, team, start poses and prey in the MuJoCo env (``comat.envs``), and returns both
-sets of metrics.
+:func:`sim2real.check.check_submission` runs a folder's ``main.py`` under ``rps`` and the same
+episode in MuJoCo, and compares them.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import pprint
 import shutil
-import subprocess
-import sys
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -63,8 +58,6 @@ from comat.config import SafetyConfig
 from comat.control import portable_settings
 from comat.envs import make_env
 from comat.envs.core import WAYPOINT_GAIN
-from comat.envs.heuristics import heuristic_actions
-from comat.measure.metrics import current_names
 from comat.models import comat_schema
 from comat.models.comat import Comat
 from comat.reality import resolve_reality
@@ -72,8 +65,6 @@ from comat.reality.margin import response_lag_ticks, robust_safety
 from comat.rl.checkpoint import POLICY_FORMAT, load_trained
 from comat.rl.policy import policy_modules
 from comat.team import TeamSpec
-from sim2real.reality_rps import DRIVES
-from sim2real.runtime import ComatRuntime
 from sim2real.weights import export_weights
 
 __all__ = [
@@ -85,10 +76,10 @@ __all__ = [
     "MIN_SPACING_M",
     "SHIPPED_FILES",
     "WALL_MARGIN_M",
-    "CheckError",
-    "check_submission",
     "export_submission",
     "filter_config",
+    "load_config",
+    "submission_files",
 ]
 
 HERE = Path(__file__).resolve().parent
@@ -123,7 +114,7 @@ FILTERS = ("comat", "robotarium")
 safety battery at ``nominal`` with faults, docs/safety.md) or the installed rps's own barrier."""
 
 
-def _files(policy: str) -> tuple[str, ...]:
+def submission_files(policy: str) -> tuple[str, ...]:
     """The files of a folder whose CONFIG["policy"] is ``policy`` ("comat" or "heuristic")."""
     return HEURISTIC_FILES if policy == "heuristic" else SHIPPED_FILES
 
@@ -376,7 +367,7 @@ def export_submission(
         )
         (tmp / "submission_config.py").write_text(text)
         names = sorted(p.name for p in tmp.iterdir())
-        assert names == sorted(_files(policy)), names
+        assert names == sorted(submission_files(policy)), names
         os.chmod(tmp, 0o755)
         tmp.rename(out)
     except BaseException:
@@ -385,8 +376,8 @@ def export_submission(
     return out
 
 
-# -- check -----------------------------------------------------------------------------------------
-def _load_config(folder: Path) -> dict:
+# -- reading a folder back ------------------------------------------------------------------------
+def load_config(folder: Path) -> dict:
     import ast
 
     path = folder / "submission_config.py"
@@ -405,239 +396,3 @@ def _load_config(folder: Path) -> dict:
             f"{getattr(err, 'msg', None) or err}; export the folder again"
         ) from err
     raise ValueError(f"{path} has no CONFIG literal; export the folder again")
-
-
-class CheckError(RuntimeError):
-    """An exported folder's main.py failed or hung under rps (the message ends with its stderr's last line)."""
-
-
-def _tail(stderr) -> str:
-    """': <last line of stderr>' of a subprocess, '' if it wrote nothing."""
-    if isinstance(stderr, bytes):
-        stderr = stderr.decode(errors="replace")
-    lines = [ln for ln in (stderr or "").strip().splitlines() if ln.strip()]
-    return f"; its stderr ends: {lines[-1].strip()[:300]}" if lines else ""
-
-
-def run_rps(
-    folder,
-    timeout_s: float = 1800.0,
-    rps_path=None,
-    show_figure: bool = False,
-    max_steps: int | None = None,
-    reality: str | None = None,
-    seed: int = 0,
-    drive: str = "rps",
-) -> dict:
-    """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
-    backend); its COMAT_RESULT dict + output.
-
-    ``rps_path``: a folder holding an ``rps`` package (e.g. a checkout of the 2026 V2 simulator)
-    used instead of the installed one. ``max_steps``: stop after that many env steps.
-    A folder whose ``main.py`` logs its run writes the log beside it, in
-    ``<folder>.rps-log/run<seed>/`` (``result["run_log"]``).
-    ``reality`` (a level or profile file): the reality layer around ``get_poses`` and
-    ``set_velocities`` (:mod:`sim2real.reality_rps`, seeded by ``seed``; ``drive`` "unicycle" or
-    "wheels" moves the robots in comat's MuJoCo world); the dict then has ``reality``, that run's
-    true-pose record.
-    """
-    folder = Path(folder)
-    env = {
-        **os.environ,
-        "COMAT_SHOW_FIGURE": "1" if show_figure else "0",
-        "MPLBACKEND": "Agg",
-        "PYTHONDONTWRITEBYTECODE": "1",
-    }
-    env.pop("PYTHONPATH", None)  # only the folder's own modules and the installed packages
-    if rps_path is not None:
-        rps_path = Path(rps_path).resolve()
-        if not (rps_path / "rps" / "__init__.py").is_file():
-            raise FileNotFoundError(
-                f"rps_path {str(rps_path)!r} must be a folder holding the rps package "
-                f"(rps/__init__.py), e.g. a robotarium_python_simulator checkout"
-            )
-        env["PYTHONPATH"] = str(rps_path)
-    if max_steps is not None:
-        env["COMAT_MAX_STEPS"] = str(int(max_steps))
-    # The run's log goes beside the folder, never into the folder a user uploads.
-    log_dir = folder.parent / f"{folder.name}.rps-log" / f"run{int(seed)}"
-    if (folder / "run_log.py").is_file():
-        shutil.rmtree(log_dir, ignore_errors=True)
-        env["COMAT_LOG_DIR"] = str(log_dir.resolve())
-    argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
-    if reality is not None:
-        argv = [
-            sys.executable,
-            "-m",
-            "sim2real.reality_rps",
-            "--reality",
-            str(reality),
-            "--seed",
-            str(int(seed)),
-            "--drive",
-            drive,
-            "main.py",
-        ] + argv[2:]
-    try:
-        proc = subprocess.run(argv, cwd=folder, env=env, capture_output=True, text=True, timeout=timeout_s, check=False)
-    except subprocess.TimeoutExpired as err:
-        raise CheckError(
-            f"{folder / 'main.py'} did not finish under rps within --timeout {timeout_s:g} s" + _tail(err.stderr)
-        ) from None
-    if proc.returncode != 0:
-        raise CheckError(f"{folder / 'main.py'} failed under rps (exit {proc.returncode})" + _tail(proc.stderr))
-    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_RESULT ")]
-    if not lines:
-        raise CheckError(f"{folder / 'main.py'} printed no COMAT_RESULT line" + _tail(proc.stdout))
-    result = current_names(json.loads(lines[-1][len("COMAT_RESULT ") :]))  # folders exported before issue 32
-    if reality is not None:
-        records = [ln for ln in proc.stdout.splitlines() if ln.startswith("COMAT_REALITY ")]
-        if not records:
-            raise CheckError(
-                f"{folder / 'main.py'} under the reality layer printed no COMAT_REALITY line" + _tail(proc.stderr)
-            )
-        result["reality"] = json.loads(records[-1][len("COMAT_REALITY ") :])
-    result["stdout"] = "\n".join(ln for ln in proc.stdout.splitlines() if not ln.startswith("COMAT_REALITY "))
-    if "COMAT_LOG_DIR" in env:
-        result["run_log"] = str(log_dir)
-    return result
-
-
-def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0) -> dict:
-    """The same policy (the folder's weights through the numpy runtime, or the scripted policy),
-    team, start poses and prey in the MuJoCo env, comat's own loop (at ``reality``, its layer
-    seeded by ``seed``); its episode metrics."""
-    return mujoco_twin(folder, tier, reality, seed)["metrics"]
-
-
-def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0, loop: str = "comat") -> dict:
-    """:func:`run_mujoco`'s episode with what it did: ``{"metrics", "poses" (S + 1, N, 3) true poses
-    at every env step's start and at the end, "measured" (S + 1, N, 3) the poses its script saw then
-    (the true ones at reality off), "actions" (S, N)}`` (a real run's simulated twin, ``comat replay``).
-    ``loop``: what turns waypoints into wheel commands (:data:`comat.config.LOOPS`): comat's, or the
-    one the export runs (``shipped_<rps>``, ``robotarium_<rps>``)."""
-
-    folder = Path(folder)
-    cfg = _load_config(folder)
-    task = cfg["task"]
-    team = TeamSpec.from_dict(
-        {"task": task, "robots": [{"type": t, "capabilities": c} for t, c in zip(cfg["types"], cfg["capabilities"])]}
-    )
-    env = make_env(
-        f"{task}_v0",
-        team=team,
-        tier=tier,
-        ticks_per_step=cfg["ticks_per_step"],
-        reality="off" if reality is None else reality,
-        safety=None if loop == "comat" else SafetyConfig(loop=loop),
-    )
-    env.reset(seed=cfg["seed"])
-    core = env.core
-    core.safe.reset(np.array(cfg["start_poses"], dtype=float).T, reality_keys=None if reality is None else [seed])
-    if task == "pcp":
-        core.state["prey"][0] = np.array(cfg["prey"], dtype=float)
-    if cfg.get("policy", "comat") == "heuristic":
-
-        def act_fn():
-            return heuristic_actions(core)
-    else:
-        policy = ComatRuntime.from_file(folder / "weights.npy")
-
-        def act_fn():
-            act = np.zeros((1, core.N), dtype=np.int64)
-            act[0, : team.size] = policy.action_probs(core.observe()[0, : team.size])[0]
-            return act
-
-    n = team.size
-    poses, measured, actions = [core.poses()[0, :n].copy()], [core.measured_poses()[0, :n].copy()], []
-    while True:
-        act = act_fn()
-        res = core.step(act)
-        actions.append(act[0, :n].copy())
-        # the poses after the step (the episode's last too: the core does not reset by itself)
-        poses.append(core.poses()[0, :n].copy())
-        measured.append(core.measured_poses()[0, :n].copy())
-        if res.terminated[0] or res.truncated[0]:
-            return {
-                "metrics": core.episode_metrics(0),
-                "poses": np.stack(poses),
-                "measured": np.stack(measured),
-                "actions": np.stack(actions),
-            }
-
-
-def check_submission(
-    folder,
-    tier: str = "wheels",
-    timeout_s: float = 1800.0,
-    rps_path=None,
-    repeats: int = 1,
-    reality: str | None = None,
-    drive: str = "rps",
-) -> dict:
-    """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
-    see :func:`run_rps`).
-
-    ``repeats`` runs main.py under rps that many times: V2 drives the robots from randomly placed
-    chargers to the start poses first, so one V2 run is one random sample (the legacy simulator
-    starts at the poses and repeats itself). ``rps`` then holds the means of return, steps,
-    progress and finished, the worst error counts, and ``runs`` (each run's figures).
-
-    ``reality`` (a level or profile): every run has the reality layer around ``get_poses`` and
-    ``set_velocities`` (run k seeded k; ``drive``: see :func:`run_rps`), and ``rps["reality"]``
-    sums their true-pose records (closest offset centres, collision pair-iterations, the first
-    collision, MuJoCo contacts); the MuJoCo side is comat's own loop at the same level."""
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
-    folder = Path(folder)
-    missing = [
-        f for f in HEURISTIC_FILES if f not in ("deployed_loop.py", "run_log.py") and not (folder / f).is_file()
-    ]  # every folder's
-    if not missing:
-        config = _load_config(folder)
-        wanted = _files(config.get("policy", "comat"))
-        if "filter" not in config:  # exported before issue 45: main.py had the loop inline
-            wanted = tuple(f for f in wanted if f != "deployed_loop.py")
-        if "run_log" not in (folder / "main.py").read_text(errors="replace"):  # exported before runs logged
-            wanted = tuple(f for f in wanted if f != "run_log.py")
-        runtime_py = folder / "runtime.py"
-        if runtime_py.is_file() and "comat_schema" not in runtime_py.read_text(errors="replace"):
-            wanted = tuple(f for f in wanted if f != "comat_schema.py")  # its runtime describes the arrays itself
-        missing = [f for f in wanted if not (folder / f).is_file()]
-    if missing:
-        raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
-
-    if drive not in DRIVES:
-        raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
-    if reality is not None:
-        resolve_reality(reality, "--reality")  # a one-line error before anything runs
-    runs = [run_rps(folder, timeout_s, rps_path, reality=reality, seed=k, drive=drive) for k in range(repeats)]
-    rps = dict(runs[0])
-    keys = ("return", "steps", "progress", "finished")
-    for key in keys:
-        rps[key] = float(np.mean([r[key] for r in runs]))
-    rps["rps_errors"] = {k: max(r["rps_errors"].get(k, 0) for r in runs) for k in runs[0]["rps_errors"]}
-    rps["runs"] = [
-        {**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"], **({"reality": r["reality"]} if reality else {})}
-        for r in runs
-    ]
-    if reality is not None:
-        records = [r["reality"] for r in runs]
-        hits = [dict(rec["first_collision"], run=k) for k, rec in enumerate(records) if rec["first_collision"]]
-        closest = [
-            rec["min_offset_centre_distance_m"] for rec in records if rec["min_offset_centre_distance_m"] is not None
-        ]
-        rps["reality"] = {
-            "level": reality,
-            "drive": drive,
-            "runs": len(runs),
-            "collision_pair_iterations": sum(rec["collision_pair_iterations"] for rec in records),
-            "runs_with_collisions": len(hits),
-            "first_collision": hits[0] if hits else None,
-            "min_offset_centre_distance_m": min(closest) if closest else None,
-            "mujoco_contact_ticks": None if drive == "rps" else sum(rec["mujoco_contact_ticks"] for rec in records),
-            "boundary_iterations": sum(rec["boundary_iterations"] for rec in records),
-        }
-    mj = run_mujoco(folder, tier, reality)
-    gap = {"progress_points": 100.0 * (rps["progress"] - mj["progress"]), "return": rps["return"] - mj["return"]}
-    return {"rps": rps, "mujoco": mj, "gap": gap}

@@ -34,6 +34,8 @@ EXCEPTIONS = {
     ("--seed", "demo"): "the demo's teams",
     ("--seed", "coalitions"): "the composition sets' seed (the envs use 0)",
     ("--seed", "bench soak"): "the soak's own episodes",
+    ("--seed", "replay"): "the twin's reality-layer seed: export --check's first run's, 0",
+    ("--tier", "replay"): "the twin's tier: unicycle, the presets' (a log has no training tier)",
     ("--episodes", "bench viz"): "episodes per timed rollout",
     ("--episodes", "demo"): "teams per row",
     ("--episodes", "bench soak"): "total episodes",

@@ -20,15 +20,8 @@ from comat.cli.export import parse_team
 from comat.rl.config import resolve
 from comat.rl.runner import train
 from comat.team import random_team
-from sim2real.export import (
-    ACCEPTED_EXTENSIONS,
-    ALLOWED_IMPORTS,
-    HEURISTIC_FILES,
-    SHIPPED_FILES,
-    check_submission,
-    export_submission,
-    run_rps,
-)
+from sim2real.check import check_submission, run_rps
+from sim2real.export import ACCEPTED_EXTENSIONS, ALLOWED_IMPORTS, HEURISTIC_FILES, SHIPPED_FILES, export_submission
 
 pytest.importorskip("rps")
 
@@ -252,9 +245,9 @@ def test_task_is_drawn_on_the_figure(scripted, task):
 
 
 def _config(folder):
-    from sim2real.export import _load_config
+    from sim2real.export import load_config
 
-    return _load_config(folder)
+    return load_config(folder)
 
 
 # -- the 2026 V2 simulator (opt-in: not on PyPI) --------------------------------------------------
@@ -350,11 +343,11 @@ def test_large_teams_export_with_reachable_start_poses(tmp_path, task, n):
     """The env spawns dense teams 0.3 m apart (closer than V2's start-up barrier lets robots get):
     the export places them EXPORT_SPACING_M apart instead, and legacy rps runs them with zero
     errors (the first steps; V2's start-up drive itself is tested below with COMAT_RPS_V2)."""
-    from sim2real.export import EXPORT_SPACING_M, MIN_SPACING_M, _load_config
+    from sim2real.export import EXPORT_SPACING_M, MIN_SPACING_M, load_config
 
     team = random_team(np.random.default_rng(n), task, "test", n)
     folder = export_submission("heuristic", task, team, tmp_path / "sub", seed=n)
-    poses = np.array(_load_config(folder)["start_poses"])
+    poses = np.array(load_config(folder)["start_poses"])
     d = np.hypot(*(poses[:2, :, None] - poses[:2, None, :])) + np.eye(n) * 9
     assert d.min() >= EXPORT_SPACING_M - 1e-9 > MIN_SPACING_M
     result = run_rps(folder, max_steps=3)
@@ -386,7 +379,7 @@ def test_export_cli_start_poses_timeout_and_a_failing_main(tmp_path, capsys):
     """--start-poses FILE is used (and validated); --check reports progress per folder; a hung
     main.py hits --timeout and a crashing one gives one line ending with its stderr."""
     from comat.cli import main
-    from sim2real.export import _load_config
+    from sim2real.export import load_config
 
     poses = np.array([[-1.0, -0.5, 0.0], [0.0, 0.4, -0.4], [0.0, 1.0, 2.0]])
     np.savetxt(tmp_path / "poses.txt", poses)
@@ -395,7 +388,7 @@ def test_export_cli_start_poses_timeout_and_a_failing_main(tmp_path, capsys):
     assert "start_poses must be a finite (3, 2) array" in capsys.readouterr().err
     np.save(tmp_path / "poses.npy", poses[:, :2])
     assert main([*argv, str(tmp_path / "poses.npy"), "--out", str(tmp_path / "sub")]) == 0
-    np.testing.assert_allclose(np.array(_load_config(tmp_path / "sub")["start_poses"]), poses[:, :2])
+    np.testing.assert_allclose(np.array(load_config(tmp_path / "sub")["start_poses"]), poses[:, :2])
     (tmp_path / "bad.txt").write_text("not numbers\n")
     assert main([*argv, str(tmp_path / "bad.txt"), "--out", str(tmp_path / "sub2")]) == 2
     assert "could not read it" in capsys.readouterr().err and not (tmp_path / "sub2").exists()

@@ -43,7 +43,8 @@ def test_check_refuses_what_is_not_a_submission(tmp_path, capsys, kind, expected
 def test_a_folder_whose_runtime_reads_the_schema_needs_it_and_older_folders_do_not(tmp_path, capsys):
     """``runtime.py`` reads COMAT's weight description from ``comat_schema.py`` beside it; a folder
     exported before that has a runtime that describes the arrays itself and no such file."""
-    from sim2real.export import SHIPPED_FILES, check_submission
+    from sim2real.check import check_submission
+    from sim2real.export import SHIPPED_FILES
 
     path = tmp_path / "sub"
     path.mkdir()

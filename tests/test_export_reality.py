@@ -9,7 +9,8 @@ import pytest
 
 from comat.cli import main
 from comat.cli.export import _print_reality, parse_team
-from sim2real.export import check_submission, export_submission, run_rps
+from sim2real.check import check_submission, run_rps
+from sim2real.export import export_submission
 
 pytest.importorskip("rps")
 V2 = os.environ.get("COMAT_RPS_V2")

@@ -13,7 +13,7 @@ import pytest
 
 from comat.cli import main
 from comat.runlog import LOG_FILE, META_FILE, read_run_log
-from sim2real.export import run_rps
+from sim2real.check import run_rps
 
 
 @pytest.fixture(scope="module")

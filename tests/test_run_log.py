@@ -21,7 +21,7 @@ from comat.runlog import (
     columns,
     read_run_log,
 )
-from sim2real.export import run_rps
+from sim2real.check import run_rps
 
 
 @pytest.fixture(scope="module")

@@ -168,7 +168,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
     import time
 
     from sim2real.calibration import check_calibration, export_calibration, is_calibration
-    from sim2real.export import CheckError, check_submission, export_submission
+    from sim2real.check import CheckError, check_submission
+    from sim2real.export import export_submission
 
     if args.calibration:
         folders = export_calibration(args.calibration, args.robots)

@@ -2,7 +2,7 @@
 
 The run's log (:mod:`comat.runlog`, what the exported ``main.py`` saw and did on the Robotarium, or
 under ``rps`` standing in for it) is laid next to the same team, start poses, prey and policy run
-closed-loop in comat's MuJoCo world (:func:`sim2real.export.mujoco_twin`) at a reality level or a
+closed-loop in comat's MuJoCo world (:func:`sim2real.check.mujoco_twin`) at a reality level or a
 calibrated profile. Both are compared at every env step's start, like with like: the poses the real
 script received (the real run has no others) against those the twin's script saw (its true poses
 seen through its reality layer: the true ones at ``off``), and at the end (the task metrics):
@@ -32,7 +32,8 @@ from comat.files import write_atomic
 from comat.runlog import RunLog, read_run_log
 from comat.sim import World
 from comat.viz.video import VideoWriter
-from sim2real.export import _load_config, mujoco_twin
+from sim2real.check import mujoco_twin
+from sim2real.export import load_config
 
 __all__ = [
     "GAP_METRICS",
@@ -57,7 +58,7 @@ class ReplayError(ValueError):
 def check_twin(log: RunLog, export: Path) -> dict:
     """The export folder's CONFIG once it is known to be the run's: the same policy weights, team,
     start poses and prey (ReplayError naming what differs)."""
-    config = _load_config(export)
+    config = load_config(export)
     meta = log.meta
     weights = export / "weights.npy"
     sha = hashlib.sha256(weights.read_bytes()).hexdigest() if weights.is_file() else "heuristic"
@@ -74,7 +75,8 @@ def check_twin(log: RunLog, export: Path) -> dict:
     start = np.asarray(meta["start_poses"], dtype=float)
     if start.shape != np.shape(config["start_poses"]) or not np.allclose(start, config["start_poses"], atol=1e-9):
         raise ReplayError(f"--export {str(export)!r}: its start poses are not the run's")
-    if not np.allclose(np.asarray(meta.get("prey") or []), np.asarray(config.get("prey") or []), atol=1e-9):
+    prey, want = np.asarray(meta.get("prey") or []), np.asarray(config.get("prey") or [])
+    if prey.shape != want.shape or not np.allclose(prey, want, atol=1e-9):
         raise ReplayError(f"--export {str(export)!r}: its prey are not the run's")
     return config
 

@@ -23,7 +23,8 @@ from rows import keep_row, load_rows  # this folder's (run as a script, the fold
 
 from comat.cli.args import parse_team, resolve_policy_arg
 from comat.files import write_atomic
-from sim2real.export import check_submission, export_submission
+from sim2real.check import check_submission
+from sim2real.export import export_submission
 
 HERE = Path(__file__).resolve().parent
 FIELDS = (

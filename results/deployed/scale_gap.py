@@ -32,7 +32,8 @@ from comat.config import SafetyConfig
 from comat.envs import make_env
 from comat.files import write_atomic
 from comat.team import TeamSpec
-from sim2real.export import _load_config, export_submission, run_mujoco, run_rps
+from sim2real.check import run_mujoco, run_rps
+from sim2real.export import export_submission, load_config
 from sim2real.runtime import ComatRuntime
 
 HERE = Path(__file__).resolve().parent
@@ -54,7 +55,7 @@ LOOP = {"comat": "shipped_v2", "robotarium": "robotarium_v2"}
 
 def deployed_in_mujoco(folder: Path, loop: str) -> dict:
     """The folder's policy, team and start poses in comat's unicycle world with ``loop`` in its tick."""
-    cfg = _load_config(folder)
+    cfg = load_config(folder)
     team = TeamSpec.from_dict(
         {
             "task": cfg["task"],
