@@ -14,11 +14,11 @@ What it does, per file:
   today's writers record it. The old files hold the absolute path of the machine that wrote them,
   or a path relative to its working directory, which was the checkout's root (``WAS``). The files
   were written in that checkout (``runs/...``) and copied under ``results/`` with the same layout,
-  so ``/work/main/runs/grid_v3/X/checkpoint.pt`` in ``results/grid_v3/runs/X/`` becomes
+  so ``<WAS>/runs/grid_v3/X/checkpoint.pt`` in ``results/grid_v3/runs/X/`` becomes
   ``../../../../runs/grid_v3/X/checkpoint.pt`` (the uncommitted checkpoint the policy came from);
 * ``config.yaml``: every recorded command line (``command``, and those of ``earlier_sittings``)
   as ``comat train`` records it today (:func:`comat.files.portable_command`): the program by its
-  name, the other paths relative to ``WAS`` (``--out /work/main/runs/x`` → ``--out runs/x``,
+  name, the other paths relative to ``WAS`` (``--out <WAS>/runs/x`` → ``--out runs/x``,
   ``/tmp/x`` → ``../../tmp/x``). The file is rewritten only where ``yaml.safe_dump`` gives back
   its text unchanged (all of them do: ``comat train`` wrote them with it).
 
@@ -56,8 +56,10 @@ from comat.files import (
 )
 from comat.measure.metrics import RETIRED_NAMES
 
-WAS = "/work/main"
-"""The checkout root of the machine that wrote the committed files (their working directory)."""
+WAS = str(ROOT)
+"""The checkout root of the machine that wrote the files (their working directory): ``--written-in``;
+by default this checkout. The committed files of December 2026 were written in a checkout at the
+training machine's root folder ``work/main`` and are converted already."""
 
 
 def machine_path(value: str, file: Path) -> str:
@@ -156,7 +158,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folders", nargs="*", type=Path, default=[ROOT / "results"])
     parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if a file would change")
+    parser.add_argument(
+        "--written-in",
+        default=None,
+        metavar="DIR",
+        help="the checkout root of the machine that wrote the files (default: this checkout)",
+    )
     args = parser.parse_args(argv)
+    global WAS
+    WAS = args.written_in or WAS
     changed, left, seen = [], [], 0
     for folder in args.folders:
         for path in sorted(Path(folder).resolve().rglob("*")):
