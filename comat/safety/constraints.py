@@ -27,6 +27,7 @@ import numpy as np
 
 from comat import constants as C
 from comat import kernels
+from comat.safety import kernels as safety_kernels
 from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE, wheel_rhombus
 from comat.sim.layout import TeamLayout, team_layout
 
@@ -155,7 +156,7 @@ class RowValues:
         t = self.layout.teams
         if kernels.enabled():
             out = np.empty(self.layout.n_rows)
-            kernels.row_products(self.e, self.cos, self.sin, self.k, t.pair_i, t.pair_j, u, out)
+            safety_kernels.row_products(self.e, self.cos, self.sin, self.k, t.pair_i, t.pair_j, u, out)
             return out
         U = u.reshape(-1, 2)
         du = np.take(U, t.pair_i, axis=0) - np.take(U, t.pair_j, axis=0)
@@ -170,7 +171,7 @@ class RowValues:
         c, s, k = self.cos, self.sin, self.k
         if kernels.enabled():
             out = np.empty(4 * self.e.shape[0] + 6 * c.size)
-            kernels.row_data(self.e, c, s, k, out)
+            safety_kernels.row_data(self.e, c, s, k, out)
             return out
         pair = np.concatenate([-2.0 * self.e, 2.0 * self.e], axis=1).ravel()
         # ê ± k·n̂ with ê = (c, s), n̂ = (-s, c): rows (2r) for +, (2r+1) for -.
@@ -231,7 +232,7 @@ def _row_values_compiled(layout: Layout, points: np.ndarray, cfg, profile: C.Rob
     k, speed, lo, hi = row_constants(cfg, profile)
     e = np.empty((t.n_pairs, 2))
     lower, upper = np.empty(layout.n_rows), np.empty(layout.n_rows)
-    kernels.row_bounds_into(
+    safety_kernels.row_bounds_into(
         points, t.pair_i, t.pair_j, cfg.safety_distance_m**2, cfg.barrier_gain, -cfg.boundary_gain,
         cfg.boundary_gain, lo, hi, speed, e, lower, upper,
     )  # fmt: skip

@@ -42,6 +42,7 @@ from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import SafetyConfig
+from comat.safety import kernels as safety_kernels
 from comat.safety.constraints import RowValues, binding_distance, edge_binding_distance, row_constants
 from comat.safety.qp import BarrierQP
 from comat.safety.recovery import recovery_command
@@ -305,7 +306,7 @@ class SafetyFilter:
     def _scatter(self, need, teams, good, sub, rows, cols, x, Ax, out, Au) -> None:
         """Teams that needed the QP take its answer (padding teams keep their stage-2 answer)."""
         if kernels.enabled():
-            kernels.sub_problem_scatter(
+            safety_kernels.sub_problem_scatter(
                 need, teams, good, sub.teams.robot_team, sub.row_team, rows, cols, x, Ax, out, Au
             )
             return
@@ -343,7 +344,7 @@ class SafetyFilter:
         points, e = np.empty((R, 2)), np.empty((t.n_pairs, 2))
         lower, upper, Au, Au_wheel = np.empty(n_rows), np.empty(n_rows), np.empty(n_rows), np.empty(n_rows)
         out, u_wheel, need = np.empty(2 * R), np.empty(2 * R), np.empty(t.n_teams, dtype=bool)
-        left = kernels.filter_stages(
+        left = safety_kernels.filter_stages(
             poses, c, s, u_nom, cfg.projection_distance_m, t.pair_i, t.pair_j, cfg.safety_distance_m**2,
             cfg.barrier_gain, -cfg.boundary_gain, cfg.boundary_gain, lo, hi, speed, k, cfg.feasibility_tol,
             self._full.wheel_factor, lay.row_team, t.robot_team, points, e, lower, upper, out, Au, u_wheel, Au_wheel,
@@ -355,7 +356,7 @@ class SafetyFilter:
         """Adopt ``u`` (and its row products) for the flagged teams."""
         lay = self.layout
         if kernels.enabled():
-            kernels.take_teams(teams, lay.teams.robot_team, lay.row_team, out, u, Au, Au_new)
+            safety_kernels.take_teams(teams, lay.teams.robot_team, lay.row_team, out, u, Au, Au_new)
             return
         robots = teams[lay.teams.robot_team]
         out[np.repeat(robots, 2)] = u[np.repeat(robots, 2)]
@@ -384,7 +385,7 @@ class SafetyFilter:
         differ by less than the noise; 4 needs the fewest set-ups of those.)
         """
         if kernels.enabled():
-            return kernels.qp_teams(need, self._sizes, _QP_TEAM_BLOCK)
+            return safety_kernels.qp_teams(need, self._sizes, _QP_TEAM_BLOCK)
         t = self.layout.teams
         teams = np.flatnonzero(need)
         k = teams.size
@@ -403,7 +404,7 @@ class SafetyFilter:
         """The full problem's rows, columns and nonzeros of a sub-problem of teams ``order``."""
         t = self.layout.teams
         if kernels.enabled():
-            return kernels.sub_problem_indices(order, self._sizes, t.offsets, t.n_pairs, t.n_robots)
+            return safety_kernels.sub_problem_indices(order, self._sizes, t.offsets, t.n_pairs, t.n_robots)
         n = t.n_teams
         rows = [np.flatnonzero(self._row_kind_team == kind * n + b) for kind in range(3) for b in order]
         nnz = [np.flatnonzero(self._nnz_kind_team == kind * n + b) for kind in range(3) for b in order]
@@ -466,7 +467,7 @@ class SafetyFilter:
         m, n = rows.size, cols.size
         lower, upper, y0, u_sub, x0_sub = np.empty(m), np.empty(m), np.empty(m), np.empty(n), np.empty(n)
         A = qp.pattern
-        kernels.sub_problem_gather(
+        safety_kernels.sub_problem_gather(
             rows, cols, nnz, qp.perm, self._data, vals.lower, vals.upper, u_nom, x0, self._duals, A.data,
             lower, upper, u_sub, x0_sub, y0,
         )  # fmt: skip
@@ -483,7 +484,7 @@ class SafetyFilter:
         t = self.layout.teams
         if kernels.enabled():
             robot_norm2, intervention = np.empty(t.n_robots), np.empty(t.n_teams)
-            kernels.interventions(out, u_nom, t.robot_team, t.n_teams, robot_norm2, intervention)
+            safety_kernels.interventions(out, u_nom, t.robot_team, t.n_teams, robot_norm2, intervention)
         else:
             diff = out - u_nom
             robot_norm2 = diff[0::2] ** 2 + diff[1::2] ** 2

@@ -12,6 +12,7 @@ import scipy.sparse as sp
 from comat import constants as C
 from comat import kernels
 from comat.config import SafetyConfig
+from comat.safety import kernels as safety_kernels
 from comat.safety.constraints import Layout, RowValues, make_layout, row_values
 from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE
 
@@ -94,7 +95,7 @@ class BarrierQP:
         t = self.layout.teams
         wheel_factor = self.wheel_factor
         if kernels.enabled():
-            return kernels.team_violations(
+            return safety_kernels.team_violations(
                 Au,
                 vals.lower,
                 vals.upper,
@@ -176,7 +177,7 @@ class BarrierQP:
     def _product(self, A: sp.csc_matrix, x: np.ndarray) -> np.ndarray:
         """A @ x (scipy's order of summation, compiled when the kernels are on)."""
         if kernels.enabled():
-            return kernels.csc_matvec(A.indptr, A.indices, A.data, x, self.layout.n_rows)
+            return safety_kernels.csc_matvec(A.indptr, A.indices, A.data, x, self.layout.n_rows)
         return A @ x
 
     def _repair(self, A: sp.csc_matrix, vals, x: np.ndarray) -> np.ndarray:
