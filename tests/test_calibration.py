@@ -13,7 +13,8 @@ import pytest
 import yaml
 
 from comat.calibration.experiments import run_under_rps, simulate
-from comat.calibration.fit import fit_logs, fit_ramp, fit_spin, fit_steps, fit_still, profile_fields
+from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still
+from comat.calibration.profile import fit_logs, profile_fields
 from comat.calibration.recovery import check, recover, setting, true_half_gain_diff
 from comat.cli import main
 from comat.reality import RealityConfig, resolve_reality
@@ -121,8 +122,8 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
     )
     # the profile says what each field it sets means, and what 0 means where 0 is special
     header = [line for line in profile.read_text().splitlines() if line.startswith("#")]
-    assert any(line.startswith("# motor_accel_limit_radps2:") for line in header)
-    assert "0 = no limit" in " ".join(header)
+    assert any(line.startswith("# top_speed_derate_min:") for line in header)
+    assert "1 = none" in " ".join(header) and any(line.startswith("# wheel_gain_mean:") for line in header)
     # --simulate wrote the truth beside the logs; --truth puts it beside the fit
     assert (
         main(
@@ -145,6 +146,9 @@ def test_calibrate_writes_a_profile_that_train_reads_back(tmp_path, capsys):
     assert abs(fields["motor_dead_zone_radps"] - 1.9) <= 0.4 and "motor_dead_zone_radps" not in data["not_identified"]
     # what the logs cannot show keeps nominal's value (not the ideal world's), said field by field
     assert data["not_identified"]["pose_bias_xy_m"].startswith("nominal's 0.0005: not identified")
+    # the slew is not identified under noise (it and the lag look alike): nominal's is kept, and said
+    assert data["not_identified"]["motor_accel_limit_radps2"].startswith("nominal's 200.0")
+    assert abs(fields["wheel_gain_mean"] - 1.0) < 0.03  # the speed gain, now a field of the layer
     nominal = RealityConfig(level="nominal")
     layer = resolve_reality(str(profile))
     assert layer.command_loss_prob == nominal.command_loss_prob > 0 and layer.fault_prob == nominal.fault_prob
@@ -292,7 +296,7 @@ def test_calibration_folders_follow_the_export_rules(tmp_path):
 def test_the_gain_spread_has_a_bootstrap_interval_over_robots():
     """The spread is sqrt(6) x SD of the robots' half gain differences: no t-interval over robots
     exists, so a seeded percentile bootstrap gives one (the same logs, the same interval)."""
-    from comat.calibration.fit import _spread_interval
+    from comat.calibration.profile import _spread_interval
 
     diffs = np.random.default_rng(1).uniform(-0.03, 0.03, 8)
     lo, hi = _spread_interval(diffs)

@@ -1,7 +1,7 @@
 """The whole Sim2Real loop of docs/export.md, end to end, with the Robotarium's simulator standing in
 for the robots (the 2026 V2 rps where COMAT_RPS_V2 names a checkout, else the installed one): export
 the calibration experiments, run them, fit a profile; export a policy, run it, replay the run beside
-its twin at that profile; train at the profile."""
+its twin at that profile, calibrate from the run's own log; train at the profile."""
 
 import os
 
@@ -29,6 +29,9 @@ def test_export_run_replay_calibrate_and_train_at_the_profile(tmp_path, monkeypa
     assert main(["replay", "subs/pcp_3.rps-log/run0", "--export", "subs/pcp_3", "--reality", "my_robots.yaml"]) == 0
     assert "| progress |" in capsys.readouterr().out
     assert (tmp_path / "subs/pcp_3.rps-log/run0/replay.rrd").is_file()
+    # every run is also a calibration: the policy's run alone gives the delay, the lag and the gains
+    assert main(["calibrate", "subs/pcp_3.rps-log/run0", "--out", "from_run.yaml"]) == 0
+    assert resolve_reality("from_run.yaml").pose_delay_ticks == 0
     # 3. train at the profile: the run's config holds its fields
     preset = tmp_path / "tiny.yaml"
     preset.write_text(

@@ -4,7 +4,10 @@
   verbatim in the calibration export as ``calibration_schedule.py``);
 * :mod:`comat.calibration.experiments`: the same experiments simulated under a known reality
   layer (:func:`simulate`), and the log format (:func:`load_log`);
-* :mod:`comat.calibration.fit`: the fit of the layer's fields from the logs (:func:`fit_logs`);
+* :mod:`comat.calibration.fit`: each experiment's fit (the layer's wheel model on the logged poses);
+* :mod:`comat.calibration.from_runs`: the fit of a policy run's log (every run is also a calibration);
+* :mod:`comat.calibration.profile`: every log fitted and combined into the table with intervals and
+  the profile (:func:`fit_logs`, :func:`profile_fields`);
 * :mod:`comat.calibration.recovery`: the proof on known truth (simulate at a known layer, fit back, check).
 
 A floor above :mod:`comat.control` and :mod:`comat.reality` (the layer it fits) and

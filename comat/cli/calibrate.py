@@ -1,6 +1,7 @@
 """``comat calibrate LOGS... --out PROFILE.yaml``: fit the reality layer to calibration logs.
 
-Reads ``calib_<experiment>.npy`` logs (:mod:`comat.calibration.experiments`; one or many runs),
+Reads ``calib_<experiment>.npy`` logs (:mod:`comat.calibration.experiments`; one or many runs) and
+policy runs' ``comat_run.npy`` logs (:mod:`comat.calibration.from_runs`: every run is also a calibration),
 fits each parameter the logs identify (:mod:`comat.calibration.fit`), prints a table (parameter,
 estimate, its interval and what kind it is: the 95 % t-interval over robots, or for the delay the
 robots' range; robots and runs used; with ``--truth``, the known value; a note) and writes a
@@ -116,12 +117,13 @@ def _cmd(args: argparse.Namespace) -> int:
             f"{out}/calib_*.npy --truth {out / 'truth.yaml'} --out PROFILE.yaml"
         )
         return 0
-    from comat.calibration.fit import fit_logs, profile_fields, truth_of, unidentified_fields
+    from comat.calibration.profile import fit_logs, profile_fields, truth_of, unidentified_fields
     from comat.reality import RealityConfig, resolve_reality
 
     if not args.logs:
         raise ValueError(
-            "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)"
+            "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, "
+            "calib_spin.npy) or a run's comat_run.npy"
         )
     truth = None if args.truth is None else truth_of(resolve_reality(args.truth))
     fit = fit_logs(args.logs)
@@ -130,7 +132,7 @@ def _cmd(args: argparse.Namespace) -> int:
     print(_table(fit["parameters"], truth))
     profile = {
         "reality": {k: v for k, v in dataclasses.asdict(config).items() if k in fields},
-        "not_identified": unidentified_fields(fields),
+        "not_identified": unidentified_fields(fields, {p["name"]: p["note"] for p in fit["parameters"]}),
         "fit": [{k: v for k, v in p.items()} for p in fit["parameters"]],
         "logs": [str(Path(p)) for p in args.logs],
     }
@@ -153,10 +155,16 @@ def add_calibrate_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "calibrate",
         help="fit the reality layer to calibration logs "
-        "(calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy)",
+        "(calib_steps.npy, calib_still.npy, calib_ramp.npy, calib_spin.npy) and runs' logs (comat_run.npy)",
         description=__doc__.split("\n\n")[1].replace("``", "'").replace(":mod:", ""),
     )
-    p.add_argument("logs", nargs="*", metavar="LOGS", help="calibration logs calib_<experiment>[.<run>].npy")
+    p.add_argument(
+        "logs",
+        nargs="*",
+        metavar="LOGS",
+        help="calibration logs calib_<experiment>[.<run>].npy, and policy runs' logs comat_run.npy (the "
+        "meta file beside each): a run identifies the delay, the lag, the speed and turn gains and the holds",
+    )
     p.add_argument("--out", required=True, help="the profile to write (PROFILE.yaml); with --simulate, a folder")
     p.add_argument(
         "--simulate",

@@ -177,6 +177,10 @@ class RealityConfig:
     )
     """A wheel asked for less than this speed (rad/s) does not turn. Nominal: 0.03 m/s at the
     rim, the user guide's minimum speed (§1.1, §6 #4); stress assumed."""
+    wheel_gain_mean: float | None = _field(1.0, 1.0, 1.0, "assumed", "calibrated wheel radius; a profile measures it")
+    """Every wheel's mean speed gain (reached / asked for): a fleet uniformly slow or fast (worn
+    tyres, a wheel radius unlike the firmware's). 1 at every level: the firmware's radius is taken as
+    calibrated; a calibration profile writes the speed gain it measured (``comat calibrate``)."""
     wheel_gain_spread: float | None = _field(0.0, 0.03, 0.07, "assumed", "guide Fig. 13 curved open-loop path (§6 #5)")
     """Per wheel and episode, speed gain ~ U(1 - spread, 1 + spread) (radius, calibration):
     a straight command drives a curve, as in the user guide's Fig. 13 (§6 #5)."""
@@ -358,6 +362,7 @@ def _check(c: RealityConfig) -> None:
         + (
             "pose_freeze_mean_ticks",
             "command_loss_mean_ticks",
+            "wheel_gain_mean",
             "wheel_gain_spread",
             "top_speed_derate_min",
             "chassis_mass_spread",
@@ -381,6 +386,8 @@ def _check(c: RealityConfig) -> None:
             fail(name, "a mean run length >= 1 tick")
     if c.pose_freeze_max_ticks < 1:
         fail("pose_freeze_max_ticks", "an integer >= 1 (ticks)")
+    if not 0.0 < c.wheel_gain_mean <= 2.0:
+        fail("wheel_gain_mean", "a number in (0, 2]")
     if not 0.0 <= c.wheel_gain_spread < 1.0:
         fail("wheel_gain_spread", "a number in [0, 1)")
     if not 0.0 < c.top_speed_derate_min <= 1.0:

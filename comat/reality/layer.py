@@ -92,6 +92,7 @@ class RealityLayer:
             or config.motor_accel_limit_radps2
             or config.motor_dead_zone_radps
             or config.wheel_gain_spread
+            or config.wheel_gain_mean != 1.0
             or config.top_speed_derate_min < 1
             or config.wheel_disturbance_radps
             or config.fault_prob

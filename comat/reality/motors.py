@@ -58,7 +58,7 @@ class Motors:
         c = self.c
         tau = c.motor_tau_min_s + (c.motor_tau_max_s - c.motor_tau_min_s) * u[:, 0:2]
         self.alpha[rows] = np.exp(-C.CONTROL_DT_S / np.maximum(tau, 1e-300)) * (tau > 0)
-        self.gain[rows] = 1.0 + c.wheel_gain_spread * (2.0 * u[:, 2:4] - 1.0)
+        self.gain[rows] = c.wheel_gain_mean + c.wheel_gain_spread * (2.0 * u[:, 2:4] - 1.0)
         self.cap[rows] = self.profile.max_wheel_velocity_radps * (
             c.top_speed_derate_min + (1.0 - c.top_speed_derate_min) * u[:, 4]
         )

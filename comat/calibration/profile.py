@@ -1,0 +1,385 @@
+"""From fitted logs to the table ``comat calibrate`` prints and the profile it writes.
+
+:func:`fit_logs` fits every log given — the four experiments' ``calib_<experiment>.npy``
+(:mod:`comat.calibration.fit`) and any policy run's ``comat_run.npy``
+(:mod:`comat.calibration.from_runs`) — and combines them into one row per parameter, each with an
+interval that says what kind it is; :func:`profile_fields` turns the rows into the
+:class:`~comat.reality.RealityConfig` fields of a profile, :func:`unidentified_fields` says field by
+field what the rest keeps, and :func:`truth_of` what a fit should find at a known layer.
+
+Which log gives what, when several measure the same wheels: the delay and the lag from ``steps``
+(from ``spin`` without it, from the runs without either), the gain difference from ``spin`` (from
+``steps`` without it), the reachable speed from both, the speed gain from ``steps`` (from the runs
+without it), the turn gain from ``spin`` (from the runs without it), the holds from ``still``
+(from the runs' repeats while driving without it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from comat.calibration.experiments import load_log
+from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still, loop_timing
+from comat.calibration.from_runs import MIN_TRAVEL_M, fit_run
+from comat.measure.stats import t_interval
+from comat.reality.config import LEVELS
+from comat.runlog import LOG_FILE, read_run_log
+
+__all__ = [
+    "CAP_MARGIN",
+    "PROFILE_BASE",
+    "fit_logs",
+    "is_run_log",
+    "profile_fields",
+    "truth_of",
+    "unidentified_fields",
+]
+
+PROFILE_BASE = "nominal"
+"""The level a fitted profile starts from: a field the logs cannot identify (faults, freezes, start
+error, command loss, the wheel disturbance, ...) keeps this level's value rather than becoming the
+ideal world's, and the profile says so field by field (:func:`unidentified_fields`)."""
+CAP_MARGIN = 0.02
+"""How far below the fastest commanded wheel speed (a fraction of the top) a fitted cap must lie to
+count as a derate: two steps of the cap grid, as the pose noise moves the best cap by about one."""
+ALWAYS_UNIDENTIFIED = {
+    "pose_bias_xy_m": "no ground truth on the Robotarium",
+    "command_delay_ticks": "the delay is pose + command together: all of it goes to pose_delay_ticks",
+    "command_loss_prob": "a lost command looks like a late one",
+    "wheel_disturbance_radps": "not separated from the lag and the pose noise",
+    "fault_prob": "no fault experiment",
+    "motor_accel_limit_radps2": "a slew limit and the lag look alike under the wheels' disturbance "
+    "(nominal's 200 rad/s², the firmware's PWM slew, is kept)",
+}
+"""Parameters no log identifies, and why (a row of the table each)."""
+
+
+def is_run_log(path: str | Path) -> bool:
+    """Whether ``path`` names a policy run's log — its ``comat_run.npy`` or the folder holding it and
+    its metadata (:func:`comat.runlog.read_run_log`) — rather than a calibration experiment's
+    ``calib_<experiment>.npy``."""
+    p = Path(path)
+    return p.name == LOG_FILE or p.is_dir()
+
+
+def _row(name, estimate, lo=None, hi=None, kind=None, robots=0, runs=0, note="") -> dict:
+    return {
+        "name": name,
+        "estimate": estimate,
+        "lo": lo,
+        "hi": hi,
+        "interval": kind,
+        "robots": robots,
+        "runs": runs,
+        "note": note,
+    }
+
+
+def _t_row(name, values, runs, note="", estimate=None, robots=None, kind="t95") -> dict:
+    """A row with the 95 % t-interval over ``values`` (robots, or runs); no interval from one value."""
+    v = [x for x in values if x is not None and np.isfinite(x)]
+    t = t_interval(v) if v else {"mean": float("nan"), "lo": float("nan"), "hi": float("nan")}
+    ok = np.isfinite(t["lo"]) and np.isfinite(t["hi"])
+    est = t["mean"] if estimate is None else estimate
+    return _row(
+        name,
+        est,
+        t["lo"] if ok else None,
+        t["hi"] if ok else None,
+        kind if ok else None,
+        len(v) if robots is None else robots,
+        runs,
+        note,
+    )
+
+
+def _spread_interval(diffs: Sequence[float], draws: int = 2000) -> tuple[float | None, float | None]:
+    """95 % percentile bootstrap over robots of sqrt(6) · SD of the half gain differences (a spread
+    is estimated from all robots at once, so no t-interval over robots exists); None with < 3 robots.
+    The resampling stream is seeded: the same logs give the same interval."""
+    d = np.asarray(diffs, dtype=float)
+    if d.size < 3:
+        return None, None
+    rng = np.random.default_rng(0)
+    samples = d[rng.integers(0, d.size, size=(draws, d.size))]
+    spreads = math.sqrt(6.0) * samples.std(axis=1, ddof=1)
+    return float(np.percentile(spreads, 2.5)), float(np.percentile(spreads, 97.5))
+
+
+def _read(paths: Sequence[str]) -> tuple[dict[str, list[dict]], dict[str, int], list[dict]]:
+    fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}
+    per: dict[str, list[dict]] = {e: [] for e in (*fits, "run")}
+    runs: dict[str, int] = {e: 0 for e in per}
+    timing = []
+    for p in paths:
+        if is_run_log(p):
+            run = read_run_log(str(p))
+            per["run"] += fit_run(run)
+            runs["run"] += 1
+            timing.append(loop_timing(run.t.astype(np.float64)[:, None, None]))
+            continue
+        experiment, log = load_log(p)
+        per[experiment] += fits[experiment](log)
+        runs[experiment] += 1
+        timing.append(loop_timing(log))
+    return per, runs, timing
+
+
+def _derate(moving: list[dict]) -> tuple[float, list[float]]:
+    """The profile's ``top_speed_derate_min`` and the reachable speeds it comes from: the smallest
+    cap seen clearly below the fastest speed each robot was sent (:data:`CAP_MARGIN`); 1 if none."""
+    seen = [
+        r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - CAP_MARGIN
+    ]
+    return (float(min(1.0, min(seen))) if seen else 1.0), seen
+
+
+def fit_logs(paths: Sequence[str]) -> dict:
+    """Fit every log (one or many runs of each experiment, and policy runs' logs) and return
+    ``{"parameters": [{name, estimate, lo, hi, interval, robots, runs, note}], "per_robot": {...}, "timing": [...]}``;
+    ``interval`` says what [lo, hi] is: ``"t95"`` the 95 % t-interval over robots (``"t95_runs"``: over
+    runs, the loop's tick), ``"bootstrap95"`` a 95 % bootstrap over robots (the wheels' gain spread),
+    ``"range"`` the robots' range (the delay and the derate, whose extremes the profile keeps), None
+    no interval (one robot; lo and hi None). An estimate None: not identified (the note says why)."""
+    if not paths:
+        raise ValueError(
+            "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, "
+            "calib_spin.npy) or a run's comat_run.npy"
+        )
+    per, runs, timing = _read(paths)
+    driven = [r for r in per["run"] if r["used"]]
+    params = []
+    for source in ("steps", "spin", "run"):
+        timed = driven if source == "run" else per[source]
+        if timed:
+            break
+    timed_runs = runs[source] if timed else 0
+    if timed:
+        delays = [r["delay_ticks"] for r in timed]
+        params.append(
+            _row(
+                "pose_delay_ticks",
+                int(min(delays)),
+                int(min(delays)),
+                int(max(delays)),
+                "range",
+                len(delays),
+                timed_runs,
+                f"pose + command delay (not separable), from {source}; the profile's minimum and spread",
+            )
+        )
+        # the estimate is the lag the robots share (one per log); the interval is over each robot's own best lag
+        params.append(
+            _t_row(
+                "motor_tau_s",
+                [r["tau_own_s"] for r in timed],
+                timed_runs,
+                f"shared lag, from {source}; interval over the robots' own",
+                float(np.mean([r["tau_s"] for r in timed])),
+            )
+        )
+    gains, gains_from = (per["steps"], "steps") if per["steps"] else (driven, "run")
+    if gains:
+        params.append(
+            _t_row(
+                "speed_gain",
+                [r["gain"] for r in gains],
+                runs[gains_from],
+                f"forward speed gain (the wheels' mean), from {gains_from}: the profile's wheel_gain_mean",
+            )
+        )
+    turns = [r["gain"] for r in per["spin"]] or [r["turn_gain"] for r in driven]
+    if turns:
+        params.append(
+            _t_row(
+                "turn_gain",
+                turns,
+                runs["spin"] or runs["run"],
+                "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)",
+            )
+        )
+    if per["spin"]:
+        params.append(
+            _t_row(
+                "tracked_ahead_m",
+                [r["tracked_ahead_m"] for r in per["spin"]],
+                runs["spin"],
+                "tracked point ahead of the wheel axle (reported, not in the layer)",
+            )
+        )
+    moving = per["steps"] + per["spin"]
+    if moving:
+        n_moving = runs["steps"] + runs["spin"]
+        params.append(
+            _t_row(
+                "top_speed_fraction",
+                [r["cap_fraction"] * r["gain"] for r in moving],
+                n_moving,
+                "reachable / 12.5 rad/s",
+            )
+        )
+        derate, seen = _derate(moving)
+        params.append(
+            _row(
+                "top_speed_derate_min",
+                derate,
+                min(seen) if seen else None,
+                max(seen) if seen else None,
+                "range" if seen else None,
+                len(seen),
+                n_moving,
+                "smallest reachable speed clearly below the fastest sent (1: none seen); interval: the "
+                "robots' reachable speeds that count",
+            )
+        )
+        paired, paired_from = (per["spin"], "spin") if per["spin"] else (per["steps"], "steps")
+        diffs = [r["half_gain_diff"] for r in paired if np.isfinite(r["half_gain_diff"])]
+        spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
+        lo, hi = _spread_interval(diffs)
+        params.append(
+            _row(
+                "wheel_gain_spread",
+                spread,
+                lo,
+                hi,
+                None if lo is None else "bootstrap95",
+                len(diffs),
+                runs[paired_from],
+                f"sqrt(6) x SD over robots of the half gain difference (triangular), from {paired_from}",
+            )
+        )
+    if per["still"]:
+        still = per["still"]
+        params.append(_t_row("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"]))
+        params.append(_t_row("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], runs["still"]))
+        params.append(
+            _t_row(
+                "pose_hold_prob",
+                [r["repeat_share"] for r in still],
+                runs["still"],
+                "share of repeated poses (nan: the poses never changed, no noise to tell a hold by)",
+            )
+        )
+    elif driven:
+        params.append(
+            _t_row(
+                "pose_hold_prob",
+                [r["repeat_share"] for r in driven],
+                runs["run"],
+                "share of repeated poses while driving, from run (holds and freezes together)",
+            )
+        )
+    if per["ramp"]:
+        params.append(
+            _t_row(
+                "motor_dead_zone_radps",
+                [r["dead_zone_radps"] for r in per["ramp"]],
+                runs["ramp"],
+                "wheel speed below which a robot does not move (0.05 rad/s grid)",
+            )
+        )
+    params.append(
+        _t_row(
+            "loop_tick_s",
+            [t["tick_s"] for t in timing],
+            len(paths),
+            "median iteration (s), over runs; not in the layer: a longer tick moves the robots further "
+            "per tick, which the gains hold",
+            robots=0,
+            kind="t95_runs",
+        )
+    )
+    unknown = dict(ALWAYS_UNIDENTIFIED)
+    if not per["ramp"]:
+        unknown["motor_dead_zone_radps"] = "needs a ramp log"
+    if not moving:
+        unknown["top_speed_derate_min"] = "needs a steps or spin log (a task run seldom asks for the top speed)"
+        unknown["wheel_gain_spread"] = "needs a spin or steps log (a task's turns hide the drift)"
+    if not per["still"]:
+        unknown["pose_noise_xy_m"] = unknown["pose_noise_theta_rad"] = "needs a still log"
+    skipped = sum(not r["used"] for r in per["run"])
+    if skipped and source == "run":
+        params[0]["note"] += f"; {skipped} robot(s) that drove less than {MIN_TRAVEL_M} m left out"
+    for name, why in unknown.items():
+        params.append(_row(name, None, note=f"not identified: {why}"))
+    return {"parameters": params, "per_robot": per, "timing": timing}
+
+
+def profile_fields(fit: dict) -> dict:
+    """The RealityConfig fields a fit writes into a profile file (:func:`comat.reality.config.read_profile`
+    reads them back): level :data:`PROFILE_BASE` (``nominal``: what the logs cannot show keeps nominal's
+    value, not the ideal world's, :func:`unidentified_fields`) and the fields the logs identified."""
+    est = {p["name"]: p for p in fit["parameters"] if p["estimate"] is not None and np.isfinite(p["estimate"])}
+    fields: dict = {"level": PROFILE_BASE}
+    if "pose_delay_ticks" in est:
+        p = est["pose_delay_ticks"]
+        fields["pose_delay_ticks"] = int(p["lo"])
+        fields["pose_delay_spread_ticks"] = int(p["hi"] - p["lo"])
+        # the fitted delay is pose + command together (not separable): all of it on the pose path
+        fields["command_delay_ticks"], fields["command_delay_spread_ticks"] = 0, 0
+    per = fit["per_robot"]
+    timed = per["steps"] or per["spin"] or [r for r in per.get("run", []) if r["used"]]
+    if timed:
+        own = [r["tau_own_s"] for r in timed]
+        shared = [r["tau_s"] for r in timed]  # each log's shared lag; the robots' own ones widen the range
+        fields["motor_tau_min_s"], fields["motor_tau_max_s"] = float(min(*shared, *own)), float(max(*shared, *own))
+    if "top_speed_derate_min" in est:
+        fields["top_speed_derate_min"] = float(est["top_speed_derate_min"]["estimate"])
+    if "speed_gain" in est:
+        fields["wheel_gain_mean"] = float(est["speed_gain"]["estimate"])
+    if "wheel_gain_spread" in est:
+        fields["wheel_gain_spread"] = float(min(0.99, max(0.0, est["wheel_gain_spread"]["estimate"])))
+    for name in ("pose_noise_xy_m", "pose_noise_theta_rad", "pose_hold_prob", "motor_dead_zone_radps"):
+        if name in est:
+            fields[name] = float(max(0.0, est[name]["estimate"]))
+    return fields
+
+
+def truth_of(config) -> dict[str, str]:
+    """What each fitted parameter should come out as for logs simulated at the known layer ``config``
+    (a :class:`~comat.reality.RealityConfig`), as text: a value, or ``lo..hi`` where the layer draws it
+    per robot (``comat calibrate --truth``)."""
+    c = config
+    delay = c.pose_delay_ticks + c.command_delay_ticks
+    spread = c.pose_delay_spread_ticks + c.command_delay_spread_ticks
+    return {
+        "pose_delay_ticks": f"{delay}..{delay + spread}" if spread else f"{delay}",
+        "motor_tau_s": f"{c.motor_tau_min_s:.4g}..{c.motor_tau_max_s:.4g}"
+        if c.motor_tau_max_s != c.motor_tau_min_s
+        else f"{c.motor_tau_min_s:.4g}",
+        "speed_gain": f"{c.wheel_gain_mean:.4g}",
+        "turn_gain": f"{c.wheel_gain_mean:.4g}",
+        "tracked_ahead_m": "0",
+        "top_speed_fraction": f"{c.top_speed_derate_min:.4g}..1" if c.top_speed_derate_min < 1 else "1",
+        "top_speed_derate_min": f"{c.top_speed_derate_min:.4g}",
+        "wheel_gain_spread": f"{c.wheel_gain_spread:.4g}",
+        "pose_noise_xy_m": f"{c.pose_noise_xy_m:.4g}",
+        "pose_noise_theta_rad": f"{c.pose_noise_theta_rad:.4g}",
+        "pose_hold_prob": f"{c.pose_hold_prob:.4g}",
+        "motor_dead_zone_radps": f"{c.motor_dead_zone_radps:.4g}",
+        "motor_accel_limit_radps2": f"{c.motor_accel_limit_radps2:.4g}",
+        "loop_tick_s": "0.033",
+        "pose_bias_xy_m": f"{c.pose_bias_xy_m:.4g}",
+        "command_delay_ticks": f"{c.command_delay_ticks}",
+        "command_loss_prob": f"{c.command_loss_prob:.4g}",
+        "wheel_disturbance_radps": f"{c.wheel_disturbance_radps:.4g}",
+        "fault_prob": f"{c.fault_prob:.4g}",
+    }
+
+
+def unidentified_fields(fields: dict, reasons: dict[str, str] | None = None) -> dict[str, str]:
+    """Each :class:`~comat.reality.RealityConfig` field a profile does not set from the logs: the
+    value it keeps (:data:`PROFILE_BASE`'s) and why, field by field, for the profile file
+    (``reasons``: the table's notes by parameter, e.g. :func:`fit_logs`'s)."""
+    base, reasons = LEVELS[PROFILE_BASE], reasons or {}
+    why = {name: reasons[name].removeprefix("not identified: ") for name in reasons if name in base}
+    return {
+        name: f"{PROFILE_BASE}'s {base[name]!r}: not identified "
+        + (f"({why[name]})" if name in why else "by the logs given")
+        for name in base
+        if name not in fields
+    }
