@@ -52,6 +52,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from comat import kernels
 from comat.config import check_numbers
 from comat.models.act_kernels import comat_decode, comat_decode_args, comat_encode, comat_encode_args
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
@@ -66,6 +67,7 @@ from comat.models.comat_schema import (
     weights_config,
 )
 from comat.models.features import ObsLayout, edge_features
+from comat.models.heat_kernels import edge_stage
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
 
 __all__ = ["PAPER_FORM", "Comat", "ComatConfig"]
@@ -188,32 +190,58 @@ class HEATBlock(nn.Module):
 
     def forward(self, x, types, edge_attr, edge_type, edge_mask) -> torch.Tensor:
         """x (B, N, d_in) -> (B, N, d)."""
-        xt = sum(torch.where((types == t)[..., None], layer(x), 0.0) for t, layer in enumerate(self.node))
+        # Every type's node transform in one matmul, each robot keeping its own type's (a product
+        # with the one-hot: exact, as only one term is not zero).
+        T = self.n_types
+        w_node = torch.cat([layer.weight for layer in self.node])  # (T·d, d_in)
+        onehot = F.one_hot(types, T).to(x.dtype)[..., None]  # (B, N, T, 1)
+        xt = (F.linear(x, w_node).unflatten(-1, (T, -1)) * onehot).sum(-2)
         xt = F.leaky_relu(xt, 0.2)
         ea = F.leaky_relu(self.edge_attr(edge_attr), 0.2)  # (B, N, N, d_edge)
         et = F.leaky_relu(self.edge_type.weight, 0.2)  # (T², d_edge): one row per type pair
         pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
-        # The pair's score as a product with the one-hot rather than a lookup: the same values,
-        # and a backward pass several times cheaper than the lookup's scatter.
-        score = self.att_i(xt)[:, :, None] + self.att_attr(ea) + pair @ self.att_type(et) + self.att_j(xt)[:, None]
-        score = F.leaky_relu(score, 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
-        alpha = torch.softmax(score, dim=2).nan_to_num(0.0)  # (B, N, N, K)
         if self.form == "paper":
-            alpha = alpha.mean(-1)  # (B, N, N): heads averaged
+            # The pair's score as a product with the one-hot rather than a lookup: the same values,
+            # and a backward pass several times cheaper than the lookup's scatter.
+            score = self.att_i(xt)[:, :, None] + self.att_attr(ea) + pair @ self.att_type(et) + self.att_j(xt)[:, None]
+            score = F.leaky_relu(score, 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
+            alpha = torch.softmax(score, dim=2).nan_to_num(0.0).mean(-1)  # (B, N, N): heads averaged
             w = alpha[..., None]
             # Elementwise weighted sums: tiny batched matmuls are slower on CPU.
             out = self.msg_attr((w * ea).sum(2)) + self.msg_type((w * pair).sum(2) @ et) + self.msg_j(alpha @ xt)
+            return out + xt if self.root else out
+        # Reference form. Every per-edge linear map in one matmul on [ẽ^attr ‖ one-hot pair]: the
+        # message's (d columns) and the score's (K columns), the pair's rows its type embedding's
+        # share; then robot j's share of both, and robot i's of the score. (The same sums as one
+        # map each, in another order: equal within float rounding, and far fewer passes over the
+        # (B, N, N, ·) edge tensors, which are the encoder's cost.)
+        d, K = xt.shape[-1], self.heads
+        w_edge = torch.cat(
+            [
+                torch.cat([self.msg_attr.weight, self.att_attr.weight]).T,  # (d_edge, d + K)
+                torch.cat([self.msg_type(et), self.att_type(et)], 1),  # (T², d + K)
+            ]
+        )
+        w_j = torch.cat([self.msg_j.weight, self.att_j.weight])  # (d + K, d)
+        z = torch.cat([ea, pair], -1) @ w_edge  # (B, N, N, d + K)
+        xj, ai = F.linear(xt, w_j), self.att_i(xt)  # (B, N, d + K), (B, N, K)
+        if kernels.enabled() and z.dtype == torch.float32 and z.device.type == "cpu":
+            out = edge_stage(z, xj, ai, edge_mask, K)  # the stage below, fused (heat_kernels)
         else:
-            msg = F.leaky_relu(self.msg_attr(ea) + pair @ self.msg_type(et) + self.msg_j(xt)[:, None], 0.2)
-            B, N, _, E = msg.shape
-            K = self.heads
-            out = (alpha[..., None] * msg.view(B, N, N, K, E // K)).sum(2).reshape(B, N, E)  # heads concatenated
-            out = self.msg_out(out)
+            z_msg, z_score = (z + xj[:, None]).split([d, K], -1)  # (split: a slice's gradient fills a zero z)
+            score = F.leaky_relu(z_score + ai[:, :, None], 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
+            alpha = torch.softmax(score, dim=2).nan_to_num(0.0)  # (B, N, N, K)
+            msg = F.leaky_relu(z_msg, 0.2)
+            B, N = msg.shape[:2]
+            out = (alpha[..., None] * msg.view(B, N, N, K, d // K)).sum(2).reshape(B, N, d)  # heads concatenated
+        out = self.msg_out(out)
         return out + xt if self.root else out
 
 
 class Comat(AutoregressivePolicy):
     """COMAT policy for a task's observation layout (see module docstring)."""
+
+    group_by_team_size = True  # the HEAT blocks' work is N × N edges: score each team size on its own edges
 
     def __init__(self, layout: ObsLayout, config: ComatConfig | None = None) -> None:
         super().__init__()

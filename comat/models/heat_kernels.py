@@ -1,0 +1,142 @@
+"""The HEAT block's per-edge stage fused into one compiled pass forward and one backward (numba),
+for training on the CPU: the torch expression in :meth:`comat.models.comat.HEATBlock.forward` is
+the reference and the general path, and ``tests/test_heat_kernels.py`` checks this against it
+(outputs and every gradient, within float rounding).
+
+Why: the stage is elementwise over the (B, N, N, d + K) edge tensor — robot j's share added, the
+score's and the message's LeakyReLU, the masked softmax over neighbours, the attention-weighted sum
+per head — and in torch each of those is a pass over that tensor forward and more backward, which
+made COMAT's update half its training time (issue 48). Here each is one pass per (b, i), with
+only the attention weights kept for the backward pass (the pre-activations are recomputed).
+
+Shapes: z (B, N, N, d + K) — the per-edge maps [ẽ^attr ‖ one-hot pair] @ W, the message's d
+columns then the score's K; xj (B, N, d + K) robot j's share of both; ai (B, N, K) robot i's
+share of the score; mask (B, N, N) the edges; out (B, N, d) the heads' weighted messages,
+concatenated (head k the columns k·d/K … (k+1)·d/K − 1); alpha (B, N, N, K).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from numba import njit, prange
+
+__all__ = ["EdgeStage", "edge_stage"]
+
+SLOPE = np.float32(0.2)
+"""The LeakyReLU's negative slope (HEAT's); float32, so the kernels' arithmetic stays float32."""
+_ONE = np.float32(1.0)
+
+_jit = njit(cache=True, nogil=True, parallel=True)
+
+
+@_jit
+def _forward(z, xj, ai, mask, heads, out, alpha):  # pragma: no cover - compiled
+    B, N, _, width = z.shape
+    d = width - heads
+    dh = d // heads
+    for b in prange(B):
+        score = np.empty((N, heads), np.float32)
+        for i in range(N):
+            for k in range(heads):
+                top = -np.inf
+                for j in range(N):
+                    s = -np.inf
+                    if mask[b, i, j]:
+                        s = z[b, i, j, d + k] + xj[b, j, d + k] + ai[b, i, k]
+                        s = max(s, SLOPE * s)  # LeakyReLU (slope < 1)
+                    score[j, k] = s
+                    top = max(top, s)
+                total = np.float32(0.0)
+                for j in range(N):
+                    e = np.float32(0.0) if top == -np.inf else np.exp(score[j, k] - top)
+                    score[j, k] = e
+                    total += e
+                for j in range(N):
+                    alpha[b, i, j, k] = score[j, k] / total if total > 0 else np.float32(0.0)
+            for c in range(d):
+                out[b, i, c] = 0.0
+            for j in range(N):
+                for k in range(heads):
+                    a = alpha[b, i, j, k]
+                    for c in range(k * dh, (k + 1) * dh):
+                        m = z[b, i, j, c] + xj[b, j, c]
+                        out[b, i, c] += a * max(m, SLOPE * m)
+
+
+@_jit
+def _backward(z, xj, ai, mask, alpha, gout, heads, dz, dxj, dai):  # pragma: no cover - compiled
+    B, N, _, width = z.shape
+    d = width - heads
+    dh = d // heads
+    for b in prange(B):
+        dalpha = np.empty((N, heads), np.float32)
+        for i in range(N):
+            for j in range(N):
+                for k in range(heads):
+                    a = alpha[b, i, j, k]
+                    acc = np.float32(0.0)
+                    for c in range(k * dh, (k + 1) * dh):
+                        m = z[b, i, j, c] + xj[b, j, c]
+                        g = gout[b, i, c]
+                        acc += g * max(m, SLOPE * m)
+                        dz[b, i, j, c] = a * g * (_ONE if m > 0 else SLOPE)
+                    dalpha[j, k] = acc
+            for k in range(heads):
+                dot = np.float32(0.0)
+                for j in range(N):
+                    dot += alpha[b, i, j, k] * dalpha[j, k]
+                acc = np.float32(0.0)
+                for j in range(N):
+                    g = np.float32(0.0)
+                    if mask[b, i, j]:
+                        s = z[b, i, j, d + k] + xj[b, j, d + k] + ai[b, i, k]
+                        g = alpha[b, i, j, k] * (dalpha[j, k] - dot) * (_ONE if s > 0 else SLOPE)
+                    dz[b, i, j, d + k] = g
+                    acc += g
+                dai[b, i, k] = acc
+        for j in range(N):
+            for c in range(width):
+                dxj[b, j, c] = 0.0
+        for i in range(N):
+            for j in range(N):
+                for c in range(width):
+                    dxj[b, j, c] += dz[b, i, j, c]
+
+
+class EdgeStage(torch.autograd.Function):
+    """``out = edge_stage(z, xj, ai, mask, heads)`` with the fused backward (see the module)."""
+
+    @staticmethod
+    def forward(ctx, z, xj, ai, mask, heads):
+        z, xj, ai, mask = (t.detach().contiguous() for t in (z, xj, ai, mask))
+        B, N, _, width = z.shape
+        out = torch.empty((B, N, width - heads), dtype=z.dtype)
+        alpha = torch.empty((B, N, N, heads), dtype=z.dtype)
+        _forward(z.numpy(), xj.numpy(), ai.numpy(), mask.numpy(), heads, out.numpy(), alpha.numpy())
+        ctx.save_for_backward(z, xj, ai, mask, alpha)
+        ctx.heads = heads
+        return out
+
+    @staticmethod
+    def backward(ctx, gout):
+        z, xj, ai, mask, alpha = ctx.saved_tensors
+        dz, dxj, dai = torch.empty_like(z), torch.empty_like(xj), torch.empty_like(ai)
+        _backward(
+            z.numpy(),
+            xj.numpy(),
+            ai.numpy(),
+            mask.numpy(),
+            alpha.numpy(),
+            gout.contiguous().numpy(),
+            ctx.heads,
+            dz.numpy(),
+            dxj.numpy(),
+            dai.numpy(),
+        )
+        return dz, dxj, dai, None, None
+
+
+def edge_stage(z, xj, ai, mask, heads: int) -> torch.Tensor:
+    """The heads' weighted messages (B, N, d) (see the module docstring); float32 CPU tensors."""
+    return EdgeStage.apply(z, xj, ai, mask, heads)
