@@ -8,7 +8,7 @@ Two parts:
   subtracted (``act`` encodes with COMAT's compiled encoder, the re-run with torch), so
   ``decode_speedup`` compares the decoding itself; ``act_speedup`` is the whole call.
 * **train**: env steps per second of complete training iterations (collect a rollout + learn
-  from it, exactly what ``comat train`` runs) for each algorithm on PCP in the unicycle tier
+  from it, exactly what ``comat train`` runs) for each algorithm on PCP (``tasks``: HMT too) in the unicycle tier
   with the paper's settings, split into time in the environment, in acting and in learning.
   The first iteration (set-ups, caches) is not timed. ``mat_20``, ``mappo_20``, ``qmix_20``: the
   baseline with 20 robot slots (``max_robots: 20``, to play U_scale) instead of 8, on the same
@@ -93,8 +93,10 @@ def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: i
     }
 
 
-def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0) -> dict:
-    """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on PCP (unicycle);
+def bench_train(
+    algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0, task: str = "pcp"
+) -> dict:
+    """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on ``task`` (unicycle);
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
     measure what today's default costs against it in the same run; ``comat_<option>``: one option
     of :data:`COMAT_VARIANTS` changed; ``<baseline>_20``: that baseline with 20 robot slots."""
@@ -108,7 +110,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
         models = dict(settings.get("models") or {})
         models[algo] = {**(models.get(algo) or {}), **change}
         settings = {**settings, "models": models}
-    config = resolve(settings, algo, "pcp", seed=seed, tier="unicycle", env_workers=env_workers)
+    config = resolve(settings, algo, task, seed=seed, tier="unicycle", env_workers=env_workers)
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(seed)
     env = make_run_env(config, config.trainer.num_envs, seed)
@@ -157,7 +159,7 @@ def bench_train(algo: str, iterations: int = 2, env_workers: int = 1, preset: st
     total = collect_s + update_s
     return {
         "algo": label,
-        "task": "pcp",
+        "task": task,
         "tier": "unicycle",
         "num_envs": config.trainer.num_envs,
         "robot_slots": getattr(config.model, "max_robots", None),
@@ -183,7 +185,7 @@ def _checks(decode: list[dict], train: list[dict]) -> dict:
                 "target": f">= {DECODE_TARGET}",
                 "pass": row["decode_speedup"] >= DECODE_TARGET,
             }
-    comat_rows = [r for r in train if r["algo"] == "comat"]
+    comat_rows = [r for r in train if r["algo"] == "comat" and r["task"] == "pcp"]
     if comat_rows:
         best = max(comat_rows, key=lambda r: r["env_steps_per_s"])
         checks["comat_train_pcp_unicycle_env_steps_per_s"] = {
@@ -202,6 +204,7 @@ def run_learn_bench(
     batches=(1, 32, 256),
     out: str | None = None,
     progress=print,
+    tasks=("pcp", "hmt"),
 ) -> dict:
     """Both parts, a table on ``progress`` and JSON at ``out``."""
     decode = []
@@ -210,10 +213,11 @@ def run_learn_bench(
             progress(f"  decode {model} N=8 B={batch} ...")
             decode.append(bench_decode(model, 8, batch))
     train = []
-    for w in workers:
-        for algo in algos:
-            progress(f"  train {algo} env_workers={w} ({iterations} iterations) ...")
-            train.append(bench_train(algo, iterations, env_workers=w))
+    for task in tasks:
+        for w in workers:
+            for algo in algos:
+                progress(f"  train {algo} {task} env_workers={w} ({iterations} iterations) ...")
+                train.append(bench_train(algo, iterations, env_workers=w, task=task))
     checks = _checks(decode, train)
     result = {
         "benchmark": "learn",
@@ -237,12 +241,13 @@ def run_learn_bench(
             f"{r['model']:<7}{r['batch']:>5}{r['encode_ms']:>11.2f}{r['encode_act_ms']:>12.2f}{r['act_cached_ms']:>11.2f}"
             f"{r['act_uncached_ms']:>13.2f}{r['decode_speedup']:>10.2f}{r['act_speedup']:>8.2f}"
         )
-    head = f"{'algo':<9}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}{'env only/s':>12}"
+    head = f"{'algo':<9}{'task':>5}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}"
+    head += f"{'env only/s':>12}"
     progress(head + "\n" + "-" * len(head))
     for r in train:
         env_only = "-" if r["env_only_steps_per_s"] is None else f"{r['env_only_steps_per_s']:.1f}"
         progress(
-            f"{r['algo']:<9}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
+            f"{r['algo']:<9}{r['task']:>5}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
             f"{r['learn_s']:>9.2f}{env_only:>12}"
         )
     progress(

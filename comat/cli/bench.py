@@ -63,10 +63,17 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
         t0 = time.perf_counter()
         print(
-            f"comat bench learn: decode (COMAT, MAT, 8 robots), training {tuple(args.algos)} with env workers "
-            f"{tuple(args.workers)}, {args.iterations} iterations each"
+            f"comat bench learn: decode (COMAT, MAT, 8 robots), training {tuple(args.algos)} on "
+            f"{tuple(args.tasks)} with env workers {tuple(args.workers)}, {args.iterations} iterations each"
         )
-        run_learn_bench(tuple(args.algos), tuple(args.workers), args.iterations, tuple(args.batches), args.out)
+        run_learn_bench(
+            tuple(args.algos),
+            tuple(args.workers),
+            args.iterations,
+            tuple(args.batches),
+            args.out,
+            tasks=tuple(args.tasks),
+        )
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "soak":
@@ -146,7 +153,7 @@ def add_bench_parser(sub) -> None:
         help="cached vs uncached decoding; training env-steps/s per algorithm",
         description="Autoregressive decoding with cached keys/values vs a full decoder re-run per "
         "robot (COMAT, MAT, 8 robots), and end-to-end training throughput (collect + learn) per "
-        "algorithm on PCP in the unicycle tier with the paper's settings.",
+        "algorithm on PCP and HMT (--tasks) in the unicycle tier with the paper's settings.",
     )
     b.add_argument(
         "--algos",
@@ -170,6 +177,13 @@ def add_bench_parser(sub) -> None:
         type=int,
         default=2,
         help="timed training iterations per algorithm, each 2,560 env steps (default: %(default)s)",
+    )
+    b.add_argument(
+        "--tasks",
+        nargs="+",
+        choices=list(TASKS),
+        default=list(TASKS),
+        help="tasks to train on (HMT's step is 74 ticks against PCP's 29) (default: %(default)s)",
     )
     b.add_argument(
         "--batches", type=int, nargs="+", default=[1, 32, 256], help="decoding batch sizes (default: %(default)s)"

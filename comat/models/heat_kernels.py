@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from numba import njit, prange
+from numba import njit
 
 __all__ = ["EdgeStage", "edge_stage"]
 
@@ -27,7 +27,11 @@ SLOPE = np.float32(0.2)
 """The LeakyReLU's negative slope (HEAT's); float32, so the kernels' arithmetic stays float32."""
 _ONE = np.float32(1.0)
 
-_jit = njit(cache=True, nogil=True, parallel=True)
+_jit = njit(cache=True, nogil=True)
+# Serial on purpose: a numba parallel region (OpenMP layer) left threads that made every later
+# single-threaded call of the process ~4x slower (COMAT's act 1.7 -> 7.8 ms, measured), and the
+# workqueue layer gained nothing here (the update 1.47 s against 1.43 serial); the learner's
+# matrix products keep torch's threads.
 
 
 @_jit
@@ -35,7 +39,7 @@ def _forward(z, xj, ai, mask, heads, out, alpha):  # pragma: no cover - compiled
     B, N, _, width = z.shape
     d = width - heads
     dh = d // heads
-    for b in prange(B):
+    for b in range(B):
         score = np.empty((N, heads), np.float32)
         for i in range(N):
             for k in range(heads):
@@ -69,7 +73,7 @@ def _backward(z, xj, ai, mask, alpha, gout, heads, dz, dxj, dai):  # pragma: no 
     B, N, _, width = z.shape
     d = width - heads
     dh = d // heads
-    for b in prange(B):
+    for b in range(B):
         dalpha = np.empty((N, heads), np.float32)
         for i in range(N):
             for j in range(N):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from comat.measure.metrics import RETIRED_NAMES
 
-__all__ = ["ProgressLine", "RunLogger"]
+__all__ = ["ExpectedTime", "ProgressLine", "RunLogger"]
 
 
 def _truncate_csv(path: Path, max_step: int) -> None:
@@ -126,3 +126,35 @@ class ProgressLine:
             self.stream.write(line + "\n")
             self.stream.flush()
             self._last_print = elapsed
+
+
+class ExpectedTime:
+    """The run's expected wall time from its first updates, said once: ``expected(...)`` returns the
+    line after :attr:`TIMED` updates past the first (the first pays for set-ups and compilation,
+    and would overstate the rest), else None.
+
+    The figure is training alone (collecting and learning); each evaluation adds its own time."""
+
+    TIMED = 2
+
+    def __init__(self, total: int, start: int, workers: int, threads: int) -> None:
+        self.total, self.start, self.workers, self.threads = total, start, workers, threads
+        self._seen, self._steps, self._seconds, self._said = 0, 0, 0.0, False
+
+    def expected(self, steps: int, n: int, dt: float, elapsed: float) -> str | None:
+        """After an update of ``n`` env steps that took ``dt`` s, ``steps`` done and ``elapsed`` s since
+        the run (or its resumption) started."""
+        self._seen += 1
+        if self._said or self._seen == 1:
+            return None
+        self._steps, self._seconds = self._steps + n, self._seconds + dt
+        if self._seen <= self.TIMED:
+            return None
+        self._said = True
+        rate = self._steps / self._seconds
+        left = max(self.total - steps, 0) / rate
+        return (
+            f"expected: {_clock(elapsed + left)} for {self.total - self.start:,} env steps "
+            f"({rate:,.0f} env-steps/s over updates 2-{self._seen}, {self.workers} env worker(s), "
+            f"{self.threads} learner thread(s); evaluations add their own time; docs/speed.md)"
+        )

@@ -37,7 +37,7 @@ from comat.measure.episodes import run_episodes, summarize
 from comat.rl.algos import Dims, make_learner, make_run_env, policy_act
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, versions
 from comat.rl.config import RunConfig
-from comat.rl.logger import ProgressLine, RunLogger
+from comat.rl.logger import ExpectedTime, ProgressLine, RunLogger
 from comat.rl.policy import POLICY_FILE, save_policy
 
 __all__ = ["EVAL_SEED_OFFSET", "Recorder", "train"]
@@ -243,6 +243,8 @@ def _train_registered(
                 file=sys.stderr,
             )
     bar = None if quiet else ProgressLine(config.total_env_steps, start=progress["env_steps"])
+    expected = ExpectedTime(config.total_env_steps, progress["env_steps"], config.env_workers, config.torch_threads)
+    started = time.perf_counter()
     next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
     next_ckpt = _next_multiple(progress["env_steps"], config.checkpoint_every_steps)
     last_eval: dict | None = None
@@ -281,6 +283,9 @@ def _train_registered(
             }
             logger.log("progress", progress["env_steps"], row)
             steps = progress["env_steps"]
+            said = expected.expected(steps, n, dt, time.perf_counter() - started)
+            if said and not quiet and steps < config.total_env_steps:
+                print(("\n" if bar is not None and bar.tty else "") + said, file=sys.stderr)
             finished = steps >= config.total_env_steps
             if bar is not None and recent:
                 tail = summarize(recent[-64:])
