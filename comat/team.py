@@ -66,6 +66,7 @@ __all__ = [
     "TeamSpec",
     "generate_coalitions",
     "load_coalitions",
+    "load_team",
     "random_team",
     "save_coalitions",
 ]
@@ -356,14 +357,32 @@ def save_coalitions(teams: Sequence[TeamSpec], path: str | Path, header: str = "
     tmp.replace(p)
 
 
-def load_coalitions(path: str | Path) -> list[TeamSpec]:
-    """Read a coalition file written by :func:`save_coalitions` (every team is validated)."""
+def load_coalitions(path: str | Path, task: str | None = None) -> list[TeamSpec]:
+    """Read a coalition file written by :func:`save_coalitions` (every team is validated); a file
+    holding one team ``{'robots': [...]}`` is a set of one. ``task`` fills a team that names none."""
     import yaml
 
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"coalition file {p} does not exist (regenerate with `comat coalitions`)")
-    data = yaml.safe_load(p.read_text())
+    try:
+        data = yaml.safe_load(p.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, yaml.YAMLError) as err:
+        raise ValueError(f"{p}: expected a JSON/YAML file, got one that is not ({type(err).__name__})") from None
+    if isinstance(data, dict) and "robots" in data and "coalitions" not in data:
+        data = {"coalitions": [data]}
     if not isinstance(data, dict) or not isinstance(data.get("coalitions"), list):
-        raise ValueError(f"{p}: expected a mapping with a 'coalitions' list")  # noqa: TRY004 - bad file content
-    return [TeamSpec.from_dict(t) for t in data["coalitions"]]
+        raise ValueError(  # noqa: TRY004 - bad file content
+            f"{p}: expected a mapping with a 'coalitions' list or one team {{'robots': [...]}}, got {data!r:.80}"
+        )
+    return [TeamSpec.from_dict({"task": task or "", **t} if isinstance(t, dict) else t) for t in data["coalitions"]]
+
+
+def load_team(path: str | Path, task: str | None = None) -> TeamSpec:
+    """One team from a JSON/YAML file ``{'robots': [...]}`` (or a coalition file of one team)."""
+    teams = load_coalitions(path, task)
+    if len(teams) != 1:
+        raise ValueError(
+            f"team file {str(path)!r} must hold one team, got a set of {len(teams)} (pass it as coalitions)"
+        )
+    return teams[0]

@@ -9,7 +9,7 @@ Commands, by the module that declares and runs them:
 * :mod:`comat.cli.replay`: ``replay`` (a run's log beside its simulated twin);
 * :mod:`comat.cli.calibrate`: ``calibrate`` (fit the reality layer to calibration logs);
 * :mod:`comat.cli.bench`: ``bench`` (sim, env, learn, soak, fidelity, safety, viz);
-* here: ``demo`` (:mod:`comat.cli.demo`), ``mjcf`` (the golden MJCF files), ``coalitions``.
+* here: ``demo`` (:mod:`comat.cli.demo`), ``mjcf`` (the golden MJCF files), ``coalitions``, ``tasks``.
 
 Handlers import the floors they need when they run: ``comat --help`` loads neither torch nor Rerun.
 """
@@ -78,6 +78,31 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_tasks(args: argparse.Namespace) -> int:
+    from comat.envs.registry import ENV_IDS, make_task
+    from comat.team import CAPABILITY_RANGES, SIZES, TASK_TYPES
+
+    for env_id in ENV_IDS:
+        task, _ = make_task(env_id, {})
+        kinds = TASK_TYPES[task.name]
+        print(
+            f"{task.name} ({env_id}): {task.horizon} steps of {task.ticks_per_step} ticks an episode; teams of up to "
+            f"{task.max_team_size()} robots (the sets: {min(min(v) for v in SIZES.values())} to "
+            f"{max(max(v) for v in SIZES.values())})"
+        )
+        names = ", ".join(f"{c} [{lo:g}, {hi:g}]" for c, (lo, hi) in zip(kinds.capabilities, kinds.limits))
+        print(f"  capabilities (physical limits): {names}")
+        train = CAPABILITY_RANGES[(task.name, "train")]
+        for t, kind in enumerate(kinds.types):
+            ranges = ", ".join(
+                f"{c} {'/'.join(f'{lo:g}-{hi:g}' for lo, hi in bands)}"
+                for c, bands in zip(kinds.capabilities, train[kind])
+                if any(hi > 0 for _, hi in bands)
+            )
+            print(f"  type {t} {kind!r}: U_train draws {ranges}")
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.cli.demo import run_demo
 
@@ -110,6 +135,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_mjcf)
+
+    p = sub.add_parser(
+        "tasks",
+        help="list the tasks: robot types, capability names and limits, team sizes",
+        description="Every registered task: its env id, episode length, the team sizes it takes, its "
+        "robot types and capability names with their physical limits and U_train's ranges.",
+    )
+    p.set_defaults(func=_cmd_tasks)
 
     p = sub.add_parser(
         "coalitions",

@@ -21,7 +21,7 @@ from pettingzoo import ParallelEnv
 from comat.envs.core import TaskCore
 from comat.envs.options import EnvOptions
 from comat.envs.render import EpisodeFrames
-from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coalitions
+from comat.team import COALITION_SETS, TeamSpec, generate_coalitions, load_coalitions, load_team
 
 __all__ = ["COALITION_SEED", "TaskEnv", "build_core", "resolve_coalitions", "resolve_team", "team_source"]
 
@@ -30,13 +30,26 @@ COALITION_SEED = 0
 
 
 def resolve_team(value: Any, task: str, name: str = "team") -> TeamSpec:
-    """A TeamSpec from a TeamSpec, or from a mapping ``{"robots": [...]}`` (task optional)."""
+    """A TeamSpec from a TeamSpec, a mapping ``{"robots": [...]}`` (task optional), a plain list of
+    robots ``[{"type": ..., "capabilities": [...]}, ...]``, or the path of a JSON/YAML file holding
+    one team — the forms ``--team`` takes on the command line."""
     if isinstance(value, TeamSpec):
         team = value
     elif isinstance(value, Mapping):
         team = TeamSpec.from_dict({"task": task, **value})
+    elif isinstance(value, (str, Path)):
+        if not Path(value).is_file():
+            raise ValueError(
+                f"{name} must be a team file (JSON/YAML {{'robots': [...]}}), got {str(value)!r} (no such file)"
+            )
+        team = load_team(value, task)
+    elif isinstance(value, Sequence) and value and all(isinstance(r, Mapping) for r in value):
+        team = TeamSpec.from_dict({"task": task, "robots": list(value)})
     else:
-        raise TypeError(f"{name} must be a TeamSpec or a mapping with 'robots', got {type(value).__name__}")
+        raise TypeError(
+            f"{name} must be a TeamSpec, a mapping with 'robots', a list of robots "
+            f"[{{'type': ..., 'capabilities': [...]}}, ...] or a team file path, got {value!r:.80}"
+        )
     if team.task != task:
         raise ValueError(f"{name} is a {team.task!r} team, but this environment runs {task!r}")
     return team
@@ -56,7 +69,7 @@ def resolve_coalitions(value: Any, task: str) -> list[TeamSpec]:
                 f"coalitions must be one of {_SET_NAMES}, a YAML path or a non-empty list of teams, got {str(value)!r} "
                 "(no such file)"
             )
-        teams = load_coalitions(value)
+        teams = load_coalitions(value, task)
     elif isinstance(value, Sequence) and len(value) > 0:
         teams = [resolve_team(t, task, f"coalitions[{i}]") for i, t in enumerate(value)]
     else:
