@@ -23,6 +23,7 @@ from comat.envs import make_vec_env
 from comat.envs.heuristics import random_actions
 from comat.envs.sharded import shard_slices
 from comat.task_logic import HMT, PCP
+from comat.tasks import task_names
 from comat.team import random_team
 
 __all__ = ["EnvBenchRow", "bench_env", "bench_rollout_split", "run_env_bench", "run_rollout_bench"]
@@ -68,7 +69,7 @@ def bench_rps_env(task: str, n: int, iterations: int = 150) -> EnvBenchRow | Non
 
 
 def run_env_bench(
-    tasks=("pcp", "hmt"),
+    tasks=None,
     tiers=("wheels", "unicycle"),
     sizes=(2, 5, 8, 12, 16, 20),
     batches=(1, 64),
@@ -76,6 +77,9 @@ def run_env_bench(
     out=None,
     progress=print,
 ) -> dict:
+    """Every task (``tasks``, default all registered) by size, tier and batch, a table on ``progress``
+    and JSON at ``out``."""
+    tasks = task_names() if tasks is None else tuple(tasks)
     rows: list[EnvBenchRow] = []
     for task in tasks:
         for n in sizes:

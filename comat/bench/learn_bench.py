@@ -32,6 +32,7 @@ from comat.models.mat import Mat, MatConfig
 from comat.rl.algos import Dims, make_learner, make_run_env
 from comat.rl.config import load_preset, resolve
 from comat.task_logic import PCP
+from comat.tasks import task_names
 
 __all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "run_learn_bench"]
 
@@ -204,9 +205,10 @@ def run_learn_bench(
     batches=(1, 32, 256),
     out: str | None = None,
     progress=print,
-    tasks=("pcp", "hmt"),
+    tasks=None,
 ) -> dict:
     """Both parts, a table on ``progress`` and JSON at ``out``."""
+    tasks = task_names() if tasks is None else tuple(tasks)
     decode = []
     for model in ("comat", "mat"):
         for batch in batches:

@@ -29,6 +29,7 @@ from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
 from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.measure.episodes import run_episodes
+from comat.tasks import task_names
 from comat.team import COALITION_SETS
 
 __all__ = ["MEMORY_GROWTH_TARGET", "run_soak"]
@@ -115,10 +116,10 @@ def run_soak(
     if not 0 <= wheels_share <= 1:
         raise ValueError(f"wheels_share must be in [0, 1], got {wheels_share!r}")
     rng = np.random.default_rng(seed)
-    combos = [(task, split, policy) for task in ("pcp", "hmt") for split in sets for policy in ("heuristic", "random")]
+    combos = [(task, split, policy) for task in task_names() for split in sets for policy in ("heuristic", "random")]
     envs = {
         (task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
-        for task in ("pcp", "hmt")
+        for task in task_names()
         for split in sets
         for tier in ("unicycle", "wheels")
     }

@@ -38,6 +38,7 @@ from pathlib import Path
 
 from comat.config import REFERENCE_TIER
 from comat.reality.config import REALITY_LEVELS
+from comat.tasks import task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
@@ -65,8 +66,8 @@ __all__ = [
     "resolve_policy_arg",
 ]
 
-TASKS = ("pcp", "hmt")
-"""Task choices, in this order in every command."""
+TASKS = task_names()
+"""Task choices, in this order in every command (the registered tasks, :mod:`comat.tasks`)."""
 TIERS = ("wheels", "unicycle")
 ALGOS = ("comat", "mat", "mappo", "qmix")
 REFERENCE_POLICIES = ("heuristic", "random", "constant")

@@ -25,6 +25,7 @@ import numpy as np
 from comat import constants as C
 from comat.bench.scenarios import run_scenario, swap_scenario
 from comat.config import SimConfig
+from comat.tasks import task_names
 
 __all__ = ["run_demo"]
 
@@ -154,7 +155,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     )
     print(head + "\n" + "-" * len(head))
     rows, ok = [], True
-    for task in ("pcp", "hmt"):
+    for task in task_names():
         for split in ("train", "test"):
             teams = generate_coalitions(task, split)[:episodes]
             for name, policy in policies.items():

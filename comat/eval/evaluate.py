@@ -40,6 +40,7 @@ from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
 from comat.reality import resolve_reality
 from comat.rl.algos import BASELINE_ROBOTS, robot_slots
 from comat.rl.policy import load_policy
+from comat.tasks import task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
@@ -120,8 +121,8 @@ def evaluate_policies(
     if checkpoint is not None:
         act, config = load_policy(checkpoint, task=task)
         task = config.task
-    elif task not in ("pcp", "hmt"):
-        raise ValueError(f"task must be 'pcp' or 'hmt' when no checkpoint is given, got {task!r}")
+    elif task not in task_names():
+        raise ValueError(f"task must be one of {list(task_names())} when no checkpoint is given, got {task!r}")
     tier = tier or (config.tier if config else "unicycle")
     if tier not in ("wheels", "unicycle"):
         raise ValueError(f"tier must be 'wheels' or 'unicycle', got {tier!r}")

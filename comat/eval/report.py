@@ -69,6 +69,7 @@ from comat.eval.runs import (
 from comat.files import write_atomic
 from comat.measure.metrics import SHARES, interval_text, mean_ci
 from comat.measure.stats import hierarchical_bootstrap
+from comat.tasks import task_names
 
 __all__ = ["PAPER_TABLE1", "REPORT_FILES", "make_report"]
 
@@ -360,7 +361,7 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in runs:
         groups.setdefault((r["algo"], r["task"]), []).append(r)
-    tasks = [t for t in ("pcp", "hmt") if any(k[1] == t for k in groups)]
+    tasks = [t for t in task_names() if any(k[1] == t for k in groups)]
     algos = [a for a in ALGO_ORDER if any(k[0] == a for k in groups)]
     evaluated = {k: [r for r in v if r["evaluation"]] for k, v in groups.items()}
     sets = _sets_present(runs)

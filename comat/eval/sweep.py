@@ -47,13 +47,14 @@ from comat.rl.config import ALGOS, TASKS, apply_overrides, load_preset, resolve
 from comat.rl.device import DEVICES, resolve_device
 from comat.rl.policy import ensure_policy
 from comat.rl.runner import train
+from comat.tasks import task_names
 
 __all__ = ["RECORD", "param_space", "plan", "prepare_sweep", "read_record", "run_job", "run_sweep", "sweep_status"]
 
 RECORD = "sweep.json"
 DEFAULTS = {
     "algos": ["comat", "mat", "mappo", "qmix"],
-    "tasks": ["pcp", "hmt"],
+    "tasks": list(task_names()),
     "seeds": None,
     "preset": "paper",
     "steps": None,

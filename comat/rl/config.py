@@ -34,6 +34,7 @@ from comat.reality import RealityConfig, resolve_reality
 from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
+from comat.tasks import task_names
 
 __all__ = [
     "ALGOS",
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 ALGOS = ("comat", "mat", "mappo", "qmix")
-TASKS = ("hmt", "pcp")
+TASKS = tuple(sorted(task_names()))
 TIERS = ("wheels", "unicycle")
 PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 """The named presets. They ship inside the package (a wheel has no ``train/``); the checkout's

@@ -28,6 +28,7 @@ from comat.rl.checkpoint import (
     save_policy_file,
 )
 from comat.rl.config import RunConfig, load_preset, resolve
+from comat.tasks import task_names
 
 __all__ = [
     "CHECKPOINT_FILE",
@@ -243,7 +244,7 @@ def describe_policy(path: str | Path, data: dict) -> str:
 
 
 def policy_weights(
-    preset: str = "sweep", algos=ACTING_MODULES, tasks=("pcp", "hmt"), folder: str | Path | None = None, seed: int = 0
+    preset: str = "sweep", algos=ACTING_MODULES, tasks=None, folder: str | Path | None = None, seed: int = 0
 ) -> list[dict]:
     """What one policy file weighs per algorithm and task with a preset's model config: each
     model built (seeded, untrained: the size does not depend on the values) for the task's
@@ -251,6 +252,7 @@ def policy_weights(
 
     Rows: ``algo``, ``task``, ``parameters`` (kept in the policy file), ``learner_parameters``
     (all the learner's modules, critic and mixer included), ``bytes`` (the file)."""
+    tasks = task_names() if tasks is None else tuple(tasks)
     import tempfile
 
     settings = load_preset(preset)

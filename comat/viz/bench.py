@@ -35,6 +35,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from comat.tasks import task_names
 from comat.viz.rollout import RolloutResult, record_episodes
 
 __all__ = ["format_table", "run_viz_bench"]
@@ -47,7 +48,7 @@ def _timed(path: Path | None, task: str, policy: str, kwargs: dict) -> tuple[Rol
 
 
 def run_viz_bench(
-    tasks: Sequence[str] = ("pcp", "hmt"),
+    tasks: Sequence[str] | None = None,
     *,
     tier: str = "unicycle",
     policy: str = "heuristic",
@@ -63,6 +64,7 @@ def run_viz_bench(
 
     Returns the result document (``{"settings": …, "machine": …, "results": [one per task]}``).
     """
+    tasks = task_names() if tasks is None else tuple(tasks)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats must be a positive integer, got {repeats!r}")
     out_path = Path(out) if out is not None else None

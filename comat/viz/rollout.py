@@ -37,6 +37,7 @@ from comat.rl.algos import policy_act, robot_slots
 from comat.rl.config import RunConfig
 from comat.rl.policy import load_policy, shipped_name
 from comat.rl.runner import EVAL_SEED_OFFSET
+from comat.tasks import task_names
 from comat.team import COALITION_SETS, TeamSpec
 from comat.viz.blueprint import rollout_blueprint
 from comat.viz.recorder import EpisodeRecorder
@@ -56,7 +57,7 @@ __all__ = [
 
 POLICY_NAMES = ("heuristic", "random", "constant")
 """Built-in policies; any other ``--policy`` value is a checkpoint path."""
-TASKS = ("pcp", "hmt")
+TASKS = task_names()
 
 Act = Callable[[np.ndarray, np.ndarray, "np.ndarray | None"], np.ndarray]
 
