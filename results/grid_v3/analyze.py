@@ -41,6 +41,8 @@ SESOI = 10.0
 """Smallest effect of interest, progress points."""
 ALPHA = 0.05
 LEVELS = {"off": "evaluation_unicycle.json", "nominal": "evaluation_unicycle_nominal.json"}
+FACTS: dict = {"adjusted_gap": {}}
+"""The numbers the generated verdict (:func:`verdict_text`) quotes, filled as the sections are made."""
 
 
 def seed_value(row: dict, key: str) -> float:
@@ -149,6 +151,7 @@ def primary(table: dict) -> list[str]:
     adjusted = holm([c["p"] if not math.isnan(c["p"]) else 1.0 for _, c in tested])
     for (s, c), p in zip(tested, adjusted):
         lines.append(f"| {SETS[s]} | {_fmt(c)} | {p:.3f} | **{verdict(c, p)}** |")
+        FACTS.setdefault("primary", {})[s] = (c, p)
     lines += [f"| {SETS[s]} | not yet: fewer than 2 seeds of either learner |" for s, c in found if c is None]
     note = (
         f"Verdicts: Holm-adjusted p < {ALPHA:g} decides better/worse; otherwise 'no difference of {SESOI:g} "
@@ -159,10 +162,10 @@ def primary(table: dict) -> list[str]:
 
 def secondary(table: dict) -> list[str]:
     lines = [
-        "## Secondary (no multiplicity correction)",
+        "## Secondary (the plan's verdicts are unadjusted; the Holm column adjusts over these 20 tests)",
         "",
-        "| task | set | endpoint | other " + HEAD + " verdict |",
-        "|" + "---|" * 13,
+        "| task | set | endpoint | other " + HEAD + " Holm p (20) | verdict (unadjusted, as planned) |",
+        "|" + "---|" * 14,
     ]
     rows = [(t, s, "progress", o) for t in ("hmt", "pcp") for s in ("capability",) for o in ("mat",)]
     rows += [(t, s, "progress", "mappo") for t in ("hmt", "pcp") for s in ("size", "scale", "capability")]
@@ -172,15 +175,20 @@ def secondary(table: dict) -> list[str]:
         for s in ("size", "scale", "capability")
         for k in ("progress_auc", "time_to_90")
     ]
+    found = []
     for task, s, key, other in rows:
         c = compare(
             table.get(("comat", task, "off", 300, "off", s, key), {}),
             table.get((other, task, "off", 300, "off", s, key), {}),
         )
         if c is not None:
-            unit = " steps" if key == "time_to_90" else ""
-            v = verdict(c, c["p"]) if key == "progress" else ("p < 0.05" if c["p"] < ALPHA else "not separated")
-            lines.append(f"| {task.upper()} | {SETS[s]} | {key} | {other.upper()} | {_fmt(c, unit)} | {v} |")
+            found.append((task, s, key, other, c))
+    adjusted = holm([c["p"] if not math.isnan(c["p"]) else 1.0 for *_, c in found])
+    for (task, s, key, other, c), p in zip(found, adjusted):
+        unit = " steps" if key == "time_to_90" else ""
+        v = verdict(c, c["p"]) if key == "progress" else ("p < 0.05" if c["p"] < ALPHA else "not separated")
+        lines.append(f"| {task.upper()} | {SETS[s]} | {key} | {other.upper()} | {_fmt(c, unit)} | {p:.3f} | {v} |")
+    FACTS["secondary_holm"] = {(t, s, k, o): (c, p) for (t, s, k, o, c), p in zip(found, adjusted)}
     return lines + [""]
 
 
@@ -211,19 +219,87 @@ def reality(table: dict) -> list[str]:
         "COMAT's gap − MAT's (trained at `off`), and what training at `nominal` recovers (at `nominal`, "
         "trained at `nominal` − trained at `off`):"
     )
-    lines += ["", note, "", "| task | set | comparison " + HEAD, "|" + "---|" * 11]
+    lines += ["", note, "", "| task | set | comparison " + HEAD + " Holm p (12 gap tests) |", "|" + "---|" * 12]
+    gap_tests = {
+        (task, s): compare(gaps.get((task, s, "comat", "off"), {}), gaps.get((task, s, "mat", "off"), {}))
+        for task in ("hmt", "pcp")
+        for s in SETS
+    }
+    gap_tests = {k: c for k, c in gap_tests.items() if c is not None}
+    gap_holm = dict(zip(gap_tests, holm([c["p"] if not math.isnan(c["p"]) else 1.0 for c in gap_tests.values()])))
+    FACTS["gap_tests"] = {k: (c, gap_holm[k]) for k, c in gap_tests.items()}
     for task in ("hmt", "pcp"):
         for s, name in SETS.items():
-            c = compare(gaps.get((task, s, "comat", "off"), {}), gaps.get((task, s, "mat", "off"), {}))
+            c = gap_tests.get((task, s))
             if c is not None:
-                lines.append(f"| {task.upper()} | {name} | gap: COMAT − MAT | {_fmt(c)} |")
+                lines.append(f"| {task.upper()} | {name} | gap: COMAT − MAT | {_fmt(c)} | {gap_holm[(task, s)]:.3f} |")
             for algo in ("comat", "mat"):
                 c = compare(
                     table.get((algo, task, "nominal", 300, "nominal", s, "progress"), {}),
                     table.get((algo, task, "off", 300, "nominal", s, "progress"), {}),
                 )
                 if c is not None:
-                    lines.append(f"| {task.upper()} | {name} | {algo.upper()}: trained nominal − off | {_fmt(c)} |")
+                    lines.append(f"| {task.upper()} | {name} | {algo.upper()}: trained nominal − off | {_fmt(c)} | |")
+    return lines + [""] + adjusted_gap(table)
+
+
+def ancova(gap: np.ndarray, off: np.ndarray, comat: np.ndarray) -> dict:
+    """Least squares gap = b0 + b1 · off + b2 · [COMAT] over seeds: COMAT's gap at equal `off`
+    competence (b2, its 95 % t-interval and p with n − 3 degrees of freedom), and r(off, gap)."""
+    from scipy import stats
+
+    X = np.column_stack([np.ones_like(off), off, comat])
+    beta, *_ = np.linalg.lstsq(X, gap, rcond=None)
+    df = gap.size - 3
+    s2 = float(((gap - X @ beta) ** 2).sum() / df)
+    se = math.sqrt(s2 * np.linalg.inv(X.T @ X)[2, 2])
+    t = float(beta[2] / se)
+    half = float(stats.t.ppf(0.975, df) * se)
+    return {
+        "b": float(beta[2]),
+        "lo": float(beta[2]) - half,
+        "hi": float(beta[2]) + half,
+        "p": float(2 * stats.t.sf(abs(t), df)),
+        "slope": float(beta[1]),
+        "r": float(np.corrcoef(off, gap)[0, 1]),
+        "n": int(gap.size),
+    }
+
+
+def adjusted_gap(table: dict) -> list[str]:
+    """COMAT's gap − MAT's at equal competence: weaker policies lose more at `nominal`, and COMAT's
+    seeds are the weaker ones on the sets where the gap appears (exploratory; not in the plan)."""
+    lines = [
+        "### The gap at equal competence (exploratory, not in the plan)",
+        "",
+        (
+            "Per seed of COMAT and MAT (trained at `off`, 300 k): gap = `nominal` − `off` progress against the "
+            "`off` progress, gap = b0 + b1 · off + b2 · [COMAT] by least squares; b2 is COMAT's gap at equal `off` "
+            "competence, r the correlation of `off` progress and gap over both learners' seeds."
+        ),
+        "",
+        "| task | set | seeds | r(off, gap) | b1 (gap per point of off) | COMAT's gap − MAT's, raw | at equal competence [95 %] | p |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for task in ("hmt", "pcp"):
+        for s, name in SETS.items():
+            rows = []
+            for algo in ("comat", "mat"):
+                off = table.get((algo, task, "off", 300, "off", s, "progress"), {})
+                nom = table.get((algo, task, "off", 300, "nominal", s, "progress"), {})
+                rows += [(nom[k] - off[k], off[k], algo == "comat") for k in sorted(set(off) & set(nom))]
+            if len(rows) < 5 or len({r[2] for r in rows}) < 2:
+                continue
+            gap, off, comat = (np.array(col, dtype=float) for col in zip(*rows))
+            if np.ptp(off) == 0:
+                continue
+            a = ancova(gap, off, comat)
+            raw = gap[comat == 1].mean() - gap[comat == 0].mean()
+            FACTS["adjusted_gap"][(task, s)] = {**a, "raw": raw}
+            lines.append(
+                f"| {task.upper()} | {name} | {a['n']} | {a['r']:+.2f} | {a['slope']:+.2f} | {raw:+.1f} | "
+                f"{a['b']:+.1f} [{a['lo']:+.1f}, {a['hi']:+.1f}] | {a['p']:.3f} |"
+            )
     return lines + [""]
 
 
@@ -247,6 +323,170 @@ def budget(table: dict) -> list[str]:
                 f"{np.mean([b[k] for k in seeds]):.1f} | {t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] |"
             )
     return lines + [""]
+
+
+def exploratory(table: dict) -> list[str]:
+    """Comparisons the plan did not name, every set, unadjusted: COMAT − MAT at 1 M (3 seeds, one
+    final checkpoint each), each learner's 1 M − 300 k change on every set, and at `nominal` (300 k,
+    trained at `off`) COMAT − MAT and COMAT − MAPPO(-20)."""
+    lines = [
+        "## Exploratory (not in the plan; unadjusted; read as leads, not results)",
+        "",
+        "### COMAT − MAT at 1 M env steps (HMT, 3 seeds each, one final checkpoint per seed)",
+        "",
+        (
+            "MAT's periodic evaluations swing by several points between checkpoints late in training "
+            "(`eval.csv`): one final checkpoint per seed is a noisy read of a learner at 1 M."
+        ),
+        "",
+        "| level | set | endpoint " + HEAD,
+        "|" + "---|" * 11,
+    ]
+    for level in ("off", "nominal"):
+        for s, name in SETS.items():
+            for key in ("progress", "finished"):
+                c = compare(
+                    table.get(("comat", "hmt", "off", 1000, level, s, key), {}),
+                    table.get(("mat", "hmt", "off", 1000, level, s, key), {}),
+                )
+                if c is not None:
+                    FACTS.setdefault("at_1m", {})[(level, s, key)] = c
+                    lines.append(f"| `{level}` | {name} | {key} | {_fmt(c)} |")
+    lines += [
+        "",
+        "### 1 M − 300 k within seed, every set (HMT, `off`)",
+        "",
+        "| learner | set | endpoint | seeds | 300 k | 1 M | change, mean [95 % t] | per seed |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for algo in ("comat", "mat"):
+        for s, name in SETS.items():
+            for key in ("progress", "finished"):
+                a = table.get((algo, "hmt", "off", 300, "off", s, key), {})
+                b = table.get((algo, "hmt", "off", 1000, "off", s, key), {})
+                change = paired_change(a, b)
+                if change is None:
+                    continue
+                (d, t), seeds = change, sorted(set(a) & set(b))
+                before, after = np.mean([a[k] for k in seeds]), np.mean([b[k] for k in seeds])
+                FACTS.setdefault("budget_all", {})[(algo, s, key)] = (before, after, d)
+                lines.append(
+                    f"| {algo.upper()} | {name} | {key} | {d.size} | {before:.1f} | {after:.1f} | "
+                    f"{t['mean']:+.1f} [{t['lo']:+.1f}, {t['hi']:+.1f}] | {', '.join(f'{x:+.0f}' for x in d)} |"
+                )
+    lines += [
+        "",
+        "### COMAT − MAT and COMAT − MAPPO at both levels, progress and finished (300 k, trained at `off`)",
+        "",
+        (
+            "The plan compares progress at `off`; these rows add `nominal` and the finished share, which the "
+            "plan left unpowered."
+        ),
+        "",
+        "| level | task | set | endpoint | other " + HEAD,
+        "|" + "---|" * 13,
+    ]
+    for level in ("off", "nominal"):
+        for task in ("hmt", "pcp"):
+            for s, name in SETS.items():
+                for key, other in (
+                    ("progress", "mat"),
+                    ("finished", "mat"),
+                    ("progress", "mappo"),
+                    ("finished", "mappo"),
+                ):
+                    if level == "off" and key == "progress":
+                        continue  # the plan's own rows, above
+                    c = compare(
+                        table.get(("comat", task, "off", 300, level, s, key), {}),
+                        table.get((other, task, "off", 300, level, s, key), {}),
+                    )
+                    if c is not None:
+                        FACTS.setdefault("at_level", {})[(level, task, s, key, other)] = c
+                        lines.append(f"| `{level}` | {task.upper()} | {name} | {key} | {other.upper()} | {_fmt(c)} |")
+    return lines + [""]
+
+
+def _p(p: float) -> str:
+    return f"{p:.3f}" if p >= 0.001 else "< 0.001"
+
+
+def verdict_text() -> list[str]:
+    """The verdict's numbers as sentences, for results/README.md and grid_v3/README.md to quote
+    (a test keeps results/README.md's block equal to this): generated, not typed."""
+    F = FACTS
+    out = ["## The verdict in numbers (generated by `analyze.py`; quoted in `results/README.md`)", ""]
+    if "primary" in F:
+        (cs, ps), (cc, pc) = F["primary"]["size"], F["primary"]["scale"]
+        sd = {k: (c["a"].std(ddof=1), c["b"].std(ddof=1)) for k, (c, _) in F["primary"].items()}
+        out.append(
+            f"* **Primary (planned; 300 k, `off`).** HMT progress, COMAT − MAT: U_size {cs['diff']:+.1f} "
+            f"[95 %: {cs['lo']:+.1f}, {cs['hi']:+.1f}] ({cs['a'].mean():.1f} % vs {cs['b'].mean():.1f} %, "
+            f"{cs['a'].size} vs {cs['b'].size} seeds, p = {_p(cs['p'])}, Holm {_p(ps)}); U_scale {cc['diff']:+.1f} "
+            f"[{cc['lo']:+.1f}, {cc['hi']:+.1f}] ({cc['a'].mean():.1f} % vs {cc['b'].mean():.1f} %, p = {_p(cc['p'])}, "
+            f"Holm {_p(pc)}). Both 90 % intervals lie inside ±{SESOI:g}: no difference of {SESOI:g} points or more; "
+            f"the point estimates favour MAT. Seed SDs: COMAT {sd['size'][0]:.2f} (U_size) and {sd['scale'][0]:.2f} "
+            f"(U_scale), MAT {sd['size'][1]:.2f} and {sd['scale'][1]:.2f}; the 95 % intervals' half-widths are "
+            f"{(cs['hi'] - cs['lo']) / 2:.1f} and {(cc['hi'] - cc['lo']) / 2:.1f} points."
+        )
+    sec = F.get("secondary_holm", {})
+    if ("pcp", "capability", "progress", "mat") in sec:
+        (c, p), (ch, _) = sec[("pcp", "capability", "progress", "mat")], sec[("hmt", "capability", "progress", "mat")]
+        out.append(
+            f"* **Secondary — capability (planned, 300 k, `off`).** HMT U_cap {ch['diff']:+.1f} [{ch['lo']:+.1f}, "
+            f"{ch['hi']:+.1f}] (p = {_p(ch['p'])}); PCP U_cap {c['diff']:+.1f} [{c['lo']:+.1f}, {c['hi']:+.1f}], "
+            f"p = {_p(c['p'])} unadjusted, Holm over the {len(sec)} secondary tests {_p(p)}: no detectable difference "
+            f"once adjusted, and both 90 % intervals lie inside ±{SESOI:g}."
+        )
+    gaps, adj = F.get("gap_tests", {}), F["adjusted_gap"]
+    if ("hmt", "size") in gaps and ("hmt", "scale") in gaps:
+        (gs, hs), (gc, hc) = gaps[("hmt", "size")], gaps[("hmt", "scale")]
+        a_s, a_c = adj[("hmt", "size")], adj[("hmt", "scale")]
+        at = F.get("at_1m", {})
+        gap_1m = ""
+        if ("off", "scale", "progress") in at and ("nominal", "scale", "progress") in at:
+            off1, nom1 = at[("off", "scale", "progress")], at[("nominal", "scale", "progress")]
+            gap_1m = (
+                f" At 1 M (exploratory, 3 seeds) the U_scale gaps are {nom1['a'].mean() - off1['a'].mean():+.1f} "
+                f"(COMAT) and {nom1['b'].mean() - off1['b'].mean():+.1f} (MAT)."
+            )
+        out.append(
+            f"* **Secondary — the reality gap (planned, 300 k).** COMAT's gap − MAT's on HMT: U_size "
+            f"{gs['diff']:+.1f} (p = {_p(gs['p'])}, Holm over the {len(gaps)} gap tests {_p(hs)}), U_scale "
+            f"{gc['diff']:+.1f} (p = {_p(gc['p'])}, Holm {_p(hc)}): not detectable once adjusted. Weaker policies lose "
+            f"more at `nominal` (r = {a_s['r']:+.2f} and {a_c['r']:+.2f} between a seed's `off` progress and its "
+            f"gap); at equal `off` competence COMAT's extra gap is {a_s['b']:+.1f} [{a_s['lo']:+.1f}, {a_s['hi']:+.1f}] "
+            f"(p = {_p(a_s['p'])}) and {a_c['b']:+.1f} [{a_c['lo']:+.1f}, {a_c['hi']:+.1f}] (p = {_p(a_c['p'])}) "
+            f"(exploratory).{gap_1m}"
+        )
+    budget_all, at = F.get("budget_all", {}), F.get("at_1m", {})
+    if ("mat", "capability", "progress") in budget_all and ("off", "capability", "finished") in at:
+        mb, mt = budget_all[("mat", "capability", "progress")], budget_all[("mat", "test", "progress")]
+        cb, ct = budget_all[("comat", "capability", "progress")], budget_all[("comat", "test", "progress")]
+        ft, fc = at[("off", "train", "finished")], at[("off", "capability", "finished")]
+        sz, sc = at[("off", "size", "progress")], at[("off", "scale", "progress")]
+        out.append(
+            f"* **Exploratory — 1 M env steps (HMT, 3 seeds, one final checkpoint each).** MAT falls on U_cap from "
+            f"{mb[0]:.1f} to {mb[1]:.1f} % progress (per seed {', '.join(f'{x:+.0f}' for x in mb[2])} points) and on "
+            f"U_test from {mt[0]:.1f} to {mt[1]:.1f}, while COMAT holds ({cb[1]:.1f} and {ct[1]:.1f}); COMAT − MAT "
+            f"finished share at 1 M: U_train {ft['diff']:+.1f} points (p = {_p(ft['p'])}), U_cap {fc['diff']:+.1f} "
+            f"(p = {_p(fc['p'])}), unadjusted. On the primary sets at 1 M: U_size {sz['a'].mean():.1f} vs "
+            f"{sz['b'].mean():.1f} % (COMAT ahead by {sz['diff']:.1f}), U_scale {sc['a'].mean():.1f} vs "
+            f"{sc['b'].mean():.1f}. The only result that points the paper's way; MAT's periodic evaluations swing "
+            f"by several points late in training, so one final checkpoint per seed is a noisy read."
+        )
+    lv = F.get("at_level", {})
+    keys = [("nominal", "hmt", "size", "progress", "mat"), ("nominal", "hmt", "scale", "progress", "mat")]
+    keys += [("off", "hmt", "scale", "finished", "mappo")]
+    if all(k in lv for k in keys):
+        ns, nc, mf = (lv[k] for k in keys)
+        out.append(
+            f"* **Exploratory — what the plan did not test (300 k, unadjusted).** At `nominal` COMAT is below MAT on "
+            f"HMT U_size ({ns['diff']:+.1f}, p = {_p(ns['p'])}) and U_scale ({nc['diff']:+.1f}, p = {_p(nc['p'])}); "
+            f"MAPPO with 20 slots finishes more large HMT teams than COMAT (U_scale finished share "
+            f"{mf['diff']:+.1f} points at `off`, p = {_p(mf['p'])})."
+        )
+    return out + [""]
 
 
 def missing(folder: Path) -> list[str]:
@@ -280,8 +520,10 @@ def main(folder: Path = HERE / "runs") -> None:
         secondary(table),
         reality(table),
         budget(table),
+        exploratory(table),
     ):
         print("\n".join(part))
+    print("\n".join(verdict_text()))
 
 
 if __name__ == "__main__":
