@@ -26,6 +26,7 @@ def table(rows: list[dict]) -> str:
         "mat": "policy (encoder, decoder, value head)",
         "mappo": "actors (no critic)",
         "qmix": "agent network (no mixer)",
+        "ippo": "actors (no critic)",
     }
     lines = [
         "| algorithm | kept to act | "

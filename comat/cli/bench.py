@@ -158,7 +158,18 @@ def add_bench_parser(sub) -> None:
     b.add_argument(
         "--algos",
         nargs="+",
-        choices=["comat", "comat_paper", *COMAT_VARIANTS, "mat", "mappo", "qmix", "mat_20", "mappo_20", "qmix_20"],
+        choices=[
+            "comat",
+            "comat_paper",
+            *COMAT_VARIANTS,
+            "mat",
+            "mappo",
+            "qmix",
+            "ippo",
+            "mat_20",
+            "mappo_20",
+            "qmix_20",
+        ],
         default=["comat", "comat_paper", "mat", "mappo", "qmix"],
         help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
         f"to compare today's default with it in one run; {', '.join(COMAT_VARIANTS)}: COMAT with that "

@@ -97,7 +97,9 @@ PAPER_TABLE1 = {
     ("hmt", "finished"): (0.977, 0.972, 0.911, 0.977),
     ("hmt", "collisions"): (0.00, 0.00, 1.00, 0.00),
 }
-"""The paper's Table I, keyed by (task, our metric name); values in ``ALGO_ORDER``."""
+"""The paper's Table I, keyed by (task, our metric name); values in :data:`PAPER_ALGOS`' order."""
+PAPER_ALGOS = ("mappo", "qmix", "mat", "comat")
+"""The learners of the paper's Table I (IPPO is not one: its cells show —)."""
 TABLE_METRICS = (
     ("return", "Mean return"),
     ("steps", "Episode steps"),
@@ -159,7 +161,7 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
                 mean, half, n = over_seeds(groups.get((algo, task), []), "train", metric)
                 # Returns are not comparable: the paper's reward scale is not ours (see the caption).
                 paper = None if metric == "return" else PAPER_TABLE1.get((task, metric))
-                paper_v = None if paper is None else paper[ALGO_ORDER.index(algo)]
+                paper_v = None if paper is None or algo not in PAPER_ALGOS else paper[PAPER_ALGOS.index(algo)]
                 cells += [
                     _fmt(mean, half, metric),
                     "—" if paper_v is None else _fmt(paper_v, math.nan, metric, unit=None),

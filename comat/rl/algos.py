@@ -17,6 +17,7 @@ from comat.config import SafetyConfig, SimConfig
 from comat.envs import make_vec_env
 from comat.models.comat import Comat
 from comat.models.features import ObsLayout
+from comat.models.ippo import Ippo
 from comat.models.mappo import Mappo
 from comat.models.mat import Mat
 from comat.models.qmix import QmixAgents, QmixMixer
@@ -42,8 +43,9 @@ BASELINE_ROBOTS = 8
 
 def robot_slots(config) -> int | None:
     """Robot slots of the environments a run's policy plays in: None (as many as the team has) for
-    COMAT, the model config's ``max_robots`` for the fixed-size baselines."""
-    return None if config.algo == "comat" else config.model.max_robots
+    COMAT and IPPO (no part of either is sized by the team), the model config's ``max_robots`` for
+    the fixed-size baselines."""
+    return None if config.algo in ("comat", "ippo") else config.model.max_robots
 
 
 def env_slots(config) -> dict[str, int | None]:
@@ -73,7 +75,13 @@ class Dims:
         return asdict(self)
 
 
-ACTING_MODULES = {"comat": ("policy",), "mat": ("policy",), "mappo": ("policy",), "qmix": ("agents",)}
+ACTING_MODULES = {
+    "comat": ("policy",),
+    "mat": ("policy",),
+    "mappo": ("policy",),
+    "qmix": ("agents",),
+    "ippo": ("policy",),
+}
 """The modules deterministic acting needs, per algo: COMAT's and MAT's whole policy (their value
 heads share the encoder the actions are decoded from), MAPPO's policy without its critic, QMIX's
 agent network without the mixer. A policy file keeps exactly these weights."""
@@ -88,10 +96,12 @@ def build_modules(algo: str, dims: Dims, model_config, acting_only: bool = False
         return {"policy": Mat(dims.layout, model_config)}
     if algo == "mappo":
         return {"policy": Mappo(dims.layout, dims.state_dim, model_config, critic=not acting_only)}
+    if algo == "ippo":
+        return {"policy": Ippo(dims.layout, model_config, critic=not acting_only)}
     if algo == "qmix":
         agents = {"agents": QmixAgents(dims.layout, model_config)}
         return agents if acting_only else {**agents, "mixer": QmixMixer(dims.state_dim, model_config)}
-    raise ValueError(f"algo must be one of ['comat', 'mat', 'mappo', 'qmix'], got {algo!r}")
+    raise ValueError(f"algo must be one of {list(ACTING_MODULES)}, got {algo!r}")
 
 
 def uses_state(algo: str) -> bool:

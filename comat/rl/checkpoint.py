@@ -69,6 +69,7 @@ EARLIER_DEFAULTS = {
     # root_weight and node_ffn are older than the rest: every checkpoint records them
     "model": {"comat": {k: v for k, v in PAPER_FORM.items() if k not in ("root_weight", "node_ffn")}},
     "trainer": {"comat": {"value_target": "td"}, "mat": {"value_target": "td"}, "mappo": {"value_target": "td"}},
+    # (IPPO is newer than value_target: every IPPO checkpoint records it)
 }
 """Section -> algo -> option -> the value a checkpoint without that option was trained with."""
 EARLIER_RUN_DEFAULTS = {"reality": "off", "loop": "comat"}

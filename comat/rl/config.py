@@ -5,7 +5,7 @@ A preset holds values only, for every algorithm at once::
 
     total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
     checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
-    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}},
+    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}, ippo: {IppoConfig}},
     reality: off | nominal | stress | PROFILE.yaml | {RealityConfig fields}
 
 ``reality`` is the reality layer the run trains at (:mod:`comat.reality`; default ``off``): a
@@ -27,6 +27,7 @@ from typing import Any
 
 from comat.config import LOOPS, load
 from comat.models.comat import ComatConfig
+from comat.models.ippo import IppoConfig
 from comat.models.mappo import MappoConfig
 from comat.models.mat import MatConfig
 from comat.models.qmix import QmixNetConfig
@@ -48,13 +49,19 @@ __all__ = [
     "run_reality",
 ]
 
-ALGOS = ("comat", "mat", "mappo", "qmix")
+ALGOS = ("comat", "mat", "mappo", "qmix", "ippo")
 TASKS = tuple(sorted(task_names()))
 TIERS = ("wheels", "unicycle")
 PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 """The named presets. They ship inside the package (a wheel has no ``train/``); the checkout's
 ``train/configs`` is a link to this folder, so there is one copy to edit."""
-MODEL_CONFIGS = {"comat": ComatConfig, "mat": MatConfig, "mappo": MappoConfig, "qmix": QmixNetConfig}
+MODEL_CONFIGS = {
+    "comat": ComatConfig,
+    "mat": MatConfig,
+    "mappo": MappoConfig,
+    "qmix": QmixNetConfig,
+    "ippo": IppoConfig,
+}
 _RUN_KEYS = (
     "total_env_steps",
     "eval_every_steps",
@@ -86,7 +93,7 @@ class RunConfig:
     checkpoint_every_steps: int
     """Write the checkpoint every this many env steps (and at the end)."""
     trainer: PPOConfig | QmixConfig
-    model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig
+    model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig | IppoConfig
     env_workers: int = 1
     """Processes stepping the environments (:class:`comat.envs.ShardedVectorEnv` when > 1).
     Part of the run's identity: results are exactly reproducible for the same value."""
