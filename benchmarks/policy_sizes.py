@@ -27,6 +27,7 @@ def table(rows: list[dict]) -> str:
         "mappo": "actors (no critic)",
         "qmix": "agent network (no mixer)",
         "ippo": "actors (no critic)",
+        "cash": "encoder, hypernetwork (no critic)",
     }
     lines = [
         "| algorithm | kept to act | "

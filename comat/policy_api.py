@@ -34,7 +34,7 @@ __all__ = ["PRETRAINED", "Policy", "load_policy", "pretrained_path"]
 class Policy:
     """A trained policy: ``policy(observations) -> actions`` on PettingZoo dicts, ``act`` on batches.
 
-    Attributes: ``algo`` ("comat", "mat", "mappo", "qmix", "ippo"), ``task`` ("pcp", "hmt"), ``config`` (the
+    Attributes: ``algo`` ("comat", "mat", "mappo", "qmix", "ippo", "cash"), ``task`` ("pcp", "hmt"), ``config`` (the
     run's :class:`comat.rl.config.RunConfig`), ``slots`` (robots it can act for: None = any team
     size, COMAT; else the baseline's ``max_robots``), ``path`` (the file it was read from).
     """

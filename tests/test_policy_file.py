@@ -52,7 +52,7 @@ def comat_run(tmp_path_factory):
     return run
 
 
-@pytest.mark.parametrize("algo", ["comat", "mat", "mappo", "qmix", "ippo"])
+@pytest.mark.parametrize("algo", ["comat", "mat", "mappo", "qmix", "ippo", "cash"])
 def test_the_policy_file_keeps_only_the_acting_weights_and_acts_exactly_as_the_checkpoint(tmp_path, algo):
     config = tiny(algo, steps=20)
     train(config, tmp_path / "run", quiet=True)
@@ -255,7 +255,7 @@ def _readme_table() -> dict[tuple[str, str], tuple[int, int, int]]:
     rows = {}
     cell = r" (\d+) KB \| ([\d,]+) \(([\d,]+)\) \|"  # size | kept (learner's)
     for algo, kb_pcp, p_pcp, l_pcp, kb_hmt, p_hmt, l_hmt in re.findall(
-        r"^\| (COMAT|MAT|MAPPO|QMIX|IPPO) \| [^|]+ \|" + cell + cell, section, flags=re.MULTILINE
+        r"^\| (COMAT|MAT|MAPPO|QMIX|IPPO|CASH) \| [^|]+ \|" + cell + cell, section, flags=re.MULTILINE
     ):
         n = [int(x.replace(",", "")) for x in (kb_pcp, p_pcp, l_pcp, kb_hmt, p_hmt, l_hmt)]
         rows[algo.lower(), "pcp"], rows[algo.lower(), "hmt"] = tuple(n[:3]), tuple(n[3:])
@@ -268,7 +268,7 @@ def test_the_readme_says_what_one_policy_weighs_with_the_grids_models(tmp_path):
     from comat.rl.policy import policy_weights
 
     table = _readme_table()
-    assert len(table) == 10, table
+    assert len(table) == 12, table
     for row in policy_weights("sweep", folder=tmp_path):
         kb, kept, learner = table[row["algo"], row["task"]]
         assert (kept, learner) == (row["parameters"], row["learner_parameters"]), row

@@ -29,6 +29,7 @@ TINY_MODELS = {
     "mappo": {"hidden": 16},
     "qmix": {"hidden": 16, "mixing_embed": 8, "hypernet_embed": 16},
     "ippo": {"hidden": 16},
+    "cash": {"hidden": 16, "hyper_hidden": 16},
 }
 
 
@@ -301,7 +302,9 @@ def test_checkpoints_from_before_the_architecture_options_load_as_they_were(tmp_
 # -- bad input ----------------------------------------------------------------------------------------
 def test_unknown_algo_task_and_preset_keys(tmp_path):
     preset = load_preset("quick")
-    with pytest.raises(ValueError, match=r"algo must be one of \['comat', 'mat', 'mappo', 'qmix', 'ippo'\], got 'ppo'"):
+    with pytest.raises(
+        ValueError, match=r"algo must be one of \['comat', 'mat', 'mappo', 'qmix', 'ippo', 'cash'\], got 'ppo'"
+    ):
         resolve(preset, "ppo", "pcp")
     with pytest.raises(ValueError, match="task must be one of"):
         resolve(preset, "comat", "football")

@@ -17,7 +17,9 @@ from comat.rl.checkpoint import load_checkpoint
 from comat.rl.runner import train
 
 
-@pytest.mark.parametrize("algo, steps", [("comat", 12), ("mat", 12), ("mappo", 12), ("qmix", 320), ("ippo", 12)])
+@pytest.mark.parametrize(
+    "algo, steps", [("comat", 12), ("mat", 12), ("mappo", 12), ("qmix", 320), ("ippo", 12), ("cash", 12)]
+)
 def test_resume_continues_exactly(tmp_path, algo, steps):
     straight = train(tiny(algo, steps=steps), tmp_path / "straight", quiet=True)
     train(tiny(algo, steps=steps // 2), tmp_path / "split", quiet=True)

@@ -69,7 +69,7 @@ __all__ = [
 TASKS = task_names()
 """Task choices, in this order in every command (the registered tasks, :mod:`comat.tasks`)."""
 TIERS = ("wheels", "unicycle")
-ALGOS = ("comat", "mat", "mappo", "qmix", "ippo")
+ALGOS = ("comat", "mat", "mappo", "qmix", "ippo", "cash")
 REFERENCE_POLICIES = ("heuristic", "random", "constant")
 DEFAULT_SEED = 2_000_003
 """Default ``--seed`` of episodes a command plays (comat.eval.evaluate.EVAL_SEED)."""

@@ -166,6 +166,7 @@ def add_bench_parser(sub) -> None:
             "mappo",
             "qmix",
             "ippo",
+            "cash",
             "mat_20",
             "mappo_20",
             "qmix_20",

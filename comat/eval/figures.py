@@ -35,8 +35,15 @@ __all__ = [
     "save",
 ]
 
-ALGO_LABELS = {"ippo": "IPPO", "mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "comat": "COMAT"}
-ALGO_COLORS = {"comat": "#d62728", "mat": "#1f77b4", "mappo": "#2ca02c", "qmix": "#9467bd", "ippo": "#8c564b"}
+ALGO_LABELS = {"ippo": "IPPO", "mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "cash": "CASH", "comat": "COMAT"}
+ALGO_COLORS = {
+    "comat": "#d62728",
+    "mat": "#1f77b4",
+    "mappo": "#2ca02c",
+    "qmix": "#9467bd",
+    "ippo": "#8c564b",
+    "cash": "#ff7f0e",
+}
 """Colour of each algorithm, fixed (not by the order runs are given)."""
 SET_HATCHES = {"train": "", "val": "\\\\", "test": "//", "scale": "..", "size": "xx", "capability": "oo"}
 """Composition sets are told apart by hatching, never by colour (colour means algorithm)."""

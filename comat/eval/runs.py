@@ -38,7 +38,7 @@ __all__ = [
     "seed_means",
 ]
 
-ALGO_ORDER = ("ippo", "mappo", "qmix", "mat", "comat")
+ALGO_ORDER = ("ippo", "mappo", "qmix", "mat", "cash", "comat")
 SETS = COALITION_SETS
 """Composition sets in table order (``comat.team.COALITION_SETS``); only those present appear."""
 SET_NAMES = SET_LABELS

@@ -15,6 +15,7 @@ import torch
 
 from comat.config import SafetyConfig, SimConfig
 from comat.envs import make_vec_env
+from comat.models.cash import Cash
 from comat.models.comat import Comat
 from comat.models.features import ObsLayout
 from comat.models.ippo import Ippo
@@ -43,9 +44,9 @@ BASELINE_ROBOTS = 8
 
 def robot_slots(config) -> int | None:
     """Robot slots of the environments a run's policy plays in: None (as many as the team has) for
-    COMAT and IPPO (no part of either is sized by the team), the model config's ``max_robots`` for
+    COMAT, IPPO and CASH (no part of them is sized by the team), the model config's ``max_robots`` for
     the fixed-size baselines."""
-    return None if config.algo in ("comat", "ippo") else config.model.max_robots
+    return None if config.algo in ("comat", "ippo", "cash") else config.model.max_robots
 
 
 def env_slots(config) -> dict[str, int | None]:
@@ -81,6 +82,7 @@ ACTING_MODULES = {
     "mappo": ("policy",),
     "qmix": ("agents",),
     "ippo": ("policy",),
+    "cash": ("policy",),
 }
 """The modules deterministic acting needs, per algo: COMAT's and MAT's whole policy (their value
 heads share the encoder the actions are decoded from), MAPPO's policy without its critic, QMIX's
@@ -98,6 +100,8 @@ def build_modules(algo: str, dims: Dims, model_config, acting_only: bool = False
         return {"policy": Mappo(dims.layout, dims.state_dim, model_config, critic=not acting_only)}
     if algo == "ippo":
         return {"policy": Ippo(dims.layout, model_config, critic=not acting_only)}
+    if algo == "cash":
+        return {"policy": Cash(dims.layout, model_config, critic=not acting_only)}
     if algo == "qmix":
         agents = {"agents": QmixAgents(dims.layout, model_config)}
         return agents if acting_only else {**agents, "mixer": QmixMixer(dims.state_dim, model_config)}

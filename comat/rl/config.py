@@ -5,7 +5,8 @@ A preset holds values only, for every algorithm at once::
 
     total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
     checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
-    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}, ippo: {IppoConfig}},
+    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}, ippo: {IppoConfig},
+            cash: {CashConfig}},
     reality: off | nominal | stress | PROFILE.yaml | {RealityConfig fields}
 
 ``reality`` is the reality layer the run trains at (:mod:`comat.reality`; default ``off``): a
@@ -26,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from comat.config import LOOPS, load
+from comat.models.cash import CashConfig
 from comat.models.comat import ComatConfig
 from comat.models.ippo import IppoConfig
 from comat.models.mappo import MappoConfig
@@ -49,7 +51,7 @@ __all__ = [
     "run_reality",
 ]
 
-ALGOS = ("comat", "mat", "mappo", "qmix", "ippo")
+ALGOS = ("comat", "mat", "mappo", "qmix", "ippo", "cash")
 TASKS = tuple(sorted(task_names()))
 TIERS = ("wheels", "unicycle")
 PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
@@ -61,6 +63,7 @@ MODEL_CONFIGS = {
     "mappo": MappoConfig,
     "qmix": QmixNetConfig,
     "ippo": IppoConfig,
+    "cash": CashConfig,
 }
 _RUN_KEYS = (
     "total_env_steps",
@@ -93,7 +96,7 @@ class RunConfig:
     checkpoint_every_steps: int
     """Write the checkpoint every this many env steps (and at the end)."""
     trainer: PPOConfig | QmixConfig
-    model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig | IppoConfig
+    model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig | IppoConfig | CashConfig
     env_workers: int = 1
     """Processes stepping the environments (:class:`comat.envs.ShardedVectorEnv` when > 1).
     Part of the run's identity: results are exactly reproducible for the same value."""
