@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test test-slow test-all test-cluster test-wheel bench mjcf clean docs lint
+.PHONY: setup demo test test-slow test-learning test-all test-cluster test-wheel bench mjcf clean docs lint
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,7 +22,10 @@ test: $(STAMP)  ## the fast suite (about 8 minutes on 2 cores: 1,001 tests in 7 
 test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario and tier, fidelity spread
 	$(BIN)/python -m pytest -q -m slow
 
-test-all: test test-slow test-cluster
+test-learning: $(STAMP)  ## learning checks: each new learner trains ten PPO updates on PCP (about 1 minute)
+	$(BIN)/python -m pytest -q -m learning
+
+test-all: test test-slow test-cluster test-learning
 
 docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warnings and broken links fail)
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[docs]"

@@ -55,6 +55,7 @@ def test_each_robot_acts_and_is_valued_on_its_own_observation_with_its_types_par
     assert not torch.equal(net.critic(other, other[..., 4:6])[0, 0], net.critic(other, other[..., 4:6])[0, 1])
 
 
+@pytest.mark.learning
 @pytest.mark.parametrize("algo", ["ippo", "cash"])
 def test_the_new_learners_learn_pcp(algo, tmp_path):
     """The paper's PPO settings, ten updates (25,600 env steps, ~25 s each): the return rises from
