@@ -30,7 +30,7 @@ from torch import nn
 
 from comat.config import check_numbers
 from comat.models.features import ObsLayout
-from comat.models.layers import mlp
+from comat.models.layers import choose_actions, mlp, score_actions
 
 __all__ = ["Cash", "CashConfig"]
 
@@ -96,17 +96,9 @@ class Cash(nn.Module):
         """Actions (B, N), their log-probabilities (B, N) and values (B, N) — None for a module
         without a critic."""
         logits = self._logits(obs, mask)
-        if deterministic:
-            a = logits.argmax(-1)
-        else:
-            u = torch.rand(logits.shape, generator=generator).clamp_(1e-20, 1.0)
-            a = (logits - torch.log(-torch.log(u))).argmax(-1)
-        a = torch.where(mask, a, 0)
-        logp = torch.log_softmax(logits, -1).gather(-1, a[..., None])[..., 0] * mask
+        a, logp = choose_actions(logits, mask, deterministic, generator)
         return a, logp, None if self.critic is None else self.values(obs, mask)
 
     def evaluate_actions(self, obs, mask, actions, state=None):
-        logp_all = torch.log_softmax(self._logits(obs, mask), -1)
-        logp = logp_all.gather(-1, actions[..., None])[..., 0]
-        entropy = -(logp_all.exp() * logp_all).sum(-1)
-        return logp * mask, entropy * mask, self.values(obs, mask)
+        logp, entropy = score_actions(self._logits(obs, mask), actions, mask)
+        return logp, entropy, self.values(obs, mask)

@@ -14,7 +14,7 @@ from torch import nn
 
 from comat.models.comat_schema import DecisionMode, decision_shapes
 
-__all__ = ["Attention", "KVCache", "TypeHeads", "causal", "init_linear", "mlp"]
+__all__ = ["Attention", "KVCache", "TypeHeads", "causal", "choose_actions", "init_linear", "mlp", "score_actions"]
 
 
 def init_linear(layer: nn.Linear, gain: float = 1.0) -> nn.Linear:
@@ -209,3 +209,27 @@ class TypeHeads(nn.Module):
     def finish(self, h: torch.Tensor, part: torch.Tensor, type_onehot: torch.Tensor) -> torch.Tensor:
         """``forward([h ‖ c], type_onehot)`` from h (..., D_h) and ``part = partial(c)``."""
         return self._second(F.relu(F.linear(h, self.first.weight[:, : h.shape[-1]]) + part), type_onehot)
+
+
+def choose_actions(
+    logits: torch.Tensor, mask: torch.Tensor, deterministic: bool, generator: torch.Generator | None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Actions (B, N) from per-robot logits (B, N, A) — the argmax, or a Gumbel-max sample (an exact
+    sample of softmax(logits)) — 0 in padded slots, and their log-probabilities (B, N), 0 there too.
+    The per-robot policies (MAPPO's, IPPO's and CASH's actors) all act this way."""
+    if deterministic:
+        a = logits.argmax(-1)
+    else:
+        u = torch.rand(logits.shape, generator=generator).clamp_(1e-20, 1.0)
+        a = (logits - torch.log(-torch.log(u))).argmax(-1)
+    a = torch.where(mask, a, 0)
+    return a, torch.log_softmax(logits, -1).gather(-1, a[..., None])[..., 0] * mask
+
+
+def score_actions(logits: torch.Tensor, actions: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Log-probabilities and entropies (B, N) of given actions under per-robot logits (B, N, A),
+    0 in padded slots (PPO's update for the per-robot policies)."""
+    logp_all = torch.log_softmax(logits, -1)
+    logp = logp_all.gather(-1, actions[..., None])[..., 0]
+    entropy = -(logp_all.exp() * logp_all).sum(-1)
+    return logp * mask, entropy * mask

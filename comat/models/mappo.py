@@ -20,7 +20,7 @@ from torch import nn
 
 from comat.config import check_numbers
 from comat.models.features import ObsLayout
-from comat.models.layers import TypeHeads, mlp
+from comat.models.layers import TypeHeads, choose_actions, mlp, score_actions
 
 __all__ = ["Mappo", "MappoConfig"]
 
@@ -71,18 +71,10 @@ class Mappo(nn.Module):
         where acting alone is asked for: a module without a critic, or deterministic actions
         without a state (the actions depend on the actors only)."""
         logits = self._logits(obs)
-        if deterministic:
-            a = logits.argmax(-1)
-        else:
-            u = torch.rand(logits.shape, generator=generator).clamp_(1e-20, 1.0)
-            a = (logits - torch.log(-torch.log(u))).argmax(-1)
-        a = torch.where(mask, a, 0)
-        logp = torch.log_softmax(logits, -1).gather(-1, a[..., None])[..., 0] * mask
+        a, logp = choose_actions(logits, mask, deterministic, generator)
         acting_only = self.critic is None or (state is None and deterministic)
         return a, logp, None if acting_only else self.values(obs, mask, state)
 
     def evaluate_actions(self, obs, mask, actions, state=None):
-        logp_all = torch.log_softmax(self._logits(obs), -1)
-        logp = logp_all.gather(-1, actions[..., None])[..., 0]
-        entropy = -(logp_all.exp() * logp_all).sum(-1)
-        return logp * mask, entropy * mask, self.values(obs, mask, state)
+        logp, entropy = score_actions(self._logits(obs), actions, mask)
+        return logp, entropy, self.values(obs, mask, state)
