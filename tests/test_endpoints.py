@@ -14,7 +14,8 @@ from comat.envs.diagnostics import ROBOT_COUNTS, STILL_FRACTION
 from comat.envs.heuristics import heuristic_actions
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import curve_endpoints
-from comat.task_logic import HMT, PCP
+from comat.tasks.hmt import HMT
+from comat.tasks.pcp import PCP
 from comat.team import RobotSpec, TeamSpec, generate_coalitions
 
 

@@ -6,7 +6,7 @@ from pettingzoo.test import parallel_api_test
 
 import comat
 from comat.envs import PcpEnv, make_env
-from comat.task_logic import MaterialTransport
+from comat.tasks.hmt import MaterialTransport
 from comat.team import RobotSpec, TeamSpec, generate_coalitions, random_team
 
 TASKS = ["pcp", "hmt"]
@@ -202,7 +202,8 @@ def test_the_largest_team_each_task_takes_is_said_as_a_limit():
     """PCP's prey grow with the team (K(N) = round(1.2 N) above 8 robots): 37 robots take 44 prey of
     the 45 that fit the prey area, 38 would take 46. The message says the limit, why, and the way out
     (n_prey), and n_prey lifts the limit to the spawn area's."""
-    from comat.task_logic import MaterialTransport, PredatorCapturePrey
+    from comat.tasks.hmt import MaterialTransport
+    from comat.tasks.pcp import PredatorCapturePrey
 
     assert PredatorCapturePrey().max_team_size() == 37 and MaterialTransport().max_team_size() == 60
     assert PredatorCapturePrey().prey_capacity() == 45 and PredatorCapturePrey(n_prey=6).max_team_size() == 60

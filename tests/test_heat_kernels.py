@@ -16,7 +16,8 @@ from comat.models.autoregressive import size_buckets
 from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout
 from comat.models.heat_kernels import edge_stage
-from comat.task_logic import HMT, PCP
+from comat.tasks.hmt import HMT
+from comat.tasks.pcp import PCP
 
 
 def reference_block(block, x, types, edge_attr, edge_type, edge_mask):

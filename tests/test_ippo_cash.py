@@ -22,7 +22,7 @@ from comat.models.ippo import Ippo, IppoConfig
 from comat.rl.algos import robot_slots
 from comat.rl.config import load_preset, resolve
 from comat.rl.runner import train
-from comat.task_logic import HMT
+from comat.tasks.hmt import HMT
 
 
 def _obs(layout: ObsLayout, types: list[int], seed: int = 0) -> torch.Tensor:

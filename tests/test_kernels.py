@@ -21,7 +21,8 @@ from comat.sim.binding import Binding
 from comat.sim.kinematics import limit_to_wheels, si_to_uni, threshold_wheels
 from comat.sim.layout import team_layout
 from comat.sim.violations import Violations, check_tick
-from comat.task_logic import HMT, PCP
+from comat.tasks.hmt import HMT
+from comat.tasks.pcp import PCP
 
 
 def _both(fn):

@@ -15,7 +15,8 @@ from comat.models.features import ObsLayout, edge_features
 from comat.models.mappo import Mappo
 from comat.models.mat import Mat, MatConfig
 from comat.models.qmix import QmixAgents, QmixMixer
-from comat.task_logic import MaterialTransport, PredatorCapturePrey
+from comat.tasks.hmt import MaterialTransport
+from comat.tasks.pcp import PredatorCapturePrey
 
 LAYOUT = ObsLayout.for_task(PredatorCapturePrey())
 

@@ -9,7 +9,7 @@ import comat
 from comat.envs import make_env
 from comat.envs.heuristics import heuristic_actions
 from comat.measure.metrics import RETIRED_NAMES
-from comat.task_logic import PCP
+from comat.tasks.pcp import PCP
 from comat.team import generate_coalitions, random_team
 
 OLD_METRICS = (

@@ -12,7 +12,8 @@ import torch
 from comat import make_vec_env
 from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout
-from comat.task_logic import MaterialTransport, PredatorCapturePrey
+from comat.tasks.hmt import MaterialTransport
+from comat.tasks.pcp import PredatorCapturePrey
 from comat.team import random_team
 from sim2real import runtime
 from sim2real.runtime import ComatRuntime, load_weights, pack_weights, save_weights, unpack_weights

@@ -67,10 +67,10 @@ def test_comat_tasks_lists_every_task_with_its_types_and_capabilities(capsys):
 
 
 def test_every_registered_task_has_its_env_logic_and_types():
-    from comat.envs.registry import ENV_IDS, _env_class
+    from comat.envs.registry import _env_class, env_ids
     from comat.tasks import TASKS, task_entry
 
-    assert sorted(ENV_IDS) == sorted(e.env_id for e in TASKS.values())
+    assert sorted(env_ids()) == sorted(e.env_id for e in TASKS.values())
     for entry in TASKS.values():
         assert _env_class(entry.env_id).task_cls is entry.logic and entry.types is TASK_TYPES[entry.name]
     with pytest.raises(ValueError, match="task must be one of"):

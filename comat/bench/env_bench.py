@@ -22,8 +22,9 @@ from comat.bench.sim_bench import bench_rps, finish, rps_available
 from comat.envs import make_vec_env
 from comat.envs.heuristics import random_actions
 from comat.envs.sharded import shard_slices
-from comat.task_logic import HMT, PCP
 from comat.tasks import task_names
+from comat.tasks.hmt import HMT
+from comat.tasks.pcp import PCP
 from comat.team import random_team
 
 __all__ = ["EnvBenchRow", "bench_env", "bench_rollout_split", "run_env_bench", "run_rollout_bench"]

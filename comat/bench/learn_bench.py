@@ -31,8 +31,8 @@ from comat.models.features import ObsLayout
 from comat.models.mat import Mat, MatConfig
 from comat.rl.algos import Dims, make_learner, make_run_env
 from comat.rl.config import load_preset, resolve
-from comat.task_logic import PCP
 from comat.tasks import task_names
+from comat.tasks.pcp import PCP
 
 __all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "run_learn_bench"]
 

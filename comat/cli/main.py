@@ -79,10 +79,10 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
 
 
 def _cmd_tasks(args: argparse.Namespace) -> int:
-    from comat.envs.registry import ENV_IDS, make_task
+    from comat.envs.registry import env_ids, make_task
     from comat.team import CAPABILITY_RANGES, SIZES, TASK_TYPES
 
-    for env_id in ENV_IDS:
+    for env_id in env_ids():
         task, _ = make_task(env_id, {})
         kinds = TASK_TYPES[task.name]
         print(

@@ -1,4 +1,5 @@
-"""Robotarium tasks as PettingZoo parallel environments (``pcp_v0``, ``hmt_v0``) and a vector env.
+"""Robotarium tasks as PettingZoo parallel environments (``pcp_v0``, ``hmt_v0`` and every task
+:mod:`comat.tasks` registers) and a vector env.
 
 ``make_env(env_id, **options)`` and ``make_vec_env(env_id, num_envs, **options)`` check the
 options and name any unknown one together with the valid ones; the options every env API shares
@@ -10,24 +11,26 @@ from __future__ import annotations
 from typing import Any
 
 from comat.envs.base import TaskEnv
-from comat.envs.hmt import HmtEnv
 from comat.envs.options import EnvOptions
-from comat.envs.pcp import PcpEnv
-from comat.envs.registry import ENV_IDS, make_env, make_local_vec_env
+from comat.envs.registry import env_class, env_ids, make_env, make_local_vec_env
 from comat.envs.sharded import ShardedVectorEnv
 from comat.envs.vector import VectorEnv
 
 __all__ = [
-    "ENV_IDS",
     "EnvOptions",
     "HmtEnv",
     "PcpEnv",
     "ShardedVectorEnv",
     "TaskEnv",
     "VectorEnv",
+    "env_class",
+    "env_ids",
     "make_env",
     "make_vec_env",
 ]
+
+PcpEnv = env_class("pcp_v0")
+HmtEnv = env_class("hmt_v0")
 
 
 def make_vec_env(env_id: str, num_envs: int, workers: int = 1, **options: Any) -> VectorEnv | ShardedVectorEnv:

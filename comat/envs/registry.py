@@ -1,7 +1,10 @@
-"""The registered environments and their options: ``env_id`` -> env class, options checked by name.
+"""The environments of the registered tasks (:mod:`comat.tasks`) and their options: ``env_id`` ->
+env class, options checked by name.
 
-:func:`comat.envs.make_env` and :func:`comat.envs.make_vec_env` are the public faces; a sharded
-vector env's workers build their share with :func:`make_local_vec_env`.
+Every registered task gets its PettingZoo env class here, made from its entry (no task has code of
+its own in :mod:`comat.envs`): :func:`env_class`. :func:`comat.envs.make_env` and
+:func:`comat.envs.make_vec_env` are the public faces; a sharded vector env's workers build their
+share with :func:`make_local_vec_env`.
 """
 
 from __future__ import annotations
@@ -10,21 +13,47 @@ import inspect
 from typing import Any
 
 from comat.envs.base import TaskEnv
-from comat.envs.hmt import HmtEnv
 from comat.envs.options import EnvOptions
-from comat.envs.pcp import PcpEnv
 from comat.envs.vector import VectorEnv
+from comat.tasks import TASKS, TaskEntry
 
-__all__ = ["ENV_IDS", "check_options", "make_env", "make_local_vec_env", "make_task"]
+__all__ = ["check_options", "env_class", "env_ids", "make_env", "make_local_vec_env", "make_task"]
 
-_ENVS: dict[str, type[TaskEnv]] = {"hmt_v0": HmtEnv, "pcp_v0": PcpEnv}
-ENV_IDS = tuple(sorted(_ENVS))
+_CLASSES: dict[str, type[TaskEnv]] = {}
 
 
-def _env_class(env_id: str) -> type[TaskEnv]:
-    if env_id not in _ENVS:
-        raise ValueError(f"env_id must be one of {ENV_IDS}, got {env_id!r}")
-    return _ENVS[env_id]
+def env_ids() -> tuple[str, ...]:
+    """The env ids of the registered tasks, sorted."""
+    return tuple(sorted(e.env_id for e in TASKS.values()))
+
+
+def _new_class(entry: TaskEntry) -> type[TaskEnv]:
+    name = "".join(part.capitalize() for part in entry.name.split("_")) + "Env"
+    cls = type(
+        name,
+        (TaskEnv,),
+        {
+            "__doc__": f"{entry.title} as a PettingZoo parallel env; spec sheet: :mod:`{entry.logic.__module__}`.",
+            "__module__": __name__,
+            "metadata": {"name": entry.env_id, "render_modes": ["rgb_array"], "is_parallelizable": True},
+            "task_cls": entry.logic,
+        },
+    )
+    globals()[name] = cls  # found by name, as pickle and copy look classes up
+    return cls
+
+
+def env_class(env_id: str) -> type[TaskEnv]:
+    """The PettingZoo env class of a registered task's ``env_id`` (made once, on first use)."""
+    if env_id not in _CLASSES:
+        entry = next((e for e in TASKS.values() if e.env_id == env_id), None)
+        if entry is None:
+            raise ValueError(f"env_id must be one of {env_ids()}, got {env_id!r}")
+        _CLASSES[env_id] = _new_class(entry)
+    return _CLASSES[env_id]
+
+
+_env_class = env_class
 
 
 def check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] = (), vector: bool = False) -> None:

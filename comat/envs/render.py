@@ -9,13 +9,13 @@ One drawing serves ``env.render()`` (``render_mode="rgb_array"``) and ``comat ro
   current state as an (H, W, 3) uint8 array, H × W = :data:`FRAME_SIZE`.
 * :func:`draw_frame` draws a :class:`FrameState` (plain arrays, no env needed).
 
-What a frame shows (arena metres, x right, y up): the arena and its walls; PCP's spawn and
-prey areas and each prey coloured free / sensed / captured; HMT's two material zones and the
-drop-off with what is left and delivered; every robot as a disc of its body radius coloured by
-type, with its heading; its capability — PCP: the sensing or capture radius as a circle; HMT:
-the step length as a dashed circle and the payload as a bar filled to its load; its trail; a red
-ring and the nominal (grey) → filtered (red) velocity arrow where the barrier filter changed its
-command in the last step; a red cross where a contact, collision or boundary exit happened.
+What a frame shows (arena metres, x right, y up): the arena and its walls; the task's marks
+(:meth:`comat.task_logic.TaskLogic.marks`: its areas with their labels, its items coloured by
+state — PCP's prey free / sensed / captured —, each robot's capability rings and bar — PCP's
+sensing or capture radius, HMT's step length and payload filled to its load); every robot as a
+disc of its body radius coloured by type, with its heading; its trail; a red ring and the nominal
+(grey) → filtered (red) velocity arrow where the barrier filter changed its command in the last
+step; a red cross where a contact, collision or boundary exit happened.
 """
 
 from __future__ import annotations
@@ -26,7 +26,9 @@ import numpy as np
 
 from comat import constants as C
 from comat.envs.tap import TickTap
-from comat.task_logic import ZONE1_CENTRE, ZONE1_RADIUS, ZONE2_X
+from comat.task_logic import BAR_FILL, BAR_HEIGHT_M, BAR_OFFSET_M, Marks
+from comat.tasks import TASKS
+from comat.tasks.pcp import PREY_COLORS as _PREY_RGB
 
 __all__ = [
     "FRAME_SIZE",
@@ -43,23 +45,19 @@ FRAME_SIZE = (448, 640)
 _DPI = 100
 _HEADER_PX = 48
 
-TYPE_COLORS: dict[str, tuple[int, int, int]] = {
-    "sensing": (66, 133, 244),
-    "capture": (219, 68, 55),
-    "fast": (15, 157, 88),
-    "slow": (142, 68, 173),
-}
-"""Robot colour by type (RGB), in frames and in Rerun recordings."""
+TYPE_COLORS: dict[str, tuple[int, int, int]] = {k: v for e in TASKS.values() for k, v in e.logic.type_colors.items()}
+"""Robot colour by type (RGB) of the tasks registered when this module loaded; frames and
+recordings read each task's own ``type_colors``."""
+GREY = (200, 200, 200)
+"""Colour of a robot type a task gives none."""
 
-PREY_COLORS = np.array([[150, 150, 150, 255], [244, 180, 0, 255], [15, 157, 88, 255]], dtype=np.uint8)
-"""Prey colour by state (RGBA): free, sensed, captured."""
+PREY_COLORS = np.array([[*c, 255] for c in _PREY_RGB], dtype=np.uint8)
+"""PCP's prey colour by state (RGBA): free, sensed, captured."""
 
 TRAIL_POINTS_PER_STEP = 4
 """Path points kept per robot and env step for the trails (evenly spaced ticks, the last always)."""
 SAFETY_ARROW_S = 0.6
 """Velocity arrows show where the point would be after this long (0.2 m/s → 0.12 m)."""
-_LOAD_BAR_M_PER_UNIT = 0.006
-_LOAD_BAR_OFFSET_M = 0.1
 
 
 def _rgb(color: tuple[int, ...]) -> tuple[float, ...]:
@@ -71,19 +69,18 @@ class FrameState:
     """What one frame draws; arrays are row-per-robot, n robots, K prey.
 
     Attributes:
-        task: "pcp" or "hmt".
+        task: the task's name (the header).
         poses: (n, 3) x, y (m), heading (rad).
         types: n robot type names.
-        caps: (n, 2) capabilities (PCP: sensing, capture radius m; HMT: step m, payload).
+        caps: (n, C) capabilities.
         robot_radius_m: body radius.
         trails: (n, P, 2) path so far (P >= 1).
         intervened: (n,) the filter changed the robot's command in the last step.
         origin, nominal, filtered: (n, 2) projected point and its nominal / filtered velocity
             (m/s) at the tick of the largest change (rows where ``intervened``).
         events: (n,) a contact, collision or boundary exit in the last step; ``event_xy`` (n, 2).
-        task_state: PCP ``prey`` (K, 2), ``sensed``, ``captured`` (K,); HMT ``left``,
-            ``initial`` (2,), ``load`` (n,), ``delivered`` ().
-        spawn_box, prey_box: PCP areas (x0, x1, y0, y1).
+        marks: what the task draws now (areas, items, rings, bar, status; :class:`Marks`).
+        type_colors: robot colour per type (RGB).
         step, horizon, ret: env steps so far, the horizon, return so far.
         title: first header line (e.g. the policy).
         measured, faulty: the reality layer's measured poses (a dashed ghost and an error line
@@ -102,9 +99,8 @@ class FrameState:
     filtered: np.ndarray
     events: np.ndarray
     event_xy: np.ndarray
-    task_state: dict[str, np.ndarray]
-    spawn_box: tuple[float, float, float, float] | None = None
-    prey_box: tuple[float, float, float, float] | None = None
+    marks: Marks
+    type_colors: dict[str, tuple[int, int, int]]
     step: int = 0
     horizon: int = 0
     ret: float = 0.0
@@ -138,10 +134,7 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
     ax.set_aspect("auto")
     ax.set_axis_off()
     _draw_arena(ax)
-    if state.task == "pcp":
-        _draw_pcp(ax, state)
-    else:
-        _draw_hmt(ax, state)
+    _draw_task(ax, state.marks)
     _draw_robots(ax, state)
     _draw_reality(ax, state)
     _draw_safety(ax, state)
@@ -156,8 +149,8 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
 
 def _draw_legend(ax, s: FrameState) -> None:
     """What the marks mean, in a strip along the arena's bottom wall: the robot types present, then
-    the task's marks (PCP prey states and radii; HMT load bars and step rings), the filter's ring and,
-    under the reality layer, the measured-pose ghost."""
+    the task's marks (item states, capability rings, the bar), the filter's ring and, under the
+    reality layer, the measured-pose ghost."""
     from matplotlib.lines import Line2D
 
     def dot(color, label, marker="o", size=7, fill=True, ls="none"):
@@ -173,18 +166,13 @@ def _draw_legend(ax, s: FrameState) -> None:
             label=label,
         )
 
-    items = [dot(_rgb(TYPE_COLORS.get(kind, (200, 200, 200))), kind) for kind in dict.fromkeys(s.types)]
-    if s.task == "pcp":
-        items += [
-            dot(PREY_COLORS[k, :3] / 255, f"prey {name}", size=5)
-            for k, name in enumerate(("free", "sensed", "captured"))
-        ]
-        items.append(dot((0.4, 0.4, 0.4), "shaded disk: sensing / capture radius", size=9, fill=False))
-    else:
-        items += [
-            dot("#e6aa14", "bar: load / payload", marker="s", size=6),
-            dot((0.4, 0.4, 0.4), "dotted ring: step length", size=9, fill=False),
-        ]
+    m = s.marks
+    items = [dot(_rgb(s.type_colors.get(kind, GREY)), kind) for kind in dict.fromkeys(s.types)]
+    if m.items is not None:
+        items += [dot(_rgb(c), f"{m.items.name} {name}", size=5) for name, c in zip(m.items.states, m.items.colors)]
+    items += [dot(_rgb(r.color), r.label, size=9, fill=False) for r in m.rings]
+    if m.bar is not None:
+        items.append(dot(_rgb(BAR_FILL), m.bar.label, marker="s", size=6))
     items.append(dot("red", "red ring: filter changed the command", size=9, fill=False))
     if s.measured is not None:
         items.append(Line2D([], [], color="#404040", ls="--", label="dashed: measured pose"))
@@ -203,17 +191,7 @@ def _draw_legend(ax, s: FrameState) -> None:
 
 def _status_line(s: FrameState) -> str:
     head = f"{s.task.upper()} step {s.step}/{s.horizon} · return {s.ret:.2f} · "
-    if s.task == "pcp":
-        st = s.task_state
-        k = len(st["sensed"])
-        body = f"prey sensed {int(st['sensed'].sum())}/{k}, captured {int(st['captured'].sum())}/{k}"
-    else:
-        st = s.task_state
-        body = (
-            f"left {st['left'][0]:.1f} + {st['left'][1]:.1f}, carried {float(st['load'].sum()):.1f}, "
-            f"delivered {float(st['delivered']):.1f}"
-        )
-    return head + body + f" · filtered {int(s.intervened.sum())}"
+    return head + s.marks.status + f" · filtered {int(s.intervened.sum())}"
 
 
 def reality_view(core, b: int, n: int) -> dict[str, np.ndarray | None]:
@@ -239,69 +217,62 @@ def _draw_arena(ax) -> None:
         ax.add_patch(Rectangle((x, y), w, h, facecolor="#9a9a9a", edgecolor="none"))
 
 
-def _box(ax, box, color, label: str) -> None:
-    from matplotlib.patches import Rectangle
-
-    x0, x1, y0, y1 = box
-    ax.add_patch(
-        Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(*color, 0.12), edgecolor=(*color, 0.7), lw=0.8, ls="--")
-    )
-    ax.text(x0 + 0.02, y1 - 0.02, label, ha="left", va="top", fontsize=7, color=color)
-
-
-def _draw_pcp(ax, s: FrameState) -> None:
-    from matplotlib.patches import Circle
-
-    if s.spawn_box:
-        _box(ax, s.spawn_box, (0.45, 0.45, 0.45), "robot spawn")
-    if s.prey_box:
-        _box(ax, s.prey_box, (0.2, 0.6, 0.2), "prey area")
-    st = s.task_state
-    kind = np.where(st["captured"], 2, np.where(st["sensed"], 1, 0))
-    for (x, y), k in zip(st["prey"], kind):
-        ax.add_patch(Circle((x, y), 0.035, facecolor=PREY_COLORS[k, :3] / 255, edgecolor="k", lw=0.5, zorder=3))
-
-
-def _draw_hmt(ax, s: FrameState) -> None:
+def _draw_task(ax, m: Marks) -> None:
+    """The task's areas (dashed boxes, circles) with their labels, then its items by state."""
     from matplotlib.patches import Circle, Rectangle
 
-    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
-    st = s.task_state
-    amber, green = (0.9, 0.67, 0.08), (0.2, 0.67, 0.31)
-    ax.add_patch(Circle(ZONE1_CENTRE, ZONE1_RADIUS, facecolor=(*amber, 0.15), edgecolor=amber, lw=1.0))
-    ax.add_patch(Rectangle((ZONE2_X, Y0), X1 - ZONE2_X, Y1 - Y0, facecolor=(*amber, 0.15), edgecolor=amber, lw=1.0))
-    ax.add_patch(Rectangle((X0, Y0), -ZONE2_X - X0, Y1 - Y0, facecolor=(*green, 0.15), edgecolor=green, lw=1.0))
-    kw = {"fontsize": 7, "ha": "center", "va": "top"}
-    ax.text(
-        ZONE1_CENTRE[0],
-        ZONE1_CENTRE[1] - ZONE1_RADIUS - 0.02,
-        f"zone 1: {st['left'][0]:.1f} of {st['initial'][0]:.1f}",
-        color=amber,
-        **kw,
-    )
-    ax.text((ZONE2_X + X1) / 2, Y1 - 0.02, f"zone 2: {st['left'][1]:.1f} of {st['initial'][1]:.1f}", color=amber, **kw)
-    ax.text((X0 - ZONE2_X) / 2, Y1 - 0.02, f"drop-off: {float(st['delivered']):.1f}", color=green, **kw)
+    for area in m.areas:
+        color = _rgb(area.color)
+        label = m.area_labels.get(area.name, area.label)
+        if area.shape == "circle":
+            cx, cy, r = area.geometry
+            ax.add_patch(Circle((cx, cy), r, facecolor=(*color, 0.15), edgecolor=color, lw=1.0))
+            ax.text(cx, cy - r - 0.02, label, ha="center", va="top", fontsize=7, color=color)
+            continue
+        x0, x1, y0, y1 = area.geometry
+        ax.add_patch(
+            Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=(*color, 0.12), edgecolor=(*color, 0.7), lw=0.8, ls="--")
+        )
+        ax.text((x0 + x1) / 2, y1 - 0.02, label, ha="center", va="top", fontsize=7, color=color)
+    it = m.items
+    if it is None:
+        return
+    for k, ((x, y), status) in enumerate(zip(it.xy, it.status)):
+        ax.add_patch(Circle((x, y), it.radius_m, facecolor=_rgb(it.colors[status]), edgecolor="k", lw=0.5, zorder=3))
+        if it.labels is not None:
+            ax.text(x, y, it.labels[k], ha="center", va="center", fontsize=6, zorder=4)
 
 
 def _draw_robots(ax, s: FrameState) -> None:
     from matplotlib.patches import Circle, Rectangle
 
+    m = s.marks
     for i, (pose, kind) in enumerate(zip(s.poses, s.types)):
-        color = _rgb(TYPE_COLORS.get(kind, (200, 200, 200)))
+        color = _rgb(s.type_colors.get(kind, GREY))
         trail = s.trails[i]
         ax.plot(trail[:, 0], trail[:, 1], color=color, alpha=0.45, lw=1.0, zorder=2)
         x, y, th = pose
-        if s.task == "pcp":
-            r = s.caps[i].max()  # a PCP robot has one non-zero radius: sensing or capture
-            ax.add_patch(Circle((x, y), r, facecolor=(*color, 0.10), edgecolor=(*color, 0.6), lw=0.8, zorder=2))
-        else:
-            step, payload = s.caps[i]
-            ax.add_patch(Circle((x, y), step, fill=False, edgecolor=(*color, 0.5), lw=0.7, ls=":", zorder=2))
-            width = payload * _LOAD_BAR_M_PER_UNIT
-            bx, by = x - width / 2, y + _LOAD_BAR_OFFSET_M
-            fill = width * float(s.task_state["load"][i]) / max(payload, 1e-9)
-            ax.add_patch(Rectangle((bx, by), width, 0.025, facecolor="white", edgecolor="#505050", lw=0.6, zorder=4))
-            ax.add_patch(Rectangle((bx, by), fill, 0.025, facecolor="#e6aa14", edgecolor="none", zorder=4))
+        for ring in m.rings:
+            if not ring.members[i]:
+                continue
+            if ring.dotted:
+                ax.add_patch(
+                    Circle((x, y), ring.radius_m[i], fill=False, edgecolor=(*color, 0.5), lw=0.7, ls=":", zorder=2)
+                )
+            else:
+                ax.add_patch(
+                    Circle(
+                        (x, y), ring.radius_m[i], facecolor=(*color, 0.10), edgecolor=(*color, 0.6), lw=0.8, zorder=2
+                    )
+                )
+        if m.bar is not None:
+            width = float(m.bar.width_m[i])
+            bx, by = x - width / 2, y + BAR_OFFSET_M
+            fill = width * float(np.clip(m.bar.fraction[i], 0.0, 1.0))
+            ax.add_patch(
+                Rectangle((bx, by), width, BAR_HEIGHT_M, facecolor="white", edgecolor="#505050", lw=0.6, zorder=4)
+            )
+            ax.add_patch(Rectangle((bx, by), fill, BAR_HEIGHT_M, facecolor=_rgb(BAR_FILL), edgecolor="none", zorder=4))
         ax.add_patch(Circle((x, y), s.robot_radius_m, facecolor=color, edgecolor="k", lw=0.6, zorder=5))
         ax.plot([x, x + 0.08 * np.cos(th)], [y, y + 0.08 * np.sin(th)], color="k", lw=1.2, zorder=6)
         ax.text(x, y, str(i), ha="center", va="center", fontsize=7.5, fontweight="bold", color="white", zorder=7)
@@ -388,16 +359,6 @@ class EpisodeFrames:
         last = self._last
         zeros2, none = np.zeros((n, 2)), np.zeros(n, dtype=bool)
         task = core.task
-        if task.name == "pcp":
-            on = core.state["active"][b]  # padded prey slots of a smaller team are not drawn
-            st = {k: core.state[k][b][on].copy() for k in ("prey", "sensed", "captured")}
-        else:
-            st = {
-                "left": core.state["left"][b].copy(),
-                "initial": core.state["initial"][b].copy(),
-                "load": core.state["load"][b, :n].copy(),
-                "delivered": np.array(core.state["delivered"][b]),
-            }
         state = FrameState(
             task=task.name,
             poses=core.poses()[b, :n].copy(),
@@ -411,9 +372,8 @@ class EpisodeFrames:
             filtered=zeros2 if last is None else last.filtered,
             events=none if last is None else last.events[:, [0, 1, 2]].any(axis=1),
             event_xy=zeros2 if last is None else last.event_xy,
-            task_state=st,
-            spawn_box=getattr(task, "spawn_box", None) if task.name == "pcp" else None,
-            prey_box=getattr(task, "prey_box", None),
+            marks=task.marks(core.state, b, core.caps[b, :n], core.type_ids[b, :n]),
+            type_colors=task.type_colors,
             step=int(core.steps[b]),
             horizon=int(task.horizon),
             ret=self._return,

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from comat.task_logic import HMT, PCP
+from comat.tasks.hmt import HMT
+from comat.tasks.pcp import PCP
 from comat.team import TASK_TYPES, TaskTypes
 
 __all__ = ["TASKS", "TaskEntry", "register_task", "task_entry", "task_names"]

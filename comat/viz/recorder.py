@@ -33,15 +33,8 @@ from comat import constants as C
 from comat.envs.render import reality_view
 from comat.envs.tap import EVENT_KINDS, StepSummary, TickTap
 from comat.sim.kinematics import projected_points
-from comat.task_logic import waypoint_goals
-from comat.viz.scene import (
-    LOAD_BAR_M_PER_UNIT,
-    LOAD_BAR_OFFSET_M,
-    PREY_COLORS,
-    episode_path,
-    log_static_scene,
-    meta_markdown,
-)
+from comat.task_logic import BAR_OFFSET_M, waypoint_goals
+from comat.viz.scene import episode_path, log_static_scene, meta_markdown
 
 __all__ = [
     "CAPABILITY_RING_SEGMENTS",
@@ -55,7 +48,7 @@ __all__ = [
 TRAIL_POINTS_PER_STEP = 8
 """Path points kept per robot and env step (evenly spaced ticks, the last one always)."""
 CAPABILITY_RING_SEGMENTS = 24
-"""Segments of a PCP robot's sensing / capture circle (an outline per robot and step)."""
+"""Segments of a capability ring (PCP's sensing / capture radius; an outline per robot and step)."""
 HEADING_ARROW_M = 0.09
 """Length of the heading arrows."""
 SAFETY_ARROW_S = 0.6
@@ -122,8 +115,6 @@ class EpisodeRecorder:
         team = core.teams[b]
         if team is None:
             raise ValueError(f"environment {b} has no team yet; reset it before begin()")
-        if core.task.name not in _TASKS:
-            raise ValueError(f"task must be one of {sorted(_TASKS)} to be recorded, got {core.task.name!r}")
         self._core, self._b, self._n = core, b, team.size
         # This episode's team, kept: by end() an autoresetting env may hold the next one's.
         self._team, self._caps = team, core.caps[b, : team.size].copy()
@@ -141,7 +132,7 @@ class EpisodeRecorder:
         log_static_scene(self.recording, self._prefix, core, b)
         self._poses = [core.poses()[b, : self._n].copy()]
         self._reality = [reality_view(core, b, self._n)] if core.safe.reality is not None else None
-        self._task = [_TASKS[core.task.name][0](core, b, self._n)]
+        self._task = [_snapshot(core, b, self._n)]
         self._actions: list[np.ndarray] = []
         self._action_origin: list[np.ndarray] = []
         self._action_vec: list[np.ndarray] = []
@@ -168,7 +159,7 @@ class EpisodeRecorder:
         self._poses.append(core.poses()[b, :n].copy())
         if self._reality is not None:
             self._reality.append(reality_view(core, b, n))
-        self._task.append(_TASKS[core.task.name][0](core, b, n))
+        self._task.append(_snapshot(core, b, n))
         self._rewards.append(float(reward))
         for name in self._terms:
             self._terms[name].append(float(terms[name]))
@@ -232,7 +223,7 @@ class EpisodeRecorder:
             self._send_reality(w, states, poses, every)
         if T:
             self._send_steps(after, chosen, poses)
-        _TASKS[core.task.name][1](rec, p, core, self._b, self._task, states, poses)
+        _send_task(rec, p, core, self._b, self._task, states, poses)
         if T:
             rewards = np.asarray(self._rewards)
             _series(rec, f"{p}/reward/total", after, {"reward": rewards, "return": np.cumsum(rewards)})
@@ -357,79 +348,60 @@ def _series(rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], seri
     )
 
 
-# -- task state: per task, a snapshot after every step and how the episode's snapshots are sent --
-def _pcp_snapshot(core, b: int, n: int) -> dict[str, np.ndarray]:
-    on = core.state["active"][b]  # as scene.py logged them: a smaller team's padded prey slots left out
-    return {"sensed": core.state["sensed"][b][on].copy(), "captured": core.state["captured"][b][on].copy()}
+# -- the task's marks (comat.task_logic.Marks): a snapshot after every step, sent per episode --
+def _snapshot(core, b: int, n: int):
+    """What env ``b``'s task draws now (its items, area labels, counters, bar are copies)."""
+    return core.task.marks(core.state, b, core.caps[b, :n], core.type_ids[b, :n])
 
 
-def _send_pcp(rec, p: str, core, b: int, snaps: list[dict], states, poses: np.ndarray) -> None:
-    """Prey colour by state; prey counts; sensing and capture discs (poses (T+1, n, 3))."""
+def _send_task(rec, p: str, core, b: int, snaps: list, states, poses: np.ndarray) -> None:
+    """Items by state, area labels, the counters' series, capability rings and the bar, per step
+    (poses (T+1, n, 3))."""
     w = f"{p}/world"
     T1, n = poses.shape[:2]
-    sensed = np.stack([s["sensed"] for s in snaps])  # (T+1, K)
-    captured = np.stack([s["captured"] for s in snaps])
-    state = np.where(captured, 2, np.where(sensed, 1, 0))
-    rec.send_columns(
-        f"{w}/prey",
-        states,
-        rr.Points2D.columns(colors=PREY_COLORS[state.ravel()]).partition([sensed.shape[1]] * T1),
-    )
-    _series(rec, f"{p}/task/prey", states, {"sensed": sensed.sum(1), "captured": captured.sum(1)})
-    types = core.type_ids[b, :n]
-    caps = core.caps[b, :n]
+    first = snaps[0]
+    if first.items is not None:
+        xy = np.concatenate([s.items.xy for s in snaps])
+        colors = np.concatenate([np.asarray(s.items.colors, dtype=np.uint8)[s.items.status] for s in snaps])
+        rows = [s.items.xy.shape[0] for s in snaps]
+        rec.send_columns(
+            f"{w}/{first.items.name}", states, rr.Points2D.columns(positions=xy, colors=colors).partition(rows)
+        )
+    if first.counters:
+        _series(
+            rec,
+            f"{p}/task/{core.task.counters_name}",
+            states,
+            {k: [s.counters[k] for s in snaps] for k in first.counters},
+        )
+    for area in first.areas:
+        if area.name in first.area_labels:
+            archetype = rr.LineStrips2D if area.shape == "circle" else rr.Boxes2D
+            labels = [s.area_labels[area.name] for s in snaps]
+            rec.send_columns(f"{w}/zones/{area.name}", states, archetype.columns(labels=labels))
     ring = np.linspace(0.0, 2.0 * np.pi, CAPABILITY_RING_SEGMENTS + 1)
     unit = np.stack([np.cos(ring), np.sin(ring)], -1)  # (S+1, 2)
-    for k, name in enumerate(("sensing", "capture")):
-        mine = poses[:, types == k, :2]  # (T+1, m, 2)
-        strips = mine[:, :, None, :] + caps[types == k, k][None, :, None, None] * unit  # (T+1, m, S+1, 2)
+    for r in first.rings:
+        mine = poses[:, r.members, :2]  # (T+1, m, 2)
+        strips = mine[:, :, None, :] + r.radius_m[r.members][None, :, None, None] * unit  # (T+1, m, S+1, 2)
         rec.send_columns(
-            f"{w}/capabilities/{name}",
+            f"{w}/capabilities/{r.name}",
             states,
             rr.LineStrips2D.columns(strips=strips.reshape(-1, *strips.shape[2:])).partition([mine.shape[1]] * T1),
         )
-
-
-def _hmt_snapshot(core, b: int, n: int) -> dict[str, np.ndarray]:
-    st = core.state
-    return {
-        "left": st["left"][b].copy(),
-        "load": st["load"][b, :n].copy(),
-        "delivered": np.array(st["delivered"][b]),
-    }
-
-
-def _send_hmt(rec, p: str, core, b: int, snaps: list[dict], states, poses: np.ndarray) -> None:
-    """Material series and zone labels; payload bars filled to each robot's load."""
-    w = f"{p}/world"
-    T1, n = poses.shape[:2]
-    left = np.stack([s["left"] for s in snaps])  # (T+1, 2)
-    load = np.stack([s["load"] for s in snaps])  # (T+1, n)
-    delivered = np.array([float(s["delivered"]) for s in snaps])
-    initial = core.state["initial"][b]
-    material = {
-        "left in zone 1": left[:, 0],
-        "left in zone 2": left[:, 1],
-        "carried": load.sum(1),
-        "delivered": delivered,
-    }
-    _series(rec, f"{p}/task/material", states, material)
-    for z, archetype in enumerate((rr.LineStrips2D, rr.Boxes2D)):
-        labels = [f"zone {z + 1}: {v:.1f} of {initial[z]:.1f} left" for v in left[:, z]]
-        rec.send_columns(f"{w}/zones/material_{z + 1}", states, archetype.columns(labels=labels))
-    labels = [f"drop-off: {v:.1f} delivered" for v in delivered]
-    rec.send_columns(f"{w}/zones/dropoff", states, rr.Boxes2D.columns(labels=labels))
-    payload = core.caps[b, :n, 1]
-    width = payload * LOAD_BAR_M_PER_UNIT
-    centre = poses[..., :2] + np.array([0.0, LOAD_BAR_OFFSET_M])  # (T+1, n, 2)
-    rows = [n] * T1
-    rec.send_columns(
-        f"{w}/capabilities/payload", states, rr.Boxes2D.columns(centers=centre.reshape(-1, 2)).partition(rows)
-    )
-    left_end = centre - np.stack([width / 2, np.zeros(n)], -1)
-    fill = left_end + np.stack([width * load / np.maximum(payload, 1e-9), np.zeros_like(load)], -1)
-    bars = np.stack([left_end, fill], axis=2).reshape(-1, 2, 2)  # (T+1)·n strips of 2 points
-    rec.send_columns(f"{w}/capabilities/load", states, rr.LineStrips2D.columns(strips=bars).partition(rows))
-
-
-_TASKS = {"pcp": (_pcp_snapshot, _send_pcp), "hmt": (_hmt_snapshot, _send_hmt)}
+    if first.bar is not None:
+        width = first.bar.width_m
+        fraction = np.clip(np.stack([s.bar.fraction for s in snaps]), 0.0, 1.0)  # (T+1, n)
+        centre = poses[..., :2] + np.array([0.0, BAR_OFFSET_M])  # (T+1, n, 2)
+        rows = [n] * T1
+        rec.send_columns(
+            f"{w}/capabilities/{first.bar.name}",
+            states,
+            rr.Boxes2D.columns(centers=centre.reshape(-1, 2)).partition(rows),
+        )
+        left_end = centre - np.stack([width / 2, np.zeros(n)], -1)
+        fill = left_end + np.stack([width * fraction, np.zeros_like(fraction)], -1)
+        bars = np.stack([left_end, fill], axis=2).reshape(-1, 2, 2)  # (T+1)·n strips of 2 points
+        rec.send_columns(
+            f"{w}/capabilities/{first.bar.fill_name}", states, rr.LineStrips2D.columns(strips=bars).partition(rows)
+        )

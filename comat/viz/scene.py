@@ -7,20 +7,20 @@ time. Entity tree of one episode (``E`` = ``episode_<k>``; arena metres, x right
 |---|---|---|
 | ``E/world`` | Transform3D (mirror y) | static; the viewer's 2D views point y down |
 | ``E/world/arena`` | Boxes2D | static: the boundary, then the four walls |
-| ``E/world/zones/*`` | Boxes2D / LineStrips2D | static geometry; HMT labels per step (material left) |
-| ``E/world/prey`` | Points2D | PCP: static positions, colour per step (free, sensed, captured) |
+| ``E/world/zones/<area>`` | Boxes2D / LineStrips2D | the task's areas: static geometry; labels per step where the task changes them (HMT: material left) |
+| ``E/world/<items>`` | Points2D | the task's items (PCP: ``prey``): positions and colour by state per step |
 | ``E/world/robots`` | Points2D | positions per step; radius, colour by type, label with capabilities static |
 | ``E/world/robots/heading`` | Arrows2D | per step |
 | ``E/world/trails`` | LineStrips2D | per step: the step's new piece of every path (appended) |
-| ``E/world/capabilities/sensing``, ``…/capture`` | LineStrips2D | PCP: the radii as circle outlines (the robots stay visible), per step |
-| ``E/world/capabilities/payload``, ``…/load`` | Boxes2D, LineStrips2D | HMT: capacity bar, load fill, per step |
+| ``E/world/capabilities/<ring>`` | LineStrips2D | the task's capability rings as circle outlines (the robots stay visible), per step (PCP: ``sensing``, ``capture``; HMT: ``step``) |
+| ``E/world/capabilities/<bar>``, ``…/<fill>`` | Boxes2D, LineStrips2D | the task's bar and its fill, per step (HMT: ``payload``, ``load``) |
 | ``E/world/actions`` | Arrows2D + class ids | per step: the chosen waypoint (AnnotationContext names it) |
 | ``E/world/safety/nominal``, ``…/filtered`` | Arrows2D | per step, robots the barrier changed |
 | ``E/world/events`` | Points2D | per step, robots with a contact, collision or exit |
 | ``E/events`` | TextLog | steps with events |
 | ``E/reward/total`` | Scalars ×2 | per step: reward, return so far |
 | ``E/reward/terms`` | Scalars ×terms | per step: each named reward term (task order) |
-| ``E/task/prey`` (PCP), ``E/task/material`` (HMT) | Scalars | prey sensed, captured; material left per zone, carried, delivered |
+| ``E/task/<counters>`` | Scalars | the task's counters (PCP ``prey``: sensed, captured; HMT ``material``: left per zone, carried, delivered) |
 | ``E/safety/counts`` | Scalars ×7 | per step: interventions, fallbacks, recoveries, collisions, robotarium_collisions, boundary_exits, actuator_errors |
 | ``E/meta`` | TextDocument + AnyValues | static: task, team, policy, seed, tier, outcome |
 """
@@ -35,8 +35,8 @@ import numpy as np
 import rerun as rr
 
 from comat import constants as C
-from comat.envs.render import PREY_COLORS, TYPE_COLORS  # one palette for recordings and frames
-from comat.task_logic import ACTION_NAMES, ZONE1_CENTRE, ZONE1_RADIUS, ZONE2_X
+from comat.envs.render import GREY, PREY_COLORS, TYPE_COLORS  # one palette for recordings and frames
+from comat.task_logic import ACTION_NAMES, BAR_FILL, Area
 from comat.team import TASK_TYPES
 
 __all__ = [
@@ -63,10 +63,6 @@ _CAP_LABELS = {
     "speed_m": "step {:.2f} m",
     "payload": "payload {:.1f}",
 }
-LOAD_BAR_M_PER_UNIT = 0.006
-"""Width of an HMT payload bar per unit of payload (a 20-unit robot: 0.12 m)."""
-LOAD_BAR_OFFSET_M = 0.1
-"""The payload bar floats this far above the robot centre."""
 
 
 def episode_path(index: int) -> str:
@@ -86,7 +82,7 @@ def robot_labels(team) -> list[str]:
     names = TASK_TYPES[team.task].capabilities
     out = []
     for i, r in enumerate(team.robots):
-        caps = ", ".join(_CAP_LABELS[n].format(v) for n, v in zip(names, r.capabilities) if v > 0)
+        caps = ", ".join(_CAP_LABELS.get(n, n + " {:g}").format(v) for n, v in zip(names, r.capabilities) if v > 0)
         out.append(f"robot_{i} {r.type}: {caps}")
     return out
 
@@ -135,37 +131,16 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
         ),
         static=True,
     )
-    zones = f"{w}/zones"
-    if task.name == "hmt":
+    marks = task.marks(core.state, b, core.caps[b, : team.size], core.type_ids[b, : team.size])
+    for area in marks.areas:
+        rec.log(f"{w}/zones/{area.name}", _area(area, marks.area_labels.get(area.name, area.label)), static=True)
+    if marks.items is not None:  # positions and colours per step (the recorder)
         rec.log(
-            f"{zones}/material_1",
-            rr.LineStrips2D([circle_strip(ZONE1_CENTRE, ZONE1_RADIUS)], colors=[(230, 170, 20)], radii=[0.006]),
+            f"{w}/{marks.items.name}",
+            rr.Points2D.from_fields(radii=[marks.items.radius_m], labels=marks.items.labels, show_labels=False),
             static=True,
         )
-        rec.log(
-            f"{zones}/material_2",
-            rr.Boxes2D(**_box(ZONE2_X, X1, Y0, Y1), colors=[(230, 170, 20)]),
-            static=True,
-        )
-        rec.log(f"{zones}/dropoff", rr.Boxes2D(**_box(X0, -ZONE2_X, Y0, Y1), colors=[(50, 170, 80)]), static=True)
-    else:
-        rec.log(
-            f"{zones}/spawn",
-            rr.Boxes2D(**_box(*task.spawn_box), colors=[(160, 160, 160)], labels=["robot spawn"]),
-            static=True,
-        )
-        rec.log(
-            f"{zones}/prey_area",
-            rr.Boxes2D(**_box(*task.prey_box), colors=[(80, 190, 80)], labels=["prey area"]),
-            static=True,
-        )
-        prey = core.state["prey"][b][core.state["active"][b]]  # padded slots of a smaller team: not drawn
-        rec.log(
-            f"{w}/prey",
-            rr.Points2D(prey, radii=[0.035], labels=[f"prey {k}" for k in range(prey.shape[0])], show_labels=False),
-            static=True,
-        )
-    colors = np.array([TYPE_COLORS.get(r.type, (200, 200, 200)) for r in team.robots], dtype=np.uint8)
+    colors = np.array([task.type_colors.get(r.type, GREY) for r in team.robots], dtype=np.uint8)
     radius = C.PROFILES[core.sim_config.profile].radius_m
     rec.log(  # the full label (type, capabilities) shows on hover; always shown they overlap
         f"{w}/robots",
@@ -176,31 +151,37 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     )
     rec.log(f"{w}/robots/heading", rr.Arrows2D.from_fields(colors=colors, radii=[0.008]), static=True)
     rec.log(f"{w}/trails", rr.LineStrips2D.from_fields(colors=colors // 2 + 100, radii=[0.005]), static=True)
+    names = TASK_TYPES[team.task].capabilities
     caps = core.caps[b, : team.size]
-    types = core.type_ids[b, : team.size]
-    if task.name == "pcp":
-        for k, name in enumerate(("sensing", "capture")):
-            rgb = TYPE_COLORS[name]
-            rec.log(  # outlines, not discs: a filled disc hides the robots in the web viewer
-                f"{w}/capabilities/{name}",
-                rr.LineStrips2D.from_fields(
-                    radii=[0.004],
-                    colors=[(*rgb, 170)],
-                    labels=[f"robot_{i}: {name} radius {caps[i, k]:.2f} m" for i in np.flatnonzero(types == k)],
-                    show_labels=False,
-                ),
-                static=True,
-            )
-    else:
-        half = np.column_stack([caps[:, 1] * LOAD_BAR_M_PER_UNIT / 2, np.full(team.size, 0.014)])
+    for ring in marks.rings:
+        members = np.flatnonzero(ring.members)
+        rec.log(  # outlines, not discs: a filled disc hides the robots in the web viewer
+            f"{w}/capabilities/{ring.name}",
+            rr.LineStrips2D.from_fields(
+                radii=[0.004],
+                colors=[(*ring.color, 170)],
+                labels=[f"robot_{i}: {ring.name} {ring.radius_m[i]:.2f} m" for i in members],
+                show_labels=False,
+            ),
+            static=True,
+        )
+    if marks.bar is not None:
+        half = np.column_stack([marks.bar.width_m / 2, np.full(team.size, 0.014)])
         rec.log(
-            f"{w}/capabilities/payload",
-            rr.Boxes2D.from_fields(half_sizes=half, colors=[(80, 80, 80)]),
+            f"{w}/capabilities/{marks.bar.name}",
+            rr.Boxes2D.from_fields(
+                half_sizes=half,
+                colors=[(80, 80, 80)],
+                labels=[
+                    f"robot_{i}: {' '.join(f'{n} {c:g}' for n, c in zip(names, caps[i]))}" for i in range(team.size)
+                ],
+                show_labels=False,
+            ),
             static=True,
         )
         rec.log(
-            f"{w}/capabilities/load",
-            rr.LineStrips2D.from_fields(radii=[0.011], colors=[(230, 170, 20)]),
+            f"{w}/capabilities/{marks.bar.fill_name}",
+            rr.LineStrips2D.from_fields(radii=[0.011], colors=[BAR_FILL]),
             static=True,
         )
     rec.log(f"{w}/actions", _action_names(), rr.Arrows2D.from_fields(radii=[0.006]), static=True)
@@ -218,28 +199,32 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     log_legend(rec, w, core, b)
 
 
-def legend_items(task: str, types: list[str], measured: bool) -> list[tuple[str, tuple[int, ...]]]:
+def legend_items(task, types: list[str], measured: bool, marks=None) -> list[tuple[str, tuple[int, ...]]]:
     """(label, colour) of each mark an arena shows, as the video's legend lists them: the robot types
-    present, the task's marks, the filter's arrows and, under the reality layer, the measured pose."""
-    items = [(kind, TYPE_COLORS.get(kind, (200, 200, 200))) for kind in dict.fromkeys(types)]
-    if task == "pcp":
-        items += [
-            (f"prey {name}", tuple(int(c) for c in PREY_COLORS[k, :3]))
-            for k, name in enumerate(("free", "sensed", "captured"))
-        ]
-        items.append(("ring: sensing / capture radius", (120, 120, 120)))
-    else:
-        items.append(("bar: load / payload", (230, 170, 20)))
+    present, the task's marks (``marks``: :class:`comat.task_logic.Marks`), the filter's arrows and,
+    under the reality layer, the measured pose. ``task``: the task-logic instance."""
+    items = [(kind, task.type_colors.get(kind, GREY)) for kind in dict.fromkeys(types)]
+    items += list(marks.legend if marks is not None else ())
     items.append(("red arrow: the filter changed the command", (220, 30, 30)))
     if measured:
         items.append(("grey ghost: measured pose", (150, 150, 150)))
     return items
 
 
+def _area(area: Area, label: str):
+    """A task area as a Rerun archetype: a box, or a circle's outline."""
+    if area.shape == "circle":
+        cx, cy, r = area.geometry
+        return rr.LineStrips2D([circle_strip((cx, cy), r)], colors=[area.color], radii=[0.006], labels=[label])
+    x0, x1, y0, y1 = area.geometry
+    return rr.Boxes2D(**_box(x0, x1, y0, y1), colors=[area.color], labels=[label])
+
+
 def log_legend(rec: rr.RecordingStream, world: str, core, b: int) -> None:
     """The legend as labelled swatches in a row below the arena's bottom wall (``world/legend``)."""
     team = core.teams[b]
-    items = legend_items(core.task.name, [r.type for r in team.robots], core.safe.reality is not None)
+    marks = core.task.marks(core.state, b, core.caps[b, : team.size], core.type_ids[b, : team.size])
+    items = legend_items(core.task, [r.type for r in team.robots], core.safe.reality is not None, marks)
     X0, X1, Y0, _ = C.ARENA_BOUNDS_M
     x = np.linspace(X0 + 0.05, X1 - 0.3, len(items))
     rec.log(
