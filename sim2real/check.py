@@ -1,6 +1,6 @@
 """Checking a Robotarium submission offline: ``check_submission`` runs the folder's exact
 ``main.py`` under ``rps`` (the installed one, or a checkout of the 2026 V2 simulator) and the same
-policy, team, start poses and prey in comat's MuJoCo env, and compares them.
+policy, team, start poses and task layout (PCP: prey) in comat's MuJoCo env, and compares them.
 
 * :func:`run_rps`: ``main.py`` in a subprocess (figures off), optionally inside the reality layer
   (:mod:`sim2real.reality_rps`); its COMAT_RESULT, and where the run's log went (beside the folder);
@@ -25,7 +25,7 @@ from comat.envs.heuristics import heuristic_actions
 from comat.measure.metrics import current_names
 from comat.reality import resolve_reality
 from comat.team import TeamSpec
-from sim2real.export import HEURISTIC_FILES, load_config, submission_files
+from sim2real.export import HEURISTIC_FILES, layout_of, load_config, submission_files
 from sim2real.reality_rps import DRIVES
 from sim2real.runtime import ComatRuntime
 
@@ -159,8 +159,7 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
     env.reset(seed=cfg["seed"])
     core = env.core
     core.safe.reset(np.array(cfg["start_poses"], dtype=float).T, reality_keys=None if reality is None else [seed])
-    if task == "pcp":
-        core.state["prey"][0] = np.array(cfg["prey"], dtype=float)
+    core.task.set_layout(core.state, 0, layout_of(cfg))
     if cfg.get("policy", "comat") == "heuristic":
 
         def act_fn():
@@ -220,7 +219,7 @@ def check_submission(
     ]  # every folder's
     if not missing:
         config = load_config(folder)
-        wanted = submission_files(config.get("policy", "comat"))
+        wanted = submission_files(config.get("policy", "comat"), config.get("task_module"))
         if "filter" not in config:  # exported before issue 45: main.py had the loop inline
             wanted = tuple(f for f in wanted if f != "deployed_loop.py")
         if "run_log" not in (folder / "main.py").read_text(errors="replace"):  # exported before runs logged

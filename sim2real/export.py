@@ -8,11 +8,14 @@ Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/`
                        (``comat/models/comat_schema.py``, verbatim: the description of COMAT's
                        arrays the runtime reads), ``task_logic.py``
                        (``comat/task_logic.py``, verbatim: numpy only, so the very file the
-                       MuJoCo envs run is shipped), ``deployed_loop.py``
+                       MuJoCo envs run is shipped) and ``task_<name>.py`` (the task's own logic,
+                       ``comat/tasks/<name>.py``, verbatim but for its import of ``task_logic``),
+                       ``deployed_loop.py``
                        (``comat/safety/deployed.py``, verbatim: the per-iteration loop and
                        comat's filter, numpy + cvxopt), ``weights.npy`` (pickle-free weights),
-                       ``submission_config.py`` (``CONFIG = {...}``: policy, task, team, start
-                       poses, prey, ticks per step, controller constants, the filter and its
+                       ``submission_config.py`` (``CONFIG = {...}``: policy, task (its module,
+                       class and options), team, start poses, the task's layout (PCP: prey),
+                       ticks per step, controller constants, the filter and its
                        settings); the scripted
                        policy's folder has no ``runtime.py``, ``comat_schema.py`` and
                        ``weights.npy``
@@ -25,7 +28,7 @@ Policy                 a COMAT checkpoint or policy file (``checkpoint.pt`` / ``
                        reads the task state, which the script keeps anyway; for checking a
                        deployment end to end); other
                        algorithms raise ValueError
-Start poses            (3, N) float, default: the MuJoCo env's own spawn (and PCP prey) for
+Start poses            (3, N) float, default: the MuJoCo env's own spawn (and task layout) for
                        ``seed``; must be >= WALL_MARGIN_M inside the arena, >= MIN_SPACING_M apart
 Team                   TeamSpec or mapping, 1..20 robots (the Robotarium's hardware limit)
 Atomicity              written into ``<out>.tmp-*`` next to ``out`` and renamed at the end; on any
@@ -41,6 +44,7 @@ from __future__ import annotations
 import hashlib
 import os
 import pprint
+import re
 import shutil
 import tempfile
 from collections.abc import Mapping
@@ -64,6 +68,7 @@ from comat.reality import resolve_reality
 from comat.reality.margin import response_lag_ticks, robust_safety
 from comat.rl.checkpoint import POLICY_FORMAT, load_trained
 from comat.rl.policy import policy_modules
+from comat.tasks import task_entry
 from comat.team import TeamSpec
 from sim2real.weights import export_weights
 
@@ -78,8 +83,11 @@ __all__ = [
     "WALL_MARGIN_M",
     "export_submission",
     "filter_config",
+    "layout_of",
     "load_config",
+    "shipped_task_module",
     "submission_files",
+    "task_module_name",
 ]
 
 HERE = Path(__file__).resolve().parent
@@ -114,9 +122,39 @@ FILTERS = ("comat", "robotarium")
 safety battery at ``nominal`` with faults, docs/safety.md) or the installed rps's own barrier."""
 
 
-def submission_files(policy: str) -> tuple[str, ...]:
-    """The files of a folder whose CONFIG["policy"] is ``policy`` ("comat" or "heuristic")."""
-    return HEURISTIC_FILES if policy == "heuristic" else SHIPPED_FILES
+def submission_files(policy: str, task_module: str | None = None) -> tuple[str, ...]:
+    """The files of a folder whose CONFIG["policy"] is ``policy`` ("comat" or "heuristic") and whose
+    task logic is the module ``task_module`` (None: a folder exported before tasks had modules of
+    their own, whose task_logic.py held every task)."""
+    files = HEURISTIC_FILES if policy == "heuristic" else SHIPPED_FILES
+    return files if task_module is None else (*files, f"{task_module}.py")
+
+
+def task_module_name(task: str) -> str:
+    """The file name (no ``.py``) a task's logic ships under: ``task_<name>``."""
+    return f"task_{task}"
+
+
+def shipped_task_module(logic: type) -> str:
+    """The source of ``logic``'s module as an export ships it: verbatim but for its import of
+    ``comat.task_logic``, which becomes ``task_logic`` (the copy beside it)."""
+    import sys
+
+    source = Path(sys.modules[logic.__module__].__file__).read_text()
+    shipped = source.replace("from comat.task_logic import", "from task_logic import")
+    if re.search(r"^\s*(from|import)\s+(comat|sim2real)\b", shipped, re.MULTILINE):
+        raise ValueError(
+            f"task {logic.name!r}: its module {logic.__module__} imports comat beyond comat.task_logic "
+            "(an export ships it alone: numpy and task_logic only)"
+        )
+    return shipped
+
+
+def layout_of(config: Mapping) -> dict:
+    """The task layout an export's CONFIG holds (before task modules: PCP's ``prey`` alone)."""
+    if "layout" in config:
+        return dict(config["layout"])
+    return {"prey": config["prey"]} if config.get("prey") else {}
 
 
 MIN_SPACING_M = 0.40
@@ -173,11 +211,7 @@ def _team(team: Any, task: str) -> TeamSpec:
 
 
 def _task(task: str):
-    if task == "pcp":
-        return task_logic_module.PCP()
-    if task == "hmt":
-        return task_logic_module.HMT()
-    raise ValueError(f"task must be 'pcp' or 'hmt', got {task!r}")
+    return task_entry(task).logic()
 
 
 def check_start_poses(poses: Any, n: int) -> np.ndarray:
@@ -211,17 +245,18 @@ def check_start_poses(poses: Any, n: int) -> np.ndarray:
     return p
 
 
-def mujoco_start(task: str, team: TeamSpec, seed: int, tier: str = "unicycle") -> tuple[np.ndarray, np.ndarray]:
-    """The MuJoCo env's spawn for ``seed``: start poses (3, N) and PCP prey (K, 2) (HMT: (0, 2)).
+def mujoco_start(task: str, team: TeamSpec, seed: int, tier: str = "unicycle") -> tuple[np.ndarray, dict]:
+    """The MuJoCo env's spawn for ``seed``: start poses (3, N) and the task's layout (PCP: its
+    prey; :meth:`comat.task_logic.TaskLogic.layout`).
 
     Where two of the env's robots start closer than MIN_SPACING_M (the Robotarium's start-up
     drive could not reach them), the robots are placed again in the task's spawn area
-    EXPORT_SPACING_M apart (seeded by ``seed``; the prey stay)."""
+    EXPORT_SPACING_M apart (seeded by ``seed``; the layout stays)."""
 
-    env = make_env(f"{task}_v0", team=team, tier=tier)
+    env = make_env(task_entry(task).env_id, team=team, tier=tier)
     env.reset(seed=seed)
     poses = env.core.poses()[0, : team.size].T.copy()
-    prey = env.core.state["prey"][0].copy() if task == "pcp" else np.zeros((0, 2))
+    prey = env.core.task.layout(env.core.state, 0)
     if _min_spacing(poses) < MIN_SPACING_M - SPACING_TOL_M:
         rng = np.random.default_rng([seed, team.size, 2026])
         poses = env.core.task.spawn(rng, team.size, spacing=EXPORT_SPACING_M).T.copy()
@@ -261,16 +296,20 @@ def filter_config(filter_name: str, filter_reality: Any) -> dict:
 
 
 def _config(
-    policy: str, task: str, team: TeamSpec, poses: np.ndarray, prey: np.ndarray, ticks: int, seed: int, filters: dict
+    policy: str, task: str, team: TeamSpec, poses: np.ndarray, layout: dict, ticks: int, seed: int, filters: dict
 ) -> dict:
+    logic = task_entry(task).logic
     return {
         "policy": policy,
         "task": task,
+        "task_module": task_module_name(task),
+        "task_class": logic.__name__,
+        "task_options": logic.layout_options(layout),
         "seed": int(seed),
         "types": [r.type for r in team.robots],
         "capabilities": [[float(c) for c in r.capabilities] for r in team.robots],
         "start_poses": [[float(v) for v in row] for row in poses],
-        "prey": [[float(v) for v in row] for row in prey],
+        "layout": layout,
         "ticks_per_step": int(ticks),
         "projection_distance_m": float(C.PROJECTION_DISTANCE_M),
         "waypoint_gain": float(WAYPOINT_GAIN),
@@ -302,11 +341,11 @@ def export_submission(
     Args:
         checkpoint_or_policy: COMAT checkpoint or policy file path, a ``Comat`` model, or ``"heuristic"`` (the
             scripted policy).
-        task: "pcp" or "hmt".
+        task: a registered task's name (``comat tasks``).
         team: TeamSpec or ``{"robots": [...]}``, 1..20 robots.
         out_dir: folder to create (must not exist).
         start_poses: (3, N) x, y, θ; default the MuJoCo env's spawn for ``seed``.
-        seed: seed of the default spawn and PCP prey.
+        seed: seed of the default spawn and the task's layout (PCP: prey).
         ticks_per_step: Robotarium iterations per env step (default the task's: PCP 29, HMT 74).
         filter_name: "comat" (comat's filter, shipped in deployed_loop.py) or "robotarium" (the
             installed rps's own barrier).
@@ -348,6 +387,7 @@ def export_submission(
         for name in ("main.py", "rps_compat.py"):
             shutil.copyfile(HERE / "templates" / name, tmp / name)
         shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
+        (tmp / f"{task_module_name(task)}.py").write_text(shipped_task_module(type(task_obj)))
         shutil.copyfile(Path(deployed_module.__file__), tmp / "deployed_loop.py")
         shutil.copyfile(Path(runlog_module.__file__), tmp / "run_log.py")
         sha = "heuristic"
@@ -367,7 +407,7 @@ def export_submission(
         )
         (tmp / "submission_config.py").write_text(text)
         names = sorted(p.name for p in tmp.iterdir())
-        assert names == sorted(submission_files(policy)), names
+        assert names == sorted(submission_files(policy, task_module_name(task))), names
         os.chmod(tmp, 0o755)
         tmp.rename(out)
     except BaseException:

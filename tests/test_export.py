@@ -21,7 +21,7 @@ from comat.rl.config import resolve
 from comat.rl.runner import train
 from comat.team import random_team
 from sim2real.check import check_submission, run_rps
-from sim2real.export import ACCEPTED_EXTENSIONS, ALLOWED_IMPORTS, HEURISTIC_FILES, SHIPPED_FILES, export_submission
+from sim2real.export import ACCEPTED_EXTENSIONS, ALLOWED_IMPORTS, export_submission, submission_files
 
 pytest.importorskip("rps")
 
@@ -73,7 +73,7 @@ def test_runs_under_rps_without_errors(exported, task):
 def test_only_accepted_files_and_flat(exported, task):
     folder = exported[task][1]
     entries = sorted(p.name for p in folder.iterdir() if p.name != "__pycache__")
-    assert entries == sorted(SHIPPED_FILES)
+    assert entries == sorted(submission_files("comat", f"task_{task}"))
     for name in entries:
         assert (folder / name).is_file() and Path(name).suffix in ACCEPTED_EXTENSIONS
     record = np.load(folder / "weights.npy", allow_pickle=False)
@@ -93,8 +93,9 @@ def _imports(path: Path) -> set[str]:
 
 def test_shipped_code_imports_only_allowed(exported):
     folder = exported["pcp"][1]
-    own = {Path(f).stem for f in SHIPPED_FILES if f.endswith(".py")}
-    for name in SHIPPED_FILES:
+    files = submission_files("comat", "task_pcp")
+    own = {Path(f).stem for f in files if f.endswith(".py")}
+    for name in files:
         if name.endswith(".py"):
             bad = _imports(folder / name) - ALLOWED_IMPORTS - set(sys.stdlib_module_names) - own - {"__future__"}
             assert not bad, f"{name} imports {sorted(bad)}"
@@ -104,6 +105,7 @@ def test_shipped_files_are_the_sources(exported):
     folder = exported["hmt"][1]
     import comat.runlog
     import comat.task_logic
+    import comat.tasks.hmt
     import sim2real.runtime
     from comat.models import comat_schema
 
@@ -111,6 +113,12 @@ def test_shipped_files_are_the_sources(exported):
     assert (folder / "runtime.py").read_bytes() == Path(sim2real.runtime.__file__).read_bytes()
     assert (folder / "comat_schema.py").read_bytes() == Path(comat_schema.__file__).read_bytes()
     assert (folder / "run_log.py").read_bytes() == Path(comat.runlog.__file__).read_bytes()
+    # the task's own logic: verbatim but for its import of task_logic, which is the copy beside it
+    source = Path(comat.tasks.hmt.__file__).read_text()
+    assert "from comat.task_logic import" in source
+    assert (folder / "task_hmt.py").read_text() == source.replace(
+        "from comat.task_logic import", "from task_logic import"
+    )
 
 
 def _no_leftovers(tmp_path):
@@ -139,7 +147,7 @@ def test_bad_input(exported, tmp_path):
         export_submission(tmp_path / "mat.pt", "pcp", team, tmp_path / "sub")
     with pytest.raises(ValueError, match="would take 1914 s"):
         export_submission("heuristic", "pcp", team, tmp_path / "sub", ticks_per_step=725)
-    with pytest.raises(ValueError, match="task must be 'pcp' or 'hmt'"):
+    with pytest.raises(ValueError, match="task must be one of"):
         export_submission("heuristic", "pcpx", team, tmp_path / "sub")
     with pytest.raises(FileNotFoundError, match="rps_path"):
         run_rps(exported["pcp"][1], rps_path=tmp_path)
@@ -175,7 +183,9 @@ def scripted(tmp_path_factory):
 def test_scripted_policy_completes_the_task_under_rps(scripted, task):
     folder, report = scripted[task]
     rps, mj = report["rps"], report["mujoco"]
-    assert sorted(p.name for p in folder.iterdir() if p.name != "__pycache__") == sorted(HEURISTIC_FILES)
+    assert sorted(p.name for p in folder.iterdir() if p.name != "__pycache__") == sorted(
+        submission_files("heuristic", f"task_{task}")
+    )
     assert rps["policy"] == "heuristic" and rps["rps"] == "legacy"
     assert rps["rps_errors"] == {"boundary": 0, "collision": 0, "actuator": 0}, rps["rps_errors"]
     assert rps["offset_collision_pair_iterations"] == 0 and rps["boundary_iterations"] == 0
@@ -192,34 +202,35 @@ import json, matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-import main, task_logic
+import main
 from submission_config import CONFIG
-task = task_logic.PCP(n_prey=len(CONFIG["prey"])) if CONFIG["task"] == "pcp" else task_logic.HMT()
+task = main.make_task()
 n = len(CONFIG["types"])
 caps = np.array([CONFIG["capabilities"]], dtype=float)
+type_ids = np.array([[task.types.index(t) for t in CONFIG["types"]]])
 state = task.new_state(1, n)
 task.reset_env(state, 0, np.random.default_rng(0), caps[0])
+task.set_layout(state, 0, CONFIG["layout"])
 if CONFIG["task"] == "pcp":
-    state["prey"][0] = np.array(CONFIG["prey"])
     state["sensed"][0, 0] = state["captured"][0, 1] = state["sensed"][0, 1] = True
 else:
     state["load"][0, 0] = 7.5
 x = np.array(CONFIG["start_poses"])
 fig, ax = plt.subplots()
-figure = main.TaskFigure(ax, task, state, caps, CONFIG["types"])
+figure = main.TaskFigure(ax, task, state, caps, type_ids)
 figure.update(state, x)
 fig.savefig("frame.png")
-out = {"patches": len(ax.patches), "texts": [t.get_text() for t in ax.texts], "artists": len(figure.artists)}
-if CONFIG["task"] == "pcp":
-    out["colours"] = [list(map(float, p.get_facecolor())) for p in figure.prey[:3]]
-    out["centres"] = [list(map(float, p.center)) for p in figure.radii]
+out = {"patches": len(ax.patches), "texts": [t.get_text() for t in ax.texts]}
+out["colours"] = [list(map(float, p.get_facecolor())) for p in figure.items[:3]]
+out["centres"] = [list(map(float, p.center)) for _, _, p in sorted(figure.rings, key=lambda r: r[1])]
+out["bars"] = [float(p.get_width()) for p in figure.bars]
 print(json.dumps(out))
 """
 
 
 @pytest.mark.parametrize("task", ["pcp", "hmt"])
 def test_task_is_drawn_on_the_figure(scripted, task):
-    import matplotlib.colors as mcolors
+    from comat.tasks.pcp import PREY_COLORS
 
     folder = scripted[task][0]
     proc = subprocess.run(
@@ -233,15 +244,17 @@ def test_task_is_drawn_on_the_figure(scripted, task):
     out = __import__("json").loads(proc.stdout.strip().splitlines()[-1])
     assert (folder / "frame.png").stat().st_size > 1000
     (folder / "frame.png").unlink()
+    start = np.array(_config(folder)["start_poses"])
+    np.testing.assert_allclose(out["centres"], start[:2].T)  # one capability ring per robot, on the robot
     if task == "pcp":
-        assert out["artists"] == 6 + 4 and out["patches"] == 10  # six prey, one radius per robot
-        sensed, captured = mcolors.to_rgba("tab:orange"), mcolors.to_rgba("tab:green")
-        assert [tuple(c) for c in out["colours"][:2]] == [sensed, captured]
-        start = np.array(_config(folder)["start_poses"])
-        np.testing.assert_allclose(out["centres"], start[:2].T)
+        # two areas, six prey, one radius per robot
+        assert out["patches"] == 2 + 6 + 4 and out["texts"] == ["robot spawn", "prey area"]
+        free, sensed, captured = np.array(PREY_COLORS) / 255  # prey 0 sensed, prey 1 captured, prey 2 free
+        np.testing.assert_allclose([c[:3] for c in out["colours"]], [sensed, captured, free])
     else:
-        assert out["patches"] == 3  # zone 1, zone 2, drop-off
-        assert "7.5" in out["texts"] and sum(t.endswith(" left") for t in out["texts"]) == 2
+        n = start.shape[1]
+        assert out["patches"] == 3 + n + n  # zone 1, zone 2, drop-off; a step ring and a load bar per robot
+        assert sum(t.endswith(" left") for t in out["texts"]) == 2 and out["bars"][0] > 0 == out["bars"][1]
 
 
 def _config(folder):
@@ -300,7 +313,7 @@ def test_cli_exports_the_scripted_policy_and_checks_several_folders(scripted, tm
         )
         == 0
     )
-    assert sorted(p.name for p in (tmp_path / "cli_pcp").iterdir()) == sorted(HEURISTIC_FILES)
+    assert sorted(p.name for p in (tmp_path / "cli_pcp").iterdir()) == sorted(submission_files("heuristic", "task_pcp"))
     capsys.readouterr()
     assert main(["export", "--check", str(tmp_path / "cli_pcp"), str(scripted["pcp"][0]), "--tier", "unicycle"]) == 0
     out = capsys.readouterr().out
@@ -433,11 +446,11 @@ def test_export_killed_at_random_moments_leaves_no_folder(tmp_path):
             proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=60)
         if out.exists():
-            assert sorted(p.name for p in out.iterdir()) == sorted(SHIPPED_FILES)
+            assert sorted(p.name for p in out.iterdir()) == sorted(submission_files("comat", "task_pcp"))
             break
     if not out.exists():
         subprocess.run(cmd, check=True, capture_output=True, timeout=300)
-    assert sorted(p.name for p in out.iterdir()) == sorted(SHIPPED_FILES)
+    assert sorted(p.name for p in out.iterdir()) == sorted(submission_files("comat", "task_pcp"))
     shutil_out = tmp_path / "subs" / "again"
     (tmp_path / "subs" / ".again.tmp-left").mkdir()
     export_submission(ckpt, "pcp", parse_team("test:3", "pcp"), shutil_out)

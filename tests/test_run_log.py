@@ -45,6 +45,7 @@ def test_an_exported_run_logs_what_it_saw_and_did(checked):
             "runtime.py",
             "submission_config.py",
             "task_logic.py",
+            "task_pcp.py",
             "weights.npy",
         ]
     )  # the uploaded folder stays as exported: the log is beside it

@@ -33,7 +33,7 @@ from comat.runlog import RunLog, read_run_log
 from comat.sim import World
 from comat.viz.video import VideoWriter
 from sim2real.check import mujoco_twin
-from sim2real.export import load_config
+from sim2real.export import layout_of, load_config
 
 __all__ = [
     "GAP_METRICS",
@@ -75,9 +75,11 @@ def check_twin(log: RunLog, export: Path) -> dict:
     start = np.asarray(meta["start_poses"], dtype=float)
     if start.shape != np.shape(config["start_poses"]) or not np.allclose(start, config["start_poses"], atol=1e-9):
         raise ReplayError(f"--export {str(export)!r}: its start poses are not the run's")
-    prey, want = np.asarray(meta.get("prey") or []), np.asarray(config.get("prey") or [])
-    if prey.shape != want.shape or not np.allclose(prey, want, atol=1e-9):
-        raise ReplayError(f"--export {str(export)!r}: its prey are not the run's")
+    logged, want = layout_of(meta), layout_of(config)
+    for key in sorted(set(logged) | set(want)):
+        a, b = np.asarray(logged.get(key, []), dtype=float), np.asarray(want.get(key, []), dtype=float)
+        if a.shape != b.shape or not np.allclose(a, b, atol=1e-9):
+            raise ReplayError(f"--export {str(export)!r}: its task layout ({key}) is not the run's")
     return config
 
 
