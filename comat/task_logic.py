@@ -349,6 +349,23 @@ class TaskLogic:
             tuple(dict.fromkeys(legend)),
         )
 
+    # -- diagnostics: what each robot did (comat.envs.diagnostics) -------------------------------
+    robot_count_names: tuple[str, ...] = ("still_held", "still_idle")
+    """Per-robot counters, in row order; ``still_held`` and ``still_idle`` are counted for every task."""
+    end_count_names: tuple[str, ...] = ()
+
+    def count_before(self, state: dict) -> dict:
+        """What :meth:`count_robots` needs of the state before a step's update (copies)."""
+        return {}
+
+    def count_robots(self, before, raw, state, poses, type_ids, caps, mask) -> dict[str, np.ndarray]:
+        """The task's own per-robot counts (B, N) of one env step."""
+        return {}
+
+    def end_counts(self, state: dict) -> dict[str, np.ndarray]:
+        """Episode-level counts (B,) read from the state when an episode ends."""
+        return {}
+
     # -- export: what a reset drew at random (PCP: the prey), so the Robotarium runs the same episode --
     def layout(self, state: dict, b: int) -> dict[str, list]:
         """Env ``b``'s random layout as plain lists (JSON); {} for a task whose reset draws nothing."""

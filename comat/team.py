@@ -68,6 +68,7 @@ __all__ = [
     "load_coalitions",
     "load_team",
     "random_team",
+    "register_sets",
     "save_coalitions",
 ]
 
@@ -189,6 +190,38 @@ _STREAMS = {
     ("hmt", "capability"): 10,
     ("pcp", "capability"): 11,
 }
+
+
+def register_sets(task: str, types: TaskTypes, bands: Mapping[str, Mapping], stream_base: int) -> None:
+    """Enter a task's types and composition sets (:mod:`comat.tasks` calls it for a task that states
+    them): ``bands`` maps "train", "test" and "capability" to type -> per capability its bands; U_val
+    and U_size draw from the training bands, U_scale from the test ones, as for PCP and HMT. The
+    sets draw from the random streams ``stream_base`` … ``stream_base + 5`` (in
+    :data:`COALITION_SETS` order), which no other task's set may use."""
+    if task in TASK_TYPES:
+        raise ValueError(f"task {task!r} has its types registered already")
+    missing = {"train", "test", "capability"} - set(bands)
+    if missing:
+        raise ValueError(
+            f"task {task!r}: capability_bands must name the sets train, test, capability; missing {sorted(missing)}"
+        )
+    streams = {(task, s): stream_base + i for i, s in enumerate(COALITION_SETS)}
+    taken = set(streams.values()) & set(_STREAMS.values())
+    if taken:
+        raise ValueError(
+            f"task {task!r}: set_streams {stream_base} reuses random streams {sorted(taken)} of another task"
+        )
+    for name in ("train", "test", "capability"):
+        if set(bands[name]) != set(types.types):
+            raise ValueError(
+                f"task {task!r}: capability_bands[{name!r}] must give every type {types.types}, "
+                f"got {sorted(bands[name])}"
+            )
+    TASK_TYPES[task] = types
+    for s in COALITION_SETS:
+        source = {"val": "train", "size": "train", "scale": "test"}.get(s, s)
+        CAPABILITY_RANGES[(task, s)] = {k: tuple(tuple(b) for b in v) for k, v in bands[source].items()}
+    _STREAMS.update(streams)
 
 
 @dataclass(frozen=True)

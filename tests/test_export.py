@@ -19,6 +19,7 @@ import torch
 from comat.cli.export import parse_team
 from comat.rl.config import resolve
 from comat.rl.runner import train
+from comat.tasks import task_names
 from comat.team import random_team
 from sim2real.check import check_submission, run_rps
 from sim2real.export import ACCEPTED_EXTENSIONS, ALLOWED_IMPORTS, export_submission, submission_files
@@ -173,13 +174,13 @@ def scripted(tmp_path_factory):
     """task -> (folder, check report) of the scripted policy for a 4-robot unseen (test-set) team."""
     tmp = tmp_path_factory.mktemp("scripted")
     out = {}
-    for task in ("pcp", "hmt"):
+    for task in task_names():
         folder = export_submission("heuristic", task, parse_team("test:3", task), tmp / f"sub_{task}", seed=1)
         out[task] = (folder, check_submission(folder, tier="unicycle"))
     return out
 
 
-@pytest.mark.parametrize("task", ["pcp", "hmt"])
+@pytest.mark.parametrize("task", task_names())
 def test_scripted_policy_completes_the_task_under_rps(scripted, task):
     folder, report = scripted[task]
     rps, mj = report["rps"], report["mujoco"]
@@ -269,7 +270,7 @@ needs_v2 = pytest.mark.skipif(not V2, reason="set COMAT_RPS_V2 to a robotarium_p
 
 
 @needs_v2
-@pytest.mark.parametrize("task", ["pcp", "hmt"])
+@pytest.mark.parametrize("task", task_names())
 def test_scripted_policy_under_rps_v2(scripted, task):
     report = check_submission(scripted[task][0], tier="unicycle", rps_path=V2)
     rps = report["rps"]

@@ -22,9 +22,7 @@ from comat.bench.sim_bench import bench_rps, finish, rps_available
 from comat.envs import make_vec_env
 from comat.envs.heuristics import random_actions
 from comat.envs.sharded import shard_slices
-from comat.tasks import task_names
-from comat.tasks.hmt import HMT
-from comat.tasks.pcp import PCP
+from comat.tasks import task_entry, task_names
 from comat.team import random_team
 
 __all__ = ["EnvBenchRow", "bench_env", "bench_rollout_split", "run_env_bench", "run_rollout_bench"]
@@ -64,7 +62,7 @@ def bench_rps_env(task: str, n: int, iterations: int = 150) -> EnvBenchRow | Non
 
     if not rps_available():
         return None
-    ticks = {"pcp": PCP, "hmt": HMT}[task].ticks_per_step
+    ticks = task_entry(task).logic.ticks_per_step
     row = bench_rps(n, iterations)
     return EnvBenchRow("robotarium-rps loop", task, "euler", n, 1, 1e6 / (row.tick_us * ticks), iterations)
 

@@ -13,20 +13,24 @@ Per-robot counts (:data:`ROBOT_COUNTS`), in env steps unless said otherwise:
   moves and the barrier holds apart) moved less than :data:`STILL_FRACTION` of its own
   waypoint step in that env step: held by the safety filter, a wall (a waypoint clipped at the
   arena's edge) or a teammate in the way.
-* HMT ``carrying``: its load was > 0 at the end of the env step; ``delivered``: material units
-  it unloaded in the drop-off.
-* PCP ``sensed`` / ``captured``: prey that became sensed / captured in an env step while the
-  robot was within its sensing / capture radius of it (every robot in range gets the credit,
-  so the team's sum can exceed the number of prey when two robots reach one prey together).
+* the task's own (its ``count_robots``): HMT ``carrying``: its load was > 0 at the end of the env
+  step; ``delivered``: material units it unloaded in the drop-off. PCP ``sensed`` /
+  ``captured``: prey that became sensed / captured in an env step while the robot was within
+  its sensing / capture radius of it (every robot in range gets the credit, so the team's sum
+  can exceed the number of prey when two robots reach one prey together). Forage ``lifting``:
+  items collected in an env step while the robot was within reach of them.
 
-Episode-level counts at the end (:data:`END_COUNTS`): HMT ``on_board_end``, the material still
-on the robots as a fraction of all material; PCP ``sensed_not_captured``, real prey sensed but
-not captured (padded prey slots are sensed and captured from the start, so they never count).
+Episode-level counts at the end (:data:`END_COUNTS`, the task's ``end_counts``): HMT
+``on_board_end``, the material still on the robots as a fraction of all material; PCP
+``sensed_not_captured``, real prey sensed but not captured (padded prey slots are sensed and
+captured from the start, so they never count); forage ``items_left``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from comat.tasks import TASKS
 
 __all__ = ["END_COUNTS", "ROBOT_COUNTS", "STILL_FRACTION", "EpisodeRecorder"]
 
@@ -39,30 +43,28 @@ and 64 % (PCP, 29 ticks) of its step, turning included; the distribution has a g
 ~20 %, and under 10 % sit 0.5 % / 0.3 % of the scripted policy's moving steps and 7.7 % / 5.1 %
 of random actions' (most of those under 2 %: robots pressed against the arena's edge)."""
 
-ROBOT_COUNTS: dict[str, tuple[str, ...]] = {
-    "hmt": ("carrying", "still_held", "still_idle", "delivered"),
-    "pcp": ("still_held", "still_idle", "sensed", "captured"),
-}
-"""Per-robot counters of each task, in the order rows list them."""
+ROBOT_COUNTS: dict[str, tuple[str, ...]] = {n: tuple(e.logic.robot_count_names) for n, e in TASKS.items()}
+"""Per-robot counters of each task registered when this module loaded (a task's
+``robot_count_names``), in the order rows list them."""
 
-END_COUNTS: dict[str, tuple[str, ...]] = {"hmt": ("on_board_end",), "pcp": ("sensed_not_captured",)}
-"""Episode-level counts read from the task state when an episode ends."""
+END_COUNTS: dict[str, tuple[str, ...]] = {n: tuple(e.logic.end_count_names) for n, e in TASKS.items()}
+"""Episode-level counts of each task (its ``end_count_names``), read from the task state when an
+episode ends."""
 
 
 class EpisodeRecorder:
     """Per-robot counters (B, N) and progress curves (B, H = the task's horizon) of B episodes.
 
     Args:
-        task: a :mod:`comat.task_logic` task (its ``name`` picks the counters).
+        task: a task-logic instance (:mod:`comat.tasks`): its ``robot_count_names``,
+            ``count_before``, ``count_robots`` and ``end_counts`` say what it counts.
         num_envs: B.
         max_robots: N.
     """
 
     def __init__(self, task, num_envs: int, max_robots: int) -> None:
-        if task.name not in ROBOT_COUNTS:
-            raise ValueError(f"task must be one of {sorted(ROBOT_COUNTS)}, got {task.name!r}")
         self.task = task
-        self.names = ROBOT_COUNTS[task.name]
+        self.names = tuple(task.robot_count_names)
         self.robots = {name: np.zeros((num_envs, max_robots)) for name in self.names}
         self.curve = np.zeros((num_envs, task.horizon))
         self._envs = np.arange(num_envs)
@@ -75,9 +77,7 @@ class EpisodeRecorder:
 
     def before(self, state: dict) -> dict:
         """What :meth:`add` needs of the task state before the env step's task update."""
-        if self.task.name == "pcp":
-            return {"sensed": state["sensed"].copy(), "captured": state["captured"].copy()}
-        return {}
+        return self.task.count_before(state)
 
     def add(
         self,
@@ -111,18 +111,9 @@ class EpisodeRecorder:
         r["still_held"] += moving & (moved < STILL_FRACTION * step)
         inside = steps <= self.curve.shape[1]  # a PettingZoo env stepped past its horizon records nothing more
         self.curve[self._envs[inside], steps[inside] - 1] = progress[inside]
-        if self.task.name == "hmt":
-            r["carrying"] += mask & (state["load"] > 0)
-            r["delivered"] += raw["unloaded_by_robot"]
-            return
-        for name, radius, kind in (("sensed", caps[..., 0], 0), ("captured", caps[..., 1], 1)):
-            new = state[name] & ~before[name]  # (B, K) prey that became sensed / captured in this step
-            if new.any():
-                near = self.task._within(state, poses, radius, mask & (type_ids == kind))  # (B, N, K)
-                r[name] += (near & new[:, None, :]).sum(-1)
+        for name, value in self.task.count_robots(before, raw, state, poses, type_ids, caps, mask).items():
+            r[name] += value
 
     def end(self, state: dict) -> dict[str, np.ndarray]:
         """Episode-level counts (B,) of :data:`END_COUNTS` from the current task state."""
-        if self.task.name == "hmt":
-            return {"on_board_end": state["load"].sum(1) / state["initial"].sum(1)}
-        return {"sensed_not_captured": (state["sensed"] & ~state["captured"]).sum(1).astype(float)}
+        return self.task.end_counts(state)

@@ -13,9 +13,9 @@ import numpy as np
 
 from comat.envs.core import TaskCore
 
-__all__ = ["BEST_CONSTANT_ACTION", "heuristic_actions", "random_actions"]
+__all__ = ["BEST_CONSTANT_ACTION", "blind_actions", "has_blind", "heuristic_actions", "random_actions"]
 
-BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1}
+BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1, "forage": 1}
 """Per task, the action (0 stay, 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train
 when every robot always takes it (all five tried, one episode per coalition, the evaluation seed;
 tests/test_eval.py): +x on both. On PCP it captures half the prey (return 16.4, 20 % of the
@@ -25,6 +25,17 @@ episodes finished): early learning curves must beat it to mean anything."""
 def heuristic_actions(core: TaskCore) -> np.ndarray:
     """Actions (B, N) of the scripted policy for every environment of ``core``."""
     return core.task.scripted_actions(core.state, core.poses(), core.type_ids, core.caps, core.mask)
+
+
+def has_blind(task) -> bool:
+    """Whether ``task`` has a capability-blind scripted reference (``blind_scripted_actions``)."""
+    return callable(getattr(task, "blind_scripted_actions", None))
+
+
+def blind_actions(core: TaskCore) -> np.ndarray:
+    """Actions (B, N) of the task's capability-blind scripted reference: the scripted policy's plan
+    made without the robots' capabilities and types (composition matters by as much as it loses)."""
+    return core.task.blind_scripted_actions(core.state, core.poses(), core.type_ids, core.caps, core.mask)
 
 
 def random_actions(rng: np.random.Generator, mask: np.ndarray) -> np.ndarray:

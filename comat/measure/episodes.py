@@ -12,7 +12,6 @@ from collections.abc import Callable
 import numpy as np
 
 from comat.envs.core import EPISODE_METRICS
-from comat.envs.diagnostics import ROBOT_COUNTS
 from comat.envs.vector import VectorEnv
 from comat.measure.metrics import curve_endpoints
 from comat.team import TeamSpec
@@ -82,7 +81,7 @@ def run_episodes(
     each env step, :data:`CURVE_DECIMALS`) with its endpoints ``progress_auc``, ``time_to_90``,
     ``reached_90`` (:func:`comat.measure.metrics.curve_endpoints`); the task's end counts (HMT
     ``on_board_end``, PCP ``sensed_not_captured``); ``robots`` and ``by_type``
-    (:func:`robot_rows`; the counts are :data:`comat.envs.diagnostics.ROBOT_COUNTS`).
+    (:func:`robot_rows`; the counts are the task's ``robot_count_names``).
 
     Chunk k is reset with seed ``seed + k``, so the result depends only on the policy, the
     teams and the seed. A short last chunk is filled with repeats that are not reported.
@@ -94,8 +93,6 @@ def run_episodes(
         )
     if any(t != teams[i % n] for i, t in enumerate(teams)):
         raise ValueError(f"teams must be {n} coalitions repeated {len(teams) // n} times (team i = coalition i % {n})")
-    if env.task.name not in ROBOT_COUNTS:
-        raise ValueError(f"env must run one of the tasks {sorted(ROBOT_COUNTS)}, got {env.task.name!r}")
     B, horizon = env.num_envs, env.task.horizon
     results: list[dict] = []
     for k, start in enumerate(range(0, len(teams), B)):

@@ -1,22 +1,31 @@
-"""The registered tasks: the one list of tasks that every command, composition set, benchmark,
-sweep and export reads (issue 49: a task is one place).
+"""The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``) and the one list of
+registered tasks that every command, composition set, benchmark, sweep and export reads.
 
-Each :class:`TaskEntry` names a task, its PettingZoo env id, its numpy task logic
-(:mod:`comat.task_logic`: reset, dynamics, rewards, progress, the scripted heuristic; shipped with
-every export) and its robot types and capabilities (:data:`comat.team.TASK_TYPES`).
-:func:`task_names` is the order commands list them in; :func:`task_entry` turns a name into its
-entry with a one-line error for a name that is not registered.
+A task's module holds everything that is its own, in numpy only (an export ships it): its spec
+sheet (the module docstring), robot types and capabilities, reset, the dynamics of its objects,
+observations, named reward terms, progress and done, the scripted reference policy, how it is
+drawn (:class:`comat.task_logic.Marks`) and what an export carries of a reset (``layout``); a task
+added after PCP and HMT also states its composition sets' capability bands
+(``capability_bands``, ``capability_limits``, ``required``, ``set_streams``), which
+:func:`register_task` enters in :mod:`comat.team`. The environments, the six sets, evaluation,
+report, export, Rerun and video read the registered tasks with no task-specific code.
+
+Each :class:`TaskEntry` names a task, its PettingZoo env id, its logic class and its robot types
+(:data:`comat.team.TASK_TYPES`). :func:`task_names` is the order commands list them in;
+:func:`task_entry` turns a name into its entry with a one-line error for a name that is not
+registered.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from comat.tasks.forage import LevelForaging
 from comat.tasks.hmt import HMT
 from comat.tasks.pcp import PCP
-from comat.team import TASK_TYPES, TaskTypes
+from comat.team import TASK_TYPES, TaskTypes, register_sets
 
-__all__ = ["TASKS", "TaskEntry", "register_task", "task_entry", "task_names"]
+__all__ = ["TASKS", "TaskEntry", "register_task", "task_entry", "task_from_logic", "task_names"]
 
 
 @dataclass(frozen=True)
@@ -58,5 +67,15 @@ def task_entry(name: str) -> TaskEntry:
     return TASKS[name]
 
 
+def task_from_logic(logic: type, title: str) -> TaskEntry:
+    """Register the task whose logic class states its composition sets (``capability_bands``,
+    ``capability_limits``, ``required``, ``set_streams``): its types and sets enter
+    :mod:`comat.team`, its env id is ``<name>_v0``."""
+    types = TaskTypes(logic.types, logic.capabilities, logic.capability_limits, logic.required)
+    register_sets(logic.name, types, logic.capability_bands, logic.set_streams)
+    return register_task(TaskEntry(logic.name, f"{logic.name}_v0", title, logic, types))
+
+
 register_task(TaskEntry("pcp", "pcp_v0", "Predator Capture Prey", PCP, TASK_TYPES["pcp"]))
 register_task(TaskEntry("hmt", "hmt_v0", "Heterogeneous Material Transport", HMT, TASK_TYPES["hmt"]))
+task_from_logic(LevelForaging, "Level-Based Foraging")

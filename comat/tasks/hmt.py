@@ -67,10 +67,8 @@ from typing import ClassVar
 
 import numpy as np
 
-try:  # inside comat
-    from comat.task_logic import ARENA, Area, Bar, Ring, TaskLogic
-except ImportError:  # an exported Robotarium folder: task_logic.py ships beside this file
-    from task_logic import ARENA, Area, Bar, Ring, TaskLogic  # type: ignore[no-redef]
+# (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
+from comat.task_logic import ARENA, Area, Bar, Ring, TaskLogic
 
 __all__ = ["HMT", "ZONE1_CENTRE", "ZONE1_RADIUS", "ZONE2_X", "MaterialTransport"]
 
@@ -197,6 +195,16 @@ class MaterialTransport(TaskLogic):
     def global_features(self, state: dict) -> np.ndarray:
         """(B, 4) material left and initial per zone, in units of :attr:`state_amount_scale`."""
         return np.concatenate([state["left"], state["initial"]], axis=-1) / self.state_amount_scale
+
+    # -- diagnostics ----------------------------------------------------------------------------
+    robot_count_names = ("carrying", "still_held", "still_idle", "delivered")
+    end_count_names = ("on_board_end",)
+
+    def count_robots(self, before, raw, state, poses, type_ids, caps, mask) -> dict[str, np.ndarray]:
+        return {"carrying": mask & (state["load"] > 0), "delivered": raw["unloaded_by_robot"]}
+
+    def end_counts(self, state: dict) -> dict[str, np.ndarray]:
+        return {"on_board_end": state["load"].sum(1) / state["initial"].sum(1)}
 
     # -- drawing ----------------------------------------------------------------------------------
     type_colors: ClassVar[dict] = {"fast": (15, 157, 88), "slow": (142, 68, 173)}

@@ -71,10 +71,8 @@ from typing import ClassVar
 
 import numpy as np
 
-try:  # inside comat
-    from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, nearest, spread_points
-except ImportError:  # an exported Robotarium folder: task_logic.py ships beside this file
-    from task_logic import Area, Items, Ring, TaskLogic, grid_cells, nearest, spread_points  # type: ignore[no-redef]
+# (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
+from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, nearest, spread_points
 
 __all__ = ["PCP", "PREY_COLORS", "PredatorCapturePrey"]
 
@@ -298,6 +296,27 @@ class PredatorCapturePrey(TaskLogic):
             ],
             axis=-1,
         )
+
+    # -- diagnostics --------------------------------------------------------------------------
+    robot_count_names = ("still_held", "still_idle", "sensed", "captured")
+    end_count_names = ("sensed_not_captured",)
+
+    def count_before(self, state: dict) -> dict:
+        return {"sensed": state["sensed"].copy(), "captured": state["captured"].copy()}
+
+    def count_robots(self, before, raw, state, poses, type_ids, caps, mask) -> dict[str, np.ndarray]:
+        """Prey that became sensed / captured in the step, credited to every robot of the right type
+        within its radius of them."""
+        out = {}
+        for name, radius, kind in (("sensed", caps[..., 0], 0), ("captured", caps[..., 1], 1)):
+            new = state[name] & ~before[name]  # (B, K) prey that became sensed / captured in this step
+            if new.any():
+                near = self._within(state, poses, radius, mask & (type_ids == kind))  # (B, N, K)
+                out[name] = (near & new[:, None, :]).sum(-1)
+        return out
+
+    def end_counts(self, state: dict) -> dict[str, np.ndarray]:
+        return {"sensed_not_captured": (state["sensed"] & ~state["captured"]).sum(1).astype(float)}
 
     # -- drawing and export -------------------------------------------------------------------
     type_colors: ClassVar[dict] = {"sensing": (66, 133, 244), "capture": (219, 68, 55)}
