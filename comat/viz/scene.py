@@ -137,7 +137,9 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     if marks.items is not None:  # positions and colours per step (the recorder)
         rec.log(
             f"{w}/{marks.items.name}",
-            rr.Points2D.from_fields(radii=[marks.items.radius_m], labels=marks.items.labels, show_labels=False),
+            rr.Points2D(  # where the reset put them; the recorder logs them (and their colours) per step
+                marks.items.xy, radii=[marks.items.radius_m], labels=marks.items.labels, show_labels=False
+            ),
             static=True,
         )
     colors = np.array([task.type_colors.get(r.type, GREY) for r in team.robots], dtype=np.uint8)
