@@ -19,8 +19,8 @@ BEST_CONSTANT_ACTION = {"pcp": 1, "hmt": 1, "forage": 1}
 """Per task, the action (0 stay, 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train
 when every robot always takes it (all five tried, one episode per coalition, the evaluation seed;
 tests/test_eval.py): +x on all three (forage, one episode per U_train coalition at the
-evaluation seed: return −2.2 against −4.0 for each of the others). On PCP it captures half the prey (return 16.4, 20 % of the
-episodes finished): early learning curves must beat it to mean anything."""
+evaluation seed: return −2.2 against −4.0 for each of the others). On PCP it captures half the
+prey (return 16.4, 20 % of the episodes finished): early learning curves must beat it to mean anything."""
 
 
 def heuristic_actions(core: TaskCore) -> np.ndarray:
