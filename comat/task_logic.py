@@ -201,6 +201,8 @@ class TaskLogic:
     what a reset drew at random into an export."""
 
     name = ""
+    title = ""
+    """For people: "Predator Capture Prey" (default: the class name)."""
     types: tuple[str, ...] = ()
     capabilities: tuple[str, ...] = ()
     capability_scale = np.ones(2)
@@ -297,6 +299,13 @@ class TaskLogic:
         target, ok = self.scripted_targets(state, centres, type_ids)
         return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
 
+    best_constant_action = 1
+    """The action every robot always takes in the "constant" reference row (measured for each task:
+    comat.envs.heuristics.BEST_CONSTANT_ACTION; +x, toward the work, unless a task says otherwise)."""
+    reset_uses_starts = False
+    """True: ``reset_env`` takes the team's start poses (n, 3) as a fifth argument (navigation: goals
+    within each robot's reach of its start)."""
+
     # -- drawing (optional hooks; every drawing backend reads them through marks()) ---------------
     type_colors: ClassVar[dict[str, RGB]] = {}
     """Robot colour per type (RGB); unknown types are grey."""
@@ -373,6 +382,10 @@ class TaskLogic:
 
     def set_layout(self, state: dict, b: int, layout: dict[str, list]) -> None:
         """Put a :meth:`layout` back into env ``b`` (after its ``reset_env``)."""
+
+    def set_starts(self, state: dict, b: int, starts: np.ndarray) -> None:
+        """Tell env ``b``'s state where its robots start (n, 3), where an export or a twin places them
+        elsewhere than the env's spawn; for a task whose state keeps them (``reset_uses_starts``)."""
 
     @classmethod
     def layout_options(cls, layout: dict[str, list]) -> dict:

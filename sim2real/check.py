@@ -160,6 +160,7 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
     core = env.core
     core.safe.reset(np.array(cfg["start_poses"], dtype=float).T, reality_keys=None if reality is None else [seed])
     core.task.set_layout(core.state, 0, layout_of(cfg))
+    core.task.set_starts(core.state, 0, np.array(cfg["start_poses"], dtype=float).T)
     if cfg.get("policy", "comat") == "heuristic":
 
         def act_fn():

@@ -268,7 +268,7 @@ def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("task", ["pcp", "hmt"])
+@pytest.mark.parametrize("task", ["pcp", "hmt", "forage", "navigation"])
 def test_best_constant_action_is_the_best_of_the_five(task):
     """BEST_CONSTANT_ACTION: of the five actions, taken by every robot at every step, the one with
     the highest mean return on U_train (one episode per coalition, the evaluation seed)."""

@@ -177,7 +177,10 @@ class TaskCore:
             self.caps[b] = 0.0
             self.caps[b, :n] = team.capability_array()
             starts[int(b)] = self.task.spawn(rng, n)
-            self.task.reset_env(self.state, b, rng, self.caps[b, :n])
+            if self.task.reset_uses_starts:  # a task whose layout depends on where its robots start
+                self.task.reset_env(self.state, b, rng, self.caps[b, :n], starts[int(b)])
+            else:
+                self.task.reset_env(self.state, b, rng, self.caps[b, :n])
         self._relayout()
         flat = self.safe.world._poses.copy()
         for b, p in starts.items():

@@ -33,7 +33,7 @@ import numpy as np
 
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
-from comat.envs.heuristics import BEST_CONSTANT_ACTION, blind_actions, has_blind, heuristic_actions, random_actions
+from comat.envs.heuristics import blind_actions, has_blind, heuristic_actions, random_actions
 from comat.files import detail_name, relative_path, write_atomic, write_json_detail
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
@@ -68,7 +68,7 @@ def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
     out["heuristic"] = lambda obs, mask, state: heuristic_actions(env.core)
     if has_blind(env.task):
         out["blind"] = lambda obs, mask, state: blind_actions(env.core)
-    constant = BEST_CONSTANT_ACTION[env.task.name]
+    constant = env.task.best_constant_action
     out["constant"] = lambda obs, mask, state: np.where(mask, constant, 0)
     out["random"] = lambda obs, mask, state: random_actions(rng, mask)
     return out

@@ -1,4 +1,4 @@
-"""The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``) and the one list of
+"""The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``, ``navigation.py``) and the one list of
 registered tasks that every command, composition set, benchmark, sweep and export reads.
 
 A task's module holds everything that is its own, in numpy only (an export ships it): its spec
@@ -18,14 +18,23 @@ registered.
 
 from __future__ import annotations
 
+import importlib
+import os
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 
 from comat.tasks.forage import LevelForaging
 from comat.tasks.hmt import HMT
+from comat.tasks.navigation import Navigation
 from comat.tasks.pcp import PCP
 from comat.team import TASK_TYPES, TaskTypes, register_sets
 
-__all__ = ["TASKS", "TaskEntry", "register_task", "task_entry", "task_from_logic", "task_names"]
+__all__ = ["TASKS", "TaskEntry", "load_plugins", "register_task", "task_entry", "task_from_logic", "task_names"]
+
+PLUGIN_ENV = "COMAT_TASKS"
+"""Environment variable naming tasks of one's own to register on import: ``module:Class`` entries,
+comma-separated (the module on ``PYTHONPATH``). Installed packages declare theirs as entry points
+of the group ``comat.tasks`` (``name = "module:Class"``)."""
 
 
 @dataclass(frozen=True)
@@ -79,3 +88,34 @@ def task_from_logic(logic: type, title: str) -> TaskEntry:
 register_task(TaskEntry("pcp", "pcp_v0", "Predator Capture Prey", PCP, TASK_TYPES["pcp"]))
 register_task(TaskEntry("hmt", "hmt_v0", "Heterogeneous Material Transport", HMT, TASK_TYPES["hmt"]))
 task_from_logic(LevelForaging, "Level-Based Foraging")
+task_from_logic(Navigation, "Navigation")
+
+
+def load_plugins(spec: str | None = None) -> list[str]:
+    """Register the tasks named by ``spec`` (default: the :data:`PLUGIN_ENV` variable) and by the
+    ``comat.tasks`` entry points: each a task-logic class that states its composition sets (see
+    :func:`task_from_logic`; its title is its ``title`` attribute or its class name). Returns the
+    names registered; a bad entry raises ValueError naming it."""
+    spec = os.environ.get(PLUGIN_ENV, "") if spec is None else spec
+    found = [(s.strip(), None) for s in spec.split(",") if s.strip()]
+    found += [(ep.value, ep) for ep in entry_points(group="comat.tasks")]
+    names = []
+    for target, ep in found:
+        try:
+            if ep is not None:
+                cls = ep.load()
+            else:
+                module, _, attr = target.partition(":")
+                if not module or not attr:
+                    raise ValueError("expected module:Class")
+                cls = getattr(importlib.import_module(module), attr)
+        except (ImportError, AttributeError, ValueError) as err:
+            raise ValueError(f"{PLUGIN_ENV} / comat.tasks entry {target!r}: {err}") from err
+        if getattr(cls, "name", "") in TASKS and TASKS[cls.name].logic is cls:
+            continue
+        task_from_logic(cls, getattr(cls, "title", "") or cls.__name__)
+        names.append(cls.name)
+    return names
+
+
+load_plugins()

@@ -32,7 +32,7 @@ import rerun as rr
 from comat.config import REFERENCE_TIER
 from comat.envs import make_env
 from comat.envs.base import resolve_coalitions
-from comat.envs.heuristics import BEST_CONSTANT_ACTION, heuristic_actions, random_actions
+from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.rl.algos import policy_act, robot_slots
 from comat.rl.config import RunConfig
 from comat.rl.policy import load_policy, shipped_name
@@ -118,7 +118,7 @@ def _random(env, seed: int) -> Act:
 
 
 def _constant(env, seed: int) -> Act:
-    action = BEST_CONSTANT_ACTION[env.task.name]
+    action = env.task.best_constant_action
     return lambda obs, mask, state: np.where(mask, action, 0)
 
 

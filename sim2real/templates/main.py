@@ -318,6 +318,7 @@ def main(argv):
     state = task.new_state(1, n)
     task.reset_env(state, 0, np.random.default_rng(0), caps[0])
     task.set_layout(state, 0, CONFIG["layout"])
+    task.set_starts(state, 0, poses0.T)
 
     d, ticks = CONFIG["projection_distance_m"], CONFIG["ticks_per_step"]
     adapter = RpsAdapter(d)
