@@ -55,9 +55,10 @@ def _episode(env, seed, action_seed, steps=None):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_full_episode_determinism(task):
-    a = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1)
+    env = make_env(f"{task}_v0", tier="unicycle")
+    a = _episode(env, seed=7, action_seed=1)
     b = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1)
-    assert len(a) == len(b) > 60  # a whole episode, to the horizon
+    assert len(a) == len(b) > 0.75 * env.task.horizon  # a whole episode, to the horizon
     for step_a, step_b in zip(a, b):
         for part_a, part_b in zip(step_a, step_b):
             if part_a is None:
@@ -185,7 +186,7 @@ def test_bad_constructor_options(kwargs, match):
 
 
 def test_unknown_env_id():
-    with pytest.raises(ValueError, match=r"env_id must be one of \(.*'hmt_v0', 'pcp_v0'\), got 'soccer_v0'"):
+    with pytest.raises(ValueError, match=r"env_id must be one of \(.*'hmt_v0'.*'pcp_v0'\), got 'soccer_v0'"):
         make_env("soccer_v0")
 
 

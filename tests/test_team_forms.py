@@ -74,4 +74,4 @@ def test_every_registered_task_has_its_env_logic_and_types():
     for entry in TASKS.values():
         assert _env_class(entry.env_id).task_cls is entry.logic and entry.types is TASK_TYPES[entry.name]
     with pytest.raises(ValueError, match="task must be one of"):
-        task_entry("navigation")
+        task_entry("soccer")

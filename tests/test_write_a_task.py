@@ -50,6 +50,7 @@ def folder(tmp_path_factory):
     return folder
 
 
+@pytest.mark.learning  # it trains (20 env steps, ~25 s with its six subprocesses): the learning tier CI runs
 def test_the_page_s_task_is_listed_and_runs_through_every_command(folder):
     out = _comat(["tasks"], folder).stdout
     assert "gather (gather_v0)" in out and "'scout'" in out and "'crawler'" in out
