@@ -28,6 +28,7 @@ __all__ = [
     "TaskLogic",
     "grid_cells",
     "heading_features",
+    "min_cost_assignment",
     "nearest",
     "spread_points",
     "toward",
@@ -77,6 +78,45 @@ def nearest(points: np.ndarray, candidates: np.ndarray, allowed: np.ndarray) -> 
     k = np.argmin(dist, axis=-1)
     target = np.take_along_axis(candidates[:, None, :, :].repeat(points.shape[1], 1), k[..., None, None], 2)[..., 0, :]
     return target, np.isfinite(np.take_along_axis(dist, k[..., None], -1))[..., 0]
+
+
+def min_cost_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of a least-cost assignment of the smaller side of ``cost`` (R, C) (the
+    Hungarian method, O(n³), numpy over one axis: numpy only, so the export runs it too)."""
+    flip = cost.shape[0] > cost.shape[1]
+    a = cost.T if flip else cost
+    n, m = a.shape
+    u, v = np.zeros(n + 1), np.zeros(m + 1)
+    p = np.zeros(m + 1, np.int64)  # p[j]: the row (1-based) matched to column j; 0: none
+    way = np.zeros(m + 1, np.int64)
+    for i in range(1, n + 1):
+        p[0], j0 = i, 0
+        minv = np.full(m + 1, np.inf)
+        used = np.zeros(m + 1, bool)
+        while True:
+            used[j0] = True
+            i0 = p[j0]
+            cur = a[i0 - 1] - u[i0] - v[1:]
+            free = ~used[1:]
+            better = free & (cur < minv[1:])
+            minv[1:][better] = cur[better]
+            way[1:][better] = j0
+            masked = np.where(free, minv[1:], np.inf)
+            j1 = int(np.argmin(masked)) + 1
+            delta = masked[j1 - 1]
+            u[p[used]] += delta
+            v[used] -= delta
+            minv[1:][free] -= delta
+            j0 = j1
+            if p[j0] == 0:
+                break
+        while j0:
+            j1 = way[j0]
+            p[j0] = p[j1]
+            j0 = j1
+    cols = np.flatnonzero(p[1:])
+    rows = p[1:][cols] - 1
+    return (cols, rows) if flip else (rows, cols)
 
 
 def heading_features(poses: np.ndarray) -> np.ndarray:

@@ -8,7 +8,8 @@ import pytest
 
 from comat.envs import make_env, make_vec_env
 from comat.envs.heuristics import blind_actions, heuristic_actions
-from comat.tasks.navigation import Navigation, _min_cost_assignment
+from comat.task_logic import min_cost_assignment
+from comat.tasks.navigation import Navigation
 from comat.team import generate_coalitions
 
 
@@ -38,7 +39,7 @@ def test_the_assignment_is_least_cost():
     for _ in range(100):
         r, c = (int(x) for x in rng.integers(1, 6, 2))
         cost = rng.uniform(0, 10, (r, c))
-        rows, cols = _min_cost_assignment(cost)
+        rows, cols = min_cost_assignment(cost)
         assert len(set(rows.tolist())) == len(set(cols.tolist())) == min(r, c)
         if r <= c:
             best = min(sum(cost[i, p[i]] for i in range(r)) for p in itertools.permutations(range(c), r))

@@ -1,5 +1,6 @@
-"""The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``, ``navigation.py``) and the one list of
-registered tasks that every command, composition set, benchmark, sweep and export reads.
+"""The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``, ``navigation.py``,
+``sensors.py``) and the one list of registered tasks that every command, composition set,
+benchmark, sweep and export reads.
 
 A task's module holds everything that is its own, in numpy only (an export ships it): its spec
 sheet (the module docstring), robot types and capabilities, reset, the dynamics of its objects,
@@ -27,6 +28,7 @@ from comat.tasks.forage import LevelForaging
 from comat.tasks.hmt import HMT
 from comat.tasks.navigation import Navigation
 from comat.tasks.pcp import PCP
+from comat.tasks.sensors import SensorNetwork
 from comat.team import TASK_TYPES, TaskTypes, register_sets
 
 __all__ = ["TASKS", "TaskEntry", "load_plugins", "register_task", "task_entry", "task_from_logic", "task_names"]
@@ -89,6 +91,7 @@ register_task(TaskEntry("pcp", "pcp_v0", "Predator Capture Prey", PCP, TASK_TYPE
 register_task(TaskEntry("hmt", "hmt_v0", "Heterogeneous Material Transport", HMT, TASK_TYPES["hmt"]))
 task_from_logic(LevelForaging, "Level-Based Foraging")
 task_from_logic(Navigation, "Navigation")
+task_from_logic(SensorNetwork, SensorNetwork.title)
 
 
 def load_plugins(spec: str | None = None) -> list[str]:
