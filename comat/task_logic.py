@@ -322,6 +322,11 @@ class TaskLogic:
     def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         raise NotImplementedError
 
+    def step_lengths_at(self, caps: np.ndarray, poses: np.ndarray, state: dict) -> np.ndarray:
+        """Waypoint step (B, N), m, of robots at ``poses`` (B, N, 3) now: :meth:`step_lengths`, unless a
+        task's ground changes how far a robot gets (Arctic transport's ice and water)."""
+        return self.step_lengths(caps)
+
     def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The scripted policy's target per robot (B, N, 2) and whether it has one (B, N)."""
         raise NotImplementedError
@@ -337,7 +342,7 @@ class TaskLogic:
         """
         centres = poses[..., :2]
         target, ok = self.scripted_targets(state, centres, type_ids)
-        return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
+        return np.where(mask, toward(centres, target, self.step_lengths_at(caps, poses, state), ok), 0)
 
     best_constant_action = 1
     """The action every robot always takes in the "constant" reference row (measured for each task:
@@ -352,8 +357,8 @@ class TaskLogic:
     counters_name = "task"
     """Name of the counters' series in a recording (``E/task/<counters_name>``)."""
 
-    def areas(self) -> tuple[Area, ...]:
-        """The task's fixed regions."""
+    def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
+        """The task's regions (fixed, or drawn per episode from env ``b``'s ``state``: Arctic's ground)."""
         return ()
 
     def area_labels(self, state: dict, b: int) -> dict[str, str]:
@@ -388,7 +393,7 @@ class TaskLogic:
         legend = [] if items is None else [(f"{items.name} {s}", c) for s, c in zip(items.states, items.colors)]
         legend += [(r.label, r.color) for r in rings] + ([(bar.label, BAR_FILL)] if bar is not None else [])
         return Marks(
-            self.areas(),
+            self.areas(state, b),
             self.area_labels(state, b),
             items,
             rings,

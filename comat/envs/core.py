@@ -198,7 +198,9 @@ class TaskCore:
         task, safe = self.task, self.safe
         lay = safe.world.layout
         flat_actions = actions[self.mask]
-        step_len = task.step_lengths(self.caps)  # (B, N)
+        step_len = task.step_lengths_at(
+            self.caps, self.poses(), self.state
+        )  # (B, N): a terrain task's depends on where
         steps = step_len[self.mask]
         points = safe.points
         goals = waypoint_goals(points if safe.reality is None else safe.measured_points, flat_actions, steps)

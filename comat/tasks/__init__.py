@@ -1,5 +1,5 @@
 """The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``, ``navigation.py``,
-``sensors.py``) and the one list of registered tasks that every command, composition set,
+``sensors.py``, ``arctic.py``) and the one list of registered tasks that every command, composition set,
 benchmark, sweep and export reads.
 
 A task's module holds everything that is its own, in numpy only (an export ships it): its spec
@@ -24,6 +24,7 @@ import os
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 
+from comat.tasks.arctic import ArcticTransport
 from comat.tasks.forage import LevelForaging
 from comat.tasks.hmt import HMT
 from comat.tasks.navigation import Navigation
@@ -92,6 +93,7 @@ register_task(TaskEntry("hmt", "hmt_v0", "Heterogeneous Material Transport", HMT
 task_from_logic(LevelForaging, "Level-Based Foraging")
 task_from_logic(Navigation, "Navigation")
 task_from_logic(SensorNetwork, SensorNetwork.title)
+task_from_logic(ArcticTransport, ArcticTransport.title)
 
 
 def load_plugins(spec: str | None = None) -> list[str]:

@@ -286,7 +286,7 @@ class LevelForaging(TaskLogic):
     counters_name = "items"
     bar_m_per_level = 0.04
 
-    def areas(self) -> tuple[Area, ...]:
+    def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
         return (
             Area("spawn", "box", self.spawn_box, (160, 160, 160), "robot spawn"),
             Area("item_area", "box", self.item_box, (200, 140, 60), "item area"),

@@ -212,7 +212,7 @@ class MaterialTransport(TaskLogic):
     bar_m_per_unit = 0.006
     """Width of a payload bar per unit of payload (a 20-unit robot: 0.12 m)."""
 
-    def areas(self) -> tuple[Area, ...]:
+    def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
         x0, x1, y0, y1 = ARENA
         amber, green = (230, 170, 20), (50, 170, 80)
         return (

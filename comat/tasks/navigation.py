@@ -277,7 +277,7 @@ class Navigation(TaskLogic):
     type_colors: ClassVar[dict] = {"fast": (15, 157, 88), "slow": (142, 68, 173)}
     counters_name = "goals"
 
-    def areas(self):
+    def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
         return (
             Area("spawn", "box", self.spawn_box, (160, 160, 160), "robot spawn"),
             Area("goal_area", "box", self.goal_box, (66, 133, 244), "goal area"),

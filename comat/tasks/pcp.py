@@ -322,7 +322,7 @@ class PredatorCapturePrey(TaskLogic):
     type_colors: ClassVar[dict] = {"sensing": (66, 133, 244), "capture": (219, 68, 55)}
     counters_name = "prey"
 
-    def areas(self) -> tuple[Area, ...]:
+    def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
         return (
             Area("spawn", "box", self.spawn_box, (160, 160, 160), "robot spawn"),
             Area("prey_area", "box", self.prey_box, (80, 190, 80), "prey area"),

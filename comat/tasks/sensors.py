@@ -245,7 +245,7 @@ class SensorNetwork(TaskLogic):
     type_colors: ClassVar[dict] = {"wide": (66, 133, 244), "narrow": (244, 180, 0)}
     counters_name = "targets"
 
-    def areas(self):
+    def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
         return (
             Area("spawn", "box", self.spawn_box, (160, 160, 160), "robot spawn"),
             Area("cluster_area", "box", self.cluster_box, (120, 120, 200), "target clusters"),

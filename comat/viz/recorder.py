@@ -151,7 +151,9 @@ class EpisodeRecorder:
         if actions.shape != (n,):
             raise ValueError(f"actions must have shape ({n},) (this team's robots), got {actions.shape}")
         points = projected_points(self._poses[-1], self._proj)
-        goals = waypoint_goals(points, actions, core.task.step_lengths(core.caps[b, :n]))
+        one = {k: v[b : b + 1] for k, v in core.state.items()}
+        step = core.task.step_lengths_at(core.caps[b : b + 1, :n], self._poses[-1][None], one)[0]
+        goals = waypoint_goals(points, actions, step)
         self._actions.append(actions.astype(np.int64))
         self._action_origin.append(points)
         self._action_vec.append(goals - points)

@@ -6,7 +6,7 @@
 # (written by results/sets/table.py).
 set -euo pipefail
 HERE=results/sets
-for task in pcp hmt forage navigation sensors; do
+for task in pcp hmt forage navigation sensors arctic; do
   comat eval --policy heuristic --task "$task" --teams all --episodes 5 --tier unicycle \
     --out "$HERE/references_$task" --force
 done

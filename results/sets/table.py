@@ -21,7 +21,7 @@ def cell(metric: dict, scale: float) -> str:
     return f"{scale * metric['mean']:.1f} ± {scale * metric['ci95']:.1f}"
 
 
-TASKS = ("pcp", "hmt", "forage", "navigation", "sensors")
+TASKS = ("pcp", "hmt", "forage", "navigation", "sensors", "arctic")
 HEADROOM_POINTS = 15.0
 """Issue 49: on U_cap the blind reference is at least this many progress points below the scripted one."""
 
@@ -69,7 +69,7 @@ def main() -> None:
             "(`results/sets/run.sh`: `comat eval --policy heuristic --task T --teams all --episodes 5`). "
             "Unicycle tier, 20 coalitions per set, 5 episodes (start states) per coalition, seed 2000003. "
             "± = 95 % t-interval over the 20 coalitions' means (each coalition's 5 episodes averaged first). "
-            "Steps to 90 %: the horizon (PCP 80, HMT 70, forage 80, navigation 36, sensors 70) for an episode that never reached 90 % "
+            "Steps to 90 %: the horizon (PCP 80, HMT 70, forage 80, navigation 36, sensors 70, arctic 55) for an episode that never reached 90 % "
             "progress. `blind`: the scripted policy's capability-blind twin (forage: it plans as if every robot "
             "had the training mean level), where a task has one."
         ),

@@ -327,7 +327,6 @@ def main(argv):
     loop = make_loop(adapter, n, wheel)
     ax = adapter.axes(r) if show else None
     figure = TaskFigure(ax, task, state, caps, type_ids) if ax is not None else None
-    steps = task.step_lengths(caps)[0]
     horizon = min(task.horizon, max_steps) if max_steps > 0 else task.horizon
     ret, env_steps, violation, goals, done = 0.0, 0, False, None, False
     own = {"offset_collision_pair_iterations": 0, "boundary_iterations": 0}
@@ -354,6 +353,7 @@ def main(argv):
         if it % ticks == 0:  # a new env step: observe, act, set waypoints
             obs = task.observe(state, x.T[None], type_ids, caps, mask)[0]
             actions = policy(obs, state, x.T, type_ids, caps)
+            steps = task.step_lengths_at(caps, x.T[None], state)[0]  # a terrain task's step depends on where
             goals = task_logic.waypoint_goals(points, actions, steps)
         if figure is not None:
             figure.update(state, x)

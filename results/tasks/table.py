@@ -1,0 +1,48 @@
+"""The learnability check's table (issue 49): results/tasks/README.md between its table markers, from
+each kept run's evaluation (runs/NAME/evaluation_unicycle.json) beside the task's references
+(results/sets/references_<task>/); no number typed by hand."""
+
+from pathlib import Path
+
+from comat.eval.runs import SET_NAMES
+from comat.measure.metrics import read_results
+
+HERE = Path(__file__).resolve().parent
+SETS = ("train", "val", "test", "scale", "size", "capability")
+ALGOS = ("comat", "mat", "mappo")
+REFERENCES = ("heuristic", "blind", "random")
+
+
+def _progress(rows: list[dict], policy: str) -> dict[str, float]:
+    return {r["set"]: 100 * r["metrics"]["progress"]["mean"] for r in rows if r["policy"] == policy}
+
+
+def main() -> None:
+    lines = [
+        "Progress % (deterministic policy, 5 episodes per coalition, 20 coalitions per set, reality off, "
+        "unicycle; one seed, 300 k env steps, `sweep` preset). References from `results/sets/references.md`. "
+        "A run not yet kept shows as —.",
+        "",
+    ]
+    for task in ("forage", "navigation"):
+        refs = read_results(HERE.parent / "sets" / f"references_{task}" / "evaluation_unicycle.json", detail=False)
+        lines += [f"### {task}", "", "| policy | " + " | ".join(SET_NAMES[s] for s in SETS) + " |"]
+        lines.append("|---|" + "---:|" * len(SETS))
+        for algo in ALGOS:
+            path = HERE / "runs" / f"{algo}_{task}_s100" / "evaluation_unicycle.json"
+            got = _progress(read_results(path, detail=False)["rows"], algo) if path.is_file() else {}
+            lines.append(f"| {algo} | " + " | ".join(f"{got[s]:.1f}" if s in got else "—" for s in SETS) + " |")
+        for ref in REFERENCES:
+            got = _progress(refs["rows"], ref)
+            lines.append(f"| {ref} (reference) | " + " | ".join(f"{got[s]:.1f}" for s in SETS) + " |")
+        lines.append("")
+    readme = HERE / "README.md"
+    text = readme.read_text()
+    head, rest = text.split("<!-- table:begin -->")
+    _, tail = rest.split("<!-- table:end -->")
+    readme.write_text(head + "<!-- table:begin -->\n" + "\n".join(lines) + "<!-- table:end -->" + tail)
+    print(f"wrote {readme}")
+
+
+if __name__ == "__main__":
+    main()
