@@ -10,6 +10,7 @@ from comat.measure.metrics import read_results
 HERE = Path(__file__).resolve().parent
 SETS = ("train", "val", "test", "scale", "size", "capability")
 ALGOS = ("comat", "mat", "mappo")
+TASKS = ("forage", "navigation", "sensors", "arctic")
 REFERENCES = ("heuristic", "blind", "random")
 
 
@@ -19,12 +20,16 @@ def _progress(rows: list[dict], policy: str) -> dict[str, float]:
 
 def main() -> None:
     lines = [
-        "Progress % (deterministic policy, 5 episodes per coalition, 20 coalitions per set, reality off, "
-        "unicycle; one seed, 300 k env steps, `sweep` preset). References from `results/sets/references.md`. "
-        "A run not yet kept shows as —.",
+        (
+            "Progress % (deterministic policy, 5 episodes per coalition, 20 coalitions per set, reality off, "
+            "unicycle; one seed, 300 k env steps, `sweep` preset). References from `results/sets/references.md`. "
+            "A run not yet kept shows as —."
+        ),
         "",
     ]
-    for task in ("forage", "navigation"):
+    for task in TASKS:
+        if not (HERE.parent / "sets" / f"references_{task}" / "evaluation_unicycle.json").is_file():
+            continue
         refs = read_results(HERE.parent / "sets" / f"references_{task}" / "evaluation_unicycle.json", detail=False)
         lines += [f"### {task}", "", "| policy | " + " | ".join(SET_NAMES[s] for s in SETS) + " |"]
         lines.append("|---|" + "---:|" * len(SETS))
