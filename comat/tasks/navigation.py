@@ -7,8 +7,8 @@ robots differ in speed — which robot takes which goal decides whether the team
 | Capabilities | [speed m]: waypoint step per env step |
 | Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a waypoint one speed-step away for the robot's projected point |
 | Step | 29 control ticks of 0.033 s (0.96 s): waypoint controller → safety filter → MuJoCo |
-| Observation | Box(10,) float64, below |
-| State | Box(3K + S·10,): goals (x, y) ×K, claimed ×K over the env's K_max goal slots (one per robot of its largest team; a smaller team's unused slots parked at (2.6, 0), claimed), then the observations of S = ``state_robots`` slots |
+| Observation | Box(12,) float64, below |
+| State | Box(3K + S·12,): goals (x, y) ×K, claimed ×K over the env's K_max goal slots (one per robot of its largest team; a smaller team's unused slots parked at (2.6, 0), claimed), then the observations of S = ``state_robots`` slots |
 | Horizon | 36 steps; ends early when every goal is claimed |
 | Goals | one per robot, >= 0.35 m apart in x ∈ [−0.6, 1.45], y ∈ [−0.85, 0.85]. They are drawn robot by robot, each U(0.55, 0.85) × the distance that robot covers in 26 steps from the spawn area's centre, toward +x (±60°), then shuffled; where each robot starts is drawn apart from its goal. A layout is redrawn (up to 50 times) until the scripted plan from the actual starts needs at most 75 % of the horizon: the team can claim every goal in time with the right robot on each, and a fast robot's goal is out of a slow robot's reach |
 | Spawn | robots >= 0.3 m apart in x ∈ [−1.45, −0.95], y ∈ [−0.85, 0.85], random headings |
@@ -24,10 +24,10 @@ Observation layout (per robot):
 | 7 | 1 if the robot has claimed a goal (it is done: it holds its place) |
 | 8 | team's fraction of goals claimed |
 | 9 | steps left / horizon |
+| 10–11 | offset (m) to the nearest open goal (0 when none is left) |
 
-The goals themselves are in the centralized state only: a robot learns where the open goals are
-from its own position features and its teammates (the model's communication), as PCP's capture
-robots learn where prey are.
+Every robot sees the nearest open goal; which robot should take which goal it learns from its
+teammates (the model's communication) and their speeds.
 
 Composition sets (``coalitions=``; :mod:`comat.team`; speed, m per step):
 
@@ -94,7 +94,7 @@ class Navigation(TaskLogic):
     plan_steps = 26
     """Goals are drawn U(0.35, 0.75) × this many of their robot's steps from the spawn area's centre
     (the horizon leaves room for the start's offset, turning, the filter and teammates in the way)."""
-    n_task_features = 3
+    n_task_features = 5
     reward_terms = ("claimed", "time", "violation")
     reward_weights: ClassVar[dict] = {"claimed": 1.0, "time": -0.05, "violation": -5.0}
     parked = (2.6, 0.0)
@@ -228,7 +228,12 @@ class Navigation(TaskLogic):
         B, N = mask.shape
         frac = np.broadcast_to(self.progress(state)[:, None], (B, N))
         left = np.broadcast_to((1.0 - state["steps"] / self.horizon)[:, None], (B, N))
-        return np.stack([state["done_robot"].astype(float), frac, left], axis=-1)
+        d = state["goals"][:, None, :, :] - poses[:, :, None, :2]
+        dist2 = np.where(~state["claimed"][:, None, :], d[..., 0] ** 2 + d[..., 1] ** 2, np.inf)
+        k = np.argmin(dist2, axis=-1)
+        ok = np.isfinite(np.take_along_axis(dist2, k[..., None], -1))[..., 0]
+        near = np.take_along_axis(d, k[..., None, None], 2)[..., 0, :] * ok[..., None]
+        return np.concatenate([np.stack([state["done_robot"].astype(float), frac, left], axis=-1), near], axis=-1)
 
     def global_features(self, state: dict) -> np.ndarray:
         B = state["goals"].shape[0]
