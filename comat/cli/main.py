@@ -80,15 +80,16 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
 
 def _cmd_tasks(args: argparse.Namespace) -> int:
     from comat.envs.registry import env_ids, make_task
+    from comat.tasks import task_entry
     from comat.team import CAPABILITY_RANGES, SIZES, TASK_TYPES
 
     for env_id in env_ids():
         task, _ = make_task(env_id, {})
         kinds = TASK_TYPES[task.name]
         print(
-            f"{task.name} ({env_id}): {task.horizon} steps of {task.ticks_per_step} ticks an episode; teams of up to "
-            f"{task.max_team_size()} robots (the sets: {min(min(v) for v in SIZES.values())} to "
-            f"{max(max(v) for v in SIZES.values())})"
+            f"{task.name} ({env_id}): {task_entry(task.name).title}; {task.horizon} steps of "
+            f"{task.ticks_per_step} ticks an episode; teams of up to {task.max_team_size()} robots "
+            f"(the sets: {min(min(v) for v in SIZES.values())} to {max(max(v) for v in SIZES.values())})"
         )
         names = ", ".join(f"{c} [{lo:g}, {hi:g}]" for c, (lo, hi) in zip(kinds.capabilities, kinds.limits))
         print(f"  capabilities (physical limits): {names}")
