@@ -3,11 +3,10 @@ reference and its capability-blind twin, the drawing and the export layout."""
 
 import numpy as np
 import pytest
+from reference_runs import headroom
 
 from comat.envs import make_env, make_vec_env
-from comat.envs.heuristics import blind_actions, heuristic_actions
 from comat.tasks.forage import LevelForaging
-from comat.team import generate_coalitions
 
 
 def _state(items, levels):
@@ -64,17 +63,7 @@ def test_the_blind_reference_sends_too_few_robots_where_they_are_weaker_than_it_
 
 def test_composition_matters_the_blind_reference_finishes_fewer_episodes():
     """One episode per U_cap coalition: the scripted policy lifts everything; the blind one leaves items."""
-    out = {}
-    for name, act in (("heuristic", heuristic_actions), ("blind", blind_actions)):
-        env = make_vec_env("forage_v0", 20, coalitions="capability", tier="unicycle", seed=5)
-        env.reset(teams=generate_coalitions("forage", "capability"))
-        progress, seen = np.zeros(20), np.zeros(20, bool)
-        while not seen.all():
-            info = env.step(act(env.core))[-1]
-            if "episode" in info:
-                new = info["_episode"] & ~seen
-                progress[new], seen = info["episode"]["progress"][new], seen | info["_episode"]
-        out[name] = progress.mean()
+    out = headroom("forage", "capability")
     assert out["heuristic"] >= 0.95 and out["blind"] <= out["heuristic"] - 0.05, out
 
 

@@ -8,23 +8,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_policy_file import TINY_CLI
 
 from comat.tasks import load_plugins
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "write-a-task.md"
-TINY = [
-    "--steps",
-    "20",
-    "ppo.num_envs=2",
-    "ppo.rollout_steps=8",
-    "ppo.epochs=1",
-    "ppo.minibatches=1",
-    "eval_episodes_per_team=0",
-    "models.comat.embed=16",
-    "models.comat.heads=2",
-    "models.comat.heat_blocks=1",
-    "models.comat.edge_embed=8",
-]
+TINY = TINY_CLI  # a 20-step run with a small COMAT (test_policy_file.py)
 
 
 def _module() -> str:
