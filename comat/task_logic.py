@@ -342,7 +342,12 @@ class TaskLogic:
         """
         centres = poses[..., :2]
         target, ok = self.scripted_targets(state, centres, type_ids)
-        return np.where(mask, toward(centres, target, self.step_lengths_at(caps, poses, state), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
+
+    def drive(self, state: dict, poses: np.ndarray, caps: np.ndarray, mask: np.ndarray, target, ok) -> np.ndarray:
+        """Actions (B, N) taking each robot toward its ``target`` (B, N, 2) where ``ok`` (B, N), one
+        waypoint step at a time (:func:`toward`); padded slots and robots without a target stay."""
+        return np.where(mask, toward(poses[..., :2], target, self.step_lengths_at(caps, poses, state), ok), 0)
 
     best_constant_action = 1
     """The action every robot always takes in the "constant" reference row (measured for each task:

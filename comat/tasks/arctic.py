@@ -63,7 +63,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import ARENA, Area, Ring, TaskLogic, toward
+from comat.task_logic import ARENA, Area, Ring, TaskLogic
 
 __all__ = ["ARCTIC", "ArcticTransport"]
 
@@ -204,13 +204,13 @@ class ArcticTransport(TaskLogic):
         """The scripted reference (module docstring)."""
         centres = poses[..., :2]
         target, ok = self._targets(state, centres, caps, mask)
-        return np.where(mask, toward(centres, target, self.step_lengths_at(caps, poses, state), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
 
     def blind_scripted_actions(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         """The same, every cell believed equally fast: the shortest way, whatever the ground."""
         centres = poses[..., :2]
         target, ok = self._targets(state, centres, np.full(caps.shape, 0.1), mask)
-        return np.where(mask, toward(centres, target, self.step_lengths_at(caps, poses, state), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
 
     # -- diagnostics, drawing and export ------------------------------------------------------------
     end_count_names = ("not_arrived",)

@@ -63,7 +63,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import Area, Bar, Items, Ring, TaskLogic, grid_cells, spread_points, toward
+from comat.task_logic import Area, Bar, Items, Ring, TaskLogic, grid_cells, spread_points
 
 __all__ = ["FORAGE", "LevelForaging"]
 
@@ -257,14 +257,14 @@ class LevelForaging(TaskLogic):
         """Actions (B, N) of the scripted reference: groups whose levels reach each item's level."""
         centres = poses[..., :2]
         target, ok = self.scripted_targets(state, centres, type_ids, caps, mask)
-        return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
 
     def blind_scripted_actions(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         """The scripted reference blind to capabilities and types: the same groups, believing every
         robot has level :attr:`blind_level` (its steps are the robots' own: the env moves them)."""
         centres = poses[..., :2]
         target, ok = self._groups(state, centres, np.full(mask.shape, self.blind_level), mask)
-        return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
 
     # -- diagnostics ------------------------------------------------------------------------------
     robot_count_names = ("still_held", "still_idle", "lifting")

@@ -66,7 +66,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, min_cost_assignment, toward
+from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, min_cost_assignment
 
 __all__ = ["NAVIGATION", "Navigation"]
 
@@ -265,13 +265,13 @@ class Navigation(TaskLogic):
         """The scripted reference (module docstring); a robot that claimed its goal stays."""
         centres = poses[..., :2]
         goals, ok = self._plan(state, centres, caps[..., 0], mask)
-        return np.where(mask, toward(centres, goals, self.step_lengths(caps), ok), 0)
+        return self.drive(state, poses, caps, mask, goals, ok)
 
     def blind_scripted_actions(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         """The same plan by distance alone (every robot believed equally fast)."""
         centres = poses[..., :2]
         goals, ok = self._plan(state, centres, np.ones(mask.shape), mask)
-        return np.where(mask, toward(centres, goals, self.step_lengths(caps), ok), 0)
+        return self.drive(state, poses, caps, mask, goals, ok)
 
     # -- diagnostics, drawing and export ------------------------------------------------------------
     end_count_names = ("goals_open",)

@@ -60,7 +60,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, min_cost_assignment, spread_points, toward
+from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, min_cost_assignment, spread_points
 
 __all__ = ["SENSORS", "SensorNetwork"]
 
@@ -228,13 +228,13 @@ class SensorNetwork(TaskLogic):
         """The scripted reference (module docstring)."""
         centres = poses[..., :2]
         target, ok = self._plan(state, centres, caps[..., 0], mask)
-        return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
 
     def blind_scripted_actions(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         """The same plan without the radii: clusters shared out by distance alone."""
         centres = poses[..., :2]
         target, ok = self._plan(state, centres, None, mask)
-        return np.where(mask, toward(centres, target, self.step_lengths(caps), ok), 0)
+        return self.drive(state, poses, caps, mask, target, ok)
 
     # -- diagnostics, drawing and export ------------------------------------------------------------
     end_count_names = ("unwatched_end",)
