@@ -1,6 +1,6 @@
 """``comat bench soak``: many episodes of the reference policies, checking that nothing drifts.
 
-Episodes of the scripted and the random policy on U_train and U_test of both tasks, in the
+Episodes of the scripted and the random policy on U_train and U_test of every task, in the
 unicycle tier with a share in the wheels tier, run in vector environments of 32 (one process).
 Counted over all of them: MuJoCo robot–robot contacts, Robotarium-style collisions, boundary
 exits, actuator errors, NaN in observations (env steps) or returns (episodes), filter recovery
@@ -101,7 +101,7 @@ def run_soak(
     progress=print,
     sets=("train", "test"),
 ) -> dict:
-    """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × len(sets) × 2 tasks);
+    """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × len(sets) × tasks);
     resident memory is sampled after every batch and compared over the first and the last thousand
     episodes (tenth of a shorter run)."""
 

@@ -256,7 +256,7 @@ def record_episodes(
     fps: int = 10,
     reality: Any = "off",
 ) -> RolloutResult:
-    """Run and record episodes of ``task`` ("pcp" or "hmt") to the ``.rrd`` file ``path``.
+    """Run and record episodes of ``task`` (a registered task's name: ``comat tasks``) to the ``.rrd`` file ``path``.
 
     Args:
         path: output file; None runs the same episodes without recording (benchmarks).
