@@ -27,6 +27,7 @@ __all__ = [
     "Ring",
     "TaskLogic",
     "grid_cells",
+    "grow_slots",
     "heading_features",
     "min_cost_assignment",
     "nearest",
@@ -117,6 +118,16 @@ def min_cost_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cols = np.flatnonzero(p[1:])
     rows = p[1:][cols] - 1
     return (cols, rows) if flip else (rows, cols)
+
+
+def grow_slots(state: dict, extra: int, fills: dict) -> None:
+    """Append ``extra`` slots along axis 1 to each array ``state[key]`` (B, K, ...), filled with
+    ``fills[key]`` (a scalar or a trailing-shape value, e.g. a parked position): how a task's
+    per-env object slots grow for a larger team (``reserve``)."""
+    for key, value in fills.items():
+        old = state[key]
+        new = np.broadcast_to(np.asarray(value, dtype=old.dtype), (old.shape[0], extra, *old.shape[2:]))
+        state[key] = np.concatenate([old, new], axis=1)
 
 
 def heading_features(poses: np.ndarray) -> np.ndarray:

@@ -63,7 +63,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import Area, Bar, Items, Ring, TaskLogic, grid_cells, spread_points
+from comat.task_logic import Area, Bar, Items, Ring, TaskLogic, grid_cells, grow_slots, spread_points
 
 __all__ = ["FORAGE", "LevelForaging"]
 
@@ -145,11 +145,7 @@ class LevelForaging(TaskLogic):
         k, slots = self.items_for(n_robots), state["items"].shape[1]
         if k <= slots:
             return
-        B, extra = state["items"].shape[0], k - slots
-        state["items"] = np.concatenate([state["items"], np.broadcast_to(self.parked, (B, extra, 2))], axis=1)
-        state["level"] = np.concatenate([state["level"], np.zeros((B, extra))], axis=1)
-        state["collected"] = np.concatenate([state["collected"], np.ones((B, extra), bool)], axis=1)
-        state["active"] = np.concatenate([state["active"], np.zeros((B, extra), bool)], axis=1)
+        grow_slots(state, k - slots, {"items": self.parked, "level": 0.0, "collected": True, "active": False})
 
     def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
         """K(n) items for the team of caps (n, 2), each as heavy as 1–3 of its robots together."""

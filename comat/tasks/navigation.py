@@ -66,7 +66,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, min_cost_assignment
+from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, grow_slots, min_cost_assignment
 
 __all__ = ["NAVIGATION", "Navigation"]
 
@@ -147,10 +147,7 @@ class Navigation(TaskLogic):
         slots = state["goals"].shape[1]
         if n_robots <= slots:
             return
-        B, extra = state["goals"].shape[0], n_robots - slots
-        state["goals"] = np.concatenate([state["goals"], np.broadcast_to(self.parked, (B, extra, 2))], axis=1)
-        state["claimed"] = np.concatenate([state["claimed"], np.ones((B, extra), bool)], axis=1)
-        state["active"] = np.concatenate([state["active"], np.zeros((B, extra), bool)], axis=1)
+        grow_slots(state, n_robots - slots, {"goals": self.parked, "claimed": True, "active": False})
 
     def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray, starts=None) -> None:
         """One goal per robot of the team (caps (n, 1)): robot i's speed sets how far from the spawn

@@ -60,7 +60,7 @@ from typing import ClassVar
 import numpy as np
 
 # (an export ships this file beside task_logic.py, with this import made local: sim2real/export.py)
-from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, min_cost_assignment, spread_points
+from comat.task_logic import Area, Items, Ring, TaskLogic, grid_cells, grow_slots, min_cost_assignment, spread_points
 
 __all__ = ["SENSORS", "SensorNetwork"]
 
@@ -134,13 +134,10 @@ class SensorNetwork(TaskLogic):
         n = state["centres"].shape[1]
         if n_robots <= n:
             return
-        B, extra = state["targets"].shape[0], n_robots - n
-        k = self.per_cluster * extra
-        state["targets"] = np.concatenate([state["targets"], np.broadcast_to(self.parked, (B, k, 2))], axis=1)
-        state["watched"] = np.concatenate([state["watched"], np.zeros((B, k), bool)], axis=1)
-        state["active"] = np.concatenate([state["active"], np.zeros((B, k), bool)], axis=1)
-        state["centres"] = np.concatenate([state["centres"], np.zeros((B, extra, 2))], axis=1)
-        state["need"] = np.concatenate([state["need"], np.zeros((B, extra))], axis=1)
+        grow_slots(
+            state, self.per_cluster * (n_robots - n), {"targets": self.parked, "watched": False, "active": False}
+        )
+        grow_slots(state, n_robots - n, {"centres": 0.0, "need": 0.0})
 
     def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray, starts=None) -> None:
         """One cluster of targets per robot of the team (caps (n, 1)), sized by that robot's radius;
