@@ -3,13 +3,21 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+# BenchMARL pins TorchRL < 0.12, the interop extra 0.14.1: the outside reference has a venv of its own.
+BM_VENV  := .venv-benchmarl
+BM_STAMP := $(BM_VENV)/.installed
 
-.PHONY: setup demo test test-slow test-learning test-all test-cluster test-wheel bench mjcf clean docs lint
+.PHONY: setup demo test test-slow test-learning test-benchmarl test-all test-cluster test-wheel bench mjcf clean docs lint
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[test,robotarium,ray,interop]"
 	touch $(STAMP)
+
+$(BM_STAMP): pyproject.toml
+	$(PYTHON) -m venv $(BM_VENV)
+	$(BM_VENV)/bin/pip install --disable-pip-version-check -q -e ".[test,benchmarl]"
+	touch $(BM_STAMP)
 
 setup: $(STAMP)
 
@@ -25,7 +33,10 @@ test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario 
 test-learning: $(STAMP)  ## learning checks: each new learner trains ten PPO updates on PCP (about 1 minute)
 	$(BIN)/python -m pytest -q -m learning
 
-test-all: test test-slow test-cluster test-learning
+test-benchmarl: $(BM_STAMP)  ## BenchMARL's own MAPPO trains on a fixed comat team, in .venv-benchmarl (about 1 minute, install aside)
+	$(BM_VENV)/bin/python -m pytest -q -m benchmarl tests/test_benchmarl.py
+
+test-all: test test-slow test-cluster test-learning test-benchmarl
 
 docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warnings and broken links fail)
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[docs]"
@@ -53,4 +64,4 @@ mjcf: $(STAMP)  ## regenerate the golden MJCF files
 	$(BIN)/comat mjcf --out assets/mjcf
 
 clean:
-	rm -rf $(VENV) .pytest_cache
+	rm -rf $(VENV) $(BM_VENV) .pytest_cache

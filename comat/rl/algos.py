@@ -175,8 +175,9 @@ def make_learner(config, env, dims: Dims) -> Learner:
     return Learner(config.algo, modules, trainer)
 
 
-def make_run_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"):
-    """The run's environments, training and evaluation alike, at the run's reality layer: each
+def make_run_env(config: RunConfig, num_envs: int, seed: int, coalitions=None):
+    """The run's environments (on ``coalitions``, default the run's own: :attr:`RunConfig.coalitions`),
+    training and evaluation alike, at the run's reality layer: each
     episode (every reset and autoreset) draws its layer from its own generator, so a run at
     ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
@@ -187,7 +188,7 @@ def make_run_env(config: RunConfig, num_envs: int, seed: int, coalitions="train"
         workers=min(config.env_workers, num_envs),
         seed=seed,
         sim=sim,
-        coalitions=coalitions,
+        coalitions=config.coalitions if coalitions is None else coalitions,
         reality=config.reality,
         safety=safety,
         **env_slots(config),

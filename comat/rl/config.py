@@ -8,6 +8,7 @@ A preset holds values only, for every algorithm at once::
     models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}, ippo: {IppoConfig},
             cash: {CashConfig}},
     reality: off | nominal | stress | PROFILE.yaml | {RealityConfig fields}
+    coalitions: train | SET | TEAMS.yaml   (what the run trains on; default train, U_train)
 
 ``reality`` is the reality layer the run trains at (:mod:`comat.reality`; default ``off``): a
 level name, or a mapping of fields (``{level: nominal, pose_delay_ticks: 2}``; without ``level``
@@ -27,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from comat.config import LOOPS, load
+from comat.envs.base import resolve_coalitions
 from comat.models.cash import CashConfig
 from comat.models.comat import ComatConfig
 from comat.models.ippo import IppoConfig
@@ -38,6 +40,7 @@ from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 from comat.tasks import task_names
+from comat.team import COALITION_SETS
 
 __all__ = [
     "ALGOS",
@@ -74,7 +77,10 @@ _RUN_KEYS = (
     "torch_threads",
     "physics_threads",
 )
-_PRESET_KEYS = (*_RUN_KEYS, "seeds", "tier", "loop", "ppo", "qmix", "models", "reality", "base", "by_task")
+_PRESET_KEYS = (
+    *_RUN_KEYS,
+    *("seeds", "tier", "loop", "coalitions", "ppo", "qmix", "models", "reality", "base", "by_task"),
+)
 _TASK_KEYS = tuple(k for k in _PRESET_KEYS if k not in ("base", "by_task", "seeds"))
 """What ``by_task: {hmt: {...}}`` may change for one task (the budget, the trainer, the models ...)."""
 
@@ -120,6 +126,12 @@ class RunConfig:
     (:attr:`comat.config.SafetyConfig.loop`): ``"comat"`` (comat's filter, the default) or an
     export's loop (``robotarium_v2``, ``shipped_v2`` ...), to train and evaluate against what the
     Robotarium will run. A run config stored before the option existed loads as ``comat``."""
+    coalitions: Any = "train"
+    """The teams the run trains on and its periodic evaluation plays: a set name
+    (:data:`comat.team.COALITION_SETS`; ``train``, U_train, is the paper's protocol) or the teams
+    themselves, a list of ``{robots: [...]}`` mappings, which :func:`resolve` reads from a
+    YAML/JSON file (``coalitions=team.yaml`` trains one fixed team) so that the run's config.yaml
+    holds them. A run config stored before the option existed loads as ``train``."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.reality, RealityConfig):
@@ -158,6 +170,17 @@ def run_reality(value: Any) -> RealityConfig:
         if text.startswith("RealityConfig."):
             raise type(err)("reality." + text[len("RealityConfig.") :]) from err
         raise
+
+
+def run_coalitions(value: Any, task: str) -> str | list[dict[str, Any]]:
+    """A set name as it is; a file or a list of teams as the checked teams, stored as mappings."""
+    if isinstance(value, str) and value in COALITION_SETS:
+        return value
+    try:
+        teams = resolve_coalitions(value, task)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"coalitions: {err}") from err
+    return [t.to_dict() for t in teams]
 
 
 def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
@@ -348,6 +371,7 @@ def resolve(
                 "model": (preset.get("models") or {}).get(algo),
                 "reality": preset.get("reality"),
                 "loop": preset.get("loop", "comat"),
+                "coalitions": run_coalitions(preset.get("coalitions", "train"), task),
             }
         )
     except (TypeError, ValueError) as err:  # name the key as presets and overrides spell it

@@ -78,9 +78,11 @@ def _write_config(
     write_atomic(path, yaml.safe_dump(doc, sort_keys=False))
 
 
-def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions="train") -> dict:
-    """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition, at
-    the run's reality layer (what the run trains under; ``comat eval --reality`` for others)."""
+def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions=None) -> dict:
+    """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition (of
+    ``coalitions``, default the run's training teams), at the run's reality layer (what the run
+    trains under; ``comat eval --reality`` for others)."""
+    coalitions = config.coalitions if coalitions is None else coalitions
     teams = resolve_coalitions(coalitions, config.task) * (episodes_per_team or config.eval_episodes_per_team)
     env = make_run_env(config, min(len(teams), 32), config.seed + EVAL_SEED_OFFSET, coalitions)
     for m in modules.values():
