@@ -1,13 +1,15 @@
 """Team compositions: robots with a type and a capability vector, teams, and the composition sets.
 
-A task declares its robot types and capability names (:data:`TASK_TYPES`); a robot is a
-``RobotSpec(type, capabilities)``; a team is a ``TeamSpec(task, robots)`` with at least one
-robot of each type. The composition sets are generated from a seed by
-:func:`generate_coalitions` — the envs use that function, so the code is the source of these sets —
-and stored as YAML in :data:`COALITIONS_DIR` (inside the package, linked from the checkout as
-``train/coalitions/``; ``comat coalitions`` regenerates them, a test checks they match). Each set
-holds 20 coalitions per task and draws from its own random stream, so adding a set changes no
-other set's teams. The sets (:data:`COALITION_SETS`; report names in :data:`SET_LABELS`):
+A task's module states its robot types, capability names and limits, and the capability bands
+and random streams of its sets (:mod:`comat.tasks`; :data:`TASK_TYPES` and
+:data:`CAPABILITY_RANGES` read them from the registered tasks). A robot is a
+``RobotSpec(type, capabilities)``; a team is a ``TeamSpec(task, robots)`` with at least one robot
+of each type. The composition sets are generated from a seed by :func:`generate_coalitions` — the
+envs use that function, so the code is the source of these sets — and stored as YAML in
+:data:`COALITIONS_DIR` (inside the package, linked from the checkout as ``train/coalitions/``;
+``comat coalitions`` regenerates them, a test checks they match). Each set holds 20 coalitions per
+task and draws from its own random stream, so adding a set changes no other set's teams. The
+sets (:data:`COALITION_SETS`; report names in :data:`SET_LABELS`):
 
 * ``train`` (U_train, the paper §III-D): team sizes drawn from {3, 5, 7}, the *training* ranges.
 * ``val`` (U_val): drawn exactly like U_train (sizes {3, 5, 7}, training ranges) from another
@@ -24,17 +26,8 @@ other set's teams. The sets (:data:`COALITION_SETS`; report names in :data:`SET_
   side drawn with probability proportional to its band's width (so uniform over the union of the
   two bands), inside the physical limits: capability is the only thing that differs from U_train.
 
-Capability ranges (uniform; :data:`CAPABILITY_RANGES`):
-
-* PCP (sensing radius, capture radius), m: train sensing U(0.3, 0.55), capture U(0.35, 0.45);
-  test (and scale) sensing U(0.2, 0.4), capture U(0.25, 0.4); capability sensing
-  [0.18, 0.30) ∪ (0.55, 0.75], capture [0.22, 0.35) ∪ (0.45, 0.60]. A sensing robot's capture
-  radius is 0 and a capture robot's sensing radius is 0.
-* HMT (speed = waypoint step per env step, m; payload, units): train fast U(0.19, 0.45) /
-  U(5, 12), slow U(0.10, 0.15) / U(16, 22); test (and scale) fast U(0.15, 0.35) / U(7, 15), slow
-  U(0.08, 0.18) / U(13, 28); capability fast [0.12, 0.19) ∪ (0.45, 0.488] / [2, 5) ∪ (12, 16],
-  slow [0.06, 0.10) ∪ (0.15, 0.19] / [10, 16) ∪ (22, 30]. The fast robots' upper speed band
-  ends at the physical limit 0.488 m (0.2 m/s over one 2.44 s step).
+Each task's spec sheet gives its sets' capability ranges (e.g. :mod:`comat.tasks.pcp`). U_val
+and U_size draw from the training bands, U_scale from the test ones.
 
 Capabilities are rounded to 1e-6 (what the files hold); U_cap's bands stop one such step short of
 the training range, so a rounded value never lands on its edge.
@@ -48,6 +41,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from comat.tasks import COALITION_SETS, TASKS, Band, TaskTypes
 
 COALITIONS_DIR = Path(__file__).resolve().parent / "data" / "coalitions"
 """The stored copies ``<task>_<set>.yaml`` of the composition sets, shipped in the package so an
@@ -68,38 +63,27 @@ __all__ = [
     "load_coalitions",
     "load_team",
     "random_team",
-    "register_sets",
     "save_coalitions",
 ]
 
 
-@dataclass(frozen=True)
-class TaskTypes:
-    """Robot types and capability layout of a task, with physical limits per capability."""
+class _TaskTypes(Mapping):
+    """task -> :class:`~comat.tasks.TaskTypes`, read from the registered tasks (:mod:`comat.tasks`)."""
 
-    types: tuple[str, ...]
-    capabilities: tuple[str, ...]
-    limits: tuple[tuple[float, float], ...]
-    """Inclusive (low, high) physical limits of each capability (across all types)."""
-    required: tuple[tuple[int, ...], ...]
-    """Per type, indices of the capabilities that must be > 0 for it (its role)."""
-    ignored: tuple[tuple[int, ...], ...] = ()
-    """Per type, indices of the capabilities the task's rules ignore for it: they must be 0, so
-    a team file cannot suggest an ability the robot does not have."""
+    def __getitem__(self, task: str) -> TaskTypes:
+        if task not in TASKS:
+            raise KeyError(task)
+        return TASKS[task].types
+
+    def __iter__(self):
+        return iter(TASKS)
+
+    def __len__(self) -> int:
+        return len(TASKS)
 
 
-TASK_TYPES: dict[str, TaskTypes] = {
-    # Radii beyond 1 m would see or reach most of the 3.2 x 2 m arena from anywhere.
-    "pcp": TaskTypes(
-        ("sensing", "capture"),
-        ("sensing_radius_m", "capture_radius_m"),
-        ((0.0, 1.0), (0.0, 1.0)),
-        ((0,), (1,)),
-        ((1,), (0,)),
-    ),
-    # Step lengths are limited by 0.2 m/s over one 74-tick step (2.44 s): 0.488 m.
-    "hmt": TaskTypes(("fast", "slow"), ("speed_m", "payload"), ((0.0, 0.488), (0.0, 100.0)), ((0, 1), (0, 1))),
-}
+TASK_TYPES: Mapping[str, TaskTypes] = _TaskTypes()
+"""Each registered task's robot types and capability layout (its module states them)."""
 
 SIZES = {
     "train": (3, 5, 7),
@@ -113,9 +97,6 @@ SIZES = {
 Robotarium's 20 robots, with U_test's capability ranges: the sizes where fixed-slot methods stop.
 U_size lists each of its sizes equally often instead of drawing them (see :func:`generate_coalitions`)."""
 
-COALITION_SETS = ("train", "val", "test", "scale", "size", "capability")
-"""The named composition sets, in the order commands list them (module docstring)."""
-
 SET_LABELS = {
     "train": "U_train",
     "val": "U_val",
@@ -126,102 +107,30 @@ SET_LABELS = {
 }
 """Report and display name of each set."""
 
-Band = tuple[float, float]
-"""Inclusive (low, high) interval of capability values; (0, 0): the capability is not used."""
-
 _GRAIN = 1e-6
 """Capabilities are rounded to this (what the YAML files hold)."""
 
 
-def _one(lo: float, hi: float) -> tuple[Band, ...]:
-    return ((lo, hi),)
+class _CapabilityRanges(Mapping):
+    """(task, set) -> type -> per capability, the bands its values are drawn from: uniform over their
+    union (a band chosen with probability proportional to its width, then uniform inside it). One
+    band for every set but U_cap. Read from the registered tasks (each task's ``capability_bands``)."""
+
+    def __getitem__(self, key: tuple[str, str]) -> dict[str, tuple[tuple[Band, ...], ...]]:
+        task, split = key
+        if task not in TASKS or split not in COALITION_SETS:
+            raise KeyError(key)
+        return dict(TASKS[task].bands[split])
+
+    def __iter__(self):
+        return iter([(task, split) for task in TASKS for split in COALITION_SETS])
+
+    def __len__(self) -> int:
+        return len(TASKS) * len(COALITION_SETS)
 
 
-_NONE = _one(0.0, 0.0)
-
-
-def _outside(train: tuple[Band, ...], low: float, high: float) -> tuple[Band, ...]:
-    """Bands [low, train low) and (train high, high] around a one-band training range, each
-    ending one rounding step short of it (so a rounded draw is never on the range's edge)."""
-    ((lo, hi),) = train
-    return ((low, round(lo - _GRAIN, 6)), (round(hi + _GRAIN, 6), high))
-
-
-CAPABILITY_RANGES: dict[tuple[str, str], dict[str, tuple[tuple[Band, ...], ...]]] = {
-    ("pcp", "train"): {"sensing": (_one(0.30, 0.55), _NONE), "capture": (_NONE, _one(0.35, 0.45))},
-    ("pcp", "test"): {"sensing": (_one(0.20, 0.40), _NONE), "capture": (_NONE, _one(0.25, 0.40))},
-    ("hmt", "train"): {"fast": (_one(0.19, 0.45), _one(5.0, 12.0)), "slow": (_one(0.10, 0.15), _one(16.0, 22.0))},
-    ("hmt", "test"): {"fast": (_one(0.15, 0.35), _one(7.0, 15.0)), "slow": (_one(0.08, 0.18), _one(13.0, 28.0))},
-}
-"""(task, set) -> type -> per capability, the bands its values are drawn from: uniform over their
-union (a band chosen with probability proportional to its width, then uniform inside it). One
-band for every set but U_cap. Train and test are the paper's §III-D ranges."""
-for _task in ("pcp", "hmt"):
-    # U_val is drawn like U_train; U_size keeps the training ranges; U_scale U_test's unseen ones.
-    CAPABILITY_RANGES[(_task, "val")] = CAPABILITY_RANGES[(_task, "train")]
-    CAPABILITY_RANGES[(_task, "size")] = CAPABILITY_RANGES[(_task, "train")]
-    CAPABILITY_RANGES[(_task, "scale")] = CAPABILITY_RANGES[(_task, "test")]
-_PT, _HT = CAPABILITY_RANGES[("pcp", "train")], CAPABILITY_RANGES[("hmt", "train")]
-# U_cap: below and above the training range on both sides; each band's far end chosen so the
-# set stays physically sensible (radii of 0.18-0.75 m; the fast robots' top speed is the limit).
-CAPABILITY_RANGES[("pcp", "capability")] = {
-    "sensing": (_outside(_PT["sensing"][0], 0.18, 0.75), _NONE),
-    "capture": (_NONE, _outside(_PT["capture"][1], 0.22, 0.60)),
-}
-CAPABILITY_RANGES[("hmt", "capability")] = {
-    "fast": (_outside(_HT["fast"][0], 0.12, 0.488), _outside(_HT["fast"][1], 2.0, 16.0)),
-    "slow": (_outside(_HT["slow"][0], 0.06, 0.19), _outside(_HT["slow"][1], 10.0, 30.0)),
-}
-del _task, _PT, _HT
-
-# Random stream of each set. Fixed numbers, not positions in a sorted list, so that adding a set
-# never changes the teams of another (the first four are the sets' original sorted positions).
-_STREAMS = {
-    ("hmt", "test"): 0,
-    ("hmt", "train"): 1,
-    ("pcp", "test"): 2,
-    ("pcp", "train"): 3,
-    ("hmt", "scale"): 4,
-    ("pcp", "scale"): 5,
-    ("hmt", "val"): 6,
-    ("pcp", "val"): 7,
-    ("hmt", "size"): 8,
-    ("pcp", "size"): 9,
-    ("hmt", "capability"): 10,
-    ("pcp", "capability"): 11,
-}
-
-
-def register_sets(task: str, types: TaskTypes, bands: Mapping[str, Mapping], stream_base: int) -> None:
-    """Enter a task's types and composition sets (:mod:`comat.tasks` calls it for a task that states
-    them): ``bands`` maps "train", "test" and "capability" to type -> per capability its bands; U_val
-    and U_size draw from the training bands, U_scale from the test ones, as for PCP and HMT. The
-    sets draw from the random streams ``stream_base`` … ``stream_base + 5`` (in
-    :data:`COALITION_SETS` order), which no other task's set may use."""
-    if task in TASK_TYPES:
-        raise ValueError(f"task {task!r} has its types registered already")
-    missing = {"train", "test", "capability"} - set(bands)
-    if missing:
-        raise ValueError(
-            f"task {task!r}: capability_bands must name the sets train, test, capability; missing {sorted(missing)}"
-        )
-    streams = {(task, s): stream_base + i for i, s in enumerate(COALITION_SETS)}
-    taken = set(streams.values()) & set(_STREAMS.values())
-    if taken:
-        raise ValueError(
-            f"task {task!r}: set_streams {stream_base} reuses random streams {sorted(taken)} of another task"
-        )
-    for name in ("train", "test", "capability"):
-        if set(bands[name]) != set(types.types):
-            raise ValueError(
-                f"task {task!r}: capability_bands[{name!r}] must give every type {types.types}, "
-                f"got {sorted(bands[name])}"
-            )
-    TASK_TYPES[task] = types
-    for s in COALITION_SETS:
-        source = {"val": "train", "size": "train", "scale": "test"}.get(s, s)
-        CAPABILITY_RANGES[(task, s)] = {k: tuple(tuple(b) for b in v) for k, v in bands[source].items()}
-    _STREAMS.update(streams)
+CAPABILITY_RANGES: Mapping[tuple[str, str], dict[str, tuple[tuple[Band, ...], ...]]] = _CapabilityRanges()
+"""(task, set) -> type -> per capability, its bands (see :class:`_CapabilityRanges`)."""
 
 
 @dataclass(frozen=True)
@@ -359,7 +268,7 @@ def generate_coalitions(task: str, split: str, count: int = 20, seed: int = 0) -
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f"count must be a positive integer, got {count!r}")
     # One stream per (task, split), derived from the seed, so the sets do not depend on each other.
-    rng = np.random.default_rng([seed, _STREAMS[(task, split)]])
+    rng = np.random.default_rng([seed, TASKS[task].streams[split]])
     if split == "size":
         sizes = sorted(SIZES[split][i % len(SIZES[split])] for i in range(count))
     else:

@@ -5,14 +5,17 @@ benchmark, sweep and export reads.
 A task's module holds everything that is its own, in numpy only (an export ships it): its spec
 sheet (the module docstring), robot types and capabilities, reset, the dynamics of its objects,
 observations, named reward terms, progress and done, the scripted reference policy, how it is
-drawn (:class:`comat.task_logic.Marks`) and what an export carries of a reset (``layout``); a task
-added after PCP and HMT also states its composition sets' capability bands
-(``capability_bands``, ``capability_limits``, ``required``, ``set_streams``), which
-:func:`register_task` enters in :mod:`comat.team`. The environments, the six sets, evaluation,
-report, export, Rerun and video read the registered tasks with no task-specific code.
+drawn (:class:`comat.task_logic.Marks`), what an export carries of a reset (``layout``) and its
+composition sets: the physical limits of its capabilities and which a type needs or lacks
+(``capability_limits``, ``required``, ``ignored``), the bands each set draws them from
+(``capability_bands``) and the sets' random streams (``set_streams``). :func:`task_from_logic`
+registers such a class; :mod:`comat.team` draws every task's sets from its entry here. The
+environments, the six sets, evaluation, report, export, Rerun and video read the registered tasks
+with no task-specific code.
 
-Each :class:`TaskEntry` names a task, its PettingZoo env id, its logic class and its robot types
-(:data:`comat.team.TASK_TYPES`). :func:`task_names` is the order commands list them in;
+Each :class:`TaskEntry` names a task, its PettingZoo env id, its logic class, its robot types
+(:class:`TaskTypes`), the capability bands of each of the six sets and their random streams.
+:func:`task_names` is the order commands list them in;
 :func:`task_entry` turns a name into its entry with a one-line error for a name that is not
 registered.
 """
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import importlib
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 
@@ -30,9 +34,45 @@ from comat.tasks.hmt import HMT
 from comat.tasks.navigation import Navigation
 from comat.tasks.pcp import PCP
 from comat.tasks.sensors import SensorNetwork
-from comat.team import TASK_TYPES, TaskTypes, register_sets
 
-__all__ = ["TASKS", "TaskEntry", "load_plugins", "register_task", "task_entry", "task_from_logic", "task_names"]
+__all__ = [
+    "COALITION_SETS",
+    "TASKS",
+    "Band",
+    "TaskEntry",
+    "TaskTypes",
+    "load_plugins",
+    "register_task",
+    "task_entry",
+    "task_from_logic",
+    "task_names",
+]
+
+COALITION_SETS = ("train", "val", "test", "scale", "size", "capability")
+"""The named composition sets, in the order commands list them (:mod:`comat.team`)."""
+
+_BANDS_FROM = {"val": "train", "size": "train", "scale": "test"}
+"""U_val and U_size draw from the training bands, U_scale from the test ones; a task states the
+bands of train, test and capability."""
+
+Band = tuple[float, float]
+"""Inclusive (low, high) interval of capability values; (0, 0): the capability is not used."""
+
+
+@dataclass(frozen=True)
+class TaskTypes:
+    """Robot types and capability layout of a task, with physical limits per capability."""
+
+    types: tuple[str, ...]
+    capabilities: tuple[str, ...]
+    limits: tuple[tuple[float, float], ...]
+    """Inclusive (low, high) physical limits of each capability (across all types)."""
+    required: tuple[tuple[int, ...], ...]
+    """Per type, indices of the capabilities that must be > 0 for it (its role)."""
+    ignored: tuple[tuple[int, ...], ...] = ()
+    """Per type, indices of the capabilities the task's rules ignore for it: they must be 0, so
+    a team file cannot suggest an ability the robot does not have."""
+
 
 PLUGIN_ENV = "COMAT_TASKS"
 """Environment variable naming tasks of one's own to register on import: ``module:Class`` entries,
@@ -51,6 +91,10 @@ class TaskEntry:
     title: str
     logic: type
     types: TaskTypes
+    bands: Mapping[str, Mapping[str, tuple[tuple[Band, ...], ...]]]
+    """set -> type -> per capability, the bands its values are drawn from (every set)."""
+    streams: Mapping[str, int]
+    """set -> the random stream its teams are drawn from (no two tasks' sets share one)."""
 
 
 TASKS: dict[str, TaskEntry] = {}
@@ -63,6 +107,13 @@ def register_task(entry: TaskEntry) -> TaskEntry:
         raise ValueError(f"task {entry.name!r} ({entry.env_id}) is registered already")
     if getattr(entry.logic, "name", None) != entry.name:
         raise ValueError(f"task {entry.name!r}: its logic class {entry.logic.__name__} is named {entry.logic.name!r}")
+    taken = {stream: other.name for other in TASKS.values() for stream in other.streams.values()}
+    clash = sorted(s for s in entry.streams.values() if s in taken)
+    if clash:
+        raise ValueError(
+            f"task {entry.name!r}: set_streams reuses random streams {clash} "
+            f"of task(s) {sorted({taken[s] for s in clash})}"
+        )
     TASKS[entry.name] = entry
     return entry
 
@@ -80,16 +131,49 @@ def task_entry(name: str) -> TaskEntry:
 
 
 def task_from_logic(logic: type, title: str) -> TaskEntry:
-    """Register the task whose logic class states its composition sets (``capability_bands``,
-    ``capability_limits``, ``required``, ``set_streams``): its types and sets enter
-    :mod:`comat.team`, its env id is ``<name>_v0``."""
-    types = TaskTypes(logic.types, logic.capabilities, logic.capability_limits, logic.required)
-    register_sets(logic.name, types, logic.capability_bands, logic.set_streams)
-    return register_task(TaskEntry(logic.name, f"{logic.name}_v0", title, logic, types))
+    """Register the task whose logic class states its composition sets (module docstring): its env
+    id is ``<name>_v0``. ``set_streams`` is the first of six consecutive streams (in
+    :data:`COALITION_SETS` order) or a mapping set -> stream."""
+    name = logic.name
+    types = TaskTypes(
+        tuple(logic.types),
+        tuple(logic.capabilities),
+        tuple(tuple(lim) for lim in logic.capability_limits),
+        tuple(tuple(r) for r in logic.required),
+        tuple(tuple(i) for i in getattr(logic, "ignored", ())),
+    )
+    stated = logic.capability_bands
+    missing = sorted({"train", "test", "capability"} - set(stated))
+    if missing:
+        raise ValueError(
+            f"task {name!r}: capability_bands must name the sets train, test, capability; missing {missing}"
+        )
+    for split in ("train", "test", "capability"):
+        if set(stated[split]) != set(types.types):
+            raise ValueError(
+                f"task {name!r}: capability_bands[{split!r}] must give every type {types.types}, "
+                f"got {sorted(stated[split])}"
+            )
+    bands = {
+        split: {
+            t: tuple(tuple(tuple(b) for b in caps) for caps in per_type)
+            for t, per_type in stated[_BANDS_FROM.get(split, split)].items()
+        }
+        for split in COALITION_SETS
+    }
+    first = logic.set_streams
+    streams = (
+        dict(first) if isinstance(first, Mapping) else {split: first + i for i, split in enumerate(COALITION_SETS)}
+    )
+    if set(streams) != set(COALITION_SETS):
+        raise ValueError(
+            f"task {name!r}: set_streams must give every set {list(COALITION_SETS)}, got {sorted(streams)}"
+        )
+    return register_task(TaskEntry(name, f"{name}_v0", title, logic, types, bands, streams))
 
 
-register_task(TaskEntry("pcp", "pcp_v0", "Predator Capture Prey", PCP, TASK_TYPES["pcp"]))
-register_task(TaskEntry("hmt", "hmt_v0", "Heterogeneous Material Transport", HMT, TASK_TYPES["hmt"]))
+task_from_logic(PCP, "Predator Capture Prey")
+task_from_logic(HMT, "Heterogeneous Material Transport")
 task_from_logic(LevelForaging, "Level-Based Foraging")
 task_from_logic(Navigation, "Navigation")
 task_from_logic(SensorNetwork, SensorNetwork.title)

@@ -102,6 +102,23 @@ class MaterialTransport(TaskLogic):
     reward_terms = ("loaded", "unloaded", "time", "violation")
     reward_weights: ClassVar[dict] = {"loaded": 0.025, "unloaded": 0.075, "time": -0.1, "violation": -6.0}
 
+    # -- what the composition sets draw (comat.tasks registers them; the spec sheet above) -------
+    capability_limits = ((0.0, 0.488), (0.0, 100.0))
+    """Physical limits: a step of at most 0.2 m/s over one 74-tick step (2.44 s), 0.488 m; payload units."""
+    required = ((0, 1), (0, 1))
+    capability_bands: ClassVar[dict] = {
+        "train": {"fast": (((0.19, 0.45),), ((5.0, 12.0),)), "slow": (((0.10, 0.15),), ((16.0, 22.0),))},
+        "test": {"fast": (((0.15, 0.35),), ((7.0, 15.0),)), "slow": (((0.08, 0.18),), ((13.0, 28.0),))},
+        # Below and above the training range, each band one rounding step (1e-6) short of it; the
+        # fast robots' upper speed band ends at the physical limit.
+        "capability": {
+            "fast": (((0.12, 0.189999), (0.450001, 0.488)), ((2.0, 4.999999), (12.000001, 16.0))),
+            "slow": (((0.06, 0.099999), (0.150001, 0.19)), ((10.0, 15.999999), (22.000001, 30.0))),
+        },
+    }
+    set_streams: ClassVar[dict] = {"test": 0, "train": 1, "scale": 4, "val": 6, "size": 8, "capability": 10}
+    """The sets' random streams, fixed when they were first drawn (the stored sets must not change)."""
+
     def step_lengths(self, caps: np.ndarray) -> np.ndarray:
         """Waypoint step (B, N), m: the robot's speed capability."""
         return caps[..., 0]

@@ -120,6 +120,25 @@ class PredatorCapturePrey(TaskLogic):
     parked = (2.6, 0.0)
     """Where inactive prey slots sit, m: 1 m outside the arena, where no robot can be."""
 
+    # -- what the composition sets draw (comat.tasks registers them; the spec sheet above) -------
+    capability_limits = ((0.0, 1.0), (0.0, 1.0))
+    """Physical limits, m: radii beyond 1 m would see or reach most of the 3.2 x 2 m arena from anywhere."""
+    required = ((0,), (1,))
+    ignored = ((1,), (0,))
+    """A sensing robot captures nothing and a capture robot senses nothing: that radius is 0."""
+    capability_bands: ClassVar[dict] = {
+        "train": {"sensing": (((0.30, 0.55),), ((0.0, 0.0),)), "capture": (((0.0, 0.0),), ((0.35, 0.45),))},
+        "test": {"sensing": (((0.20, 0.40),), ((0.0, 0.0),)), "capture": (((0.0, 0.0),), ((0.25, 0.40),))},
+        # Below and above the training range, each band one rounding step (1e-6) short of it; radii
+        # of 0.18-0.75 m keep the set physically sensible.
+        "capability": {
+            "sensing": (((0.18, 0.299999), (0.550001, 0.75)), ((0.0, 0.0),)),
+            "capture": (((0.0, 0.0),), ((0.22, 0.349999), (0.450001, 0.60))),
+        },
+    }
+    set_streams: ClassVar[dict] = {"test": 2, "train": 3, "scale": 5, "val": 7, "size": 9, "capability": 11}
+    """The sets' random streams, fixed when they were first drawn (the stored sets must not change)."""
+
     def __init__(self, n_prey: int | None = None):
         bad = isinstance(n_prey, bool) or not isinstance(n_prey, (int, np.integer)) or n_prey < 1
         if n_prey is not None and bad:
