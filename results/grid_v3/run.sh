@@ -7,26 +7,29 @@
 # session commits them. A kept run is skipped. A 1 M job (the budget check) starts from a copy of
 # the same seed's 300 k run folder and resumes it to 1 M env steps, leaving the 300 k run as it is.
 # Runs the code of COMAT_CODE (default: this checkout) with python -P and one thread per lane.
+# Another experiment on the same protocol sets GRID (its folder under results/ and runs/, default
+# grid_v3) and LEVELS (the reality levels it evaluates, default as above): results/new_learners/run.sh.
 set -euo pipefail
 algo=$1 task=$2 seed=$3 reality=$4 steps=$5
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 code=${COMAT_CODE:-$root}
+grid=${GRID:-grid_v3}
 name="${algo}_${task}_${reality}_s${seed}"
 [[ $steps == 300000 ]] || name="${name}_$((steps / 1000))k"
-run="$root/runs/grid_v3/$name"
-keep="$root/results/grid_v3/runs/$name"
-log="$root/runs/grid_v3/$name.log"
+run="$root/runs/$grid/$name"
+keep="$root/results/$grid/runs/$name"
+log="$root/runs/$grid/$name.log"
 comat() { PYTHONPATH=$code OMP_NUM_THREADS=1 "$root/.venv/bin/python" -P -c \
   "import sys; from comat.cli import main; sys.argv=['comat']+sys.argv[1:]; sys.exit(main())" "$@"; }
 cd "$root"
 if [[ -f "$keep/summary.json" ]]; then echo "done: $name"; exit 0; fi
-mkdir -p runs/grid_v3
+mkdir -p "runs/$grid"
 echo "start: $name $(date -u +%FT%TZ)"
 extra=()
 [[ $reality == off ]] || extra+=("reality=$reality")
 [[ $algo == qmix ]] && extra+=("models.qmix.max_robots=8")  # the paper's Table I row: 8 slots
 if [[ $steps != 300000 && ! -d $run ]]; then  # the budget check continues a copy of the 300 k run
-  base="$root/runs/grid_v3/${algo}_${task}_${reality}_s${seed}"
+  base="$root/runs/$grid/${algo}_${task}_${reality}_s${seed}"
   if [[ -f $base/checkpoint.pt && -f $base/policy.pt ]]; then
     cp -r "$base" "$run.partial"
     rm -f "$run.partial"/{policy.pt,summary.json} "$run.partial"/evaluation_*
@@ -45,6 +48,7 @@ if [[ ! -f $run/policy.pt ]]; then
 fi
 teams=all; [[ $algo == qmix ]] && teams=both  # QMIX's 8 slots: U_train and U_test only
 levels=(off nominal); [[ $steps == 300000 && $seed -le 102 ]] && levels+=(stress)
+[[ -n ${LEVELS:-} ]] && read -r -a levels <<< "$LEVELS"
 for level in "${levels[@]}"; do
   file=evaluation_unicycle.json; [[ $level == off ]] || file=evaluation_unicycle_$level.json
   [[ -f $run/$file ]] || comat eval --policy "$run" --teams "$teams" --episodes 5 --reality "$level" \
