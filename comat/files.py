@@ -33,6 +33,7 @@ __all__ = [
     "portable_command",
     "read_json_detail",
     "relative_path",
+    "replace_block",
     "write_atomic",
     "write_json_detail",
 ]
@@ -55,6 +56,19 @@ def write_atomic(path: str | Path, data: str | bytes) -> None:
 
 
 @contextlib.contextmanager
+def replace_block(path: str | Path, name: str, text: str) -> None:
+    """Rewrite, atomically, what stands between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` in
+    ``path`` (a generated table in a hand-written README); ValueError if a marker is missing."""
+    path = Path(path)
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    old = path.read_text()
+    if begin not in old or end not in old:
+        raise ValueError(f"{path}: expected the markers {begin} and {end}")
+    head, rest = old.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    write_atomic(path, f"{head}{begin}\n{text}{end}{tail}")
+
+
 def new_outputs(
     folder: str | Path, names: Iterable[str], *, force: bool = False, flag: str = "--out"
 ) -> Iterator[Path]:

@@ -270,3 +270,18 @@ def test_eval_table_columns_never_touch():
     for name in names[2:]:
         end = head.index(name) + len(name) if name != "n" else head.index(" n ") + 2
         assert all(line[end - 1] != " " and (end == len(line) or line[end] == " ") for line in body), name
+
+
+def test_replace_block_rewrites_only_what_stands_between_its_markers(tmp_path):
+    from comat.files import replace_block
+
+    readme = tmp_path / "README.md"
+    readme.write_text(
+        "intro\n<!-- table:begin -->\nold\n<!-- table:end -->\nafter <!-- other:begin -->x<!-- other:end -->\n"
+    )
+    replace_block(readme, "table", "| a |\n")
+    assert readme.read_text() == (
+        "intro\n<!-- table:begin -->\n| a |\n<!-- table:end -->\nafter <!-- other:begin -->x<!-- other:end -->\n"
+    )
+    with pytest.raises(ValueError, match="expected the markers <!-- verdict:begin -->"):
+        replace_block(readme, "verdict", "y")

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from comat.eval.runs import SET_NAMES
+from comat.files import replace_block
 from comat.measure.metrics import read_results
 
 HERE = Path(__file__).resolve().parent
@@ -57,12 +58,8 @@ def main() -> None:
                 got = progress_by_seed(folder, algo, task, file)
                 lines.append(f"| {algo} | " + " | ".join(cell(got.get(s)) for s in SETS) + " |")
             lines.append("")
-    readme = HERE / "README.md"
-    text = readme.read_text()
-    head, rest = text.split("<!-- table:begin -->")
-    _, tail = rest.split("<!-- table:end -->")
-    readme.write_text(head + "<!-- table:begin -->\n" + "\n".join(lines) + "<!-- table:end -->" + tail)
-    print(f"wrote {readme}")
+    replace_block(HERE / "README.md", "table", "\n".join(lines))
+    print(f"wrote {HERE / 'README.md'}")
 
 
 if __name__ == "__main__":

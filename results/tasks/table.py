@@ -5,6 +5,7 @@ each kept run's evaluation (runs/NAME/evaluation_unicycle.json) beside the task'
 from pathlib import Path
 
 from comat.eval.runs import SET_NAMES
+from comat.files import replace_block
 from comat.measure.metrics import read_results
 
 HERE = Path(__file__).resolve().parent
@@ -41,12 +42,8 @@ def main() -> None:
             got = _progress(refs["rows"], ref)
             lines.append(f"| {ref} (reference) | " + " | ".join(f"{got[s]:.1f}" for s in SETS) + " |")
         lines.append("")
-    readme = HERE / "README.md"
-    text = readme.read_text()
-    head, rest = text.split("<!-- table:begin -->")
-    _, tail = rest.split("<!-- table:end -->")
-    readme.write_text(head + "<!-- table:begin -->\n" + "\n".join(lines) + "<!-- table:end -->" + tail)
-    print(f"wrote {readme}")
+    replace_block(HERE / "README.md", "table", "\n".join(lines))
+    print(f"wrote {HERE / 'README.md'}")
 
 
 if __name__ == "__main__":
