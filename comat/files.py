@@ -55,7 +55,6 @@ def write_atomic(path: str | Path, data: str | bytes) -> None:
     os.replace(tmp, path)
 
 
-@contextlib.contextmanager
 def replace_block(path: str | Path, name: str, text: str) -> None:
     """Rewrite, atomically, what stands between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->`` in
     ``path`` (a generated table in a hand-written README); ValueError if a marker is missing."""
@@ -69,6 +68,7 @@ def replace_block(path: str | Path, name: str, text: str) -> None:
     write_atomic(path, f"{head}{begin}\n{text}{end}{tail}")
 
 
+@contextlib.contextmanager
 def new_outputs(
     folder: str | Path, names: Iterable[str], *, force: bool = False, flag: str = "--out"
 ) -> Iterator[Path]:
