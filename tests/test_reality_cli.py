@@ -48,14 +48,16 @@ def test_reality_is_a_run_setting_from_presets_and_overrides(tmp_path):
 def test_run_config_round_trips_and_older_configs_load_as_off():
     off = tiny("comat")
     stored = off.to_dict()
-    assert list(stored)[-2:] == ["reality", "loop"] and stored["reality"] == dataclasses.asdict(RealityConfig())
-    assert stored["loop"] == "comat"
+    assert list(stored)[-3:] == ["reality", "loop", "coalitions"]
+    assert stored["reality"] == dataclasses.asdict(RealityConfig())
+    assert stored["loop"] == "comat" and stored["coalitions"] == "train"
     assert RunConfig.from_dict(stored) == off
-    # a config from before the layer and the loop option (config.yaml or checkpoint without the keys)
-    # is an off run with comat's filter
-    older = {k: v for k, v in stored.items() if k not in ("reality", "loop")}
+    # a config from before the layer, the loop and the coalitions options (config.yaml or checkpoint
+    # without the keys) is an off run with comat's filter on U_train
+    older = {k: v for k, v in stored.items() if k not in ("reality", "loop", "coalitions")}
     assert RunConfig.from_dict(older) == off
-    assert with_earlier_defaults(older)["reality"] == "off" and with_earlier_defaults(older)["loop"] == "comat"
+    earlier = with_earlier_defaults(older)
+    assert (earlier["reality"], earlier["loop"], earlier["coalitions"]) == ("off", "comat", "train")
     assert RunConfig.from_dict(with_earlier_defaults(older)) == off
     # a resolved nominal run stores every field and loads back to itself
     custom = tiny("comat", reality={"level": "nominal", "pose_delay_ticks": 2})

@@ -72,9 +72,10 @@ EARLIER_DEFAULTS = {
     # (IPPO is newer than value_target: every IPPO checkpoint records it)
 }
 """Section -> algo -> option -> the value a checkpoint without that option was trained with."""
-EARLIER_RUN_DEFAULTS = {"reality": "off", "loop": "comat"}
+EARLIER_RUN_DEFAULTS = {"reality": "off", "loop": "comat", "coalitions": "train"}
 """Run-level key -> the value a checkpoint without it was trained with (before the reality layer
-existed, every run trained in the ideal world; before ``loop``, with comat's filter)."""
+existed, every run trained in the ideal world; before ``loop``, with comat's filter; before
+``coalitions``, on U_train)."""
 
 
 def with_earlier_defaults(config: dict) -> dict:
