@@ -16,6 +16,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from comat import kernels
+from comat.models.layers import log_softmax_last, score_actions
 
 __all__ = ["N_ACTIONS", "SIZE_BUCKET_COSTS", "AutoregressivePolicy", "numpy_view", "size_buckets"]
 
@@ -145,7 +146,7 @@ class AutoregressivePolicy(nn.Module):
             actions_t, logits_t = self.decode_compiled(rep, obs, mask, noise)
         else:
             actions_t, logits_t = self._decode_loop(rep, obs, mask, noise)
-        logp = torch.log_softmax(logits_t, -1).gather(-1, actions_t[..., None])[..., 0]
+        logp = log_softmax_last(logits_t).gather(-1, actions_t[..., None])[..., 0]
         return actions_t, logp * mask, values * mask
 
     def _decode_loop(self, rep, obs, mask, noise):
@@ -200,7 +201,7 @@ class AutoregressivePolicy(nn.Module):
             logits = self.decode_all(rep, tokens, obs, mask)[:, m]
             a = torch.where(mask[:, m], self._choose(logits, deterministic, generator), 0)
             actions[:, m] = a
-            logps[:, m] = torch.log_softmax(logits, -1).gather(-1, a[:, None])[:, 0] * mask[:, m]
+            logps[:, m] = log_softmax_last(logits).gather(-1, a[:, None])[:, 0] * mask[:, m]
         return actions, logps, values * mask
 
     def evaluate_actions(self, obs, mask, actions, state=None):
@@ -212,8 +213,5 @@ class AutoregressivePolicy(nn.Module):
         B = obs.shape[0]
         rep, values = self.encode(obs, mask)
         tokens = torch.cat([self._start(B, obs.device), self._token(actions[:, :-1])], 1)
-        logits = self.decode_all(rep, tokens, obs, mask)
-        logp_all = torch.log_softmax(logits, -1)
-        logp = logp_all.gather(-1, actions[..., None])[..., 0]
-        entropy = -(logp_all.exp() * logp_all).sum(-1)
-        return logp * mask, entropy * mask, values * mask
+        logp, entropy = score_actions(self.decode_all(rep, tokens, obs, mask), actions, mask)
+        return logp, entropy, values * mask

@@ -14,7 +14,47 @@ from torch import nn
 
 from comat.models.comat_schema import DecisionMode, decision_shapes
 
-__all__ = ["Attention", "KVCache", "TypeHeads", "causal", "choose_actions", "init_linear", "mlp", "score_actions"]
+__all__ = [
+    "Attention",
+    "KVCache",
+    "TypeHeads",
+    "causal",
+    "choose_actions",
+    "init_linear",
+    "log_softmax_last",
+    "mlp",
+    "score_actions",
+    "softmax_last",
+]
+
+SHORT_LAST_DIM = 16
+"""Below this many entries, a softmax over the last dimension runs over the first instead (see
+:func:`log_softmax_last`); measured crossover on a 2-core AVX-512 Xeon, torch 2.13 CPU."""
+
+
+def _over_first(fn, x: torch.Tensor) -> torch.Tensor:
+    return fn(x.movedim(-1, 0).contiguous(), 0).movedim(0, -1)
+
+
+def log_softmax_last(x: torch.Tensor) -> torch.Tensor:
+    """``torch.log_softmax(x, -1)``, the same bits, several times faster for a short last dimension.
+
+    Why: torch's CPU kernel for the last dimension vectorizes along that dimension, so a row
+    shorter than a vector register (16 floats with AVX-512) takes its scalar path: 10–30× slower
+    than the kernel for another dimension, which vectorizes across rows (measured: 5 actions ×
+    4,480 robots 301 against 31 µs; attention rows of 7 robots 1.1 ms against 0.09 ms). So a short
+    last dimension is moved first, made contiguous, and moved back. For the log-softmax the two
+    kernels agree bit for bit (``tests/test_models.py``)."""
+    return _over_first(torch.log_softmax, x) if x.shape[-1] < SHORT_LAST_DIM else torch.log_softmax(x, -1)
+
+
+def softmax_last(x: torch.Tensor) -> torch.Tensor:
+    """``torch.softmax(x, -1)`` by the faster kernel of :func:`log_softmax_last` where the last
+    dimension is short. Unlike the log-softmax, the two kernels' results differ in the last bit
+    (the sum's order and a reciprocal), so :class:`Attention` takes this path only where a
+    gradient is recorded (the PPO update): acting, and with it every evaluation, keeps torch's
+    kernel and its bits."""
+    return _over_first(torch.softmax, x) if x.shape[-1] < SHORT_LAST_DIM else torch.softmax(x, -1)
 
 
 def init_linear(layer: nn.Linear, gain: float = 1.0) -> nn.Linear:
@@ -104,8 +144,15 @@ class Attention(nn.Module):
         if not scaled:
             scores = scores * (q.shape[-1] ** -0.5)
         if mask is not None:
-            scores = scores.masked_fill(~mask, float("-inf"))
-        return torch.softmax(scores, dim=-1) @ v
+            # An added 0 / −inf bias of the mask's own (broadcast) shape: the same bits as
+            # masked_fill on the scores, and 7× cheaper forward, 3× with the backward, because the
+            # fill walks every score and the addition's gradient is the identity (measured on
+            # (640, 4, 7, 7) scores with a causal mask).
+            scores = scores + torch.zeros(mask.shape, dtype=scores.dtype, device=scores.device).masked_fill_(
+                ~mask, float("-inf")
+            )
+        weights = softmax_last(scores) if torch.is_grad_enabled() else torch.softmax(scores, -1)
+        return weights @ v
 
     def project_query(self, query: torch.Tensor) -> torch.Tensor:
         return self._split(self.q(query))
@@ -223,13 +270,13 @@ def choose_actions(
         u = torch.rand(logits.shape, generator=generator).clamp_(1e-20, 1.0)
         a = (logits - torch.log(-torch.log(u))).argmax(-1)
     a = torch.where(mask, a, 0)
-    return a, torch.log_softmax(logits, -1).gather(-1, a[..., None])[..., 0] * mask
+    return a, log_softmax_last(logits).gather(-1, a[..., None])[..., 0] * mask
 
 
 def score_actions(logits: torch.Tensor, actions: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Log-probabilities and entropies (B, N) of given actions under per-robot logits (B, N, A),
     0 in padded slots (PPO's update for the per-robot policies)."""
-    logp_all = torch.log_softmax(logits, -1)
+    logp_all = log_softmax_last(logits)
     logp = logp_all.gather(-1, actions[..., None])[..., 0]
     entropy = -(logp_all.exp() * logp_all).sum(-1)
     return logp * mask, entropy * mask
