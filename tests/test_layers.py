@@ -1,6 +1,6 @@
 """The attention and action-scoring layers' fast paths against torch's own kernels (issue 48):
-the log-softmax over a short last dimension and the additive attention mask give the same bits;
-the softmax over a short last dimension, taken only where a gradient is recorded, differs from
+the additive attention mask gives the same bits, the log-softmax over a short last dimension the
+same bits here and the last bit at most elsewhere; the softmax over a short last dimension, taken only where a gradient is recorded, differs from
 torch's in the last bit at most, and the update's loss and gradients stay within float rounding."""
 
 import pytest
@@ -18,9 +18,13 @@ def _scores(shape, seed=0, masked=0.3):
 
 
 @pytest.mark.parametrize("shape", [(640, 7, 5), (33, 5), (64, 4, 7, 7), (5, 1), (8, 15), (8, 16), (8, 40)])
-def test_log_softmax_last_is_torchs_bit_for_bit(shape):
+def test_log_softmax_last_agrees_with_torch(shape):
+    # The same bits on the 2-core AVX-512 machine it was measured on; the last bit is all another
+    # CPU's vector path may change, so the test asks for that much.
     x = torch.randn(shape, generator=torch.Generator().manual_seed(1)) * 4
-    assert torch.equal(log_softmax_last(x), torch.log_softmax(x, -1))
+    assert torch.allclose(log_softmax_last(x), torch.log_softmax(x, -1), rtol=1e-6, atol=1e-7)
+    if shape[-1] >= SHORT_LAST_DIM:
+        assert torch.equal(log_softmax_last(x), torch.log_softmax(x, -1))
 
 
 @pytest.mark.parametrize("shape", [(640, 4, 7, 7), (64, 1, 3, 3), (8, 2, 15, 15), (8, 2, 16, 16), (4, 20, 20)])
