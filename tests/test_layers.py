@@ -1,7 +1,8 @@
 """The attention and action-scoring layers' fast paths against torch's own kernels (issue 48):
-the additive attention mask gives the same bits, the log-softmax over a short last dimension the
-same bits here and the last bit at most elsewhere; the softmax over a short last dimension, taken only where a gradient is recorded, differs from
-torch's in the last bit at most, and the update's loss and gradients stay within float rounding."""
+the additive attention mask gives the same bits; the log-softmax over a short last dimension the
+same bits here and the last bit at most elsewhere; the softmax over a short last dimension, taken
+only where a gradient is recorded, differs from torch's in the last bit at most, and the update's
+loss and gradients stay within float rounding."""
 
 import pytest
 import torch
