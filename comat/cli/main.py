@@ -2,7 +2,7 @@
 
 Commands, by the module that declares and runs them:
 
-* :mod:`comat.cli.train`: ``train`` (COMAT, MAT, MAPPO, QMIX on HMT or PCP), ``policy`` (a run's policy file);
+* :mod:`comat.cli.train`: ``train`` (any learner on any registered task), ``policy`` (a run's policy file);
 * :mod:`comat.cli.evaluate`: ``eval``, ``probe``, ``report``, ``sweep``;
 * :mod:`comat.cli.rollout`: ``rollout`` (Rerun recordings and videos);
 * :mod:`comat.cli.export`: ``export`` (Robotarium submissions, ``--check``);

@@ -183,7 +183,7 @@ def add_train_parsers(sub) -> None:
     """Register ``train`` and ``policy`` on the top-level sub-parsers of ``comat``."""
     p = sub.add_parser(
         "train",
-        help="train COMAT, MAT, MAPPO or QMIX on HMT or PCP",
+        help="train a learner (COMAT, MAT, MAPPO, QMIX, IPPO, CASH) on any registered task",
         description="Train a policy on the task's training coalitions (U_train), with periodic "
         "evaluation, CSV + TensorBoard logs, atomic checkpoints and --resume. Settings come from a "
         "preset (train/configs/ in a checkout, comat/data/presets/ when installed; values only); the resolved "
