@@ -34,6 +34,7 @@ from comat.safety.deployed import (
     robotarium_loop,
     uni_to_si,
 )
+from comat.safety.kernels import watch_judgement
 from comat.safety.qp import dense_qp
 from comat.sim import BatchWorld, World
 from comat.sim.kinematics import (
@@ -81,6 +82,18 @@ def waypoint_controller(
         points = projected_points(poses, projection_distance)
     dxi = go_to_goal(points, goals, gain, max_speed)
     return limit_to_wheels(dxi, poses, projection_distance, cos_sin=(c, s))
+
+
+class CompiledRobotWatch(RobotWatch):
+    """:class:`RobotWatch` with its judgement compiled (``comat.safety.kernels.watch_judgement``,
+    the same bits): the deployed script keeps the numpy original, which took 0.37 of the watch's
+    0.52 ms a tick for 64 teams of 8 robots at ``nominal``; the twin takes a few µs."""
+
+    def _judge(self, old: np.ndarray, stale: np.ndarray, k: int) -> None:
+        watch_judgement(
+            self._ask, self._points, self.tick, self._born, self.window, self.lag, k, stale,
+            self.min_path, self.ratio, self.release_ratio, self.unresponsive,
+        )  # fmt: skip
 
 
 @dataclass
@@ -194,7 +207,7 @@ class SafeTeams:
     def _new_watch(self) -> RobotWatch | None:
         if self.reality is None or not self.safety_config.robust or self.safety_config.loop != "comat":
             return None
-        return RobotWatch(
+        return (CompiledRobotWatch if kernels.enabled() else RobotWatch)(
             self.world.layout.n_robots,
             self.safety_config.projection_distance_m,
             response_lag_ticks(self.reality.config, self.world.profile),

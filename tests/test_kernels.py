@@ -6,7 +6,7 @@ import pytest
 from comat import constants as C
 from comat import kernels
 from comat.config import SafetyConfig, SimConfig
-from comat.control import waypoint_controller
+from comat.control import CompiledRobotWatch, waypoint_controller
 from comat.envs.vector import VectorEnv
 from comat.mjcf.scene import compiled_scene
 from comat.reality import RealityConfig
@@ -14,6 +14,7 @@ from comat.reality import random as rr
 from comat.reality.motors import Motors
 from comat.reality.paths import CommandPath, PosePath
 from comat.safety.constraints import make_layout, row_values
+from comat.safety.deployed import RobotWatch
 from comat.safety.filter import SafetyFilter
 from comat.safety.qp import BarrierQP
 from comat.sim import BatchWorld
@@ -321,3 +322,42 @@ def test_env_rollouts_equal(task, tier):
     (fast, ends), (slow, _) = _both(run)
     assert ends > 0 or task is HMT
     _equal(fast, slow)
+
+
+def test_robot_watch_twin(rng):
+    """The deployed loop's watch with its judgement compiled equals the numpy original bit for bit,
+    through stale poses, robots that stop and start again, and restarted episodes; and the stream
+    does put robots on probation and release them, so the judgement is exercised."""
+    n, dt = 64, 0.033
+    watches = [cls(n, 0.03, 4) for cls in (RobotWatch, CompiledRobotWatch)]
+    true = np.column_stack([rng.uniform(-1, 1, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+    measured = true.copy()
+    cmd = np.column_stack([rng.uniform(0.05, 0.2, n), rng.uniform(-1, 1, n)])
+    gains = rng.uniform(0.05, 0.7, n)
+    put_on = released = 0
+    for tick in range(600):
+        dead = (np.arange(n) % 5 == 0) & (100 <= tick < 220)  # motors stopped, then back
+        # the others follow at 5-70 % of the speed asked, so moved/asked crosses both thresholds
+        response = np.where(dead, 0.0, gains)
+        true[:, 0] += response * cmd[:, 0] * np.cos(true[:, 2]) * dt
+        true[:, 1] += response * cmd[:, 0] * np.sin(true[:, 2]) * dt
+        true[:, 2] += response * cmd[:, 1] * dt
+        fresh = rng.random(n) > 0.2  # a fifth of the poses repeat the last one (a tracker hold)
+        measured = np.where(fresh[:, None], true + rng.normal(0, 1e-3, (n, 3)), measured)
+        if tick == 150:
+            for w in watches:
+                w.restart(np.array([1, 2, 3]))
+        before = watches[0].unresponsive.copy()
+        for w in watches:
+            w.observe(measured.copy())
+        a, b = watches
+        for name in ("unresponsive", "unsure", "probation", "estimate", "anchor", "stale", "_stale_path", "_points"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), (tick, name)
+        put_on += int((a.unresponsive & ~before).sum())
+        released += int((before & ~a.unresponsive).sum())
+        if tick % 20 == 0:
+            cmd = np.column_stack([rng.uniform(0.05, 0.2, n), rng.uniform(-1, 1, n)])
+            gains = np.clip(gains + rng.normal(0, 0.1, n), 0.05, 0.7)
+        for w in watches:
+            w.sent(cmd)
+    assert put_on >= 3 and released >= 3

@@ -371,24 +371,30 @@ class RobotWatch:
         self._points[:, k] = a[:, :2] + self.d * np.column_stack([np.cos(a[:, 2]), np.sin(a[:, 2])])
         old = self.tick - self._born > self.window + self.lag
         if old.any():
-            then = (self.tick - self.window) % (self.window + 1)
-            span = self._ask.shape[1]
-            # Net displacement asked for over the window, for every response lag 0..lag: the
-            # robot is judged against the alignment that asks least (a command that reversed
-            # asks for little at some lag), so only a robot that ignores its commands whatever
-            # the lag is put on probation.
-            recent = self._ask[:, (self.tick - np.arange(self.window + self.lag)) % span]  # newest first
-            sums = np.cumsum(recent, axis=1)
-            before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, : -self.window]], axis=1)
-            windows = sums[:, self.window - 1 :] - before
-            asked = np.hypot(windows[..., 0], windows[..., 1]).min(axis=1)
-            moved = np.hypot(*(self._points[:, k] - self._points[:, then]).T)
-            judged = old & ~stale & (asked >= self.min_path)
-            self.unresponsive |= judged & (moved < self.ratio * asked)
-            self.unresponsive &= ~(judged & (moved >= self.release_ratio * asked))
+            self._judge(old, stale, k)
         self.unsure = (self.stale >= self.stale_limit) & (self._stale_path >= self.min_path / 3)
         self.probation = self.unresponsive | self.unsure
         self.tick += 1
+
+    def _judge(self, old: np.ndarray, stale: np.ndarray, k: int) -> None:
+        """Put on probation, or release, the robots ``old`` (N,) enough to judge, by what their
+        points did against what their commands asked (points slot ``k`` is this tick's). comat's
+        simulator runs a compiled twin of this (``comat.safety.kernels.watch_judgement``)."""
+        then = (self.tick - self.window) % (self.window + 1)
+        span = self._ask.shape[1]
+        # Net displacement asked for over the window, for every response lag 0..lag: the
+        # robot is judged against the alignment that asks least (a command that reversed
+        # asks for little at some lag), so only a robot that ignores its commands whatever
+        # the lag is put on probation.
+        recent = self._ask[:, (self.tick - np.arange(self.window + self.lag)) % span]  # newest first
+        sums = np.cumsum(recent, axis=1)
+        before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, : -self.window]], axis=1)
+        windows = sums[:, self.window - 1 :] - before
+        asked = np.hypot(windows[..., 0], windows[..., 1]).min(axis=1)
+        moved = np.hypot(*(self._points[:, k] - self._points[:, then]).T)
+        judged = old & ~stale & (asked >= self.min_path)
+        self.unresponsive |= judged & (moved < self.ratio * asked)
+        self.unresponsive &= ~(judged & (moved >= self.release_ratio * asked))
 
     def restart(self, rows: np.ndarray) -> None:
         """Robots ``rows`` begin a new episode: nothing is known about them yet."""

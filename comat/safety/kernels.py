@@ -29,6 +29,7 @@ __all__ = [
     "sub_problem_scatter",
     "take_teams",
     "team_violations",
+    "watch_judgement",
 ]
 
 _jit = njit(cache=True, nogil=True)
@@ -316,3 +317,40 @@ def sub_problem_scatter(need, teams, good, robot_team_s, row_team_s, rows, cols,
     for m in range(rows.size):
         if take[row_team_s[m]]:
             Au[rows[m]] = Ax[m]
+
+
+# -- the deployed loop's robot watch -------------------------------------------------------------
+@_jit
+def watch_judgement(ask, points, tick, born, window, lag, k, stale, min_path, ratio, release_ratio, unresponsive):
+    """:meth:`comat.safety.deployed.RobotWatch._judge` (its numpy code is the reference), updating
+    ``unresponsive`` (N,) in place: ask (N, window + lag + 1, 2), points (N, window + 1, 2), born
+    (N,), stale (N,). The same sums in the same order (a running sum over the newest-first asks,
+    as ``np.cumsum``), so the same bits."""
+    n, span = ask.shape[0], ask.shape[1]
+    depth = window + lag
+    then = (tick - window) % (window + 1)
+    sums = np.empty((depth, 2))
+    for r in range(n):
+        if tick - born[r] <= depth or stale[r]:
+            continue  # not old enough to judge, or no fresh pose: neither judged nor released
+        for t in range(depth):
+            slot = (tick - t) % span
+            for c in range(2):
+                sums[t, c] = ask[r, slot, c] if t == 0 else sums[t - 1, c] + ask[r, slot, c]
+        asked = np.inf
+        nan = False
+        for t in range(lag + 1):  # the window ending t ticks back, as sums[w - 1 + t] - sums[t - 1]
+            x = sums[window - 1 + t, 0] - (0.0 if t == 0 else sums[t - 1, 0])
+            y = sums[window - 1 + t, 1] - (0.0 if t == 0 else sums[t - 1, 1])
+            h = math.hypot(x, y)
+            if math.isnan(h):
+                nan = True  # np.min propagates NaN
+            elif h < asked:
+                asked = h
+        if nan or not asked >= min_path:
+            continue
+        moved = math.hypot(points[r, k, 0] - points[r, then, 0], points[r, k, 1] - points[r, then, 1])
+        if moved < ratio * asked:
+            unresponsive[r] = True
+        if moved >= release_ratio * asked:
+            unresponsive[r] = False
