@@ -4,7 +4,9 @@ Writes README.md's table between its markers from the kept runs' evaluation file
 from ``runs/`` here, COMAT, MAT and MAPPO from ``results/grid_v3/runs/`` (the same protocol: sweep
 preset, 300 k env steps, trained at reality off, seeds 100-102, 5 episodes per coalition). Each
 cell is the mean progress % over the seeds kept so far, with the seeds' SD and their count; no
-number is typed by hand. Descriptive only: no test, no selection.
+number is typed by hand. A second table says which robot type delivers HMT's material on U_train
+(the per-episode ``by_type`` counts of the evaluation's detail file). Descriptive only: no test, no
+selection.
 """
 
 from pathlib import Path
@@ -36,6 +38,23 @@ def progress_by_seed(folder: Path, algo: str, task: str, file: str) -> dict[str,
     return out
 
 
+def deliveries_by_seed(folder: Path, algo: str) -> dict[str, list[float]]:
+    """HMT U_train at off, per kept seed: the mean material delivered per episode by the fast and
+    by the slow robots, and the slow robots' share of it (%)."""
+    out: dict[str, list[float]] = {}
+    for seed in SEEDS:
+        path = folder / f"{algo}_hmt_off_s{seed}" / "evaluation_unicycle.json"
+        if not path.is_file():
+            continue
+        row = next(r for r in read_results(path)["rows"] if r["policy"] == algo and r["set"] == "train")
+        fast = [ep["by_type"]["fast"]["delivered_sum"] for ep in row["per_episode"]]
+        slow = [ep["by_type"]["slow"]["delivered_sum"] for ep in row["per_episode"]]
+        out.setdefault("fast", []).append(float(np.mean(fast)))
+        out.setdefault("slow", []).append(float(np.mean(slow)))
+        out.setdefault("share", []).append(100 * float(np.sum(slow) / max(np.sum(fast) + np.sum(slow), 1e-9)))
+    return out
+
+
 def cell(values: list[float] | None) -> str:
     if not values:
         return "—"
@@ -58,6 +77,19 @@ def main() -> None:
                 got = progress_by_seed(folder, algo, task, file)
                 lines.append(f"| {algo} | " + " | ".join(cell(got.get(s)) for s in SETS) + " |")
             lines.append("")
+    lines += [
+        "### HMT, who delivers (U_train, evaluated at off)",
+        "",
+        "Material delivered per episode by each type's robots together (mean over episodes, then over seeds),",
+        "and the slow robots' share of all delivered.",
+        "",
+        "| learner | fast robots | slow robots | slow share % |",
+        "|---|---:|---:|---:|",
+    ]
+    for algo, folder in LEARNERS:
+        got = deliveries_by_seed(folder, algo)
+        lines.append(f"| {algo} | " + " | ".join(cell(got.get(k)) for k in ("fast", "slow", "share")) + " |")
+    lines.append("")
     replace_block(HERE / "README.md", "table", "\n".join(lines))
     print(f"wrote {HERE / 'README.md'}")
 
