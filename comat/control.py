@@ -86,8 +86,9 @@ def waypoint_controller(
 
 class CompiledRobotWatch(RobotWatch):
     """:class:`RobotWatch` with its judgement compiled (``comat.safety.kernels.watch_judgement``,
-    the same bits): the deployed script keeps the numpy original, which took 0.37 of the watch's
-    0.52 ms a tick for 64 teams of 8 robots at ``nominal``; the twin takes a few µs."""
+    the same bits); the deployed script keeps the numpy original. That judgement took 0.37 of the
+    watch's 0.52 ms a tick for 64 teams of 8 robots at ``nominal``; with the twin the whole tick
+    went from 5.60 to 5.30 ms (docs/speed.md). ``old`` is recomputed inside from ``_born``."""
 
     def _judge(self, old: np.ndarray, stale: np.ndarray, k: int) -> None:
         watch_judgement(
