@@ -252,6 +252,9 @@ class TaskLogic:
     what a reset drew at random into an export."""
 
     name = ""
+    version = 0
+    """The rules' version: the env id is ``<name>_v<version>``; a change of rules (what is observed,
+    rewarded or counted, the ground, the sets' ranges) is a new version."""
     title = ""
     """For people: "Predator Capture Prey" (default: the class name)."""
     types: tuple[str, ...] = ()

@@ -162,7 +162,7 @@ class TeamSpec:
             raise ValueError(f"team task must be one of {sorted(TASK_TYPES)}, got {self.task!r}")
         tt = TASK_TYPES[self.task]
         if len(self.robots) == 0:
-            raise ValueError(f"a {self.task} team needs at least one robot of each type {tt.types}, got an empty team")
+            raise ValueError(f"a {self.task} team needs at least one robot of each type {tt.needed}, got an empty team")
         for i, r in enumerate(self.robots):
             if r.type not in tt.types:
                 raise ValueError(f"robot {i}: type must be one of {tt.types} for {self.task}, got {r.type!r}")
@@ -186,9 +186,9 @@ class TeamSpec:
                         f"robot {i}: a {r.type} robot has no {tt.capabilities[k]} (the {self.task} rules ignore it); "
                         f"expected 0, got {r.capabilities[k]}"
                     )
-        missing = [t for t in tt.types if all(r.type != t for r in self.robots)]
+        missing = [t for t in tt.needed if all(r.type != t for r in self.robots)]
         if missing:
-            raise ValueError(f"a {self.task} team needs at least one robot of each type {tt.types}; missing {missing}")
+            raise ValueError(f"a {self.task} team needs at least one robot of each type {tt.needed}; missing {missing}")
 
     @property
     def size(self) -> int:
@@ -241,8 +241,14 @@ def random_team(rng: np.random.Generator, task: str, split: str, size: int) -> T
     """A team of ``size`` robots drawn like the set (task, split): >= 1 robot per type."""
     tt = TASK_TYPES[task]
     ranges = CAPABILITY_RANGES[(task, split)]
-    # At least one robot of each type, the rest uniformly typed; shuffled robot order.
-    types = list(tt.types) + [tt.types[k] for k in rng.integers(0, len(tt.types), size - len(tt.types))]
+    # One robot of each type while there is room (the needed types come first in ``types``: a team
+    # smaller than the type list lacks only optional types), the rest uniformly typed; shuffled order.
+    first = list(tt.types[:size])
+    if any(t not in first for t in tt.needed):
+        raise ValueError(
+            f"a {task} team needs at least {len(tt.needed)} robots (one of each of {tt.needed}), got {size}"
+        )
+    types = first + [tt.types[k] for k in rng.integers(0, len(tt.types), size - len(first))]
     rng.shuffle(types)
     robots = []
     for t in types:

@@ -24,6 +24,7 @@ from comat.envs import make_env
 from comat.envs.heuristics import heuristic_actions
 from comat.measure.metrics import current_names
 from comat.reality import resolve_reality
+from comat.tasks import env_id
 from comat.team import TeamSpec
 from sim2real.export import HEURISTIC_FILES, layout_of, load_config, submission_files
 from sim2real.reality_rps import DRIVES
@@ -145,11 +146,17 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
     folder = Path(folder)
     cfg = load_config(folder)
     task = cfg["task"]
+    made_for = cfg.get("env_id", f"{task}_v0")  # folders exported before versions were stored: v0
+    if made_for != env_id(task):
+        raise ValueError(
+            f"{folder} was exported for {made_for}, but this comat has {env_id(task)} (the task's rules "
+            "changed since): export the folder again"
+        )
     team = TeamSpec.from_dict(
         {"task": task, "robots": [{"type": t, "capabilities": c} for t, c in zip(cfg["types"], cfg["capabilities"])]}
     )
     env = make_env(
-        f"{task}_v0",
+        env_id(task),
         team=team,
         tier=tier,
         ticks_per_step=cfg["ticks_per_step"],

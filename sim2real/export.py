@@ -302,6 +302,7 @@ def _config(
     return {
         "policy": policy,
         "task": task,
+        "env_id": task_entry(task).env_id,
         "task_module": task_module_name(task),
         "task_class": logic.__name__,
         "task_options": logic.layout_options(layout),

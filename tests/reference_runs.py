@@ -4,13 +4,14 @@ import numpy as np
 
 from comat.envs import make_vec_env
 from comat.envs.heuristics import blind_actions, heuristic_actions
+from comat.tasks import env_id
 from comat.team import generate_coalitions
 
 
 def mean_progress(task: str, split: str, act, seed: int = 5) -> float:
     """Mean final progress of ``act(core) -> actions (B, N)`` over one episode of each of the 20
     coalitions of ``split`` (unicycle tier)."""
-    env = make_vec_env(f"{task}_v0", 20, coalitions=split, tier="unicycle", seed=seed)
+    env = make_vec_env(env_id(task), 20, coalitions=split, tier="unicycle", seed=seed)
     env.reset(teams=generate_coalitions(task, split))
     progress, seen = np.zeros(20), np.zeros(20, bool)
     while not seen.all():

@@ -14,6 +14,7 @@ from comat.envs.diagnostics import ROBOT_COUNTS, STILL_FRACTION
 from comat.envs.heuristics import heuristic_actions
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import curve_endpoints
+from comat.tasks import env_id
 from comat.tasks.hmt import HMT
 from comat.tasks.pcp import PCP
 from comat.team import RobotSpec, TeamSpec, generate_coalitions
@@ -110,7 +111,7 @@ def test_pcp_credit_goes_to_every_robot_in_range():
 def _loaded_run(task: str, teams, policy, steps_cap=None):
     """Episodes of ``teams`` one per env; per env the episode row fields straight from ``info``,
     and (HMT) the material loaded, summed from the raw reward term."""
-    env = make_vec_env(f"{task}_v0", len(teams), seed=4, tier="unicycle", coalitions=teams)
+    env = make_vec_env(env_id(task), len(teams), seed=4, tier="unicycle", coalitions=teams)
     env.reset(seed=4, teams=teams)
     loaded = np.zeros(len(teams))
     stays = np.zeros(env.agent_mask.shape)

@@ -6,7 +6,7 @@ from pettingzoo.test import parallel_api_test
 
 import comat
 from comat.envs import PcpEnv, make_env
-from comat.tasks import task_names
+from comat.tasks import env_id, task_names
 from comat.tasks.hmt import MaterialTransport
 from comat.team import RobotSpec, TeamSpec, generate_coalitions, random_team
 
@@ -28,7 +28,7 @@ CASES = [
 @pytest.mark.parametrize("task,split,kind", CASES)
 def test_parallel_api(task, split, kind):
     team = _pick(task, split)[kind]
-    env = make_env(f"{task}_v0", team=team, tier="unicycle", ticks_per_step=6)
+    env = make_env(env_id(task), team=team, tier="unicycle", ticks_per_step=6)
     parallel_api_test(env, num_cycles=90)
 
 
@@ -36,7 +36,7 @@ def test_parallel_api(task, split, kind):
 @pytest.mark.parametrize("n", [2, 20])
 def test_parallel_api_two_and_twenty_robots(task, n):
     team = random_team(np.random.default_rng(3), task, "train", n)
-    env = make_env(f"{task}_v0", team=team, tier="unicycle", ticks_per_step=6)
+    env = make_env(env_id(task), team=team, tier="unicycle", ticks_per_step=6)
     parallel_api_test(env, num_cycles=90)
     assert env.graph()["edge_attr"].shape == (n, n, 5)
 
@@ -55,9 +55,9 @@ def _episode(env, seed, action_seed, steps=None):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_full_episode_determinism(task):
-    env = make_env(f"{task}_v0", tier="unicycle")
+    env = make_env(env_id(task), tier="unicycle")
     a = _episode(env, seed=7, action_seed=1)
-    b = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1)
+    b = _episode(make_env(env_id(task), tier="unicycle"), seed=7, action_seed=1)
     assert len(a) == len(b) > 0.75 * env.task.horizon  # a whole episode, to the horizon
     for step_a, step_b in zip(a, b):
         for part_a, part_b in zip(step_a, step_b):
@@ -73,7 +73,7 @@ def test_full_episode_determinism(task):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_different_seeds_give_different_starts_and_teams(task):
-    env = make_env(f"{task}_v0", tier="unicycle")
+    env = make_env(env_id(task), tier="unicycle")
     starts, teams = [], []
     for seed in range(6):
         obs, _ = env.reset(seed=seed)
@@ -85,7 +85,7 @@ def test_different_seeds_give_different_starts_and_teams(task):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_reward_is_exactly_the_sum_of_its_terms(task):
-    env = make_env(f"{task}_v0", tier="unicycle")
+    env = make_env(env_id(task), tier="unicycle")
     trace = _episode(env, seed=3, action_seed=2, steps=40)
     for _, rewards, _, _, infos in trace[1:]:
         for agent, reward in rewards.items():
@@ -125,7 +125,7 @@ def test_global_state_is_order_one_for_the_largest_teams(task, split, slots):
     # amounts (HMT's material reached ~155 before it was scaled, and MAPPO's critic diverged);
     # PCP's parked prey slots (x = 2.6 m) included.
     env = comat.make_vec_env(
-        f"{task}_v0", 8, seed=0, tier="unicycle", max_robots=slots, state_robots=slots, coalitions=split
+        env_id(task), 8, seed=0, tier="unicycle", max_robots=slots, state_robots=slots, coalitions=split
     )
     _, info = env.reset()
     rng = np.random.default_rng(0)
@@ -258,7 +258,7 @@ def _pixel(xy):
 def test_render_rgb_array_draws_the_team_and_leaves_the_episode_unchanged(task):
     from comat.envs.render import FRAME_SIZE, TYPE_COLORS
 
-    env = make_env(f"{task}_v0", tier="unicycle", render_mode="rgb_array")
+    env = make_env(env_id(task), tier="unicycle", render_mode="rgb_array")
     assert env.metadata["render_modes"] == ["rgb_array"] and env.render_mode == "rgb_array"
     traced = _episode(env, seed=7, action_seed=1, steps=5)
     frame = env.render()
@@ -268,11 +268,11 @@ def test_render_rgb_array_draws_the_team_and_leaves_the_episode_unchanged(task):
         back = pose[:2] - 0.04 * np.array([np.cos(pose[2]), np.sin(pose[2])])
         assert np.abs(frame[_pixel(back)].astype(int) - TYPE_COLORS[robot.type]).max() < 40, robot.type
     # rendering observes only: the same episode without a render mode, bit for bit
-    plain = _episode(make_env(f"{task}_v0", tier="unicycle"), seed=7, action_seed=1, steps=5)
+    plain = _episode(make_env(env_id(task), tier="unicycle"), seed=7, action_seed=1, steps=5)
     for a, b in zip(traced, plain):
         np.testing.assert_array_equal(np.stack(list(a[0].values())), np.stack(list(b[0].values())))
     # the same episode draws the same frames; another step draws another
-    again = make_env(f"{task}_v0", tier="unicycle", render_mode="rgb_array")
+    again = make_env(env_id(task), tier="unicycle", render_mode="rgb_array")
     _episode(again, seed=7, action_seed=1, steps=5)
     np.testing.assert_array_equal(again.render(), frame)
     again.step({a: 1 for a in again.agents})

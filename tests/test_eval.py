@@ -10,6 +10,7 @@ import yaml
 
 from comat.cli import main
 from comat.measure.metrics import REPORTED, mean_ci, read_results, summarize_ci, violations
+from comat.tasks import env_id
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
@@ -279,7 +280,7 @@ def test_best_constant_action_is_the_best_of_the_five(task):
     from comat.measure.episodes import run_episodes
 
     teams = resolve_coalitions("train", task)
-    env = make_vec_env(f"{task}_v0", 20, seed=0, tier="unicycle", coalitions="train")
+    env = make_vec_env(env_id(task), 20, seed=0, tier="unicycle", coalitions="train")
     returns = [
         np.mean([e["return"] for e in run_episodes(env, lambda o, m, s, a=a: np.where(m, a, 0), teams, EVAL_SEED)])
         for a in range(5)

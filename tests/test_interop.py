@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import comat
-from comat.tasks import task_names
+from comat.tasks import env_id, task_names
 from comat.team import random_team
 
 SIZES = (2, 3, 4, 5, 6, 7, 8)
@@ -22,7 +22,7 @@ def test_torchrl_rollout_across_team_changes_passes_the_spec_check(task):
     rng = np.random.default_rng(0)
     teams = [random_team(rng, task, "test", n) for n in SIZES]
     # One control tick per step keeps the test short; the agent bookkeeping is the same.
-    env = comat.make_env(f"{task}_v0", coalitions=teams, tier="unicycle", ticks_per_step=1)
+    env = comat.make_env(env_id(task), coalitions=teams, tier="unicycle", ticks_per_step=1)
     # done_on_any=False: the episode ends when every agent is done; the agents outside this episode's
     # team are done from its start (the spec sheet's "Team changes").
     wrapped = PettingZooWrapper(
@@ -47,7 +47,7 @@ def test_torchrl_rollout_across_team_changes_passes_the_spec_check(task):
 @pytest.mark.parametrize("task", task_names())
 def test_supersuit_chain_runs_full_episodes_on_the_training_set(task):
     ss = pytest.importorskip("supersuit")
-    env = comat.make_env(f"{task}_v0", coalitions="train", tier="unicycle", ticks_per_step=2)
+    env = comat.make_env(env_id(task), coalitions="train", tier="unicycle", ticks_per_step=2)
     wrapped = ss.black_death_v3(ss.pad_observations_v0(env))
     sizes = set()
     for episode in range(8):

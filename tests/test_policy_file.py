@@ -233,6 +233,7 @@ def test_bad_policy_files_are_refused_naming_the_file_and_the_fault(comat_run, t
     for change, expected in (
         ({"format_version": 2}, "has format_version 2, this comat reads 1"),
         ({"weights": None}, "lacks 'weights'"),
+        ({"env_id": "pcp_v7"}, "was trained on pcp_v7, but this comat has pcp_v0 .* train it again"),
         ({"dims": {"obs_dim": 3}}, "dims lack"),
         ({"weights": {"policy": {"w": "not a tensor"}}}, r"weights\['policy'\] must map parameter names to tensors"),
         ({"weights": {"agents": data["weights"]["policy"]}}, "has no weights for the comat 'policy' module"),

@@ -28,7 +28,7 @@ def test_progress_is_the_most_targets_watched_at_once():
 
 @pytest.mark.parametrize("split", ["train", "capability"])
 def test_each_cluster_is_covered_from_its_centre_by_the_robot_it_was_sized_for(split):
-    env = make_vec_env("sensors_v0", 8, coalitions=split, tier="unicycle", seed=3)
+    env = make_vec_env("sensors_v1", 8, coalitions=split, tier="unicycle", seed=3)
     env.reset()
     core = env.core
     for b in range(8):
@@ -44,7 +44,7 @@ def test_composition_matters_the_blind_reference_watches_fewer():
 
 
 def test_layout_round_trips_and_the_task_draws_itself():
-    env = make_env("sensors_v0", tier="unicycle", render_mode="rgb_array")
+    env = make_env("sensors_v1", tier="unicycle", render_mode="rgb_array")
     env.reset(seed=4)
     core = env.core
     fresh = core.task.new_state(1, core.N)

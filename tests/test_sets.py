@@ -5,6 +5,7 @@ import pytest
 
 from comat.cli.args import parse_team, parse_teams
 from comat.envs.base import resolve_coalitions
+from comat.tasks import env_id
 from comat.team import (
     CAPABILITY_RANGES,
     COALITION_SETS,
@@ -124,7 +125,7 @@ def test_every_set_gives_a_state_by_default(task):
 
     sizes = {}
     for split in ("train", "scale"):
-        env = make_env(f"{task}_v0", coalitions=split, tier="unicycle")
+        env = make_env(env_id(task), coalitions=split, tier="unicycle")
         env.reset(seed=1)
         state = env.state()
         assert state.shape == env.state_space.shape

@@ -10,6 +10,7 @@ import yaml
 
 import comat
 from comat.cli import main
+from comat.tasks import env_id
 from comat.team import TASK_TYPES
 
 ROBOTS = [
@@ -62,7 +63,7 @@ def test_comat_tasks_lists_every_task_with_its_types_and_capabilities(capsys):
     assert main(["tasks"]) == 0
     out = capsys.readouterr().out
     for task, kinds in TASK_TYPES.items():
-        assert f"{task} ({task}_v0)" in out
+        assert f"{task} ({env_id(task)})" in out
         assert all(f"'{t}'" in out for t in kinds.types) and all(c in out for c in kinds.capabilities)
 
 

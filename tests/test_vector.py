@@ -6,6 +6,7 @@ import pytest
 from comat.envs import make_env, make_vec_env
 from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.measure.episodes import run_episodes
+from comat.tasks import env_id
 from comat.team import generate_coalitions
 
 
@@ -85,7 +86,7 @@ def test_bad_vector_actions():
 
 def _heuristic_episodes(task: str, tier: str):
     teams = generate_coalitions(task, "train")
-    env = make_vec_env(f"{task}_v0", len(teams), seed=0, tier=tier, coalitions=teams)
+    env = make_vec_env(env_id(task), len(teams), seed=0, tier=tier, coalitions=teams)
     return run_episodes(env, lambda obs, mask, state: heuristic_actions(env.core), teams, seed=0)
 
 

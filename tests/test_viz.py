@@ -17,6 +17,7 @@ from comat import constants as C
 from comat.cli.rollout import add_rollout_parser, add_viz_bench_parser
 from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.envs.tap import MIN_CHANGE_MPS
+from comat.tasks import env_id
 from comat.team import TeamSpec, random_team
 from comat.viz import EpisodeRecorder, check_rrd_path, record_episodes
 from comat.viz.bench import run_viz_bench
@@ -79,7 +80,7 @@ def record_one(tmp_path, task, policy, team_size=8, seed=3):
     import rerun as rr
 
     team = random_team(np.random.default_rng(seed), task, "test", team_size)
-    env = comat.make_env(f"{task}_v0", team=team, tier="unicycle", ticks_per_step=TICKS)
+    env = comat.make_env(env_id(task), team=team, tier="unicycle", ticks_per_step=TICKS)
     env.reset(seed=seed)
     core = env.core
     path = tmp_path / f"{task}.rrd"

@@ -22,7 +22,7 @@ from comat.bench.sim_bench import bench_rps, finish, rps_available
 from comat.envs import make_vec_env
 from comat.envs.heuristics import random_actions
 from comat.envs.sharded import shard_slices
-from comat.tasks import task_entry, task_names
+from comat.tasks import env_id, task_entry, task_names
 from comat.team import random_team
 
 __all__ = ["EnvBenchRow", "bench_env", "bench_rollout_split", "run_env_bench", "run_rollout_bench"]
@@ -46,7 +46,7 @@ def bench_env(task: str, tier: str, n: int, batch: int, steps: int, seed: int = 
     """Time ``steps`` vector steps of B environments with a fixed random team of n robots."""
 
     team = random_team(np.random.default_rng(seed), task, "train", n)
-    env = make_vec_env(f"{task}_v0", batch, seed=seed, team=team, tier=tier)
+    env = make_vec_env(env_id(task), batch, seed=seed, team=team, tier=tier)
     rng = np.random.default_rng(seed)
     env.reset()
     env.step(random_actions(rng, env.agent_mask))  # first-call set-ups out of the timing
@@ -132,7 +132,7 @@ def _timed_shard(task: str, tier: str, first: int, count: int, total: int, steps
     """ms per vector step of environments first..first+count-1 of ``total`` (training coalitions,
     random actions), split into physics, OSQP, the rest of the ticks and the rest of the step."""
 
-    env = make_vec_env(f"{task}_v0", count, seed=seed, tier=tier, shard=(first, total))
+    env = make_vec_env(env_id(task), count, seed=seed, tier=tier, shard=(first, total))
     rng = np.random.default_rng(seed + first)
     env.reset()
     for _ in range(2):  # first-call set-ups out of the timing

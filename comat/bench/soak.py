@@ -29,7 +29,7 @@ from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
 from comat.envs.heuristics import heuristic_actions, random_actions
 from comat.measure.episodes import run_episodes
-from comat.tasks import task_names
+from comat.tasks import env_id, task_names
 from comat.team import COALITION_SETS
 
 __all__ = ["MEMORY_GROWTH_TARGET", "run_soak"]
@@ -118,7 +118,7 @@ def run_soak(
     rng = np.random.default_rng(seed)
     combos = [(task, split, policy) for task in task_names() for split in sets for policy in ("heuristic", "random")]
     envs = {
-        (task, split, tier): make_vec_env(f"{task}_v0", _ENVS, seed=seed, tier=tier, coalitions=split)
+        (task, split, tier): make_vec_env(env_id(task), _ENVS, seed=seed, tier=tier, coalitions=split)
         for task in task_names()
         for split in sets
         for tier in ("unicycle", "wheels")

@@ -25,7 +25,7 @@ import numpy as np
 from comat import constants as C
 from comat.bench.scenarios import run_scenario, swap_scenario
 from comat.config import SimConfig
-from comat.tasks import task_names
+from comat.tasks import env_id, task_names
 
 __all__ = ["run_demo"]
 
@@ -159,7 +159,7 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
         for split in ("train", "test"):
             teams = generate_coalitions(task, split)[:episodes]
             for name, policy in policies.items():
-                env = make_vec_env(f"{task}_v0", len(teams), seed=seed, tier=tier, coalitions=teams)
+                env = make_vec_env(env_id(task), len(teams), seed=seed, tier=tier, coalitions=teams)
                 t0 = time.perf_counter()
                 res = run_episodes(env, policy(env), teams, seed)
                 mean = summarize(res)  # the scalar metrics (rows also hold curves and per-robot lists)

@@ -48,7 +48,9 @@ def env_class(env_id: str) -> type[TaskEnv]:
     if env_id not in _CLASSES:
         entry = next((e for e in TASKS.values() if e.env_id == env_id), None)
         if entry is None:
-            raise ValueError(f"env_id must be one of {env_ids()}, got {env_id!r}")
+            now = TASKS.get(env_id.rsplit("_v", 1)[0])
+            hint = f" ({now.name}'s rules changed: it is {now.env_id} now)" if now is not None else ""
+            raise ValueError(f"env_id must be one of {env_ids()}, got {env_id!r}{hint}")
         _CLASSES[env_id] = _new_class(entry)
     return _CLASSES[env_id]
 

@@ -40,7 +40,7 @@ from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
 from comat.reality import resolve_reality
 from comat.rl.algos import BASELINE_ROBOTS, robot_slots
 from comat.rl.policy import load_policy
-from comat.tasks import task_names
+from comat.tasks import env_id, task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
@@ -147,7 +147,7 @@ def evaluate_policies(
         teams = coalitions * episodes
         # One process: the heuristic reads the env's task state directly.
         env = make_vec_env(
-            f"{task}_v0",
+            env_id(task),
             min(len(teams), 32),
             seed=seed,
             tier=tier,

@@ -43,6 +43,7 @@ import torch
 
 from comat._version import __version__
 from comat.models.comat import PAPER_FORM
+from comat.tasks import TASKS, env_id
 
 __all__ = [
     "POLICY_FORMAT",
@@ -198,6 +199,7 @@ def save_checkpoint(
         "format_version": FORMAT_VERSION,
         "algo": algo,
         "task": task,
+        "env_id": env_id(task),
         "config": config,
         "versions": versions(),
         "progress": progress,
@@ -251,6 +253,7 @@ def save_policy_file(
         "format_version": POLICY_FORMAT_VERSION,
         "algo": algo,
         "task": task,
+        "env_id": env_id(task),
         "config": config,
         "dims": dict(dims),
         "versions": dict(trained_by or now),
@@ -306,6 +309,12 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
     for key, want in (("algo", algo), ("task", task)):
         if want is not None and data.get(key) != want:
             raise CheckpointError(f"{noun} {str(path)!r} is for {key} {data.get(key)!r}, expected {want!r}")
+    made_for = data.get("env_id", f"{data.get('task')}_v0")  # files older than task versions: v0
+    if data.get("task") in TASKS and made_for != env_id(data["task"]):
+        raise CheckpointError(
+            f"{noun} {str(path)!r} was trained on {made_for}, but this comat has {env_id(data['task'])} "
+            "(the task's rules changed since): train it again"
+        )
     if kind == POLICY_FORMAT:
         _check_policy(path, data)
     if isinstance(data.get("config"), dict):

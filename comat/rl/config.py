@@ -39,6 +39,7 @@ from comat.reality import RealityConfig, resolve_reality
 from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
+from comat.tasks import env_id as task_env_id
 from comat.tasks import task_names
 from comat.team import COALITION_SETS
 
@@ -140,7 +141,7 @@ class RunConfig:
 
     @property
     def env_id(self) -> str:
-        return f"{self.task}_v0"
+        return task_env_id(self.task)
 
     def to_dict(self) -> dict[str, Any]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

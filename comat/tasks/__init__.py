@@ -41,6 +41,7 @@ __all__ = [
     "Band",
     "TaskEntry",
     "TaskTypes",
+    "env_id",
     "load_plugins",
     "register_task",
     "task_entry",
@@ -72,6 +73,15 @@ class TaskTypes:
     ignored: tuple[tuple[int, ...], ...] = ()
     """Per type, indices of the capabilities the task's rules ignore for it: they must be 0, so
     a team file cannot suggest an ability the robot does not have."""
+    optional: tuple[str, ...] = ()
+    """Types a team may lack (Arctic's scout: a 2-robot team is one ice and one water robot); every
+    other type needs at least one robot. Sets draw one robot of each type, in ``types`` order, while
+    the team has room."""
+
+    @property
+    def needed(self) -> tuple[str, ...]:
+        """The types every team must have."""
+        return tuple(t for t in self.types if t not in self.optional)
 
 
 PLUGIN_ENV = "COMAT_TASKS"
@@ -130,10 +140,17 @@ def task_entry(name: str) -> TaskEntry:
     return TASKS[name]
 
 
+def env_id(name: str) -> str:
+    """The env id of task ``name`` (``"pcp"`` -> ``"pcp_v0"``): a task whose rules changed has a newer
+    version, so a policy or result of the old rules is never read against the new ones."""
+    return task_entry(name).env_id
+
+
 def task_from_logic(logic: type, title: str) -> TaskEntry:
     """Register the task whose logic class states its composition sets (module docstring): its env
-    id is ``<name>_v0``. ``set_streams`` is the first of six consecutive streams (in
-    :data:`COALITION_SETS` order) or a mapping set -> stream."""
+    id is ``<name>_v<version>`` (the class's ``version``: 0 until a rule changes). ``set_streams``
+    is the first of six consecutive streams (in :data:`COALITION_SETS` order) or a mapping set ->
+    stream."""
     name = logic.name
     types = TaskTypes(
         tuple(logic.types),
@@ -141,7 +158,14 @@ def task_from_logic(logic: type, title: str) -> TaskEntry:
         tuple(tuple(lim) for lim in logic.capability_limits),
         tuple(tuple(r) for r in logic.required),
         tuple(tuple(i) for i in getattr(logic, "ignored", ())),
+        tuple(getattr(logic, "optional_types", ())),
     )
+    late = [t for t in types.optional if t in types.types and types.types.index(t) < len(types.needed)]
+    if any(t not in types.types for t in types.optional) or late:
+        raise ValueError(
+            f"task {name!r}: optional_types must be types listed after every needed one in {types.types}, "
+            f"got {types.optional}"
+        )
     stated = logic.capability_bands
     missing = sorted({"train", "test", "capability"} - set(stated))
     if missing:
@@ -169,7 +193,8 @@ def task_from_logic(logic: type, title: str) -> TaskEntry:
         raise ValueError(
             f"task {name!r}: set_streams must give every set {list(COALITION_SETS)}, got {sorted(streams)}"
         )
-    return register_task(TaskEntry(name, f"{name}_v0", title, logic, types, bands, streams))
+    version = int(getattr(logic, "version", 0))
+    return register_task(TaskEntry(name, f"{name}_v{version}", title, logic, types, bands, streams))
 
 
 task_from_logic(PCP, "Predator Capture Prey")

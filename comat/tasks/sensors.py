@@ -1,4 +1,4 @@
-"""Heterogeneous Sensor Network (``sensors_v0``): robots with different sensing radii must take up
+"""Heterogeneous Sensor Network (``sensors_v1``): robots with different sensing radii must take up
 places from which, together, they watch every target at once — a wide cluster of targets needs a
 robot that sees wide.
 
@@ -6,12 +6,12 @@ robot that sees wide.
 |---|---|
 | Agents | ``robot_0 … robot_{n-1}``, n = 2…20; types ``wide`` and ``narrow``, >= 1 of each; team changes every episode as in every comat task |
 | Capabilities | [sensing radius m] |
-| Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a 0.15 m waypoint for the robot's projected point |
+| Actions | Discrete(5): 0 stay, 1 +x, 2 −x, 3 +y, 4 −y — a 0.06 m waypoint for the robot's projected point |
 | Step | 29 control ticks of 0.033 s (0.96 s): waypoint controller → safety filter → MuJoCo |
 | Observation | Box(12,) float64, below |
 | State | Box(3K + S·12,): targets (x, y) ×K, watched now ×K over the env's K_max = 3 × its largest team target slots (a smaller team's unused slots parked at (2.6, 0)), then the observations of S = ``state_robots`` slots |
-| Horizon | 50 steps; ends early when every target is watched at once |
-| Targets | one cluster of 3 targets per robot: the clusters' centres >= 0.35 m apart in x ∈ [−0.5, 1.4], y ∈ [−0.8, 0.8]; the targets of robot i's cluster at U(0.75, 0.95) × its radius from the centre, 120° apart (± 0.3 rad): from the centre, that robot watches all three, and a robot whose radius is less than about three quarters of it watches none of them from there |
+| Horizon | 70 steps; ends early when every target is watched at once |
+| Targets | one cluster of 3 targets per robot: the clusters' centres in x ∈ [−0.6, 1.45], y ∈ [−0.85, 0.85], >= 0.7 m apart for teams of up to 9 robots, 0.6 m up to 12, 0.5 m up to 20; each cluster sized by one robot of the team (drawn apart from where it starts): its targets at U(0.56, 0.62) × that robot's radius from the centre, 120° apart (± 0.3 rad). From the centre that robot watches all three, and a robot whose radius is less than 0.56 of it watches none of them from there |
 | Spawn | robots >= 0.3 m apart in x ∈ [−1.45, −0.95], y ∈ [−0.85, 0.85], random headings |
 
 Observation layout (per robot):
@@ -29,12 +29,12 @@ Observation layout (per robot):
 
 Composition sets (``coalitions=``; :mod:`comat.team`; sensing radius, m):
 
-* ``train`` (U_train): 3, 5 or 7 robots; wide U(0.38, 0.50), narrow U(0.16, 0.24).
+* ``train`` (U_train): 3, 5 or 7 robots; wide U(0.45, 0.55), narrow U(0.14, 0.18).
 * ``val``: like U_train from another stream; ``size``: sizes 2…20, U_train's ranges.
-* ``test`` (U_test): 2, 4, 6 or 8 robots; wide U(0.34, 0.54), narrow U(0.14, 0.26); ``scale``: 10,
+* ``test`` (U_test): 2, 4, 6 or 8 robots; wide U(0.42, 0.60), narrow U(0.12, 0.20); ``scale``: 10,
   12, 16 or 20 robots with U_test's ranges.
-* ``capability`` (U_cap): every radius outside its type's U_train range: wide [0.30, 0.38) ∪
-  (0.50, 0.60], narrow [0.12, 0.16) ∪ (0.24, 0.28].
+* ``capability`` (U_cap): every radius outside its type's U_train range: wide [0.40, 0.45) ∪
+  (0.55, 0.65], narrow [0.11, 0.14) ∪ (0.18, 0.21].
 
 Rule (after every step): a target is *watched* while some robot's centre is within that robot's
 sensing radius of it. Progress is the largest share of the team's targets watched at one time so
@@ -50,7 +50,12 @@ summed squared distances are least; its capability-blind twin (``blind_scripted_
 them out by distance alone.
 
 Version history: v0 — first version (issue 49; a heterogeneous sensor network with sensing radius as
-the capability, after the peers' coverage and discovery scenarios).
+the capability, after the peers' coverage and discovery scenarios). v1 — the clusters 0.7 m apart
+for teams of up to 9 robots and 0.6 m up to 12 (v0: 0.5 m for every team), the targets at 0.56 to
+0.62 × the radius (v0: 0.5 to 0.62): in v0 a wide robot sent to a narrow robot's cluster watched
+part of the next cluster too, and the capability-blind reference was 14 points below the scripted
+one on U_cap, where 15 were asked for. v0's spec sheet gave an earlier draft's horizon, step,
+target distances and ranges; this one gives the code's.
 """
 
 from __future__ import annotations
@@ -70,6 +75,7 @@ class SensorNetwork(TaskLogic):
     (B, K), active (B, K), the clusters' centres (B, N, 2) and needed radii (B, N), the best count."""
 
     name = "sensors"
+    version = 1
     title = "Heterogeneous Sensor Network"
     types = ("wide", "narrow")
     capabilities = ("sensing_radius_m",)
@@ -81,9 +87,12 @@ class SensorNetwork(TaskLogic):
     projected point stops within half a step of the waypoint on each axis)."""
     spawn_box = (-1.45, -0.95, -0.85, 0.85)
     cluster_box = (-0.6, 1.45, -0.85, 0.85)
-    cluster_spacing = 0.5
+    cluster_spacings = (0.7, 0.6, 0.5)
+    """The clusters' centres are at least the first of these (m) apart whose grid holds the team's
+    clusters: 0.7 m for up to 9 robots, 0.6 m up to 12, 0.5 m up to 20. Far apart, a wide robot
+    watches no other cluster's targets, so a cluster left to a robot that sees too little is lost."""
     per_cluster = 3
-    spread = (0.5, 0.62)
+    spread = (0.56, 0.62)
     n_task_features = 5
     reward_terms = ("coverage", "time", "violation")
     reward_weights: ClassVar[dict] = {"coverage": 1.0, "time": -0.05, "violation": -5.0}
@@ -107,7 +116,7 @@ class SensorNetwork(TaskLogic):
         self.largest_team: int | None = None
 
     def max_team_size(self) -> int:
-        return min(self.spawn_capacity(), grid_cells(self.cluster_box, self.cluster_spacing))
+        return min(self.spawn_capacity(), grid_cells(self.cluster_box, min(self.cluster_spacings)))
 
     def fit_teams(self, largest: int) -> None:
         self.largest_team = int(largest)
@@ -145,7 +154,10 @@ class SensorNetwork(TaskLogic):
         n, m = caps.shape[0], self.per_cluster
         if starts is not None:
             self.set_starts(state, b, starts)
-        centres = spread_points(rng, n, self.cluster_box, self.cluster_spacing, "sensors cluster area", "clusters")
+        spacing = next((d for d in self.cluster_spacings if grid_cells(self.cluster_box, d) >= n), 0.0)
+        centres = spread_points(
+            rng, n, self.cluster_box, spacing or min(self.cluster_spacings), "sensors cluster area", "clusters"
+        )
         order = rng.permutation(n)  # which robot's radius sizes which cluster: drawn apart from where it starts
         dist = rng.uniform(*self.spread, (n, m)) * caps[order, 0][:, None]
         angle = rng.uniform(-np.pi, np.pi, (n, 1)) + 2 * np.pi * np.arange(m) / m + rng.uniform(-0.3, 0.3, (n, m))

@@ -37,7 +37,7 @@ from comat.rl.algos import policy_act, robot_slots
 from comat.rl.config import RunConfig
 from comat.rl.policy import load_policy, shipped_name
 from comat.rl.runner import EVAL_SEED_OFFSET
-from comat.tasks import task_names
+from comat.tasks import env_id, task_names
 from comat.team import COALITION_SETS, TeamSpec
 from comat.viz.blueprint import rollout_blueprint
 from comat.viz.recorder import EpisodeRecorder
@@ -306,7 +306,7 @@ def record_episodes(
             f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)"
         )
     env = make_env(
-        f"{task}_v0",
+        env_id(task),
         coalitions=pool,
         tier=tier,
         ticks_per_step=ticks_per_step,
