@@ -100,7 +100,8 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
                 for c, bands in zip(kinds.capabilities, train[kind])
                 if any(hi > 0 for _, hi in bands)
             )
-            print(f"  type {t} {kind!r}: U_train draws {ranges}")
+            optional = " (optional: a team may have none)" if kind in kinds.optional else ""
+            print(f"  type {t} {kind!r}{optional}: U_train draws {ranges}")
     return 0
 
 

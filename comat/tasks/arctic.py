@@ -328,12 +328,13 @@ class ArcticTransport(TaskLogic):
     counters_name = "arrived"
 
     def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
-        """The goal column and, with a state, env ``b``'s ice (light) and water (dark) cells; a cell the
-        team has not seen yet is drawn paler."""
+        """The goal column and, with a state, env ``b``'s ice (light) and water (dark) cells (their
+        labels: "?" while the team has not seen the cell, :meth:`area_labels`)."""
         x0, x1, y0, y1 = ARENA
         g = self.goal_col * self.cell_m + x0
         out = [Area("goal", "box", (g, x1, y0, y1), (50, 170, 80), "goal")]
         if state is not None:
+            labels = self.area_labels(state, b)
             for r, c in zip(*np.nonzero(state["ground"][b] != SNOW)):
                 kind = "ice" if state["ground"][b, r, c] == ICE else "water"
                 box = (
@@ -342,11 +343,17 @@ class ArcticTransport(TaskLogic):
                     y0 + r * self.cell_m,
                     y0 + (r + 1) * self.cell_m,
                 )
-                seen = bool(state["seen"][b, r, c])
-                colors = {("ice", True): (150, 200, 240), ("ice", False): (215, 232, 248)}
-                colors |= {("water", True): (20, 60, 160), ("water", False): (130, 150, 200)}
-                out.append(Area(f"{kind}_{r}_{c}", "box", box, colors[kind, seen], "" if seen else "?"))
+                name = f"{kind}_{r}_{c}"
+                out.append(Area(name, "box", box, (150, 200, 240) if kind == "ice" else (20, 60, 160), labels[name]))
         return tuple(out)
+
+    def area_labels(self, state: dict, b: int) -> dict[str, str]:
+        """Each ice or water cell's label now: "?" until the team has seen it."""
+        ground, seen = state["ground"][b], state["seen"][b]
+        return {
+            f"{'ice' if ground[r, c] == ICE else 'water'}_{r}_{c}": "" if seen[r, c] else "?"
+            for r, c in zip(*np.nonzero(ground != SNOW))
+        }
 
     def rings(self, caps: np.ndarray, type_ids: np.ndarray) -> tuple[Ring, ...]:
         return (Ring("sight", np.ones(caps.shape[0], bool), caps[:, 2], (120, 120, 120), "dotted ring: sight", True),)
