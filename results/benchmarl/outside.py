@@ -153,6 +153,9 @@ def train(args) -> None:
         config=experiment_config(args.frames, horizon, out),
         callbacks=[Curve(out / "curve.csv", groups[0])],
     )
+    if args.normalize_advantage:  # a diagnostic, not BenchMARL's MAPPO: README.md, "Why HMT differs"
+        for loss in experiment.losses.values():
+            loss.normalize_advantage = True
     started = time.perf_counter()
     experiment.run()
     wall = time.perf_counter() - started
@@ -165,6 +168,7 @@ def train(args) -> None:
         "frames": experiment.total_frames,
         "wall_s": wall,
         "checkpoint": str(checkpoint.relative_to(out)),
+        "normalize_advantage": bool(args.normalize_advantage),
     }
     (out / "run.json").write_text(json.dumps(meta, indent=1))
     print(f"BenchMARL MAPPO on {args.task}: {experiment.total_frames} env steps in {wall / 60:.1f} min -> {out}")
@@ -219,6 +223,11 @@ def main(argv=None) -> None:
     t.add_argument("--tier", default="unicycle")
     t.add_argument("--out", required=True)
     t.add_argument("--episodes", type=int, default=20, help="deterministic evaluation episodes after training")
+    t.add_argument(
+        "--normalize-advantage",
+        action="store_true",
+        help="standardize each group's advantages per minibatch (BenchMARL's MAPPO does not; a diagnostic)",
+    )
     e = sub.add_parser("eval", help="play a trained run's policy again in comat's env")
     e.add_argument("--run", required=True, help="the run folder that train wrote")
     e.add_argument("--episodes", type=int, default=20)
