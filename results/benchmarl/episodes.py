@@ -16,6 +16,7 @@ import numpy as np
 
 import comat
 from comat.envs.base import resolve_coalitions
+from comat.tasks import env_id
 
 __all__ = ["EVAL_SEED", "comat_env", "fixed_team", "play", "type_groups", "write_eval"]
 
@@ -42,7 +43,7 @@ def type_groups(team: dict) -> dict[str, list[str]]:
 
 def comat_env(task: str, team: dict, tier: str):
     """comat's PettingZoo env with ``team`` as its only coalition (its robots are robot_0...)."""
-    return comat.make_env(f"{task}_v0", coalitions=[team], tier=tier)
+    return comat.make_env(env_id(task), coalitions=[team], tier=tier)
 
 
 def play(act: Callable[[dict], dict], task: str, team: dict, tier: str, episodes: int) -> list[dict]:
