@@ -263,7 +263,7 @@ class ArcticTransport(TaskLogic):
             g, seen = state["ground"][:, None], state["seen"][:, None]  # (B, 1, R, C)
             t_ice = self.cell_m / np.maximum(speeds[..., 0], 1e-6)[..., None, None]
             t_water = self.cell_m / np.maximum(speeds[..., 1], 1e-6)[..., None, None]
-            t_snow = self.cell_m / np.maximum(speeds[..., :2].mean(-1), 1e-6)[..., None, None]
+            t_snow = self.cell_m / np.maximum(self.step_lengths(speeds), 1e-6)[..., None, None]
             known = np.where(g == ICE, t_ice, np.where(g == WATER, t_water, t_snow))
             cross = np.where(seen | (g == SNOW), known, (t_ice + t_water) / 2)
         cost = np.full(cross.shape, np.inf)
@@ -327,6 +327,12 @@ class ArcticTransport(TaskLogic):
     type_colors: ClassVar[dict] = {"ice": (66, 133, 244), "water": (0, 150, 136), "scout": (244, 180, 0)}
     counters_name = "arrived"
 
+    def _field_cells(self, state: dict, b: int) -> list[tuple[str, int, int, str]]:
+        """Env ``b``'s ice and water cells: (area name, row, column, kind)."""
+        ground = state["ground"][b]
+        kinds = [("ice" if ground[r, c] == ICE else "water", r, c) for r, c in zip(*np.nonzero(ground != SNOW))]
+        return [(f"{kind}_{r}_{c}", int(r), int(c), kind) for kind, r, c in kinds]
+
     def areas(self, state: dict | None = None, b: int = 0) -> tuple[Area, ...]:
         """The goal column and, with a state, env ``b``'s ice (light) and water (dark) cells (their
         labels: "?" while the team has not seen the cell, :meth:`area_labels`)."""
@@ -335,25 +341,20 @@ class ArcticTransport(TaskLogic):
         out = [Area("goal", "box", (g, x1, y0, y1), (50, 170, 80), "goal")]
         if state is not None:
             labels = self.area_labels(state, b)
-            for r, c in zip(*np.nonzero(state["ground"][b] != SNOW)):
-                kind = "ice" if state["ground"][b, r, c] == ICE else "water"
+            for name, r, c, kind in self._field_cells(state, b):
                 box = (
                     x0 + c * self.cell_m,
                     x0 + (c + 1) * self.cell_m,
                     y0 + r * self.cell_m,
                     y0 + (r + 1) * self.cell_m,
                 )
-                name = f"{kind}_{r}_{c}"
                 out.append(Area(name, "box", box, (150, 200, 240) if kind == "ice" else (20, 60, 160), labels[name]))
         return tuple(out)
 
     def area_labels(self, state: dict, b: int) -> dict[str, str]:
         """Each ice or water cell's label now: "?" until the team has seen it."""
-        ground, seen = state["ground"][b], state["seen"][b]
-        return {
-            f"{'ice' if ground[r, c] == ICE else 'water'}_{r}_{c}": "" if seen[r, c] else "?"
-            for r, c in zip(*np.nonzero(ground != SNOW))
-        }
+        seen = state["seen"][b]
+        return {name: "" if seen[r, c] else "?" for name, r, c, _ in self._field_cells(state, b)}
 
     def rings(self, caps: np.ndarray, type_ids: np.ndarray) -> tuple[Ring, ...]:
         return (Ring("sight", np.ones(caps.shape[0], bool), caps[:, 2], (120, 120, 120), "dotted ring: sight", True),)
