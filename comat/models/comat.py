@@ -318,8 +318,15 @@ class Comat(AutoregressivePolicy):
     def decode_all(self, rep, tokens, obs, mask):
         L = tokens.shape[1]
         m = causal(L, tokens.device)[None]
-        e = self.token(tokens)
-        a_hat = self._embed_actions(e, self.self_attn(e, e, e, m))
+        # θ¹'s token embedding and its attention's queries, keys and values depend on the token
+        # alone: computed for the A+1 tokens once and looked up by the one-hot tokens (a product
+        # with a one-hot is exact), as decode_init does, instead of per robot.
+        sa = self.self_attn
+        table = self.token(torch.eye(self.n_actions + 1, device=tokens.device))  # (A+1, E)
+        k_table, v_table = sa._kv_merged(table, table)
+        e = tokens @ table
+        attended = sa.attend(tokens @ sa.q(table), tokens @ k_table, tokens @ v_table, m)
+        a_hat = self._embed_actions(e, attended)
         return self._decide(rep, self.cross_attn(rep, a_hat, a_hat, m), obs)
 
     def decode_init(self, rep, obs):

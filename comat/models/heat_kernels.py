@@ -7,7 +7,11 @@ Why: the stage is elementwise over the (B, N, N, d + K) edge tensor — robot j'
 score's and the message's LeakyReLU, the masked softmax over neighbours, the attention-weighted sum
 per head — and in torch each of those is a pass over that tensor forward and more backward, which
 made COMAT's update half its training time (issue 48). Here each is one pass per (b, i), with
-only the attention weights kept for the backward pass (the pre-activations are recomputed).
+only the attention weights kept for the backward pass (the pre-activations are recomputed). The
+loops run along the contiguous dimension (the message's d columns, each edge's heads), skip masked
+edges, and robot j's gradient is summed while the edge's is written: 1.6 → 0.7 ms forward and
+1.55 → 0.8 ms backward for 257 teams of 7 (alone, one core), COMAT's PPO update 1.82 → 1.63 s on
+one PCP rollout (docs/speed.md).
 
 Shapes: z (B, N, N, d + K) — the per-edge maps [ẽ^attr ‖ one-hot pair] @ W, the message's d
 columns then the score's K; xj (B, N, d + K) robot j's share of both; ai (B, N, K) robot i's
@@ -35,37 +39,56 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
+def _softmax_rows(z, xj, ai, mask, b, i, heads, d, alpha, top, total):  # pragma: no cover - compiled
+    """alpha[b, i, :, k] = the masked softmax over j of LeakyReLU(score), each head k; ``top`` and
+    ``total`` (heads,) are scratch. Heads innermost: alpha's and z's contiguous order."""
+    N = z.shape[1]
+    top[:] = -np.inf
+    for j in range(N):
+        if mask[b, i, j]:
+            for k in range(heads):
+                s = z[b, i, j, d + k] + xj[b, j, d + k] + ai[b, i, k]
+                s = max(s, SLOPE * s)  # LeakyReLU (slope < 1)
+                alpha[b, i, j, k] = s
+                top[k] = max(top[k], s)
+    total[:] = 0.0
+    for j in range(N):
+        if mask[b, i, j]:
+            for k in range(heads):
+                e = np.exp(alpha[b, i, j, k] - top[k])
+                alpha[b, i, j, k] = e
+                total[k] += e
+        else:
+            alpha[b, i, j, :] = 0.0
+    for j in range(N):
+        if mask[b, i, j]:
+            for k in range(heads):
+                alpha[b, i, j, k] /= total[k]  # total >= 1 (the top score's term) where j is an edge
+
+
+@_jit
 def _forward(z, xj, ai, mask, heads, out, alpha):  # pragma: no cover - compiled
     B, N, _, width = z.shape
     d = width - heads
     dh = d // heads
+    weight = np.empty(d, np.float32)  # edge (i, j)'s attention weight per message column
+    acc = np.empty(d, np.float32)
+    top, total = np.empty(heads, np.float32), np.empty(heads, np.float32)
     for b in range(B):
-        score = np.empty((N, heads), np.float32)
         for i in range(N):
-            for k in range(heads):
-                top = -np.inf
-                for j in range(N):
-                    s = -np.inf
-                    if mask[b, i, j]:
-                        s = z[b, i, j, d + k] + xj[b, j, d + k] + ai[b, i, k]
-                        s = max(s, SLOPE * s)  # LeakyReLU (slope < 1)
-                    score[j, k] = s
-                    top = max(top, s)
-                total = np.float32(0.0)
-                for j in range(N):
-                    e = np.float32(0.0) if top == -np.inf else np.exp(score[j, k] - top)
-                    score[j, k] = e
-                    total += e
-                for j in range(N):
-                    alpha[b, i, j, k] = score[j, k] / total if total > 0 else np.float32(0.0)
-            for c in range(d):
-                out[b, i, c] = 0.0
+            _softmax_rows(z, xj, ai, mask, b, i, heads, d, alpha, top, total)
+            acc[:] = 0.0
             for j in range(N):
+                if not mask[b, i, j]:
+                    continue  # weight 0: adds nothing
                 for k in range(heads):
-                    a = alpha[b, i, j, k]
-                    for c in range(k * dh, (k + 1) * dh):
-                        m = z[b, i, j, c] + xj[b, j, c]
-                        out[b, i, c] += a * max(m, SLOPE * m)
+                    weight[k * dh : (k + 1) * dh] = alpha[b, i, j, k]
+                # One contiguous pass over the edge's d message columns (vectorized), summed over
+                # neighbours j in order.
+                for c in range(d):
+                    m = z[b, i, j, c] + xj[b, j, c]
+                    acc[c] += weight[c] * max(m, SLOPE * m)
+            out[b, i, :] = acc
 
 
 @_jit
@@ -73,39 +96,52 @@ def _backward(z, xj, ai, mask, alpha, gout, heads, dz, dxj, dai):  # pragma: no 
     B, N, _, width = z.shape
     d = width - heads
     dh = d // heads
+    weight = np.empty(d, np.float32)
+    prod = np.empty(d, np.float32)  # gout · LeakyReLU(message), per column
+    dalpha = np.empty((N, heads), np.float32)
     for b in range(B):
-        dalpha = np.empty((N, heads), np.float32)
+        dxj[b] = 0.0
         for i in range(N):
+            g = gout[b, i]
             for j in range(N):
+                if not mask[b, i, j]:
+                    dz[b, i, j, :] = 0.0
+                    dalpha[j, :] = 0.0
+                    continue
                 for k in range(heads):
-                    a = alpha[b, i, j, k]
-                    acc = np.float32(0.0)
-                    for c in range(k * dh, (k + 1) * dh):
-                        m = z[b, i, j, c] + xj[b, j, c]
-                        g = gout[b, i, c]
-                        acc += g * max(m, SLOPE * m)
-                        dz[b, i, j, c] = a * g * (_ONE if m > 0 else SLOPE)
-                    dalpha[j, k] = acc
+                    weight[k * dh : (k + 1) * dh] = alpha[b, i, j, k]
+                for c in range(d):
+                    m = z[b, i, j, c] + xj[b, j, c]
+                    prod[c] = g[c] * max(m, SLOPE * m)
+                    dz[b, i, j, c] = weight[c] * g[c] * (_ONE if m > 0 else SLOPE)
+                for k in range(heads):
+                    dalpha[j, k] = _sum(prod, k * dh, (k + 1) * dh)
             for k in range(heads):
                 dot = np.float32(0.0)
                 for j in range(N):
                     dot += alpha[b, i, j, k] * dalpha[j, k]
                 acc = np.float32(0.0)
                 for j in range(N):
-                    g = np.float32(0.0)
+                    grad = np.float32(0.0)
                     if mask[b, i, j]:
                         s = z[b, i, j, d + k] + xj[b, j, d + k] + ai[b, i, k]
-                        g = alpha[b, i, j, k] * (dalpha[j, k] - dot) * (_ONE if s > 0 else SLOPE)
-                    dz[b, i, j, d + k] = g
-                    acc += g
+                        grad = alpha[b, i, j, k] * (dalpha[j, k] - dot) * (_ONE if s > 0 else SLOPE)
+                    dz[b, i, j, d + k] = grad
+                    acc += grad
                 dai[b, i, k] = acc
-        for j in range(N):
-            for c in range(width):
-                dxj[b, j, c] = 0.0
-        for i in range(N):
-            for j in range(N):
-                for c in range(width):
-                    dxj[b, j, c] += dz[b, i, j, c]
+            for j in range(N):  # robot j's share of every edge (i, j), summed over i in order
+                if mask[b, i, j]:
+                    for c in range(width):
+                        dxj[b, j, c] += dz[b, i, j, c]
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _sum(x, start, stop):  # pragma: no cover - compiled
+    """x[start:stop].sum(), vectorized (fastmath lets the sum be reordered: float rounding only)."""
+    total = np.float32(0.0)
+    for c in range(start, stop):
+        total += x[c]
+    return total
 
 
 class EdgeStage(torch.autograd.Function):

@@ -12,6 +12,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from comat import kernels
+from comat.models.attention_kernels import HEAD_WIDTH, SHORT_KEYS, short_attention
 from comat.models.comat_schema import DecisionMode, decision_shapes
 
 __all__ = [
@@ -128,13 +130,16 @@ class Attention(nn.Module):
         B, H, L, dh = x.shape
         return self.o(x.transpose(1, 2).reshape(B, L, H * dh))
 
-    def _kv(self, key: torch.Tensor, value: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def _kv_merged(self, key: torch.Tensor, value: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Keys and values (B, L, D), heads not split."""
         if key is value:
-            k, v = self.kv(key).chunk(2, dim=-1)
-        else:
-            D = key.shape[-1]
-            k = F.linear(key, self.kv.weight[:D], self.kv.bias[:D])
-            v = F.linear(value, self.kv.weight[D:], self.kv.bias[D:])
+            return self.kv(key).chunk(2, dim=-1)
+        D = key.shape[-1]
+        w, b = self.kv.weight, self.kv.bias
+        return F.linear(key, w[:D], b[:D]), F.linear(value, w[D:], b[D:])
+
+    def _kv(self, key: torch.Tensor, value: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        k, v = self._kv_merged(key, value)
         return self._split(k), self._split(v)
 
     @staticmethod
@@ -165,14 +170,35 @@ class Attention(nn.Module):
         return q * (q.shape[-1] ** -0.5)
 
     def forward(self, query, key, value, mask: torch.Tensor | None = None) -> torch.Tensor:
-        k, v = self._kv(key, value)
+        k, v = self._kv_merged(key, value)
+        return self.attend(self.q(query), k, v, mask)
+
+    def attend(self, q, k, v, mask: torch.Tensor | None = None) -> torch.Tensor:
+        """:meth:`forward` from projected queries q (B, Lq, D), keys and values (B, Lk, D), heads
+        not split (callers that project a few distinct inputs once, such as a decoder's tokens)."""
         if mask is not None:
             # A query with nothing to attend to (a padded robot) attends to the first key only,
             # so no row is all -inf; its output is never used.
             empty = ~mask.any(-1, keepdim=True)
             mask = mask | (empty & (torch.arange(mask.shape[-1], device=mask.device) == 0))
-            mask = mask[:, None]
-        return self._merge(self._attend(self.project_query(query), k, v, mask))
+        if self._fused(q, k):
+            # The update (a gradient recorded) over a team's few robots: the fused kernels
+            # (comat.models.attention_kernels); acting and evaluation keep torch's bits.
+            if mask is None:
+                mask = torch.ones(1, q.shape[1], k.shape[1], dtype=torch.bool)
+            return self.o(short_attention(q, k, v, mask, self.heads))
+        split = self._split
+        return self._merge(self._attend(split(q), split(k), split(v), None if mask is None else mask[:, None]))
+
+    def _fused(self, query: torch.Tensor, key: torch.Tensor) -> bool:
+        return (
+            torch.is_grad_enabled()
+            and key.shape[1] <= SHORT_KEYS
+            and query.shape[-1] == self.heads * HEAD_WIDTH
+            and query.dtype == torch.float32
+            and query.device.type == "cpu"
+            and kernels.enabled()
+        )
 
     def step(self, q: torch.Tensor, key, value, cache: KVCache) -> torch.Tensor:
         return self.step_projected(q, *self._kv(key, value), cache)
