@@ -185,6 +185,34 @@ def test_bench_decode_times_each_path_with_its_own_encoder():
         assert (row["encode_act_ms"] == row["encode_ms"]) == (model == "mat")
 
 
+def test_bench_learn_checks_comats_learning_against_mats_per_env_step():
+    from comat.bench.learn_bench import _checks
+
+    def row(algo, task, workers, learn_s, steps):
+        return {
+            "algo": algo,
+            "task": task,
+            "env_workers": workers,
+            "learn_s": learn_s,
+            "env_steps": steps,
+            "env_steps_per_s": 1.0,
+        }
+
+    train = [
+        row("comat", "pcp", 2, 5.0, 7680),
+        row("mat", "pcp", 2, 2.5, 7680),
+        row("comat", "hmt", 2, 2.6, 3360),
+        row("mat", "hmt", 2, 4.0, 6720),  # twice the steps: per env step COMAT is 1.3x
+        row("comat", "hmt", 1, 1.0, 3360),  # no MAT row with one worker: no check
+    ]
+    checks = _checks([], train)
+    assert checks["comat_learn_vs_mat_pcp_W2"]["value"] == 2.0 and not checks["comat_learn_vs_mat_pcp_W2"]["pass"]
+    assert (
+        abs(checks["comat_learn_vs_mat_hmt_W2"]["value"] - 1.3) < 1e-12 and checks["comat_learn_vs_mat_hmt_W2"]["pass"]
+    )
+    assert "comat_learn_vs_mat_hmt_W1" not in checks
+
+
 def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
     """``comat_paper`` in ``bench learn``: the same preset with COMAT's paper-form options; the
     ``comat_<option>`` rows change that one option."""

@@ -38,6 +38,9 @@ __all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "run_learn_bench"]
 
 TRAIN_TARGET = 400.0
 """COMAT env-steps/s on PCP, unicycle tier, the learners issue's target for a 2-core machine."""
+LEARN_RATIO_TARGET = 1.3
+"""COMAT's learning seconds over MAT's in the same run (the same rollout size), at most: the
+speed issue's target (issue 48)."""
 DECODE_TARGET = 3.0
 """Cached decoding vs a full re-run per robot, 8 robots."""
 WIDE_SLOTS = 20
@@ -177,7 +180,9 @@ def bench_train(
 
 def _checks(decode: list[dict], train: list[dict]) -> dict:
     """Targets: cached decoding >= 3x a full re-run (8 robots; at the rollout batch 32 and at a
-    large batch 256), COMAT training >= 400 env-steps/s (best worker count)."""
+    large batch 256), COMAT training >= 400 env-steps/s (best worker count), and COMAT's learning
+    seconds <= 1.3x MAT's for each task and worker count both ran (per env step: HMT's rollouts are
+    shorter than PCP's, but both learners of a task and worker count collect the same)."""
     checks = {}
     for row in decode:
         if row["batch"] in (32, 256):
@@ -195,6 +200,15 @@ def _checks(decode: list[dict], train: list[dict]) -> dict:
             "pass": best["env_steps_per_s"] >= TRAIN_TARGET,
             "env_workers": best["env_workers"],
         }
+    for comat in (r for r in train if r["algo"] == "comat"):
+        for mat in (r for r in train if r["algo"] == "mat"):
+            if (mat["task"], mat["env_workers"]) == (comat["task"], comat["env_workers"]):
+                ratio = (comat["learn_s"] / comat["env_steps"]) / (mat["learn_s"] / mat["env_steps"])
+                checks[f"comat_learn_vs_mat_{comat['task']}_W{comat['env_workers']}"] = {
+                    "value": ratio,
+                    "target": f"<= {LEARN_RATIO_TARGET}",
+                    "pass": ratio <= LEARN_RATIO_TARGET,
+                }
     return checks
 
 
