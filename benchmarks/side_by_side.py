@@ -7,7 +7,8 @@ same time (each its own run folder), and reads each run's env-steps/s from its `
 (updates after the first, whose compile and warm-up would blur the rate). Prints a table and writes
 JSON: the alone rate, each side-by-side rate and their ratio to the alone one (the target: each
 >= 0.40). ``--env`` sets environment variables of every run (e.g. ``OMP_WAIT_POLICY=ACTIVE`` to
-see what spin-waiting threads cost). Measure with nothing else running.
+see what spin-waiting threads cost); ``--stagger S`` starts the second run S seconds after the
+first, which it then finds registered. Measure with nothing else running.
 """
 
 from __future__ import annotations
@@ -62,6 +63,12 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=15360, help="env steps per run (default: %(default)s)")
     parser.add_argument("--env", nargs="*", default=[], metavar="KEY=VALUE", help="environment of every run")
     parser.add_argument(
+        "--stagger",
+        type=float,
+        default=0.0,
+        help="seconds between the two side-by-side starts (the second finds the first registered; default: 0)",
+    )
+    parser.add_argument(
         "--out", default="benchmarks/results/side_by_side.json", help="JSON output (default: %(default)s)"
     )
     args = parser.parse_args()
@@ -73,7 +80,9 @@ def main() -> int:
         first = alone.communicate()[0]
         if alone.returncode:
             raise SystemExit(f"the lone run failed:\n{first[-2000:]}")
-        pair = [_start(root / f"pair{k}", args.steps, env) for k in range(2)]
+        pair = [_start(root / "pair0", args.steps, env)]
+        time.sleep(args.stagger)
+        pair.append(_start(root / "pair1", args.steps, env))
         outputs = [p.communicate()[0] for p in pair]
         if any(p.returncode for p in pair):
             raise SystemExit("a side-by-side run failed:\n" + "\n".join(o[-2000:] for o in outputs))
@@ -82,6 +91,7 @@ def main() -> int:
     result = {
         "steps": args.steps,
         "env": env,
+        "stagger_s": args.stagger,
         "cpus": len(os.sched_getaffinity(0)),
         "alone_env_steps_per_s": rates["alone"],
         "side_by_side_env_steps_per_s": rates["pair"],

@@ -5,9 +5,10 @@ worker's assignment where Ray pins it) and says so in ``comat train``'s first li
 ``comat train`` leaves a small file in a per-user folder of the temporary directory while it runs
 (:class:`RunRegistry`); a run that finds others there, or a machine whose load is above its CPU
 count, warns and names the cause: side-by-side runs share the CPUs, and each gets about its share.
-Threads of waiting torch workers sleep rather than spin (``OMP_WAIT_POLICY=PASSIVE``, set before torch
-loads unless the user set it): spinning threads of two runs on one machine steal each other's cores
-(benchmarks/side_by_side.py measures it).
+Waiting torch workers spin briefly, then sleep (:func:`set_thread_waiting`, before torch loads,
+unless the user chose): spinning without end, two runs on one machine steal each other's cores;
+sleeping at once, a lone run's PPO update waits on every operation for its workers to wake
+(benchmarks/side_by_side.py and results/speed/update_time.py measure both).
 """
 
 from __future__ import annotations
@@ -18,7 +19,28 @@ import tempfile
 import time
 from pathlib import Path
 
-__all__ = ["RunRegistry", "busy_warning", "usable_cpus"]
+__all__ = ["SPIN_COUNT", "RunRegistry", "busy_warning", "set_thread_waiting", "usable_cpus"]
+
+SPIN_COUNT = 10_000
+"""How long an idle torch worker thread spins before it sleeps (libgomp's ``GOMP_SPINCOUNT``, the
+OpenMP runtime of torch's Linux wheels). Measured on the 2-core Xeon (issue 48): COMAT's PPO update
+on one PCP rollout takes 2.62 s with workers that sleep at once (``OMP_WAIT_POLICY=PASSIVE``), 2.1 s
+at 3,000 spins, 1.69 s at 10,000 and 1.50 s at libgomp's own 300,000; two runs started together
+each keep 0.54 of a lone run's rate at 10,000 and 0.28 at 300,000 (the shared-machine target is
+0.40; sleeping at once, two runs each ran at 438 env-steps/s, at 10,000 spins at 291)."""
+
+
+def set_thread_waiting(environ=os.environ, others_training: bool = False) -> None:
+    """How torch's idle worker threads wait, set in ``environ`` before torch loads: spin
+    :data:`SPIN_COUNT` times, then sleep; sleep at once where ``others_training`` (other comat
+    trainings already run on this machine: spinning threads would take their cores) and in OpenMP
+    runtimes without ``GOMP_SPINCOUNT`` (``OMP_WAIT_POLICY=PASSIVE``). A user's own
+    ``OMP_WAIT_POLICY`` or ``GOMP_SPINCOUNT`` is kept as it is."""
+    if "OMP_WAIT_POLICY" in environ or "GOMP_SPINCOUNT" in environ:
+        return
+    environ["OMP_WAIT_POLICY"] = "PASSIVE"
+    if not others_training:
+        environ["GOMP_SPINCOUNT"] = str(SPIN_COUNT)  # read by libgomp in place of PASSIVE's 0
 
 
 def usable_cpus() -> int:

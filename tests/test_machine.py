@@ -5,7 +5,7 @@ import os
 import subprocess
 import sys
 
-from comat.machine import RunRegistry, busy_warning, usable_cpus
+from comat.machine import SPIN_COUNT, RunRegistry, busy_warning, set_thread_waiting, usable_cpus
 
 
 def test_usable_cpus_follow_the_affinity():
@@ -41,3 +41,39 @@ def test_the_registry_sees_live_runs_and_forgets_dead_ones(tmp_path):
     finally:
         sleeper.kill()
     assert busy_warning([], 10_000) is None
+
+
+def test_idle_torch_threads_spin_a_little_then_sleep_unless_the_user_chose():
+    env = {}
+    set_thread_waiting(env)
+    assert env == {"OMP_WAIT_POLICY": "PASSIVE", "GOMP_SPINCOUNT": str(SPIN_COUNT)}
+    env = {}
+    set_thread_waiting(env, others_training=True)  # other trainings here: sleep at once
+    assert env == {"OMP_WAIT_POLICY": "PASSIVE"}
+    for chosen in ({"OMP_WAIT_POLICY": "ACTIVE"}, {"OMP_WAIT_POLICY": "PASSIVE"}, {"GOMP_SPINCOUNT": "300000"}):
+        env = dict(chosen)
+        set_thread_waiting(env)
+        assert env == chosen  # the user's choice, exactly: nothing added
+
+
+def test_the_comat_command_sets_the_waiting_before_torch_loads(tmp_path):
+    code = (
+        "import os, sys; import comat.cli.main; sys.modules['comat.cli.main']._single_thread(); "
+        "print(os.environ.get('GOMP_SPINCOUNT'), os.environ.get('OMP_WAIT_POLICY'), 'torch' in sys.modules)"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")}
+    env["TMPDIR"] = str(tmp_path)  # a registry of its own: no other training registered
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stdout.split() == [str(SPIN_COUNT), "PASSIVE", "False"]
+    # a training already registered there: this one's threads sleep at once
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        registry = tmp_path / f"comat-runs-{os.getuid()}"  # RunRegistry's folder under TMPDIR
+        registry.mkdir()
+        (registry / f"{sleeper.pid}.json").write_text(
+            json.dumps({"pid": sleeper.pid, "out": "runs/a", "threads": 1, "started": 0})
+        )
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+        assert out.stdout.split() == ["None", "PASSIVE", "False"]
+    finally:
+        sleeper.kill()

@@ -28,6 +28,7 @@ from comat.cli.export import add_export_parser
 from comat.cli.replay import add_replay_parser
 from comat.cli.rollout import add_rollout_parser
 from comat.cli.train import add_train_parsers
+from comat.machine import RunRegistry, set_thread_waiting
 from comat.team import COALITION_SETS, COALITIONS_DIR
 
 __all__ = ["build_parser", "main"]
@@ -37,9 +38,10 @@ def _single_thread() -> None:
     # Benchmarks and rollouts are measured on one core unless the user says otherwise.
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    # Idle torch threads sleep instead of spinning: two runs' spinning threads steal each other's
-    # cores on a shared machine (comat/machine.py; benchmarks/side_by_side.py measures it).
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    # Idle torch threads spin a little, then sleep (at once where other trainings already run):
+    # spinning, two runs steal each other's cores; sleeping at once, a lone run's update waits for
+    # its threads to wake (comat/machine.py).
+    set_thread_waiting(others_training=bool(RunRegistry("", 0).others()))
 
 
 def _cmd_mjcf(args: argparse.Namespace) -> int:
