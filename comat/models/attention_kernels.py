@@ -129,7 +129,7 @@ class ShortAttention(torch.autograd.Function):
         scale = np.float32((D // heads) ** -0.5)
         out = torch.empty_like(q)
         weights = torch.empty((B, Lq, heads, k.shape[1]), dtype=q.dtype)
-        _forward(q.numpy(), k.numpy(), v.numpy(), mask.numpy(), heads, scale, out.numpy(), weights.numpy())
+        _forward(*(t.numpy() for t in (q, k, v, mask)), heads, scale, out.numpy(), weights.numpy())
         ctx.save_for_backward(q, k, v, mask, weights)
         ctx.heads, ctx.scale = heads, scale
         return out
@@ -138,19 +138,8 @@ class ShortAttention(torch.autograd.Function):
     def backward(ctx, gout):
         q, k, v, mask, weights = ctx.saved_tensors
         dq, dk, dv = torch.empty_like(q), torch.empty_like(k), torch.empty_like(v)
-        _backward(
-            q.numpy(),
-            k.numpy(),
-            v.numpy(),
-            mask.numpy(),
-            weights.numpy(),
-            gout.contiguous().numpy(),
-            ctx.heads,
-            ctx.scale,
-            dq.numpy(),
-            dk.numpy(),
-            dv.numpy(),
-        )
+        inputs = (q, k, v, mask, weights, gout.contiguous())
+        _backward(*(t.numpy() for t in inputs), ctx.heads, ctx.scale, *(t.numpy() for t in (dq, dk, dv)))
         return dq, dk, dv, None, None
 
 

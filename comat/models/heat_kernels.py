@@ -153,7 +153,7 @@ class EdgeStage(torch.autograd.Function):
         B, N, _, width = z.shape
         out = torch.empty((B, N, width - heads), dtype=z.dtype)
         alpha = torch.empty((B, N, N, heads), dtype=z.dtype)
-        _forward(z.numpy(), xj.numpy(), ai.numpy(), mask.numpy(), heads, out.numpy(), alpha.numpy())
+        _forward(*(t.numpy() for t in (z, xj, ai, mask)), heads, out.numpy(), alpha.numpy())
         ctx.save_for_backward(z, xj, ai, mask, alpha)
         ctx.heads = heads
         return out
@@ -162,18 +162,8 @@ class EdgeStage(torch.autograd.Function):
     def backward(ctx, gout):
         z, xj, ai, mask, alpha = ctx.saved_tensors
         dz, dxj, dai = torch.empty_like(z), torch.empty_like(xj), torch.empty_like(ai)
-        _backward(
-            z.numpy(),
-            xj.numpy(),
-            ai.numpy(),
-            mask.numpy(),
-            alpha.numpy(),
-            gout.contiguous().numpy(),
-            ctx.heads,
-            dz.numpy(),
-            dxj.numpy(),
-            dai.numpy(),
-        )
+        inputs = (z, xj, ai, mask, alpha, gout.contiguous())
+        _backward(*(t.numpy() for t in inputs), ctx.heads, *(t.numpy() for t in (dz, dxj, dai)))
         return dz, dxj, dai, None, None
 
 
