@@ -23,13 +23,15 @@ __all__ = [
 
 
 MEASURED_ENV_STEPS_PER_S = {
-    ("comat", "pcp"): (190, 350),
-    ("comat", "hmt"): (144, 144),
-    ("mat", "pcp"): (280, 280),
-    ("mat", "hmt"): (179, 179),
+    ("comat", "pcp"): (190, 686),
+    ("comat", "hmt"): (144, 407),
+    ("mat", "pcp"): (280, 856),
+    ("mat", "hmt"): (179, 447),
 }
-"""Env steps per second of whole 300 k runs on this project's 2-core machine, one thread, other work
-beside them (``wall_s`` of the kept policies' ``progress.csv``, results/policies/): what the first
+"""Env steps per second on this project's 2-core machine, (slow, fast): whole 300 k runs with one
+torch thread and other work beside them (``wall_s`` of the kept policies' ``progress.csv``,
+results/policies/), and training alone with 2 env workers and nothing else running (``comat bench
+learn``, 2026-12-06, results/speed/learn_spin.json; evaluations add their own time). What the first
 line's time estimate for the paper's budget rests on."""
 
 
