@@ -110,7 +110,9 @@ class Attention(nn.Module):
     ``step(q (B, H, 1, dh), key (B, 1, D), value (B, 1, D), cache)`` takes a query from
     :meth:`step_query` (which callers may compute for all positions at once), appends the
     new key and value to ``cache`` and attends over everything cached: equal to the causal
-    forward pass at that position.
+    forward pass at that position. Where a gradient is recorded over a team's few robots with
+    16-wide heads (COMAT's update), the attention runs in fused compiled kernels
+    (:mod:`comat.models.attention_kernels`); elsewhere in torch, whose bits acting keeps.
     """
 
     def __init__(self, dim: int, heads: int) -> None:
