@@ -25,9 +25,10 @@ SPIN_COUNT = 10_000
 """How long an idle torch worker thread spins before it sleeps (libgomp's ``GOMP_SPINCOUNT``, the
 OpenMP runtime of torch's Linux wheels). Measured on the 2-core Xeon (issue 48): COMAT's PPO update
 on one PCP rollout takes 2.62 s with workers that sleep at once (``OMP_WAIT_POLICY=PASSIVE``), 2.1 s
-at 3,000 spins, 1.69 s at 10,000 and 1.50 s at libgomp's own 300,000; two runs started together
-each keep 0.54 of a lone run's rate at 10,000 and 0.28 at 300,000 (the shared-machine target is
-0.40; sleeping at once, two runs each ran at 438 env-steps/s, at 10,000 spins at 291)."""
+at 3,000 spins, 1.69 s at 10,000 and 1.50 s at libgomp's own 300,000. Two runs that both spin
+10,000 times each keep 0.54 of a lone run's rate (0.28 at 300,000; the shared-machine target is
+0.40), so a run that finds others training sleeps at once (:func:`set_thread_waiting`): two runs
+started together then keep 0.78 and 0.71 (benchmarks/side_by_side.py)."""
 
 
 def set_thread_waiting(environ=os.environ, others_training: bool = False) -> None:
@@ -88,13 +89,17 @@ class RunRegistry:
                 path.unlink(missing_ok=True)  # a run that was killed
         return found
 
-    def __enter__(self) -> list[dict]:
-        others = self.others()
+    def announce(self) -> None:
+        """Write this run's entry (a read-only temporary directory: the run goes on unregistered)."""
         try:
             self.root.mkdir(parents=True, exist_ok=True)
             self.path.write_text(json.dumps(self.entry))
-        except OSError:  # a read-only temporary directory: the run goes on unregistered
+        except OSError:
             pass
+
+    def __enter__(self) -> list[dict]:
+        others = self.others()
+        self.announce()
         return others
 
     def __exit__(self, *exc) -> None:

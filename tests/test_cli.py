@@ -281,5 +281,5 @@ def test_train_without_a_preset_says_its_budget_and_time_first(tmp_path, capsys,
     with pytest.raises(KeyboardInterrupt):
         main(["train", "--algo", "comat", "--task", "pcp", "--out", str(tmp_path / "run")])
     first = capsys.readouterr().err.splitlines()[0]
-    assert first.startswith("no --preset: the paper's budget, 4,000,000 env steps (about 3-6 h")
+    assert first.startswith("no --preset: the paper's budget, 4,000,000 env steps (about 2-6 h")
     assert "--preset quick" in first

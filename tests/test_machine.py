@@ -77,3 +77,26 @@ def test_the_comat_command_sets_the_waiting_before_torch_loads(tmp_path):
         assert out.stdout.split() == ["None", "PASSIVE", "False"]
     finally:
         sleeper.kill()
+
+
+def test_a_training_announces_itself_before_it_looks_for_others(tmp_path, monkeypatch):
+    """Two runs started together each find the other (and so neither spins): ``comat train`` writes
+    its registry entry before the thread settings look for other trainings, and removes it at the end."""
+    import tempfile
+
+    import pytest
+
+    from comat.cli.main import main
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    entry = tmp_path / f"comat-runs-{os.getuid()}" / f"{os.getpid()}.json"
+    seen = []
+
+    def fake_train(*args, **kwargs):
+        seen.append(entry.exists())
+        raise KeyboardInterrupt  # stop where training would start
+
+    monkeypatch.setattr("comat.rl.runner.train", fake_train)
+    with pytest.raises(KeyboardInterrupt):
+        main(["train", "--algo", "mappo", "--task", "pcp", "--preset", "quick", "--out", str(tmp_path / "run")])
+    assert seen == [True] and not entry.exists()

@@ -38,9 +38,9 @@ def _single_thread() -> None:
     # Benchmarks and rollouts are measured on one core unless the user says otherwise.
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    # Idle torch threads spin a little, then sleep (at once where other trainings already run):
-    # spinning, two runs steal each other's cores; sleeping at once, a lone run's update waits for
-    # its threads to wake (comat/machine.py).
+    # Idle torch threads spin a little, then sleep (at once where other trainings run): spinning,
+    # two runs steal each other's cores; sleeping at once, a lone run's update waits for its
+    # threads to wake (comat/machine.py).
     set_thread_waiting(others_training=bool(RunRegistry("", 0).others()))
 
 
@@ -203,8 +203,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``comat`` console script."""
+    args = build_parser().parse_args(argv)  # before torch loads, as _single_thread must be
+    # A training announces itself before it looks for others (the runner registers it fully
+    # later), so two runs started together see each other and neither spins (comat/machine.py).
+    early = RunRegistry(getattr(args, "out", None) or "", 0) if args.command == "train" else None
+    if early is not None:
+        early.announce()
     _single_thread()
-    args = build_parser().parse_args(argv)
     try:
         if getattr(args, "out", None) == "":  # an empty path would write into the current folder
             raise ValueError("--out must be a file or folder path, got '' (empty)")
@@ -212,6 +217,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, TypeError, FileNotFoundError, FileExistsError) as exc:
         print(f"comat {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    finally:
+        if early is not None:
+            early.path.unlink(missing_ok=True)
 
 
 if __name__ == "__main__":
