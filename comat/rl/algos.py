@@ -151,9 +151,9 @@ class Learner:
             before = self.trainer.env_steps
             episodes = self.trainer.collect()
             return episodes, self.trainer.update(), self.trainer.env_steps - before
-        rollout = self.trainer.collect()
+        rollout, stats = self.trainer.iterate()
         T, B = rollout.rewards.shape
-        return rollout.episodes, self.trainer.update(rollout), T * B
+        return rollout.episodes, stats, T * B
 
     def state_dict(self) -> dict:
         return self.trainer.state_dict()

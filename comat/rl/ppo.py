@@ -22,6 +22,8 @@ Padded robot slots are masked out of every loss and statistic (mask (T, B, N)).
 from __future__ import annotations
 
 import copy
+import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -69,6 +71,13 @@ class PPOConfig:
     """``td``: eq. 6's one-step target r + γ·V̄(o') from the target critic. ``gae``: each
     robot's GAE(λ) return R_t = Â_t + V(o_t) from its own values at collection (MAT's code):
     rewards reach the episode start in one update instead of one step per target refresh."""
+    overlap: bool = False
+    """Collect the next rollout while learning from this one: a thread acts with a copy of the
+    policy from before the update while the update runs, so where the machine has cores to spare
+    (more than the env workers and the learner's threads), collection and update overlap instead of
+    taking turns. Each update then learns from a rollout of the policy one update older (a policy
+    lag of one update, which the ratio clip bounds as it does the epochs' own drift): a different
+    algorithm, compared with the default in ``results/overlap/``; off by default."""
 
     def __post_init__(self) -> None:
         check_numbers(
@@ -80,6 +89,8 @@ class PPOConfig:
             discount=("gamma",),
             at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"),
         )
+        if not isinstance(self.overlap, bool):
+            raise ValueError(f"ppo.overlap must be true or false, got {self.overlap!r}")
         if self.value_target not in VALUE_TARGETS:
             raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
         if self.lr_schedule not in LR_SCHEDULES:
@@ -170,6 +181,13 @@ class PPOTrainer:
         self.value_norm = ValueNorm().to(device or "cpu")
         self.generator = torch.Generator().manual_seed(seed)
         self.rng = np.random.default_rng(seed)
+        # ``overlap``: the copy that acts while the update changes ``policy``, and the rollout it
+        # collected, which the next update learns from.
+        self.acting = copy.deepcopy(policy).requires_grad_(False) if config.overlap else policy
+        self.pending: Rollout | None = None
+        self.timing: dict[str, float] = {}
+        """Seconds of the last :meth:`iterate`: ``collect_s`` and ``update_s``; with ``overlap``,
+        ``update_s`` and ``wait_s`` (waiting after the update for the collection beside it)."""
 
     def set_progress(self, done: float) -> None:
         """The share (0–1) of the run's env steps done before the next update: sets the learning
@@ -186,13 +204,15 @@ class PPOTrainer:
         return self.value_norm.denormalize(values)
 
     # -- 1. collect -----------------------------------------------------------------------------
-    def _act_send(self, parts: _Parts, p: int, obs, mask, state):
-        actions, logp, values = self.policy.act(obs, mask, state, generator=self.generator)
+    def _act_send(self, policy, parts: _Parts, p: int, obs, mask, state):
+        actions, logp, values = policy.act(obs, mask, state, generator=self.generator)
         parts.send(p, actions.numpy())
         return actions, logp, values
 
     @torch.no_grad()
-    def collect(self) -> Rollout:
+    def collect(self, policy=None) -> Rollout:
+        """One rollout from fresh episodes, acted by ``policy`` (default: the trainer's)."""
+        policy = self.policy if policy is None else policy
         env, T = self.env, self.config.rollout_steps or self.env.task.horizon
         parts = _Parts(env, self.use_state)
         obs_np, info = env.reset()
@@ -213,7 +233,7 @@ class PPOTrainer:
         if parts.overlapped:
             torch.set_num_threads(1)  # the env workers have the other cores
         try:
-            acted = [self._act_send(parts, p, *cur[p]) for p in range(len(parts.slices))]
+            acted = [self._act_send(policy, parts, p, *cur[p]) for p in range(len(parts.slices))]
             for t in range(T):
                 for p in range(len(parts.slices)):
                     obs, mask, state = cur[p]
@@ -251,7 +271,7 @@ class PPOTrainer:
                         steps[p][key].append(value)
                     cur[p] = (next_obs, next_mask, next_state)
                     if t + 1 < T:
-                        acted[p] = self._act_send(parts, p, *cur[p])
+                        acted[p] = self._act_send(policy, parts, p, *cur[p])
         finally:
             torch.set_num_threads(threads)
         stacked = {
@@ -259,6 +279,39 @@ class PPOTrainer:
             for k in keys
         }
         return Rollout(**stacked, episodes=episodes)
+
+    def iterate(self) -> tuple[Rollout, dict[str, float]]:
+        """Collect and update once: the rollout learned from and the update's statistics.
+
+        With ``overlap`` the rollout learned from is the one collected beside the previous update
+        (the first is collected first, by the same policy), and the next is collected by a thread,
+        acting with the weights from before this update, while this update runs.
+        """
+        t0 = time.perf_counter()
+        if not self.config.overlap:
+            ro = self.collect()
+            t1 = time.perf_counter()
+            stats = self.update(ro)
+            self.timing = {"collect_s": t1 - t0, "update_s": time.perf_counter() - t1}
+            return ro, stats
+        ro = self.pending if self.pending is not None else self.collect()
+        self.pending = None
+        self.acting.load_state_dict(self.policy.state_dict())  # the weights before this update
+        threads = torch.get_num_threads()
+        with ThreadPoolExecutor(1, thread_name_prefix="collect") as pool:
+            t1 = time.perf_counter()
+            future = pool.submit(self._collect_aside)
+            stats = self.update(ro)
+            t2 = time.perf_counter()
+            self.pending = future.result()
+        torch.set_num_threads(threads)  # torch's default for new threads, which the collector set to 1
+        self.timing = {"collect_s": t1 - t0, "update_s": t2 - t1, "wait_s": time.perf_counter() - t2}
+        return ro, stats
+
+    def _collect_aside(self) -> Rollout:
+        # One torch thread (a thread's own setting in OpenMP): the update has the others.
+        torch.set_num_threads(1)
+        return self.collect(self.acting)
 
     # -- 2-4. update ----------------------------------------------------------------------------
     def _next_values(self, net, ro: Rollout) -> torch.Tensor:
@@ -379,6 +432,8 @@ class PPOTrainer:
             "value_norm": to_cpu(self.value_norm.state_dict()),
             "generator": self.generator.get_state(),
             "rng": self.rng.bit_generator.state,
+            # overlap: the rollout collected beside the last update, which the next one learns from
+            "pending": None if self.pending is None else _rollout_state(self.pending),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -390,3 +445,15 @@ class PPOTrainer:
         self.value_norm.load_state_dict(state["value_norm"])
         self.generator.set_state(state["generator"])
         self.rng.bit_generator.state = state["rng"]
+        pending = state.get("pending")  # absent in checkpoints from before ``overlap``
+        if pending is not None and not self.config.overlap:
+            raise ValueError(
+                "the checkpoint holds a rollout collected for ppo.overlap=true (the next update's), "
+                "but this run has ppo.overlap=false; resume it with ppo.overlap=true"
+            )
+        self.pending = None if pending is None else Rollout(**pending)
+
+
+def _rollout_state(ro: Rollout) -> dict:
+    """A rollout as a checkpoint's plain data (tensors on the CPU, episodes as dicts)."""
+    return {f.name: to_cpu(getattr(ro, f.name)) for f in fields(Rollout)}
