@@ -112,5 +112,5 @@ def test_a_pending_rollout_is_refused_by_a_run_without_overlap():
 
 
 def test_overlap_must_be_a_bool():
-    with pytest.raises(ValueError, match=r"ppo.overlap must be true or false, got 'yes'"):
+    with pytest.raises(TypeError, match=r"ppo.overlap must be true or false, got 'yes'"):
         PPOConfig(overlap="yes")

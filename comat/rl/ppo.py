@@ -90,7 +90,7 @@ class PPOConfig:
             at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"),
         )
         if not isinstance(self.overlap, bool):
-            raise ValueError(f"ppo.overlap must be true or false, got {self.overlap!r}")
+            raise TypeError(f"ppo.overlap must be true or false, got {self.overlap!r}")
         if self.value_target not in VALUE_TARGETS:
             raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
         if self.lr_schedule not in LR_SCHEDULES:
