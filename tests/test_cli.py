@@ -188,9 +188,10 @@ def test_bench_decode_times_each_path_with_its_own_encoder():
 def test_bench_learn_checks_comats_learning_against_mats_per_env_step():
     from comat.bench.learn_bench import _checks
 
-    def row(algo, task, workers, learn_s, steps):
+    def row(algo, task, workers, learn_s, steps, overlap=False):
         return {
             "algo": algo,
+            "overlap": overlap,
             "task": task,
             "env_workers": workers,
             "learn_s": learn_s,
@@ -204,6 +205,8 @@ def test_bench_learn_checks_comats_learning_against_mats_per_env_step():
         row("comat", "hmt", 2, 2.6, 3360),
         row("mat", "hmt", 2, 4.0, 6720),  # twice the steps: per env step COMAT is 1.3x
         row("comat", "hmt", 1, 1.0, 3360),  # no MAT row with one worker: no check
+        row("comat", "pcp", 2, 0.1, 7680, overlap=True),  # the targets are the default's: not these
+        row("mat", "hmt", 1, 1.0, 3360, overlap=True),
     ]
     checks = _checks([], train)
     assert checks["comat_learn_vs_mat_pcp_W2"]["value"] == 2.0 and not checks["comat_learn_vs_mat_pcp_W2"]["pass"]
@@ -211,6 +214,42 @@ def test_bench_learn_checks_comats_learning_against_mats_per_env_step():
         abs(checks["comat_learn_vs_mat_hmt_W2"]["value"] - 1.3) < 1e-12 and checks["comat_learn_vs_mat_hmt_W2"]["pass"]
     )
     assert "comat_learn_vs_mat_hmt_W1" not in checks
+
+
+def test_bench_train_times_an_overlapped_learner_as_update_plus_wait(tmp_path):
+    """``--overlap``: the row of a PPO learner with ``ppo.overlap``: its iteration is the update and the
+    wait for the collection beside it; QMIX has no such option."""
+    from unittest import mock
+
+    import yaml
+
+    from comat.bench import learn_bench
+    from comat.bench.learn_bench import bench_train
+
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                "ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1},
+                "models": {"mappo": {"hidden": 16}},
+            }
+        )
+    )
+    seen = []
+    real = learn_bench.make_learner
+    with mock.patch.object(
+        learn_bench, "make_learner", side_effect=lambda c, *a: seen.append(c.trainer) or real(c, *a)
+    ):
+        plain, overlapped = (bench_train("mappo", iterations=2, preset=str(preset), overlap=o) for o in (False, True))
+    assert [t.overlap for t in seen] == [False, True] and seen[0].num_envs == seen[1].num_envs == 2
+    assert not plain["overlap"] and plain["wait_s"] is None and plain["env_s"] > 0 and plain["act_s"] > 0
+    assert overlapped["overlap"] and overlapped["env_s"] is None and overlapped["act_s"] is None
+    assert overlapped["env_steps"] == plain["env_steps"] == 8 and overlapped["wait_s"] >= 0
+    # the iteration's wall time is the update and the wait (to the timer's rounding)
+    total = overlapped["env_steps"] / overlapped["env_steps_per_s"]
+    assert total >= overlapped["learn_s"] + overlapped["wait_s"] - 1e-3
+    with pytest.raises(ValueError, match="overlap is a PPO option; qmix has none"):
+        bench_train("qmix", iterations=1, preset=str(preset), overlap=True)
 
 
 def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):

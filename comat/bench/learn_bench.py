@@ -12,7 +12,10 @@ Two parts:
   with the paper's settings, split into time in the environment, in acting and in learning.
   The first iteration (set-ups, caches) is not timed. ``mat_20``, ``mappo_20``, ``qmix_20``: the
   baseline with 20 robot slots (``max_robots: 20``, to play U_scale) instead of 8, on the same
-  U_train teams: what the extra slots cost.
+  U_train teams: what the extra slots cost. With ``overlap`` (``--overlap on|both``) a PPO learner
+  is also timed with ``ppo.overlap`` (the next rollout collected while the update runs): there the
+  iteration's wall time is the update plus the wait for the collection beside it (``wait_s``),
+  and the environment's and acting's seconds, spent beside the update, are not split.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import time
 import torch
 
 from comat.bench.sim_bench import finish
-from comat.bench.variants import COMAT_VARIANTS
+from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES
 from comat.models.autoregressive import AutoregressivePolicy
 from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout
@@ -98,12 +101,19 @@ def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: i
 
 
 def bench_train(
-    algo: str, iterations: int = 2, env_workers: int = 1, preset: str = "paper", seed: int = 0, task: str = "pcp"
+    algo: str,
+    iterations: int = 2,
+    env_workers: int = 1,
+    preset: str = "paper",
+    seed: int = 0,
+    task: str = "pcp",
+    overlap: bool = False,
 ) -> dict:
     """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on ``task`` (unicycle);
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
     measure what today's default costs against it in the same run; ``comat_<option>``: one option
-    of :data:`COMAT_VARIANTS` changed; ``<baseline>_20``: that baseline with 20 robot slots."""
+    of :data:`COMAT_VARIANTS` changed; ``<baseline>_20``: that baseline with 20 robot slots;
+    ``overlap``: with ``ppo.overlap`` (PPO learners only)."""
 
     settings = load_preset(preset)
     label = algo
@@ -114,6 +124,10 @@ def bench_train(
         models = dict(settings.get("models") or {})
         models[algo] = {**(models.get(algo) or {}), **change}
         settings = {**settings, "models": models}
+    if overlap:
+        if algo == "qmix":
+            raise ValueError("bench_train: overlap is a PPO option; qmix has none")
+        settings = {**settings, "ppo": {**(settings.get("ppo") or {}), "overlap": True}}
     config = resolve(settings, algo, task, seed=seed, tier="unicycle", env_workers=env_workers)
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(seed)
@@ -138,7 +152,7 @@ def bench_train(
             if hasattr(env, name):
                 setattr(env, name, timed(getattr(env, name)))
         learner.iterate()  # warm-up: QP set-ups per team-size tuple, allocator, caches
-        steps = collect_s = update_s = env_s = 0.0
+        steps = collect_s = update_s = env_s = wait_s = 0.0
         for _ in range(iterations):
             clock["env"] = 0.0
             t0 = time.perf_counter()
@@ -148,21 +162,22 @@ def bench_train(
                 t1 = time.perf_counter()
                 learner.trainer.update()
                 n = learner.trainer.env_steps - before
+                learn = time.perf_counter() - t1
             else:
-                rollout = learner.trainer.collect()
-                t1 = time.perf_counter()
-                learner.trainer.update(rollout)
+                rollout, _ = learner.trainer.iterate()
                 n = rollout.rewards.numel()
-            t2 = time.perf_counter()
+                learn = learner.trainer.timing["update_s"]
+                wait_s += learner.trainer.timing.get("wait_s", 0.0)
             steps += n
-            collect_s += t1 - t0
-            update_s += t2 - t1
+            update_s += learn
+            collect_s += time.perf_counter() - t0 - learn  # overlapped: the wait for the collection beside the update
             env_s += clock["env"]
     finally:
         env.close()
     total = collect_s + update_s
     return {
         "algo": label,
+        "overlap": overlap,
         "task": task,
         "tier": "unicycle",
         "num_envs": config.trainer.num_envs,
@@ -171,10 +186,11 @@ def bench_train(
         "torch_threads": config.torch_threads,
         "env_steps": int(steps),
         "env_steps_per_s": steps / total,
-        "env_s": env_s,
-        "act_s": collect_s - env_s,
+        "env_s": None if overlap else env_s,
+        "act_s": None if overlap else collect_s - env_s,
         "learn_s": update_s,
-        "env_only_steps_per_s": steps / env_s if env_workers == 1 else None,
+        "wait_s": wait_s if overlap else None,
+        "env_only_steps_per_s": steps / env_s if env_workers == 1 and not overlap else None,
     }
 
 
@@ -191,6 +207,7 @@ def _checks(decode: list[dict], train: list[dict]) -> dict:
                 "target": f">= {DECODE_TARGET}",
                 "pass": row["decode_speedup"] >= DECODE_TARGET,
             }
+    train = [r for r in train if not r["overlap"]]  # the targets are the default's, collect then update
     comat_rows = [r for r in train if r["algo"] == "comat" and r["task"] == "pcp"]
     if comat_rows:
         best = max(comat_rows, key=lambda r: r["env_steps_per_s"])
@@ -220,8 +237,12 @@ def run_learn_bench(
     out: str | None = None,
     progress=print,
     tasks=None,
+    overlap: str = "off",
 ) -> dict:
-    """Both parts, a table on ``progress`` and JSON at ``out``."""
+    """Both parts, a table on ``progress`` and JSON at ``out``; ``overlap``: ``off``, ``on`` (the PPO
+    learners with ``ppo.overlap`` only) or ``both`` (each PPO learner both ways, in one run)."""
+    if overlap not in OVERLAP_CHOICES:
+        raise ValueError(f"overlap must be one of {list(OVERLAP_CHOICES)}, got {overlap!r}")
     tasks = task_names() if tasks is None else tuple(tasks)
     decode = []
     for model in ("comat", "mat"):
@@ -232,8 +253,11 @@ def run_learn_bench(
     for task in tasks:
         for w in workers:
             for algo in algos:
-                progress(f"  train {algo} {task} env_workers={w} ({iterations} iterations) ...")
-                train.append(bench_train(algo, iterations, env_workers=w, task=task))
+                ways = {"off": (False,), "on": (True,), "both": (False, True)}[overlap]
+                for way in ways if algo != "qmix" else (False,):  # QMIX has no overlap option
+                    what = " overlapped" if way else ""
+                    progress(f"  train {algo}{what} {task} env_workers={w} ({iterations} iterations) ...")
+                    train.append(bench_train(algo, iterations, env_workers=w, task=task, overlap=way))
     checks = _checks(decode, train)
     result = {
         "benchmark": "learn",
@@ -257,18 +281,24 @@ def run_learn_bench(
             f"{r['model']:<7}{r['batch']:>5}{r['encode_ms']:>11.2f}{r['encode_act_ms']:>12.2f}{r['act_cached_ms']:>11.2f}"
             f"{r['act_uncached_ms']:>13.2f}{r['decode_speedup']:>10.2f}{r['act_speedup']:>8.2f}"
         )
-    head = f"{'algo':<9}{'task':>5}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}"
-    head += f"{'env only/s':>12}"
+    head = f"{'algo':<17}{'task':>5}{'workers':>8}{'env-steps/s':>13}{'env s':>8}{'act s':>8}{'learn s':>9}"
+    head += f"{'wait s':>8}{'env only/s':>12}"
     progress(head + "\n" + "-" * len(head))
+
+    def cell(value, width: int, digits: int = 2) -> str:
+        return f"{'-' if value is None else f'{value:.{digits}f}':>{width}}"
+
     for r in train:
-        env_only = "-" if r["env_only_steps_per_s"] is None else f"{r['env_only_steps_per_s']:.1f}"
+        name = r["algo"] + (" overlapped" if r["overlap"] else "")
         progress(
-            f"{r['algo']:<9}{r['task']:>5}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}{r['env_s']:>8.2f}{r['act_s']:>8.2f}"
-            f"{r['learn_s']:>9.2f}{env_only:>12}"
+            f"{name:<17}{r['task']:>5}{r['env_workers']:>8}{r['env_steps_per_s']:>13.1f}"
+            f"{cell(r['env_s'], 8)}{cell(r['act_s'], 8)}{cell(r['learn_s'], 9)}{cell(r['wait_s'], 8)}"
+            f"{cell(r['env_only_steps_per_s'], 12, 1)}"
         )
     progress(
         "env s: waiting for the environments (with several workers, the part of their steps that the "
-        "policy's turns on other shards did not hide); act s: the rest of collecting."
+        "policy's turns on other shards did not hide); act s: the rest of collecting; overlapped "
+        "(ppo.overlap): the collection runs beside the update, wait s is the wait for it after the update."
     )
 
     return finish(result, checks, out, progress)

@@ -10,7 +10,7 @@ import argparse
 import time
 
 from comat.bench.safety_bench import DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
-from comat.bench.variants import COMAT_VARIANTS
+from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES
 from comat.cli.args import TASKS, TIERS
 from comat.cli.rollout import add_viz_bench_parser
 from comat.config import LOOPS
@@ -73,6 +73,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             tuple(args.batches),
             args.out,
             tasks=tuple(args.tasks),
+            overlap=args.overlap,
         )
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
@@ -199,6 +200,14 @@ def add_bench_parser(sub) -> None:
     )
     b.add_argument(
         "--batches", type=int, nargs="+", default=[1, 32, 256], help="decoding batch sizes (default: %(default)s)"
+    )
+    b.add_argument(
+        "--overlap",
+        choices=list(OVERLAP_CHOICES),
+        default="off",
+        help="time the PPO learners with ppo.overlap, the next rollout collected while the update runs "
+        "(on), or both with and without it in one run (both); it gains only where cores are left over "
+        "beside the env workers and the learner's threads (default: %(default)s)",
     )
     b.add_argument("--out", default="benchmarks/results/learn.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_bench)
