@@ -15,7 +15,7 @@ from comat.envs import make_vec_env
 from comat.models.comat import Comat, ComatConfig
 from comat.models.features import ObsLayout
 from comat.rl.checkpoint import load_checkpoint
-from comat.rl.ppo import PPOConfig, PPOTrainer
+from comat.rl.ppo import CollectionStopped, PPOConfig, PPOTrainer
 from comat.rl.runner import train
 
 TINY_PPO = {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2}
@@ -48,10 +48,10 @@ def test_overlap_is_the_sequential_update_with_a_rollout_of_the_weights_before_i
             updated.set()
             return stats
 
-        def collect_after_the_update(policy=None):
+        def collect_after_the_update(policy=None, stop=None):
             if threading.current_thread() is not threading.main_thread():
                 assert updated.wait(60)
-            return collect(policy)
+            return collect(policy, stop)
 
         a.update, a.collect = update_then_tell, collect_after_the_update
         ro_a, stats_a = a.iterate()
@@ -114,3 +114,32 @@ def test_a_pending_rollout_is_refused_by_a_run_without_overlap():
 def test_overlap_must_be_a_bool():
     with pytest.raises(TypeError, match=r"ppo.overlap must be true or false, got 'yes'"):
         PPOConfig(overlap="yes")
+
+
+def test_a_failing_update_stops_the_collection_beside_it():
+    env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
+    try:
+        env.reset()
+        a = _trainer(env, overlap=True)
+        a.iterate()
+        started, outcome, collect = threading.Event(), [], a.collect
+
+        def collect_once_told(policy=None, stop=None):
+            started.set()
+            stop.wait(60)  # the order under test: the update fails while the collection runs
+            try:
+                return collect(policy, stop)
+            except BaseException as e:
+                outcome.append(type(e))
+                raise
+
+        def failing_update(ro):
+            assert started.wait(60)
+            raise RuntimeError("update failed")
+
+        a.collect, a.update = collect_once_told, failing_update
+        with pytest.raises(RuntimeError, match="update failed"):
+            a.iterate()
+        assert outcome == [CollectionStopped]
+    finally:
+        env.close()

@@ -22,6 +22,7 @@ Padded robot slots are masked out of every loss and statistic (mask (T, B, N)).
 from __future__ import annotations
 
 import copy
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
@@ -36,7 +37,7 @@ from comat.rl.device import learner_copy, to_cpu
 from comat.rl.gae import gae
 from comat.rl.valuenorm import ValueNorm
 
-__all__ = ["PPOConfig", "PPOTrainer", "Rollout"]
+__all__ = ["CollectionStopped", "PPOConfig", "PPOTrainer", "Rollout"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +120,10 @@ class Rollout:
     next_mask: torch.Tensor
     next_state: torch.Tensor | None
     episodes: list[dict]
+
+
+class CollectionStopped(RuntimeError):
+    """A collection ended early on request (``ppo.overlap``: the update beside it failed)."""
 
 
 def _team_value(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -210,8 +215,9 @@ class PPOTrainer:
         return actions, logp, values
 
     @torch.no_grad()
-    def collect(self, policy=None) -> Rollout:
-        """One rollout from fresh episodes, acted by ``policy`` (default: the trainer's)."""
+    def collect(self, policy=None, stop: threading.Event | None = None) -> Rollout:
+        """One rollout from fresh episodes, acted by ``policy`` (default: the trainer's); ``stop``,
+        once set, ends it at the next step with :class:`CollectionStopped`."""
         policy = self.policy if policy is None else policy
         env, T = self.env, self.config.rollout_steps or self.env.task.horizon
         parts = _Parts(env, self.use_state)
@@ -235,6 +241,8 @@ class PPOTrainer:
         try:
             acted = [self._act_send(policy, parts, p, *cur[p]) for p in range(len(parts.slices))]
             for t in range(T):
+                if stop is not None and stop.is_set():
+                    raise CollectionStopped(f"collection stopped at step {t} of {T}")
                 for p in range(len(parts.slices)):
                     obs, mask, state = cur[p]
                     actions, logp, values = acted[p]
@@ -298,20 +306,25 @@ class PPOTrainer:
         self.pending = None
         self.acting.load_state_dict(self.policy.state_dict())  # the weights before this update
         threads = torch.get_num_threads()
+        stop = threading.Event()
         with ThreadPoolExecutor(1, thread_name_prefix="collect") as pool:
             t1 = time.perf_counter()
-            future = pool.submit(self._collect_aside)
-            stats = self.update(ro)
+            future = pool.submit(self._collect_aside, stop)
+            try:
+                stats = self.update(ro)
+            except BaseException:
+                stop.set()  # an update that fails (or Ctrl-C) does not wait for a whole rollout
+                raise
             t2 = time.perf_counter()
             self.pending = future.result()
         torch.set_num_threads(threads)  # torch's default for new threads, which the collector set to 1
         self.timing = {"collect_s": t1 - t0, "update_s": t2 - t1, "wait_s": time.perf_counter() - t2}
         return ro, stats
 
-    def _collect_aside(self) -> Rollout:
+    def _collect_aside(self, stop: threading.Event) -> Rollout:
         # One torch thread (a thread's own setting in OpenMP): the update has the others.
         torch.set_num_threads(1)
-        return self.collect(self.acting)
+        return self.collect(self.acting, stop)
 
     # -- 2-4. update ----------------------------------------------------------------------------
     def _next_values(self, net, ro: Rollout) -> torch.Tensor:
