@@ -21,3 +21,7 @@ def test_the_expected_wall_time_is_said_once_from_the_updates_after_the_first():
     assert said[0] is None and said[1] is None and said[3] is None
     # 512 env-steps/s: 40 s done, 92,320 left -> 180.3 s more = 0:03:40 in all
     assert said[2].startswith("expected: 0:03:40 for 100,000 env steps (512 env-steps/s over updates 2-3")
+    assert "learner thread(s); evaluations" in said[2]
+    overlapped = ExpectedTime(total=100_000, start=0, workers=2, threads=2, overlap=True)
+    said = [overlapped.expected(2560 * k, 2560, 5.0, 5.0 * k) for k in (1, 2, 3)][2]
+    assert "2 learner thread(s), collecting beside the update; evaluations" in said

@@ -50,6 +50,10 @@ def paper_budget_note(config) -> str:
     )
 
 
+def _overlapped(config) -> bool:
+    return bool(getattr(config.trainer, "overlap", False))  # a PPO option; QMIX has none
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -112,7 +116,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {config.reality.label}, "
         f"updates on {config.device}), seed {config.seed}, "
         f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}; "
-        f"CPUs: {cpus} usable (affinity), torch threads {config.torch_threads}, env workers {config.env_workers}",
+        f"CPUs: {cpus} usable (affinity), torch threads {config.torch_threads}, env workers {config.env_workers}"
+        + (", the next rollout collected beside each update (ppo.overlap)" if _overlapped(config) else ""),
         file=sys.stderr,
     )
     record = None

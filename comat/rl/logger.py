@@ -137,8 +137,9 @@ class ExpectedTime:
 
     TIMED = 2
 
-    def __init__(self, total: int, start: int, workers: int, threads: int) -> None:
+    def __init__(self, total: int, start: int, workers: int, threads: int, overlap: bool = False) -> None:
         self.total, self.start, self.workers, self.threads = total, start, workers, threads
+        self.overlap = overlap
         self._seen, self._steps, self._seconds, self._said = 0, 0, 0.0, False
 
     def expected(self, steps: int, n: int, dt: float, elapsed: float) -> str | None:
@@ -156,5 +157,6 @@ class ExpectedTime:
         return (
             f"expected: {_clock(elapsed + left)} for {self.total - self.start:,} env steps "
             f"({rate:,.0f} env-steps/s over updates 2-{self._seen}, {self.workers} env worker(s), "
-            f"{self.threads} learner thread(s); evaluations add their own time; docs/speed.md)"
+            f"{self.threads} learner thread(s){', collecting beside the update' if self.overlap else ''}; "
+            "evaluations add their own time; docs/speed.md)"
         )

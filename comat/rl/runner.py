@@ -245,7 +245,13 @@ def _train_registered(
                 file=sys.stderr,
             )
     bar = None if quiet else ProgressLine(config.total_env_steps, start=progress["env_steps"])
-    expected = ExpectedTime(config.total_env_steps, progress["env_steps"], config.env_workers, config.torch_threads)
+    expected = ExpectedTime(
+        config.total_env_steps,
+        progress["env_steps"],
+        config.env_workers,
+        config.torch_threads,
+        overlap=bool(getattr(config.trainer, "overlap", False)),  # a PPO option; QMIX has none
+    )
     started = time.perf_counter()
     next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
     next_ckpt = _next_multiple(progress["env_steps"], config.checkpoint_every_steps)
