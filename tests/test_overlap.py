@@ -21,6 +21,22 @@ from comat.rl.runner import train
 TINY_PPO = {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2}
 
 
+@pytest.fixture
+def pcp_env():
+    """A factory of reset 2-environment PCP vector envs, closed after the test."""
+    made = []
+
+    def make():
+        env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
+        made.append(env)
+        env.reset()
+        return env
+
+    yield make
+    for env in made:
+        env.close()
+
+
 def _trainer(env, overlap: bool) -> PPOTrainer:
     torch.manual_seed(0)
     policy = Comat(ObsLayout.for_task(env.task), ComatConfig(**TINY_MODELS["comat"]))
@@ -31,48 +47,41 @@ def _weights(trainer: PPOTrainer) -> dict:
     return {k: v.clone() for k, v in trainer.policy.state_dict().items()}
 
 
-def test_overlap_is_the_sequential_update_with_a_rollout_of_the_weights_before_it():
-    env_a = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
-    env_b = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
-    try:
-        env_a.reset()
-        env_b.reset()
-        a, b = _trainer(env_a, overlap=True), _trainer(env_b, overlap=False)
-        before = copy.deepcopy(b.policy)
-        # The collection beside the update starts only once the update has changed the weights (one
-        # of the orders the threads may take), so a collector acting with the live weights is seen.
-        updated, update, collect = threading.Event(), a.update, a.collect
+def test_overlap_is_the_sequential_update_with_a_rollout_of_the_weights_before_it(pcp_env):
+    env_a, env_b = pcp_env(), pcp_env()
+    a, b = _trainer(env_a, overlap=True), _trainer(env_b, overlap=False)
+    before = copy.deepcopy(b.policy)
+    # The collection beside the update starts only once the update has changed the weights (one
+    # of the orders the threads may take), so a collector acting with the live weights is seen.
+    updated, update, collect = threading.Event(), a.update, a.collect
 
-        def update_then_tell(ro):
-            stats = update(ro)
-            updated.set()
-            return stats
+    def update_then_tell(ro):
+        stats = update(ro)
+        updated.set()
+        return stats
 
-        def collect_after_the_update(policy=None, stop=None):
-            if threading.current_thread() is not threading.main_thread():
-                assert updated.wait(60)
-            return collect(policy, stop)
+    def collect_after_the_update(policy=None, stop=None):
+        if threading.current_thread() is not threading.main_thread():
+            assert updated.wait(60)
+        return collect(policy, stop)
 
-        a.update, a.collect = update_then_tell, collect_after_the_update
-        ro_a, stats_a = a.iterate()
-        ro_b, stats_b = b.iterate()
-        # The first update learns from the same rollout, to the same weights: the collection beside
-        # it touches neither the learner nor the update's random stream.
-        assert_same(ro_a.actions, ro_b.actions, "first rollout")
-        assert stats_a == stats_b
-        assert_same(_weights(a), _weights(b), "weights after one update")
-        assert set(a.timing) == {"collect_s", "update_s", "wait_s"} and set(b.timing) == {"collect_s", "update_s"}
-        # The rollout collected beside the update is the one the weights before it collect.
-        lagged = b.collect(before)
-        assert_same(a.pending.actions, lagged.actions, "pending rollout")
-        assert_same(a.pending.logp, lagged.logp, "its log-probs")
-        assert not torch.equal(b.collect(b.policy).logp, lagged.logp)  # which the new weights would not
-        # and the second update learns from it.
-        ro_a2, _ = a.iterate()
-        assert ro_a2.actions.data_ptr() == lagged.actions.data_ptr() or torch.equal(ro_a2.actions, lagged.actions)
-    finally:
-        env_a.close()
-        env_b.close()
+    a.update, a.collect = update_then_tell, collect_after_the_update
+    ro_a, stats_a = a.iterate()
+    ro_b, stats_b = b.iterate()
+    # The first update learns from the same rollout, to the same weights: the collection beside
+    # it touches neither the learner nor the update's random stream.
+    assert_same(ro_a.actions, ro_b.actions, "first rollout")
+    assert stats_a == stats_b
+    assert_same(_weights(a), _weights(b), "weights after one update")
+    assert set(a.timing) == {"collect_s", "update_s", "wait_s"} and set(b.timing) == {"collect_s", "update_s"}
+    # The rollout collected beside the update is the one the weights before it collect.
+    lagged = b.collect(before)
+    assert_same(a.pending.actions, lagged.actions, "pending rollout")
+    assert_same(a.pending.logp, lagged.logp, "its log-probs")
+    assert not torch.equal(b.collect(b.policy).logp, lagged.logp)  # which the new weights would not
+    # and the second update learns from it.
+    ro_a2, _ = a.iterate()
+    assert ro_a2.actions.data_ptr() == lagged.actions.data_ptr() or torch.equal(ro_a2.actions, lagged.actions)
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -92,23 +101,19 @@ def test_an_overlapped_run_is_reproducible_and_resumes_exactly(tmp_path, workers
     assert_same(a["trainer"], load_checkpoint(tmp_path / "again" / "checkpoint.pt")["trainer"], "a second run")
 
 
-def test_a_pending_rollout_is_refused_by_a_run_without_overlap():
-    env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
-    try:
-        env.reset()
-        overlapped = _trainer(env, overlap=True)
-        overlapped.iterate()
-        state = overlapped.state_dict()
-        with pytest.raises(ValueError, match=r"ppo.overlap=true .* this run has ppo.overlap=false"):
-            _trainer(env, overlap=False).load_state_dict(state)
-        plain = _trainer(env, overlap=False)
-        plain.iterate()
-        assert plain.state_dict()["pending"] is None
-        resumed = _trainer(env, overlap=True)
-        resumed.load_state_dict(state)
-        assert_same(resumed.pending.obs, overlapped.pending.obs, "pending rollout")
-    finally:
-        env.close()
+def test_a_pending_rollout_is_refused_by_a_run_without_overlap(pcp_env):
+    env = pcp_env()
+    overlapped = _trainer(env, overlap=True)
+    overlapped.iterate()
+    state = overlapped.state_dict()
+    with pytest.raises(ValueError, match=r"ppo.overlap=true .* this run has ppo.overlap=false"):
+        _trainer(env, overlap=False).load_state_dict(state)
+    plain = _trainer(env, overlap=False)
+    plain.iterate()
+    assert plain.state_dict()["pending"] is None
+    resumed = _trainer(env, overlap=True)
+    resumed.load_state_dict(state)
+    assert_same(resumed.pending.obs, overlapped.pending.obs, "pending rollout")
 
 
 def test_overlap_must_be_a_bool():
@@ -116,30 +121,26 @@ def test_overlap_must_be_a_bool():
         PPOConfig(overlap="yes")
 
 
-def test_a_failing_update_stops_the_collection_beside_it():
-    env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
-    try:
-        env.reset()
-        a = _trainer(env, overlap=True)
+def test_a_failing_update_stops_the_collection_beside_it(pcp_env):
+    env = pcp_env()
+    a = _trainer(env, overlap=True)
+    a.iterate()
+    started, outcome, collect = threading.Event(), [], a.collect
+
+    def collect_once_told(policy=None, stop=None):
+        started.set()
+        stop.wait(60)  # the order under test: the update fails while the collection runs
+        try:
+            return collect(policy, stop)
+        except BaseException as e:
+            outcome.append(type(e))
+            raise
+
+    def failing_update(ro):
+        assert started.wait(60)
+        raise RuntimeError("update failed")
+
+    a.collect, a.update = collect_once_told, failing_update
+    with pytest.raises(RuntimeError, match="update failed"):
         a.iterate()
-        started, outcome, collect = threading.Event(), [], a.collect
-
-        def collect_once_told(policy=None, stop=None):
-            started.set()
-            stop.wait(60)  # the order under test: the update fails while the collection runs
-            try:
-                return collect(policy, stop)
-            except BaseException as e:
-                outcome.append(type(e))
-                raise
-
-        def failing_update(ro):
-            assert started.wait(60)
-            raise RuntimeError("update failed")
-
-        a.collect, a.update = collect_once_told, failing_update
-        with pytest.raises(RuntimeError, match="update failed"):
-            a.iterate()
-        assert outcome == [CollectionStopped]
-    finally:
-        env.close()
+    assert outcome == [CollectionStopped]
