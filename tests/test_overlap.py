@@ -1,8 +1,9 @@
 """``ppo.overlap``: the next rollout is collected by a thread, with the weights from before the update,
 while the update runs. What it changes is exactly the policy lag of one update: the first update
 equals the sequential one, the rollout collected beside it is the one the old weights would collect,
-a run is reproducible and resumes exactly (the pending rollout is in the checkpoint), and a checkpoint
-holding one is refused by a run without ``overlap``."""
+the lagged update's decoupled loss is the plain one where there is no lag, a run is reproducible and
+resumes exactly (the pending rollout is in the checkpoint), and a checkpoint holding one is refused by
+a run without ``overlap``."""
 
 import copy
 import threading
@@ -55,8 +56,8 @@ def test_overlap_is_the_sequential_update_with_a_rollout_of_the_weights_before_i
     # of the orders the threads may take), so a collector acting with the live weights is seen.
     updated, update, collect = threading.Event(), a.update, a.collect
 
-    def update_then_tell(ro):
-        stats = update(ro)
+    def update_then_tell(ro, lagged=False):
+        stats = update(ro, lagged)
         updated.set()
         return stats
 
@@ -71,7 +72,7 @@ def test_overlap_is_the_sequential_update_with_a_rollout_of_the_weights_before_i
     # The first update learns from the same rollout, to the same weights: the collection beside
     # it touches neither the learner nor the update's random stream.
     assert_same(ro_a.actions, ro_b.actions, "first rollout")
-    assert stats_a == stats_b
+    assert stats_a == {**stats_b, "lag_kl": 0.0}
     assert_same(_weights(a), _weights(b), "weights after one update")
     assert set(a.timing) == {"collect_s", "update_s", "wait_s"} and set(b.timing) == {"collect_s", "update_s"}
     # The rollout collected beside the update is the one the weights before it collect.
@@ -136,7 +137,7 @@ def test_a_failing_update_stops_the_collection_beside_it(pcp_env):
             outcome.append(type(e))
             raise
 
-    def failing_update(ro):
+    def failing_update(ro, lagged=False):
         assert started.wait(60)
         raise RuntimeError("update failed")
 
@@ -144,3 +145,27 @@ def test_a_failing_update_stops_the_collection_beside_it(pcp_env):
     with pytest.raises(RuntimeError, match="update failed"):
         a.iterate()
     assert outcome == [CollectionStopped]
+
+
+def test_the_lagged_loss_is_the_plain_one_without_lag_and_weighs_a_real_lag(pcp_env):
+    """The decoupled loss (clip centred on the update's starting weights, terms weighted by
+    π_prox / π_behaviour) on a rollout of those very weights is PPO's own, to float rounding (the
+    proximal log-probs come from the teacher-forced pass, the behaviour ones from acting's kernels);
+    on a rollout of older weights it reports the lag."""
+    env = pcp_env()
+    plain, lagged = _trainer(env, overlap=False), _trainer(env, overlap=True)
+    ro = plain.collect()
+    s_plain, s_lagged = plain.update(ro), lagged.update(ro, lagged=True)
+    assert s_lagged["lag_kl"] < 1e-8, s_lagged["lag_kl"]
+    for name, p in plain.policy.named_parameters():
+        torch.testing.assert_close(lagged.policy.state_dict()[name], p, atol=1e-5, rtol=1e-4, msg=name)
+    # a rollout of weights well apart from the learner's (a lag larger than one tiny update's)
+    with torch.no_grad():
+        for trainer in (plain, lagged):
+            g = torch.Generator().manual_seed(1)
+            for p in trainer.policy.parameters():
+                p.add_(0.05 * torch.randn(p.shape, generator=g))
+    s_plain, s_lagged = plain.update(ro), lagged.update(ro, lagged=True)
+    assert s_lagged["lag_kl"] > 1e-3 and "lag_kl" not in s_plain
+    # centred on the new weights, the clip cuts far fewer terms than around the behaviour policy
+    assert s_lagged["clip_frac"] < s_plain["clip_frac"] / 2

@@ -77,8 +77,10 @@ class PPOConfig:
     policy from before the update while the update runs, so where the machine has cores to spare
     (more than the env workers and the learner's threads), collection and update overlap instead of
     taking turns. Each update then learns from a rollout of the policy one update older (a policy
-    lag of one update, which the ratio clip bounds as it does the epochs' own drift): a different
-    algorithm, compared with the default in ``results/overlap/``; off by default."""
+    lag of one update), so its policy loss takes the decoupled form (:meth:`PPOTrainer.update`):
+    the clip centred on the weights the update starts from, each term weighted by their
+    probability over the collecting policy's. A different algorithm, compared with the default in
+    ``results/overlap/``; off by default."""
 
     def __post_init__(self) -> None:
         check_numbers(
@@ -302,7 +304,8 @@ class PPOTrainer:
             stats = self.update(ro)
             self.timing = {"collect_s": t1 - t0, "update_s": time.perf_counter() - t1}
             return ro, stats
-        ro = self.pending if self.pending is not None else self.collect()
+        lagged = self.pending is not None  # else the first rollout, collected by these very weights
+        ro = self.pending if lagged else self.collect()
         self.pending = None
         self.acting.load_state_dict(self.policy.state_dict())  # the weights before this update
         threads = torch.get_num_threads()
@@ -311,7 +314,7 @@ class PPOTrainer:
             t1 = time.perf_counter()
             future = pool.submit(self._collect_aside, stop)
             try:
-                stats = self.update(ro)
+                stats = self.update(ro, lagged=lagged)
             except BaseException:
                 stop.set()  # an update that fails (or Ctrl-C) does not wait for a whole rollout
                 raise
@@ -356,7 +359,9 @@ class PPOTrainer:
             }
         )
 
-    def update(self, ro: Rollout) -> dict[str, float]:
+    def update(self, ro: Rollout, lagged: bool = False) -> dict[str, float]:
+        """Steps 2-4 on ``ro``; ``lagged``: ``ro`` was collected by the weights one update older than
+        the learner's (``overlap``), which the policy loss then corrects for (below)."""
         cfg = self.config
         ro = self._on_device(ro)
         T, B, N, D = ro.obs.shape
@@ -376,6 +381,24 @@ class PPOTrainer:
             "approx_kl": [],
             "clip_frac": [],
         }
+        lag_weight = None
+        if cfg.overlap:
+            # A lagged rollout's ratios against its own (behaviour) policy start away from 1, and a
+            # clip centred there let COMAT's policy run away (results/overlap/: clip fraction 0.76
+            # by 69 k env steps). So the clip is centred on the weights this update starts from (the
+            # proximal policy) and each robot's term is weighted by π_prox / π_behaviour, which
+            # corrects for the lag: the decoupled objective of Hilton et al. 2021 ("Batch
+            # size-invariance for policy optimization"). Unlagged, π_prox is the behaviour policy.
+            lag_kl = 0.0
+            if lagged:
+                with torch.no_grad():
+                    prox = self.learner.evaluate_actions(flat["obs"], flat["mask"], flat["actions"], flat["state"])[0]
+                    log_w = (prox - flat["logp"]) * flat["mask"]
+                    lag_weight = torch.exp(log_w)
+                    n_real = flat["mask"].sum().clamp(min=1)
+                    lag_kl = float(((lag_weight - 1) - log_w).sum() / n_real)  # KL(behaviour ‖ proximal), estimated
+                flat["logp"] = prox
+            stats["lag_kl"] = [lag_kl]
         targets = None
         if cfg.value_target == "gae":
             with torch.no_grad():
@@ -415,6 +438,8 @@ class PPOTrainer:
                 ratio = torch.exp(logp - flat["logp"][idx_t])
                 a = flat["adv"][idx_t][:, None]
                 surrogate = torch.min(ratio * a, ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * a)
+                if lag_weight is not None:
+                    surrogate = surrogate * lag_weight[idx_t]
                 policy_loss = -(surrogate * mf).sum() / n_real
                 entropy_mean = (entropy * mf).sum() / n_real
                 value_loss = (
