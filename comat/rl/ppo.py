@@ -6,7 +6,9 @@ One update:
    the start of a rollout, so an update depends only on the parameters and the random streams —
    which is what makes ``--resume`` continue exactly). Autoreset is same-step; where an episode
    ended, the next state of *that* episode is the env's ``final_obs``. With environments in
-   several worker processes, the policy acts on one shard while the others simulate.
+   several worker processes, the policy acts on one shard while the others simulate. With
+   ``overlap`` the next rollout is collected in a thread while the update runs (one update of
+   policy lag, corrected in step 4).
 2. **Advantages** (eq. 9): joint GAE on V̂ = the mean of the robots' values, shared by the team's
    robots and normalized over the batch.
 3. **Critic** (eq. 6): each robot's value regresses (Huber) to r_t + γ·V̄(o'_t) from a *target*
@@ -14,7 +16,9 @@ One update:
    targets are normalized by a running ValueNorm. ``value_target: gae`` instead regresses each
    robot's value to its GAE(λ) return computed once per rollout, as MAT's code does.
 4. **Actor** (eq. 7–8): clipped importance ratio per robot times the joint advantage, plus an
-   entropy bonus; one joint loss, one Adam step per minibatch, gradient-norm clipping.
+   entropy bonus; one joint loss, one Adam step per minibatch, gradient-norm clipping. A lagged
+   rollout (``overlap``) takes the decoupled form: ratios against the update's starting weights,
+   terms weighted by their probability over the collecting policy's.
 
 Padded robot slots are masked out of every loss and statistic (mask (T, B, N)).
 """
