@@ -322,3 +322,27 @@ def test_train_without_a_preset_says_its_budget_and_time_first(tmp_path, capsys,
     first = capsys.readouterr().err.splitlines()[0]
     assert first.startswith("no --preset: the paper's budget, 4,000,000 env steps (about 2-6 h")
     assert "--preset quick" in first
+
+
+def test_train_says_when_overlap_leaves_the_collection_no_core(tmp_path, capsys, monkeypatch):
+    """``ppo.overlap`` with the env workers, the collecting thread and the learner's threads wanting
+    more than the usable CPUs: a note before the run says so and what leaves each its own core."""
+    monkeypatch.setattr("comat.rl.runner.train", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    monkeypatch.setattr("comat.machine.usable_cpus", lambda: 4)
+    args = ["train", "--algo", "comat", "--task", "pcp", "--preset", "quick", "--out", str(tmp_path / "run")]
+    for extra, said in (
+        (["ppo.overlap=true", "env_workers=2", "torch_threads=2"], "torch_threads=1 leave each its own"),
+        (["ppo.overlap=true", "env_workers=1", "torch_threads=2"], None),  # 1 + 1 + 2 = 4 CPUs
+        (["env_workers=2", "torch_threads=3"], None),  # no overlap
+    ):
+        with pytest.raises(KeyboardInterrupt):
+            main(args + extra)
+        err = capsys.readouterr().err
+        notes = [line for line in err.splitlines() if line.startswith("note: ppo.overlap")]
+        if said is None:
+            assert not notes
+        else:
+            assert len(notes) == 1
+            assert "2 env worker(s), the collecting thread and 2 learner thread(s) on 4 CPU(s)" in notes[0]
+            assert notes[0].endswith(said)
+        assert ("the next rollout collected beside each update (ppo.overlap)" in err) == ("ppo.overlap=true" in extra)

@@ -17,6 +17,7 @@ __all__ = [
     "add_train_parsers",
     "cmd_policy",
     "cmd_train",
+    "overlap_note",
     "paper_budget_note",
     "print_policy_file",
 ]
@@ -52,6 +53,20 @@ def paper_budget_note(config) -> str:
 
 def _overlapped(config) -> bool:
     return bool(getattr(config.trainer, "overlap", False))  # a PPO option; QMIX has none
+
+
+def overlap_note(config, cpus: int) -> str | None:
+    """A note where ``ppo.overlap`` leaves the collection no core of its own: the env workers, the
+    collecting thread and the learner's threads together want more than the usable CPUs."""
+    if not _overlapped(config) or config.env_workers + 1 + config.torch_threads <= cpus:
+        return None
+    threads = max(1, cpus - config.env_workers - 1)
+    return (
+        f"note: ppo.overlap with {config.env_workers} env worker(s), the collecting thread and "
+        f"{config.torch_threads} learner thread(s) on {cpus} CPU(s): the collection and the update fight for "
+        f"the cores (slower than without overlap on 2 CPUs, docs/speed.md); fewer env workers or "
+        f"torch_threads={threads} leave each its own"
+    )
 
 
 def cmd_train(args: argparse.Namespace) -> int:
@@ -112,6 +127,9 @@ def cmd_train(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         config = RunConfig.from_dict({**config.to_dict(), "torch_threads": cpus})
+    note = overlap_note(config, cpus)
+    if note and not args.resume:
+        print(note, file=sys.stderr)
     print(
         f"comat train: {config.algo} on {config.task} ({config.tier} tier, reality {config.reality.label}, "
         f"updates on {config.device}), seed {config.seed}, "
