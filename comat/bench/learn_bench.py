@@ -250,10 +250,10 @@ def run_learn_bench(
             progress(f"  decode {model} N=8 B={batch} ...")
             decode.append(bench_decode(model, 8, batch))
     train = []
+    ways = {"off": (False,), "on": (True,), "both": (False, True)}[overlap]
     for task in tasks:
         for w in workers:
             for algo in algos:
-                ways = {"off": (False,), "on": (True,), "both": (False, True)}[overlap]
                 for way in ways if algo != "qmix" else (False,):  # QMIX has no overlap option
                     what = " overlapped" if way else ""
                     progress(f"  train {algo}{what} {task} env_workers={w} ({iterations} iterations) ...")

@@ -51,14 +51,10 @@ def paper_budget_note(config) -> str:
     )
 
 
-def _overlapped(config) -> bool:
-    return bool(getattr(config.trainer, "overlap", False))  # a PPO option; QMIX has none
-
-
 def overlap_note(config, cpus: int) -> str | None:
     """A note where ``ppo.overlap`` leaves the collection no core of its own: the env workers, the
     collecting thread and the learner's threads together want more than the usable CPUs."""
-    if not _overlapped(config) or config.env_workers + 1 + config.torch_threads <= cpus:
+    if not config.overlap or config.env_workers + 1 + config.torch_threads <= cpus:
         return None
     threads = max(1, cpus - config.env_workers - 1)
     return (
@@ -135,7 +131,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         f"updates on {config.device}), seed {config.seed}, "
         f"{config.total_env_steps:,} env steps -> {out}{' (resuming)' if args.resume else ''}; "
         f"CPUs: {cpus} usable (affinity), torch threads {config.torch_threads}, env workers {config.env_workers}"
-        + (", the next rollout collected beside each update (ppo.overlap)" if _overlapped(config) else ""),
+        + (", the next rollout collected beside each update (ppo.overlap)" if config.overlap else ""),
         file=sys.stderr,
     )
     record = None

@@ -140,6 +140,11 @@ class RunConfig:
         _check_choice("loop", self.loop, LOOPS)
 
     @property
+    def overlap(self) -> bool:
+        """Whether the next rollout is collected beside each update (``ppo.overlap``; QMIX has none)."""
+        return bool(getattr(self.trainer, "overlap", False))
+
+    @property
     def env_id(self) -> str:
         return task_env_id(self.task)
 

@@ -250,7 +250,7 @@ def _train_registered(
         progress["env_steps"],
         config.env_workers,
         config.torch_threads,
-        overlap=bool(getattr(config.trainer, "overlap", False)),  # a PPO option; QMIX has none
+        overlap=config.overlap,
     )
     started = time.perf_counter()
     next_eval = _next_multiple(progress["env_steps"], config.eval_every_steps)
