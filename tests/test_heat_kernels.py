@@ -1,7 +1,8 @@
-"""COMAT's update fast paths against the slow reference (issue 48): the fused HEAT edge stage
-(:mod:`comat.models.heat_kernels`), the merged per-edge maps of :class:`HEATBlock`, and scoring a
-batch one group of team sizes at a time — the loss and every gradient equal the straightforward
-implementation's within float rounding, on a batch of real observations with padded slots."""
+"""COMAT's update fast paths against the slow reference (issue 48): the batch packed as one graph
+(:mod:`comat.models.packing`) with the fused HEAT edge stage (:mod:`comat.models.heat_kernels`),
+the merged per-edge maps of :class:`HEATBlock`, and scoring a padded batch one group of team sizes
+at a time — the loss and every gradient equal the straightforward implementation's within float
+rounding, on a batch of teams of every size with padded slots."""
 
 from __future__ import annotations
 
@@ -16,12 +17,14 @@ from comat.models.autoregressive import size_buckets
 from comat.models.comat import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout
 from comat.models.heat_kernels import edge_stage
+from comat.models.packing import pack
 from comat.tasks.hmt import HMT
 from comat.tasks.pcp import PCP
 
 
-def reference_block(block, x, types, edge_attr, edge_type, edge_mask):
-    """HEATBlock.forward as it read before issue 48 (one map per term, one pass per op): the reference."""
+def reference_block(block, x, types, edge_attr, edge_type, edge_mask, packed=None):
+    """HEATBlock.forward as it read before issue 48 (one map per term, one pass per op), on a padded
+    batch (``packed`` None): the reference."""
     xt = sum(torch.where((types == t)[..., None], layer(x), 0.0) for t, layer in enumerate(block.node))
     xt = F.leaky_relu(xt, 0.2)
     ea = F.leaky_relu(block.edge_attr(edge_attr), 0.2)
@@ -71,8 +74,10 @@ def test_fast_paths_give_the_reference_loss_and_gradients(form, task, monkeypatc
     torch.manual_seed(0)
     net = Comat(layout, config)
     fast = _loss_and_grads(net, obs, mask, actions)
+    assert (net._packing(obs, mask) is not None) == (form != "paper")  # the paper form: padded groups
     # the reference: every block as it was, the whole batch padded to 8 slots in one pass
     monkeypatch.setattr(type(net.heat[0]), "forward", reference_block)
+    monkeypatch.setattr(Comat, "_packing", lambda self, obs, mask: None)
     monkeypatch.setattr(Comat, "group_by_team_size", False)
     slow = _loss_and_grads(net, obs, mask, actions)
     assert torch.allclose(fast[0], slow[0], rtol=1e-5)
@@ -81,25 +86,46 @@ def test_fast_paths_give_the_reference_loss_and_gradients(form, task, monkeypatc
         assert torch.allclose(fast[1][name], grad, rtol=1e-4, atol=1e-5 * grad.abs().max()), name
 
 
-def test_the_fused_edge_stage_is_the_torch_stage_forward_and_backward():
-    g = torch.Generator().manual_seed(1)
-    B, N, d, K = 5, 6, 16, 4
-    z = torch.randn(B, N, N, d + K, generator=g, requires_grad=True)
-    xj = torch.randn(B, N, d + K, generator=g, requires_grad=True)
-    ai = torch.randn(B, N, K, generator=g, requires_grad=True)
-    mask = torch.rand(B, N, N, generator=g) > 0.3
-    mask[0] = False  # a team with no edge at all: weights 0, gradients 0
-    gout = torch.randn(B, N, d, generator=g)
-    fused = edge_stage(z, xj, ai, mask, K)
-    grads = torch.autograd.grad(fused, (z, xj, ai), gout)
-    zm, zs = (z + xj[:, None]).split([d, K], -1)
-    score = F.leaky_relu(zs + ai[:, :, None], 0.2).masked_fill(~mask[..., None], float("-inf"))
-    alpha = torch.softmax(score, dim=2).nan_to_num(0.0)
-    ref = (alpha[..., None] * F.leaky_relu(zm, 0.2).view(B, N, N, K, d // K)).sum(2).reshape(B, N, d)
-    ref_grads = torch.autograd.grad(ref, (z, xj, ai), gout)
-    assert torch.allclose(fused, ref, atol=1e-5) and fused[0].abs().max() == 0
-    for got, want in zip(grads, ref_grads):
-        assert torch.allclose(got, want, atol=1e-5)
+def _packed_stage_inputs(sizes, d=16, K=4, pairs=4, seed=1):
+    g = torch.Generator().manual_seed(seed)
+    sizes = torch.tensor(sizes)
+    mask = torch.arange(int(sizes.max()))[None] < sizes[:, None]
+    packed = pack(mask, torch.zeros(mask.shape, dtype=torch.long), 1)
+    M, R = packed.edge_i.shape[0], packed.slots.shape[0]
+    inputs = [torch.randn(shape, generator=g, requires_grad=True) for shape in ((M, d + K), (R, d + K), (R, K))]
+    table = torch.randn(pairs, d + K, generator=g, requires_grad=True)
+    pair = torch.randint(0, pairs, (M,), generator=g)
+    return packed, (*inputs, table, pair), torch.randn(R, d, generator=g)
+
+
+def torch_stage(z, xj, ai, table, pair, packed, K):
+    """The packed edge stage in torch: each robot i's softmax over its team's edges, per head."""
+    R, d = xj.shape[0], z.shape[1] - K
+    i, j = packed.edge_i, packed.edge_j
+    zm, zs = (z + table[pair] + xj[j]).split([d, K], -1)
+    score = F.leaky_relu(zs + ai[i], 0.2)
+    top = torch.full((R, K), -torch.inf).scatter_reduce(0, i[:, None].expand(-1, K), score.detach(), "amax")
+    w = torch.exp(score - top[i])
+    alpha = w / torch.zeros(R, K).index_add(0, i, w)[i]
+    msg = alpha.repeat_interleave(d // K, -1) * F.leaky_relu(zm, 0.2)
+    return torch.zeros(R, d).index_add(0, i, msg)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_fused_edge_stage_is_the_torch_stage_forward_and_backward(threads):
+    packed, inputs, gout = _packed_stage_inputs([3, 0, 1, 7, 5, 2, 7, 4])  # an empty team too
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads)  # 2: the teams in two halves, one in a helper thread
+    try:
+        fused = edge_stage(*inputs, packed, 4)
+        grads = torch.autograd.grad(fused, inputs[:4], gout)
+    finally:
+        torch.set_num_threads(before)
+    ref = torch_stage(*inputs, packed, 4)
+    ref_grads = torch.autograd.grad(ref, inputs[:4], gout)
+    assert torch.allclose(fused, ref, atol=1e-5)
+    for got, want in zip(grads, ref_grads, strict=True):
+        assert torch.allclose(got, want, atol=1e-4)
 
 
 def test_without_kernels_the_block_runs_the_torch_stage(monkeypatch):

@@ -55,6 +55,7 @@ from torch import nn
 from comat import kernels
 from comat.config import check_numbers
 from comat.models.act_kernels import comat_decode, comat_decode_args, comat_encode, comat_encode_args
+from comat.models.attention_kernels import HEAD_WIDTH
 from comat.models.autoregressive import AutoregressivePolicy, numpy_view
 from comat.models.comat_schema import (
     DECISIONS,
@@ -66,9 +67,10 @@ from comat.models.comat_schema import (
     weight_shapes,
     weights_config,
 )
-from comat.models.features import ObsLayout, edge_features
+from comat.models.features import ObsLayout, edge_features, packed_edge_features
 from comat.models.heat_kernels import edge_stage
-from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp
+from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp, score_actions
+from comat.models.packing import PackedTeams, pack
 
 __all__ = ["PAPER_FORM", "Comat", "ComatConfig"]
 
@@ -188,19 +190,25 @@ class HEATBlock(nn.Module):
         if form == "reference":
             self.msg_out = init_linear(nn.Linear(d, d, bias=False), message_gain)
 
-    def forward(self, x, types, edge_attr, edge_type, edge_mask) -> torch.Tensor:
-        """x (B, N, d_in) -> (B, N, d)."""
-        # Every type's node transform in one matmul, each robot keeping its own type's (a product
-        # with the one-hot: exact, as only one term is not zero).
+    def forward(self, x, types, edge_attr, edge_type, edge_mask, packed: PackedTeams | None = None) -> torch.Tensor:
+        """x (B, N, d_in) -> (B, N, d); ``packed`` (the reference form only): x (R, d_in), the
+        edges (M, ·), ``edge_mask`` unused, the edge stage in its fused kernels (heat_kernels)."""
         T = self.n_types
-        w_node = torch.cat([layer.weight for layer in self.node])  # (T·d, d_in)
-        onehot = F.one_hot(types, T).to(x.dtype)[..., None]  # (B, N, T, 1)
-        xt = (F.linear(x, w_node).unflatten(-1, (T, -1)) * onehot).sum(-2)
+        if packed is not None:
+            # Each type's node transform on its own robots' rows, put back in their order.
+            parts = [F.linear(x[rows], layer.weight) for rows, layer in zip(packed.by_type, self.node)]
+            xt = torch.cat(parts)[packed.type_inverse]
+        else:
+            # Every type's node transform in one matmul, each robot keeping its own type's (a
+            # product with the one-hot: exact, as only one term is not zero).
+            w_node = torch.cat([layer.weight for layer in self.node])  # (T·d, d_in)
+            onehot = F.one_hot(types, T).to(x.dtype)[..., None]  # (B, N, T, 1)
+            xt = (F.linear(x, w_node).unflatten(-1, (T, -1)) * onehot).sum(-2)
         xt = F.leaky_relu(xt, 0.2)
         ea = F.leaky_relu(self.edge_attr(edge_attr), 0.2)  # (B, N, N, d_edge)
         et = F.leaky_relu(self.edge_type.weight, 0.2)  # (T², d_edge): one row per type pair
-        pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
         if self.form == "paper":
+            pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
             # The pair's score as a product with the one-hot rather than a lookup: the same values,
             # and a backward pass several times cheaper than the lookup's scatter.
             score = self.att_i(xt)[:, :, None] + self.att_attr(ea) + pair @ self.att_type(et) + self.att_j(xt)[:, None]
@@ -223,11 +231,15 @@ class HEATBlock(nn.Module):
             ]
         )
         w_j = torch.cat([self.msg_j.weight, self.att_j.weight])  # (d + K, d)
-        z = torch.cat([ea, pair], -1) @ w_edge  # (B, N, N, d + K)
         xj, ai = F.linear(xt, w_j), self.att_i(xt)  # (B, N, d + K), (B, N, K)
-        if kernels.enabled() and z.dtype == torch.float32 and z.device.type == "cpu":
-            out = edge_stage(z, xj, ai, edge_mask, K)  # the stage below, fused (heat_kernels)
+        if packed is not None:
+            # The stage below, fused (heat_kernels); each edge's type-pair row of w_edge is added
+            # there rather than through a one-hot column of the (M, ·) edge matrix.
+            d_edge = ea.shape[-1]
+            out = edge_stage(ea @ w_edge[:d_edge], xj, ai, w_edge[d_edge:], edge_type, packed, K)
         else:
+            pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
+            z = torch.cat([ea, pair], -1) @ w_edge  # (B, N, N, d + K)
             z_msg, z_score = (z + xj[:, None]).split([d, K], -1)  # (split: a slice's gradient fills a zero z)
             score = F.leaky_relu(z_score + ai[:, :, None], 0.2).masked_fill(~edge_mask[..., None], float("-inf"))
             alpha = torch.softmax(score, dim=2).nan_to_num(0.0)  # (B, N, N, K)
@@ -289,13 +301,19 @@ class Comat(AutoregressivePolicy):
         )
 
     # -- encoder ------------------------------------------------------------------------------------
-    def encode(self, obs, mask):
+    def encode(self, obs, mask, packed: PackedTeams | None = None):
+        """Representations (B, N, E) and values (B, N); ``packed``: of a packed batch's robots,
+        obs (R, D) -> (R, E) and (R,), ``mask`` unused."""
         cfg = self.config
-        edge_attr, edge_type, edge_mask = edge_features(obs, mask, self.layout, world=cfg.edge_frame == "world")
+        world = cfg.edge_frame == "world"
+        if packed is None:
+            edge_attr, edge_type, edge_mask = edge_features(obs, mask, self.layout, world)
+        else:
+            (edge_attr, edge_type), edge_mask = packed_edge_features(obs, packed, self.layout, world), None
         types = self.layout.types(obs)
         h = self.obs_encoder(obs) if cfg.obs_embed else obs
         for k, (block, norm) in enumerate(zip(self.heat, self.heat_norm)):
-            out = block(h, types, edge_attr, edge_type, edge_mask)
+            out = block(h, types, edge_attr, edge_type, edge_mask, packed)
             h = norm(h + out if k or cfg.obs_embed else out)
             if self.config.node_ffn:
                 h = self.node_ffn_norm[k](h + self.node_ffn[k](h))
@@ -315,19 +333,23 @@ class Comat(AutoregressivePolicy):
         h = self.ln4(h + self.fc2(h))
         return self._actor(h, obs)
 
-    def decode_all(self, rep, tokens, obs, mask):
-        L = tokens.shape[1]
-        m = causal(L, tokens.device)[None]
+    def decode_all(self, rep, tokens, obs, mask, packed: PackedTeams | None = None):
+        """Teacher-forced logits (B, N, A); ``packed``: of a packed batch's robots, (R, A) from
+        rep (R, E), tokens (R, A+1) and obs (R, D), each robot attending to its team up to itself."""
+        m = None if packed is not None else causal(tokens.shape[1], tokens.device)[None]
         # θ¹'s token embedding and its attention's queries, keys and values depend on the token
         # alone: computed for the A+1 tokens once and looked up by the one-hot tokens (a product
         # with a one-hot is exact), as decode_init does, instead of per robot.
         sa = self.self_attn
         table = self.token(torch.eye(self.n_actions + 1, device=tokens.device))  # (A+1, E)
         k_table, v_table = sa._kv_merged(table, table)
-        e = tokens @ table
-        attended = sa.attend(tokens @ sa.q(table), tokens @ k_table, tokens @ v_table, m)
+        if packed is not None:  # tokens are indices (R,): one lookup of the four tables
+            e, q, k, v = F.embedding(tokens, torch.cat([table, sa.q(table), k_table, v_table], 1)).chunk(4, -1)
+        else:
+            e, q, k, v = (tokens @ t for t in (table, sa.q(table), k_table, v_table))
+        attended = sa.attend(q, k, v, m, packed)
         a_hat = self._embed_actions(e, attended)
-        return self._decide(rep, self.cross_attn(rep, a_hat, a_hat, m), obs)
+        return self._decide(rep, self.cross_attn(rep, a_hat, a_hat, m, packed), obs)
 
     def decode_init(self, rep, obs):
         # θ¹'s token embedding and its attention's queries, keys and values depend on the token
@@ -357,6 +379,40 @@ class Comat(AutoregressivePolicy):
         h = self.ln3(st.rep[:, m : m + 1] + attended)
         h = self.ln4(h + self.fc2(h))[:, 0]
         return self.heads.finish(h, st.caps[:, m], st.types[:, m])
+
+    # -- the update: a batch packed as one graph ---------------------------------------------------
+    def _packing(self, obs, mask) -> PackedTeams | None:
+        """The batch packed (``comat.models.packing``) where the fused kernels apply (CPU float32,
+        HEAT's reference form, 16-wide heads, each team's robots first), else None."""
+        cfg = self.config
+        fits = (
+            kernels.enabled()
+            and obs.device.type == "cpu"
+            and obs.dtype == torch.float32
+            and self.critic[0].weight.dtype == torch.float32
+            and cfg.heat_form == "reference"
+            and cfg.embed == cfg.heads * HEAD_WIDTH
+        )
+        return pack(mask, self.layout.types(obs), self.layout.n_types) if fits else None
+
+    def evaluate_actions(self, obs, mask, actions, state=None):
+        """Log-probs, entropies and values (B, N) of given actions: over the batch packed as one
+        graph where the fused kernels apply (the same numbers within float rounding,
+        ``tests/test_packing.py``), else one padded pass per group of team sizes."""
+        packed = self._packing(obs, mask)
+        if packed is None:
+            return super().evaluate_actions(obs, mask, actions, state)
+        x, a = packed.gather(obs), packed.gather(actions)
+        rep, values = self.encode(x, None, packed)
+        previous = torch.where(packed.first, 0, a.roll(1) + 1)  # the token before each robot's action
+        logp, entropy = score_actions(self.decode_all(rep, previous, x, None, packed), a, None)
+        return packed.scatter(torch.stack([logp, entropy, values], -1)).unbind(-1)
+
+    def values(self, obs, mask, state=None):
+        packed = self._packing(obs, mask)
+        if packed is None:
+            return super().values(obs, mask, state)
+        return packed.scatter(self.encode(packed.gather(obs), None, packed)[1])
 
     # -- the arrays acting reads, by name -----------------------------------------------------------
     def weight_tensors(self, names) -> dict[str, torch.Tensor]:

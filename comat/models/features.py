@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import torch
 
-__all__ = ["ObsLayout", "edge_features"]
+from comat.models.packing import PackedTeams
+
+__all__ = ["ObsLayout", "edge_features", "packed_edge_features"]
 
 
 @dataclass(frozen=True)
@@ -57,18 +59,36 @@ def edge_features(
     """
     xy, c, s = obs[..., 0:2], obs[..., 2], obs[..., 3]
     d = xy[:, None, :, :] - xy[:, :, None, :]  # [b, i, j] = p_j - p_i
-    ci, si = c[:, :, None], s[:, :, None]
+    not_self = 1 - torch.eye(obs.shape[1], device=obs.device)
+    edge_attr = _seen_from(d, c[:, :, None], s[:, :, None], c[:, None, :], s[:, None, :], not_self, world)
+    types = layout.types(obs)
+    edge_type = types[:, :, None] * layout.n_types + types[:, None, :]
+    edge_mask = mask[:, :, None] & mask[:, None, :]
+    return edge_attr, edge_type, edge_mask
+
+
+def packed_edge_features(
+    obs: torch.Tensor, packed: PackedTeams, layout: ObsLayout, world: bool = False
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`edge_features` of a packed batch (``comat.models.packing``): observations (R, D) ->
+    edge_attr (M, 5) and edge_type (M,), edge m robot ``packed.edge_j[m]`` seen from robot
+    ``packed.edge_i[m]``; the same arithmetic, so the same bits, as the dense graph's edges."""
+    i, j = packed.edge_i, packed.edge_j
+    xy, c, s = obs[:, 0:2], obs[:, 2], obs[:, 3]
+    edge_attr = _seen_from(xy[j] - xy[i], c[i], s[i], c[j], s[j], (i != j).to(obs.dtype), world)
+    types = layout.types(obs)
+    return edge_attr, types[i] * layout.n_types + types[j]
+
+
+def _seen_from(d, ci, si, cj, sj, not_self, world: bool) -> torch.Tensor:
+    """Edge features (..., 5) of robot j seen from robot i, from p_j − p_i (..., 2), both headings'
+    cosines and sines and 0 on self-loops (``not_self``), all broadcast to the edges' shape."""
     if world:
         local_x, local_y = d[..., 0], d[..., 1]
     else:
         local_x = ci * d[..., 0] + si * d[..., 1]
         local_y = -si * d[..., 0] + ci * d[..., 1]
-    dist = torch.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + 1e-12) * (1 - torch.eye(obs.shape[1], device=obs.device))
-    cj, sj = c[:, None, :], s[:, None, :]
+    dist = torch.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2 + 1e-12) * not_self
     rel_cos = ci * cj + si * sj  # cos(θ_j − θ_i)
     rel_sin = ci * sj - si * cj  # sin(θ_j − θ_i)
-    edge_attr = torch.stack([local_x, local_y, dist, rel_cos, rel_sin], dim=-1)
-    types = layout.types(obs)
-    edge_type = types[:, :, None] * layout.n_types + types[:, None, :]
-    edge_mask = mask[:, :, None] & mask[:, None, :]
-    return edge_attr, edge_type, edge_mask
+    return torch.stack([local_x, local_y, dist, rel_cos, rel_sin], dim=-1)

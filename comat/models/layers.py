@@ -12,8 +12,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from comat import kernels
-from comat.models.attention_kernels import HEAD_WIDTH, SHORT_KEYS, short_attention
+from comat.models.attention_kernels import causal_attention
 from comat.models.comat_schema import DecisionMode, decision_shapes
 
 __all__ = [
@@ -110,9 +109,9 @@ class Attention(nn.Module):
     ``step(q (B, H, 1, dh), key (B, 1, D), value (B, 1, D), cache)`` takes a query from
     :meth:`step_query` (which callers may compute for all positions at once), appends the
     new key and value to ``cache`` and attends over everything cached: equal to the causal
-    forward pass at that position. Where a gradient is recorded over a team's few robots with
-    16-wide heads (COMAT's update), the attention runs in fused compiled kernels
-    (:mod:`comat.models.attention_kernels`); elsewhere in torch, whose bits acting keeps.
+    forward pass at that position. Over a packed batch (COMAT's update, ``packed``) the causal
+    attention runs in fused compiled kernels (:mod:`comat.models.attention_kernels`); elsewhere
+    in torch, whose bits acting keeps.
     """
 
     def __init__(self, dim: int, heads: int) -> None:
@@ -171,36 +170,25 @@ class Attention(nn.Module):
         q = self.project_query(query)
         return q * (q.shape[-1] ** -0.5)
 
-    def forward(self, query, key, value, mask: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, query, key, value, mask: torch.Tensor | None = None, packed=None) -> torch.Tensor:
         k, v = self._kv_merged(key, value)
-        return self.attend(self.q(query), k, v, mask)
+        return self.attend(self.q(query), k, v, mask, packed)
 
-    def attend(self, q, k, v, mask: torch.Tensor | None = None) -> torch.Tensor:
+    def attend(self, q, k, v, mask: torch.Tensor | None = None, packed=None) -> torch.Tensor:
         """:meth:`forward` from projected queries q (B, Lq, D), keys and values (B, Lk, D), heads
-        not split (callers that project a few distinct inputs once, such as a decoder's tokens)."""
+        not split (callers that project a few distinct inputs once, such as a decoder's tokens).
+        ``packed`` (a :class:`~comat.models.packing.PackedTeams`; q, k, v then (R, D), ``mask``
+        unused): each robot attends to its team's robots up to itself, in the fused kernels of
+        :mod:`comat.models.attention_kernels` (COMAT's update; 16-wide heads)."""
+        if packed is not None:
+            return self.o(causal_attention(q, k, v, packed, self.heads))
         if mask is not None:
             # A query with nothing to attend to (a padded robot) attends to the first key only,
             # so no row is all -inf; its output is never used.
             empty = ~mask.any(-1, keepdim=True)
             mask = mask | (empty & (torch.arange(mask.shape[-1], device=mask.device) == 0))
-        if self._fused(q, k):
-            # The update (a gradient recorded) over a team's few robots: the fused kernels
-            # (comat.models.attention_kernels); acting and evaluation keep torch's bits.
-            if mask is None:
-                mask = torch.ones(1, q.shape[1], k.shape[1], dtype=torch.bool)
-            return self.o(short_attention(q, k, v, mask, self.heads))
         split = self._split
         return self._merge(self._attend(split(q), split(k), split(v), None if mask is None else mask[:, None]))
-
-    def _fused(self, query: torch.Tensor, key: torch.Tensor) -> bool:
-        return (
-            torch.is_grad_enabled()
-            and key.shape[1] <= SHORT_KEYS
-            and query.shape[-1] == self.heads * HEAD_WIDTH
-            and query.dtype == torch.float32
-            and query.device.type == "cpu"
-            and kernels.enabled()
-        )
 
     def step(self, q: torch.Tensor, key, value, cache: KVCache) -> torch.Tensor:
         return self.step_projected(q, *self._kv(key, value), cache)
@@ -302,10 +290,13 @@ def choose_actions(
     return a, log_softmax_last(logits).gather(-1, a[..., None])[..., 0] * mask
 
 
-def score_actions(logits: torch.Tensor, actions: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def score_actions(
+    logits: torch.Tensor, actions: torch.Tensor, mask: torch.Tensor | None
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Log-probabilities and entropies (B, N) of given actions under per-robot logits (B, N, A),
-    0 in padded slots (PPO's update for the per-robot policies)."""
+    0 in padded slots (PPO's update for the per-robot policies); ``mask`` None: every robot is
+    real (a packed batch's rows (R, A))."""
     logp_all = log_softmax_last(logits)
     logp = logp_all.gather(-1, actions[..., None])[..., 0]
     entropy = -(logp_all.exp() * logp_all).sum(-1)
-    return logp * mask, entropy * mask
+    return (logp, entropy) if mask is None else (logp * mask, entropy * mask)
