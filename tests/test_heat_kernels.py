@@ -92,18 +92,19 @@ def _packed_stage_inputs(sizes, d=16, K=4, pairs=4, seed=1):
     mask = torch.arange(int(sizes.max()))[None] < sizes[:, None]
     packed = pack(mask, torch.zeros(mask.shape, dtype=torch.long), 1)
     M, R = packed.edge_i.shape[0], packed.slots.shape[0]
-    inputs = [torch.randn(shape, generator=g, requires_grad=True) for shape in ((M, d + K), (R, d + K), (R, K))]
+    z = torch.randn(M, d + K, generator=g, requires_grad=True)
+    node = torch.randn(R, d + 2 * K, generator=g, requires_grad=True)
     table = torch.randn(pairs, d + K, generator=g, requires_grad=True)
     pair = torch.randint(0, pairs, (M,), generator=g)
-    return packed, (*inputs, table, pair), torch.randn(R, d, generator=g)
+    return packed, (z, node, table, pair), torch.randn(R, d, generator=g)
 
 
-def torch_stage(z, xj, ai, table, pair, packed, K):
+def torch_stage(z, node, table, pair, packed, K):
     """The packed edge stage in torch: each robot i's softmax over its team's edges, per head."""
-    R, d = xj.shape[0], z.shape[1] - K
+    R, d = node.shape[0], z.shape[1] - K
     i, j = packed.edge_i, packed.edge_j
-    zm, zs = (z + table[pair] + xj[j]).split([d, K], -1)
-    score = F.leaky_relu(zs + ai[i], 0.2)
+    zm, zs = (z + table[pair] + node[j, : d + K]).split([d, K], -1)
+    score = F.leaky_relu(zs + node[i, d + K :], 0.2)
     top = torch.full((R, K), -torch.inf).scatter_reduce(0, i[:, None].expand(-1, K), score.detach(), "amax")
     w = torch.exp(score - top[i])
     alpha = w / torch.zeros(R, K).index_add(0, i, w)[i]
@@ -118,11 +119,11 @@ def test_the_fused_edge_stage_is_the_torch_stage_forward_and_backward(threads):
     torch.set_num_threads(threads)  # 2: the teams in two halves, one in a helper thread
     try:
         fused = edge_stage(*inputs, packed, 4)
-        grads = torch.autograd.grad(fused, inputs[:4], gout)
+        grads = torch.autograd.grad(fused, inputs[:3], gout)
     finally:
         torch.set_num_threads(before)
     ref = torch_stage(*inputs, packed, 4)
-    ref_grads = torch.autograd.grad(ref, inputs[:4], gout)
+    ref_grads = torch.autograd.grad(ref, inputs[:3], gout)
     assert torch.allclose(fused, ref, atol=1e-5)
     for got, want in zip(grads, ref_grads, strict=True):
         assert torch.allclose(got, want, atol=1e-4)

@@ -230,14 +230,16 @@ class HEATBlock(nn.Module):
                 torch.cat([self.msg_type(et), self.att_type(et)], 1),  # (T², d + K)
             ]
         )
-        w_j = torch.cat([self.msg_j.weight, self.att_j.weight])  # (d + K, d)
-        xj, ai = F.linear(xt, w_j), self.att_i(xt)  # (B, N, d + K), (B, N, K)
         if packed is not None:
-            # The stage below, fused (heat_kernels); each edge's type-pair row of w_edge is added
-            # there rather than through a one-hot column of the (M, ·) edge matrix.
+            # The stage below, fused (heat_kernels): each robot's shares as robot j and as robot i
+            # in one matmul, and each edge's type-pair row of w_edge added in the kernel rather
+            # than through one-hot columns of the (M, ·) edge matrix.
+            node = F.linear(xt, torch.cat([self.msg_j.weight, self.att_j.weight, self.att_i.weight]))
             d_edge = ea.shape[-1]
-            out = edge_stage(ea @ w_edge[:d_edge], xj, ai, w_edge[d_edge:], edge_type, packed, K)
+            out = edge_stage(ea @ w_edge[:d_edge], node, w_edge[d_edge:], edge_type, packed, K)
         else:
+            w_j = torch.cat([self.msg_j.weight, self.att_j.weight])  # (d + K, d)
+            xj, ai = F.linear(xt, w_j), self.att_i(xt)  # (B, N, d + K), (B, N, K)
             pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
             z = torch.cat([ea, pair], -1) @ w_edge  # (B, N, N, d + K)
             z_msg, z_score = (z + xj[:, None]).split([d, K], -1)  # (split: a slice's gradient fills a zero z)

@@ -16,8 +16,8 @@ thread (``comat.models.packing.on_threads``; the type-pair table's gradient is s
 
 Shapes (a :class:`~comat.models.packing.PackedTeams` of R robots and M edges): z (M, d + K) —
 the per-edge map ẽ^attr @ W, the message's d columns then the score's K; table (T², d + K) each
-ordered type pair's share of both, pair (M,) each edge's row of it; xj (R, d + K) robot j's share;
-ai (R, K) robot i's share of the score; out (R, d) the heads' weighted messages, concatenated
+ordered type pair's share of both, pair (M,) each edge's row of it; node (R, d + 2K) each robot's
+share of both as robot j, then its share of the score as robot i; out (R, d) the heads' weighted messages, concatenated
 (head k the columns k·d/K … (k+1)·d/K − 1); alpha (M, K).
 """
 
@@ -42,14 +42,14 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
-def _softmax_row(z, xj, ai, pair, table, r, s0, e, n, heads, d, alpha, top, total):  # pragma: no cover - compiled
+def _softmax_row(z, node, pair, table, r, s0, e, n, heads, d, alpha, top, total):  # pragma: no cover - compiled
     """alpha[e + j, k] = the softmax over the team's robots j of LeakyReLU(score), each head k, for
     robot i at row r (its edges at rows e … e + n − 1); ``top`` and ``total`` (heads,) are scratch.
     Heads innermost: alpha's and z's contiguous order."""
     top[:] = -np.inf
     for j in range(n):
         for k in range(heads):
-            s = z[e + j, d + k] + table[pair[e + j], d + k] + xj[s0 + j, d + k] + ai[r, k]
+            s = z[e + j, d + k] + table[pair[e + j], d + k] + node[s0 + j, d + k] + node[r, d + heads + k]
             s = max(s, SLOPE * s)  # LeakyReLU (slope < 1)
             alpha[e + j, k] = s
             top[k] = max(top[k], s)
@@ -65,7 +65,7 @@ def _softmax_row(z, xj, ai, pair, table, r, s0, e, n, heads, d, alpha, top, tota
 
 
 @_jit
-def _forward(z, xj, ai, pair, table, size, start, edge_start, heads, out, alpha):  # pragma: no cover - compiled
+def _forward(z, node, pair, table, size, start, edge_start, heads, out, alpha):  # pragma: no cover - compiled
     d = z.shape[1] - heads
     dh = d // heads
     weight = np.empty(d, np.float32)  # edge (i, j)'s attention weight per message column
@@ -75,7 +75,7 @@ def _forward(z, xj, ai, pair, table, size, start, edge_start, heads, out, alpha)
         n, s0 = size[b], start[b]
         for i in range(n):
             r, e = s0 + i, edge_start[b] + i * n
-            _softmax_row(z, xj, ai, pair, table, r, s0, e, n, heads, d, alpha, top, total)
+            _softmax_row(z, node, pair, table, r, s0, e, n, heads, d, alpha, top, total)
             acc[:] = 0.0
             for j in range(n):
                 for k in range(heads):
@@ -84,14 +84,14 @@ def _forward(z, xj, ai, pair, table, size, start, edge_start, heads, out, alpha)
                 # One contiguous pass over the edge's d message columns (vectorized), summed over
                 # neighbours j in order.
                 for c in range(d):
-                    m = z[e + j, c] + table[p, c] + xj[s0 + j, c]
+                    m = z[e + j, c] + table[p, c] + node[s0 + j, c]
                     acc[c] += weight[c] * max(m, SLOPE * m)
             out[r, :] = acc
 
 
 @_jit
 def _backward(
-    z, xj, ai, pair, table, size, start, edge_start, alpha, gout, heads, dz, dxj, dai, dtable
+    z, node, pair, table, size, start, edge_start, alpha, gout, heads, dz, dnode, dtable
 ):  # pragma: no cover - compiled
     width = z.shape[1]
     d = width - heads
@@ -109,7 +109,7 @@ def _backward(
                     weight[k * dh : (k + 1) * dh] = alpha[e + j, k]
                 p = pair[e + j]
                 for c in range(d):
-                    m = z[e + j, c] + table[p, c] + xj[s0 + j, c]
+                    m = z[e + j, c] + table[p, c] + node[s0 + j, c]
                     prod[c] = g[c] * max(m, SLOPE * m)
                     dz[e + j, c] = weight[c] * g[c] * (_ONE if m > 0 else SLOPE)
                 for k in range(heads):
@@ -121,15 +121,15 @@ def _backward(
                     dot += alpha[e + j, k] * dz[e + j, d + k]
                 acc = np.float32(0.0)
                 for j in range(n):
-                    s = z[e + j, d + k] + table[pair[e + j], d + k] + xj[s0 + j, d + k] + ai[r, k]
+                    s = z[e + j, d + k] + table[pair[e + j], d + k] + node[s0 + j, d + k] + node[r, d + heads + k]
                     grad = alpha[e + j, k] * (dz[e + j, d + k] - dot) * (_ONE if s > 0 else SLOPE)
                     dz[e + j, d + k] = grad
                     acc += grad
-                dai[r, k] = acc
+                dnode[r, d + heads + k] = acc
             for j in range(n):  # robot j's and the type pair's shares of every edge (i, j), in order
                 p = pair[e + j]
                 for c in range(width):
-                    dxj[s0 + j, c] += dz[e + j, c]
+                    dnode[s0 + j, c] += dz[e + j, c]
                     dtable[p, c] += dz[e + j, c]
 
 
@@ -143,46 +143,45 @@ def _sum(x, start, stop):  # pragma: no cover - compiled
 
 
 class EdgeStage(torch.autograd.Function):
-    """``out = edge_stage(z, xj, ai, pair, table, packed, heads)`` with the fused backward (see the
+    """``out = edge_stage(z, node, table, pair, packed, heads)`` with the fused backward (see the
     module)."""
 
     @staticmethod
-    def forward(ctx, z, xj, ai, table, pair, packed, heads):
-        z, xj, ai, table = (t.detach().contiguous() for t in (z, xj, ai, table))
-        out = torch.empty((xj.shape[0], z.shape[1] - heads), dtype=z.dtype)
+    def forward(ctx, z, node, table, pair, packed, heads):
+        z, node, table = (t.detach().contiguous() for t in (z, node, table))
+        out = torch.empty((node.shape[0], z.shape[1] - heads), dtype=z.dtype)
         alpha = torch.empty((z.shape[0], heads), dtype=z.dtype)
-        arrays = (z.numpy(), xj.numpy(), ai.numpy(), pair.numpy(), table.numpy())
+        arrays = (z.numpy(), node.numpy(), pair.numpy(), table.numpy())
         tables = (packed.size, packed.start, packed.edge_start)
 
         def run(teams, part):
             _forward(*arrays, *(t[teams] for t in tables), heads, out.numpy(), alpha.numpy())
 
         on_threads(run, packed.size, parts())
-        ctx.save_for_backward(z, xj, ai, table, pair, alpha)
+        ctx.save_for_backward(z, node, table, pair, alpha)
         ctx.packed, ctx.heads = packed, heads
         return out
 
     @staticmethod
     def backward(ctx, gout):
-        z, xj, ai, table, pair, alpha = ctx.saved_tensors
+        z, node, table, pair, alpha = ctx.saved_tensors
         packed, n_parts = ctx.packed, parts()
-        dz, dxj, dai = torch.empty_like(z), torch.zeros_like(xj), torch.empty_like(ai)
+        dz, dnode = torch.empty_like(z), torch.zeros_like(node)
         dtables = torch.zeros((n_parts, *table.shape), dtype=table.dtype)  # one per part, summed after
-        arrays = (z.numpy(), xj.numpy(), ai.numpy(), pair.numpy(), table.numpy())
+        arrays = (z.numpy(), node.numpy(), pair.numpy(), table.numpy())
         tables = (packed.size, packed.start, packed.edge_start)
-        grads = (dz.numpy(), dxj.numpy(), dai.numpy())
+        gout = gout.contiguous()
 
         def run(teams, part):
             inputs = (*arrays, *(t[teams] for t in tables), alpha.numpy(), gout.numpy())
-            _backward(*inputs, ctx.heads, *grads, dtables[part].numpy())
+            _backward(*inputs, ctx.heads, dz.numpy(), dnode.numpy(), dtables[part].numpy())
 
-        gout = gout.contiguous()
         on_threads(run, packed.size, n_parts)
-        return dz, dxj, dai, dtables.sum(0), None, None, None
+        return dz, dnode, dtables.sum(0), None, None, None
 
 
-def edge_stage(z, xj, ai, table, pair, packed, heads: int) -> torch.Tensor:
+def edge_stage(z, node, table, pair, packed, heads: int) -> torch.Tensor:
     """The heads' weighted messages (R, d) of a packed batch (``packed``, a
     :class:`~comat.models.packing.PackedTeams`; see the module docstring); float32 CPU tensors,
     ``pair`` (M,) int64 each edge's row of ``table`` (T², d + K)."""
-    return EdgeStage.apply(z, xj, ai, table, pair, packed, heads)
+    return EdgeStage.apply(z, node, table, pair, packed, heads)
