@@ -32,8 +32,9 @@ def numpy_view(t: torch.Tensor) -> np.ndarray:
 SIZE_BUCKET_COSTS = (1.0, 9.0, 7000.0)
 """Relative costs of a scored batch (forward and backward): per edge (robot pair) of a padded team,
 per robot slot, and per group (the calls' own cost); fitted to COMAT's update on a 2-core Xeon
-(640 PCP teams of 3, 5 and 7 robots: 0.9 µs an edge, 7.9 µs a slot, 6.2 ms a group). They decide
-only how a batch is grouped (:func:`size_buckets`), never a result."""
+(640 PCP teams of 3, 5 and 7 robots: 0.9 µs an edge, 7.9 µs a slot, 6.2 ms a group), when COMAT's
+update still scored padded batches (it now packs them where its kernels apply). They decide only
+how a padded batch is grouped (:func:`size_buckets`), never a result."""
 
 
 def size_buckets(sizes: list[int], counts: list[int]) -> list[tuple[int, int]]:

@@ -38,7 +38,10 @@ slow type learned from slow robots alone and, in a third of the seeds, never lea
 material home (``results/stability/``). Every paper-form choice stays available as a
 ``ComatConfig`` option.
 
-Shapes: obs (B, N, D_obs), mask (B, N); embedding E; T types; C capabilities; A = 5 actions.
+Shapes: obs (B, N, D_obs), mask (B, N); embedding E; T types; C capabilities; A = 5 actions. The
+update scores a batch packed as one graph where its compiled kernels apply (:mod:`comat.models.packing`:
+the real robots as rows (R, ·), every same-team pair of robots as an edge row (M, ·)); the padded
+form is the reference and the general path.
 Every parameter's name and shape, and the decision layer's form, are described once in
 ``comat.models.comat_schema``, which the compiled kernels and the export's numpy runtime read too;
 a Comat checks its parameters against it when built.
@@ -255,7 +258,9 @@ class HEATBlock(nn.Module):
 class Comat(AutoregressivePolicy):
     """COMAT policy for a task's observation layout (see module docstring)."""
 
-    group_by_team_size = True  # the HEAT blocks' work is N × N edges: score each team size on its own edges
+    # The HEAT blocks' work is N × N edges: where a batch is not packed (see evaluate_actions), score
+    # each team size on its own edges.
+    group_by_team_size = True
 
     def __init__(self, layout: ObsLayout, config: ComatConfig | None = None) -> None:
         super().__init__()

@@ -36,16 +36,19 @@ def update_seconds(algo: str, task: str, threads: int, repeats: int) -> list[flo
     trainer = learner.trainer
     weights = copy.deepcopy(trainer.learner.state_dict())
     optimizer = copy.deepcopy(trainer.optimizer.state_dict())
-    seconds = []
-    for _ in range(repeats):
-        trainer.learner.load_state_dict(weights)
-        trainer.policy.load_state_dict(weights)
-        trainer.optimizer.load_state_dict(copy.deepcopy(optimizer))
-        trainer.rng = np.random.default_rng(0)
-        start = time.perf_counter()
-        trainer.update(rollout)
-        seconds.append(time.perf_counter() - start)
-    return seconds
+    return [timed_update(trainer, weights, optimizer, rollout) for _ in range(repeats)]
+
+
+def timed_update(trainer, weights: dict, optimizer: dict, rollout) -> float:
+    """Seconds of one ``trainer.update(rollout)`` from the given learner weights and optimizer
+    state, with the same minibatch order every time."""
+    trainer.learner.load_state_dict(weights)
+    trainer.policy.load_state_dict(weights)
+    trainer.optimizer.load_state_dict(copy.deepcopy(optimizer))
+    trainer.rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    trainer.update(rollout)
+    return time.perf_counter() - start
 
 
 if __name__ == "__main__":
