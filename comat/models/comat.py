@@ -350,11 +350,8 @@ class Comat(AutoregressivePolicy):
         sa = self.self_attn
         table = self.token(torch.eye(self.n_actions + 1, device=tokens.device))  # (A+1, E)
         k_table, v_table = sa._kv_merged(table, table)
-        if packed is not None:  # tokens are indices (R,): one lookup of the four tables
-            e, q, k, v = F.embedding(tokens, torch.cat([table, sa.q(table), k_table, v_table], 1)).chunk(4, -1)
-        else:
-            e, q, k, v = (tokens @ t for t in (table, sa.q(table), k_table, v_table))
-        attended = sa.attend(q, k, v, m, packed)
+        e = tokens @ table
+        attended = sa.attend(tokens @ sa.q(table), tokens @ k_table, tokens @ v_table, m, packed)
         a_hat = self._embed_actions(e, attended)
         return self._decide(rep, self.cross_attn(rep, a_hat, a_hat, m, packed), obs)
 
@@ -412,10 +409,13 @@ class Comat(AutoregressivePolicy):
         x, a = packed.gather(obs), packed.gather(actions)
         rep, values = self.encode(x, None, packed)
         previous = torch.where(packed.first, 0, a.roll(1) + 1)  # the token before each robot's action
-        logp, entropy = score_actions(self.decode_all(rep, previous, x, None, packed), a, None)
+        tokens = F.one_hot(previous, self.n_actions + 1).to(x.dtype)
+        logp, entropy = score_actions(self.decode_all(rep, tokens, x, None, packed), a, None)
         return packed.scatter(torch.stack([logp, entropy, values], -1)).unbind(-1)
 
     def values(self, obs, mask, state=None):
+        """Values (B, N): over the batch packed as one graph where the fused kernels apply (padded
+        slots 0), else one padded pass per group of team sizes."""
         packed = self._packing(obs, mask)
         if packed is None:
             return super().values(obs, mask, state)
