@@ -199,8 +199,9 @@ class HEATBlock(nn.Module):
         T = self.n_types
         if packed is not None:
             # Each type's node transform on its own robots' rows, put back in their order.
-            parts = [F.linear(x[rows], layer.weight) for rows, layer in zip(packed.by_type, self.node)]
-            xt = torch.cat(parts)[packed.type_inverse]
+            # (index_select: its backward is a summed gather, several times cheaper than indexing's)
+            parts = [F.linear(x.index_select(0, rows), layer.weight) for rows, layer in zip(packed.by_type, self.node)]
+            xt = torch.cat(parts).index_select(0, packed.type_inverse)
         else:
             # Every type's node transform in one matmul, each robot keeping its own type's (a
             # product with the one-hot: exact, as only one term is not zero).

@@ -55,7 +55,7 @@ class PackedTeams:
 
     def gather(self, x: torch.Tensor) -> torch.Tensor:
         """(B, N, ...) -> (R, ...): the real robots' rows."""
-        return x.reshape(self.batch * self.slots_per_team, *x.shape[2:])[self.slots]
+        return x.reshape(self.batch * self.slots_per_team, *x.shape[2:]).index_select(0, self.slots)
 
     def scatter(self, x: torch.Tensor) -> torch.Tensor:
         """(R, ...) -> (B, N, ...): rows back in their slots, padded slots 0 (differentiable)."""
