@@ -37,7 +37,7 @@ def test_the_tables_list_each_teams_robots_and_edges_in_order():
     assert p.size.tolist() == [2, 0, 3] and p.start.tolist() == [0, 2, 2] and p.edge_start.tolist() == [0, 4, 4]
     assert p.edge_i.tolist() == [0, 0, 1, 1] + [2, 2, 2, 3, 3, 3, 4, 4, 4]
     assert p.edge_j.tolist() == [0, 1, 0, 1] + [2, 3, 4] * 3
-    assert [r.tolist() for r in p.by_type] == [[1, 2], [0, 3, 4]]
+    assert p.types.tolist() == [1, 0, 0, 1, 1] and [r.tolist() for r in p.by_type] == [[1, 2], [0, 3, 4]]
     order = torch.cat(p.by_type)
     assert torch.equal(order[p.type_inverse], torch.arange(5))
     x = torch.arange(9.0).view(3, 3)

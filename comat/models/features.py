@@ -79,7 +79,7 @@ def packed_edge_features(
     one unit in the last place (torch's squares and numba's differ there)."""
     attr = torch.empty((packed.edge_i.shape[0], 5), dtype=obs.dtype)
     edge_type = torch.empty(packed.edge_i.shape[0], dtype=torch.long)
-    types = layout.types(obs).numpy()
+    types = packed.types.numpy()
     rows = obs.detach()[:, :4].contiguous().numpy()
     _seen_from_packed(rows, types, packed.size, packed.start, layout.n_types, world, attr.numpy(), edge_type.numpy())
     return attr, edge_type

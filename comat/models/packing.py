@@ -46,6 +46,8 @@ class PackedTeams:
     """(B,) int64: team b's first robot row."""
     edge_start: np.ndarray
     """(B,) int64: team b's first edge row."""
+    types: torch.Tensor
+    """(R,) long: each robot's type id."""
     by_type: tuple[torch.Tensor, ...]
     """Per robot type t, (R_t,) long: the rows of type t's robots, in order."""
     type_inverse: torch.Tensor
@@ -72,15 +74,14 @@ def pack(mask: torch.Tensor, types: torch.Tensor, n_types: int) -> PackedTeams |
     if not bool((mask == (torch.arange(N, device=mask.device)[None] < n[:, None])).all()):
         return None
     size = n.cpu().numpy().astype(np.int64)
-    start, edge_start, slots, first, edge_i, edge_j = (torch.from_numpy(a) for a in _index(size, N))
+    start, edge_start, *rows = _index(size, N)
+    slots, first, edge_i, edge_j = (torch.from_numpy(a) for a in rows)
     row_types = types.reshape(-1)[slots]
     order = torch.argsort(row_types, stable=True)
     type_inverse = torch.empty_like(order)
     type_inverse[order] = torch.arange(order.shape[0])
     by_type = order.split(torch.bincount(row_types, minlength=n_types).tolist())
-    return PackedTeams(
-        slots, first, edge_i, edge_j, size, start.numpy(), edge_start.numpy(), by_type, type_inverse, B, N
-    )
+    return PackedTeams(slots, first, edge_i, edge_j, size, start, edge_start, row_types, by_type, type_inverse, B, N)
 
 
 @njit(cache=True, nogil=True)
