@@ -216,6 +216,76 @@ def test_bench_learn_checks_comats_learning_against_mats_per_env_step():
     assert "comat_learn_vs_mat_hmt_W1" not in checks
 
 
+def test_bench_learn_update_check_reads_each_rounds_ratio_so_a_drift_touches_both():
+    """The update part's check: the median over rounds of COMAT's update over MAT's in the same round
+    (per env step), so a round in which the machine slowed both does not move it."""
+    from comat.bench.learn_bench import _checks
+
+    def row(algo, task, seconds, steps=2560):
+        return {"algo": algo, "task": task, "env_steps": steps, "update_s": seconds}
+
+    update = [
+        row("comat", "pcp", [1.2, 2.4, 1.2]),  # round 2: the machine twice as slow for both
+        row("mat", "pcp", [1.0, 2.0, 1.0]),
+        row("mappo", "pcp", [0.1, 0.1, 0.1]),
+        row("comat", "hmt", [1.5, 1.5, 1.5], steps=1280),
+        row("mat", "hmt", [2.0, 2.0, 2.0]),  # per env step COMAT is 1.5x
+    ]
+    checks = _checks([], [], update)
+    pcp, hmt = checks["comat_update_vs_mat_pcp"], checks["comat_update_vs_mat_hmt"]
+    assert abs(pcp["value"] - 1.2) < 1e-12 and pcp["pass"] and pcp["rounds"] == 3
+    assert abs(hmt["value"] - 1.5) < 1e-12 and not hmt["pass"]
+    # the sums would have read the slow round as the learners' own: the end-to-end check is apart
+    assert not any(name.startswith("comat_learn_vs_mat") for name in checks)
+
+
+def test_bench_update_times_each_ppo_learners_update_in_turns(tmp_path):
+    from unittest import mock
+
+    import torch
+    import yaml
+
+    from comat.bench.learn_bench import bench_update
+    from comat.rl.ppo import PPOTrainer
+
+    preset = tmp_path / "tiny.yaml"
+    preset.write_text(
+        yaml.safe_dump(
+            {
+                "ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1},
+                "models": {"mappo": {"hidden": 16}, "comat": {"embed": 16, "heads": 1}},
+            }
+        )
+    )
+    order, starts, teams = [], [], []
+    real = PPOTrainer.update
+
+    def update(trainer, rollout, lagged=False):
+        order.append(type(trainer.policy).__name__)
+        weights = torch.cat([p.detach().flatten() for p in trainer.learner.parameters()])
+        moments = [v for state in trainer.optimizer.state.values() for v in state.values()]
+        starts.append((order[-1], weights, str(trainer.rng.bit_generator.state), len(moments)))
+        teams.append((rollout.mask.sum(-1).tolist(), rollout.obs))
+        return real(trainer, rollout, lagged)
+
+    with mock.patch.object(PPOTrainer, "update", update):
+        rows = bench_update(["comat", "mappo"], rounds=2, preset=str(preset))
+    assert order == ["Comat", "Mappo"] * 3  # one untimed round, then two, taking turns
+    # every round starts from the same weights, optimizer state and minibatch order, on a rollout of its own
+    for name in ("Comat", "Mappo"):
+        mine = [start for start in starts if start[0] == name]
+        assert all(torch.equal(w, mine[0][1]) and rng == mine[0][2] and n == mine[0][3] for _, w, rng, n in mine)
+    assert [t for t, _ in teams[0::2]] == [t for t, _ in teams[1::2]]  # each round, both on the same teams
+    assert not torch.equal(teams[0][1], teams[2][1])  # a fresh rollout each round
+    assert [r["algo"] for r in rows] == ["comat", "mappo"]
+    for r in rows:
+        assert r["env_steps"] == 4 and len(r["update_s"]) == 2 and r["median_s"] > 0 and r["task"] == "pcp"
+        assert len(r["robots_per_team"]) == 2
+    assert rows[0]["robots_per_team"] == rows[1]["robots_per_team"]  # the same teams for each learner
+    with pytest.raises(ValueError, match="qmix"):
+        bench_update(["qmix"], rounds=1, preset=str(preset))
+
+
 def test_bench_train_times_an_overlapped_learner_as_update_plus_wait(tmp_path):
     """``--overlap``: the row of a PPO learner with ``ppo.overlap``: its iteration is the update and the
     wait for the collection beside it; QMIX has no such option."""

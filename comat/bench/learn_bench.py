@@ -16,14 +16,21 @@ Two parts:
   is also timed with ``ppo.overlap`` (the next rollout collected while the update runs): there the
   iteration's wall time is the update plus the wait for the collection beside it (``wait_s``),
   and the environment's and acting's seconds, spent beside the update, are not split.
+* **update**: each PPO learner's update alone on one fixed rollout of its own, the learners taking
+  turns round after round in one process. The training rows above time COMAT and MAT minutes
+  apart, and on a shared VM the machine's speed drifts that much between them (MAT's unchanged
+  update measured 0.84 s and 1.17 s in two runs minutes apart, docs/speed.md); taking turns, both
+  see the same drift, so the median of their ratio is the comparison of the learners themselves.
 """
 
 from __future__ import annotations
 
+import copy
 import os
 import platform
 import time
 
+import numpy as np
 import torch
 
 from comat.bench.sim_bench import finish
@@ -37,13 +44,15 @@ from comat.rl.config import load_preset, resolve
 from comat.tasks import task_names
 from comat.tasks.pcp import PCP
 
-__all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "run_learn_bench"]
+__all__ = ["COMAT_VARIANTS", "bench_decode", "bench_train", "bench_update", "run_learn_bench"]
 
 TRAIN_TARGET = 400.0
 """COMAT env-steps/s on PCP, unicycle tier, the learners issue's target for a 2-core machine."""
 LEARN_RATIO_TARGET = 1.3
 """COMAT's learning seconds over MAT's in the same run (the same rollout size), at most: the
 speed issue's target (issue 48)."""
+PPO_LEARNERS = ("comat", "mat", "mappo", "ippo", "cash")
+"""The learners with a PPO update, which the update part times."""
 DECODE_TARGET = 3.0
 """Cached decoding vs a full re-run per robot, 8 robots."""
 WIDE_SLOTS = 20
@@ -194,11 +203,59 @@ def bench_train(
     }
 
 
-def _checks(decode: list[dict], train: list[dict]) -> dict:
+def bench_update(algos, task: str = "pcp", rounds: int = 5, preset: str = "paper", seed: int = 0) -> list[dict]:
+    """Seconds of one PPO update of each learner in ``algos`` on ``task`` (unicycle), the learners
+    taking turns (see the module docstring): each collects ``rounds`` + 1 rollouts with its untrained
+    policy (the same teams for every learner: they are drawn from the seed, not by the policy), then
+    in round r every learner updates on its own r-th rollout from the same starting state. A rollout
+    is one draw of teams, and COMAT's work grows with the robots per team where MAT pads every team
+    to its slots (an HMT rollout of 5.4 robots a team against one of 4.7: COMAT/MAT 1.44 against
+    1.20), so the rounds cover several draws. The first round is not timed (caches, allocator)."""
+    setups = {}
+    for algo in algos:
+        if algo == "qmix":
+            raise ValueError("bench_update: times the PPO learners' update; qmix has none")
+        config = resolve(load_preset(preset), algo, task, seed=seed, tier="unicycle", env_workers=1)
+        torch.set_num_threads(config.torch_threads)
+        torch.manual_seed(seed)
+        env = make_run_env(config, config.trainer.num_envs, seed)
+        try:
+            env.reset()
+            trainer = make_learner(config, env, Dims.of(env)).trainer
+            rollouts = [trainer.collect() for _ in range(rounds + 1)]
+        finally:
+            env.close()
+        setups[algo] = (trainer, rollouts, copy.deepcopy(trainer.state_dict()), config.torch_threads)
+    seconds: dict[str, list[float]] = {algo: [] for algo in algos}
+    for round_ in range(rounds + 1):
+        for algo, (trainer, rollouts, state, threads) in setups.items():
+            torch.set_num_threads(threads)
+            trainer.load_state_dict(copy.deepcopy(state))  # the same weights, optimizer and minibatch order
+            t0 = time.perf_counter()
+            trainer.update(rollouts[round_])
+            if round_:
+                seconds[algo].append(time.perf_counter() - t0)
+    return [
+        {
+            "algo": algo,
+            "task": task,
+            "torch_threads": threads,
+            "env_steps": int(rollouts[0].rewards.numel()),
+            "robots_per_team": [float(ro.mask.sum(-1).float().mean()) for ro in rollouts[1:]],
+            "update_s": seconds[algo],
+            "median_s": float(np.median(seconds[algo])) if seconds[algo] else None,
+        }
+        for algo, (_, rollouts, _, threads) in setups.items()
+    ]
+
+
+def _checks(decode: list[dict], train: list[dict], update: list[dict] = ()) -> dict:
     """Targets: cached decoding >= 3x a full re-run (8 robots; at the rollout batch 32 and at a
     large batch 256), COMAT training >= 400 env-steps/s (best worker count), and COMAT's learning
     seconds <= 1.3x MAT's for each task and worker count both ran (per env step: HMT's rollouts are
-    shorter than PCP's, but both learners of a task and worker count collect the same)."""
+    shorter than PCP's, but both learners of a task and worker count collect the same); with the
+    update part, the same target on the median over rounds of COMAT's update over MAT's in that
+    round (per env step)."""
     checks = {}
     for row in decode:
         if row["batch"] in (32, 256):
@@ -226,6 +283,19 @@ def _checks(decode: list[dict], train: list[dict]) -> dict:
                     "target": f"<= {LEARN_RATIO_TARGET}",
                     "pass": ratio <= LEARN_RATIO_TARGET,
                 }
+    for comat in (r for r in update if r["algo"] == "comat"):
+        for mat in (r for r in update if r["algo"] == "mat" and r["task"] == comat["task"]):
+            per_round = [
+                (c / comat["env_steps"]) / (m / mat["env_steps"]) for c, m in zip(comat["update_s"], mat["update_s"])
+            ]
+            if per_round:
+                ratio = float(np.median(per_round))
+                checks[f"comat_update_vs_mat_{comat['task']}"] = {
+                    "value": ratio,
+                    "target": f"<= {LEARN_RATIO_TARGET}",
+                    "pass": ratio <= LEARN_RATIO_TARGET,
+                    "rounds": len(per_round),
+                }
     return checks
 
 
@@ -238,9 +308,12 @@ def run_learn_bench(
     progress=print,
     tasks=None,
     overlap: str = "off",
+    update_rounds: int = 5,
 ) -> dict:
-    """Both parts, a table on ``progress`` and JSON at ``out``; ``overlap``: ``off``, ``on`` (the PPO
-    learners with ``ppo.overlap`` only) or ``both`` (each PPO learner both ways, in one run)."""
+    """The three parts, a table on ``progress`` and JSON at ``out``; ``overlap``: ``off``, ``on`` (the
+    PPO learners with ``ppo.overlap`` only) or ``both`` (each PPO learner both ways, in one run);
+    ``update_rounds``: timed rounds of the update part (for the PPO learners among ``algos`` by their
+    plain names; 0: no update part)."""
     if overlap not in OVERLAP_CHOICES:
         raise ValueError(f"overlap must be one of {list(OVERLAP_CHOICES)}, got {overlap!r}")
     tasks = task_names() if tasks is None else tuple(tasks)
@@ -258,7 +331,12 @@ def run_learn_bench(
                     what = " overlapped" if way else ""
                     progress(f"  train {algo}{what} {task} env_workers={w} ({iterations} iterations) ...")
                     train.append(bench_train(algo, iterations, env_workers=w, task=task, overlap=way))
-    checks = _checks(decode, train)
+    update = []
+    ppo = [a for a in algos if a in PPO_LEARNERS]
+    for task in tasks if update_rounds > 0 and ppo else ():
+        progress(f"  update {', '.join(ppo)} {task}, taking turns ({update_rounds} rounds) ...")
+        update += bench_update(ppo, task, update_rounds)
+    checks = _checks(decode, train, update)
     result = {
         "benchmark": "learn",
         "machine": {
@@ -269,6 +347,7 @@ def run_learn_bench(
         },
         "decode": decode,
         "train": train,
+        "update": update,
         "checks": checks,
     }
     head = (
@@ -300,5 +379,12 @@ def run_learn_bench(
         "policy's turns on other shards did not hide); act s: the rest of collecting; overlapped "
         "(ppo.overlap): the collection runs beside the update, wait s is the wait for it after the update."
     )
+    if update:
+        head = f"{'algo':<17}{'task':>5}{'threads':>8}{'update s (median)':>19}  every round"
+        progress(head + "\n" + "-" * len(head))
+        for r in update:
+            rounds = " ".join(f"{t:.2f}" for t in r["update_s"])
+            progress(f"{r['algo']:<17}{r['task']:>5}{r['torch_threads']:>8}{r['median_s']:>19.3f}  {rounds}")
+        progress("update: one PPO update on a fixed rollout, the learners taking turns in each round.")
 
     return finish(result, checks, out, progress)

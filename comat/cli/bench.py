@@ -20,6 +20,16 @@ from comat.team import COALITION_SETS
 __all__ = ["add_bench_parser"]
 
 
+def _non_negative(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number 0 or more, got {text!r}")
+    return value
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "sim":
         from comat.bench.sim_bench import run_sim_bench
@@ -64,7 +74,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         print(
             f"comat bench learn: decode (COMAT, MAT, 8 robots), training {tuple(args.algos)} on "
-            f"{tuple(args.tasks)} with env workers {tuple(args.workers)}, {args.iterations} iterations each"
+            f"{tuple(args.tasks)} with env workers {tuple(args.workers)}, {args.iterations} iterations each; "
+            f"the PPO updates alone, taking turns, {args.update_rounds} rounds"
         )
         run_learn_bench(
             tuple(args.algos),
@@ -74,6 +85,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             args.out,
             tasks=tuple(args.tasks),
             overlap=args.overlap,
+            update_rounds=args.update_rounds,
         )
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
@@ -190,6 +202,14 @@ def add_bench_parser(sub) -> None:
         type=int,
         default=2,
         help="timed training iterations per algorithm, each 2,560 env steps (default: %(default)s)",
+    )
+    b.add_argument(
+        "--update-rounds",
+        type=_non_negative,
+        default=5,
+        help="timed rounds of each PPO learner's update alone on a fixed rollout, the learners taking "
+        "turns in each round, so that a drift of the machine's speed touches them alike; the check "
+        "of COMAT's update against MAT's reads them; 0: skip (default: %(default)s)",
     )
     b.add_argument(
         "--tasks",
