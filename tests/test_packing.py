@@ -93,3 +93,20 @@ def test_split_teams_covers_every_team_once_in_parts_of_about_equal_work():
     assert abs(work[0] - work[1]) <= 49
     assert split_teams(sizes, 1) == [slice(0, len(sizes))]
     assert split_teams(sizes[:1], 2) == [slice(0, 1)]
+
+
+def test_values_in_passes_of_about_the_chunks_edges_equal_one_pass(monkeypatch):
+    import comat.models.comat as comat_module
+
+    obs, mask, _ = _teams([3, 5, 7, 1, 7, 2, 6, 4, 0, 5], N=8, seed=5)
+    torch.manual_seed(0)
+    net = Comat(LAYOUT)
+    with torch.no_grad():
+        whole = net.values(obs, mask)  # 214 edges: one pass
+        passes = []
+        real = net._packed_values
+        monkeypatch.setattr(net, "_packed_values", lambda o, m: passes.append(int((m.sum(1) ** 2).sum())) or real(o, m))
+        monkeypatch.setattr(comat_module, "VALUE_CHUNK_EDGES", 60)
+        chunked = net.values(obs, mask)
+    assert len(passes) == 4 and sum(passes) == 214 and max(passes) <= 60 + 49  # split at team borders
+    assert torch.allclose(chunked, whole, atol=1e-6) and not (chunked * ~mask).any()
