@@ -217,7 +217,14 @@ class HEATBlock(nn.Module):
             onehot = F.one_hot(types, T).to(x.dtype)[..., None]  # (B, N, T, 1)
             xt = (F.linear(x, w_node).unflatten(-1, (T, -1)) * onehot).sum(-2)
         xt = F.leaky_relu(xt, 0.2)
-        ea = F.leaky_relu(self.edge_attr(edge_attr), 0.2)  # (B, N, N, d_edge)
+        if packed is not None:
+            # With the weight as a contiguous (5, d_edge) matrix, autograd takes its gradient as
+            # raw.T @ grad, (5, M) @ (M, d_edge), not as nn.Linear's grad.T @ raw, (d_edge, M) @ (M, 5),
+            # which MKL runs at a seventh of the speed (a PCP minibatch's edges, forward and backward:
+            # 1.19 -> 0.33 ms on one thread).
+            ea = F.leaky_relu(edge_attr @ self.edge_attr.weight.T.contiguous(), 0.2)  # (M, d_edge)
+        else:
+            ea = F.leaky_relu(self.edge_attr(edge_attr), 0.2)  # (B, N, N, d_edge)
         et = F.leaky_relu(self.edge_type.weight, 0.2)  # (T², d_edge): one row per type pair
         if self.form == "paper":
             pair = F.one_hot(edge_type, et.shape[0]).to(x.dtype)  # (B, N, N, T²)
