@@ -133,13 +133,20 @@ def _backward(
                     dtable[p, c] += dz[e + j, c]
 
 
-@njit(cache=True, nogil=True, fastmath=True)
+@njit(cache=True, nogil=True, inline="always")
 def _sum(x, start, stop):  # pragma: no cover - compiled
-    """x[start:stop].sum(), vectorized (fastmath lets the sum be reordered: float rounding only)."""
-    total = np.float32(0.0)
-    for c in range(start, stop):
-        total += x[c]
-    return total
+    """x[start:stop].sum() for a length that is a multiple of 4 (a head's 16 columns), in four
+    interleaved partial sums: four add chains at once instead of one, and inlined (numba's IR), where
+    a call per head to a fastmath-vectorized sum cost a sixth of the backward pass (1.86 -> 1.55 ms
+    for a PCP minibatch's edges, one thread). The order of the additions differs from a plain sum's:
+    float rounding only."""
+    a0 = a1 = a2 = a3 = np.float32(0.0)
+    for c in range(start, stop, 4):
+        a0 += x[c]
+        a1 += x[c + 1]
+        a2 += x[c + 2]
+        a3 += x[c + 3]
+    return (a0 + a1) + (a2 + a3)
 
 
 class EdgeStage(torch.autograd.Function):
