@@ -5,6 +5,7 @@
 #   LABEL=softmax BEFORE=../before JOBS="comat 0,comat 1,mat 0" results/speed/curves.sh   # bf87c29
 #   LABEL=kernels BEFORE=../before JOBS="comat 0,comat 1" results/speed/curves.sh          # 5bf0fb0
 #   LABEL=packed BEFORE=../before JOBS="comat 0,comat 1" results/speed/curves.sh           # 795398a
+#   LABEL=chunks BEFORE=../before JOBS="comat 0,comat 1" results/speed/curves.sh           # 862d76a
 set -u
 : "${BEFORE:?set BEFORE to a worktree of the commit before the change (git worktree add ../before REV)}"
 : "${LABEL:?set LABEL, the name of the change in the csv files}"
