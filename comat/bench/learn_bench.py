@@ -203,19 +203,22 @@ def bench_train(
     }
 
 
-def bench_update(algos, task: str = "pcp", rounds: int = 5, preset: str = "paper", seed: int = 0) -> list[dict]:
+def bench_update(
+    algos, task: str = "pcp", rounds: int = 5, preset: str = "paper", seed: int = 0, env_workers: int = 1
+) -> list[dict]:
     """Seconds of one PPO update of each learner in ``algos`` on ``task`` (unicycle), the learners
     taking turns (see the module docstring): each collects ``rounds`` + 1 rollouts with its untrained
     policy (the same teams for every learner: they are drawn from the seed, not by the policy), then
     in round r every learner updates on its own r-th rollout from the same starting state. A rollout
     is one draw of teams, and COMAT's work grows with the robots per team where MAT pads every team
     to its slots (an HMT rollout of 5.4 robots a team against one of 4.7: COMAT/MAT 1.44 against
-    1.20), so the rounds cover several draws. The first round is not timed (caches, allocator)."""
+    1.20), so the rounds cover several draws. The first round is not timed (caches, allocator).
+    ``env_workers`` collect the rollouts (not timed; closed before the first update)."""
     setups = {}
     for algo in algos:
         if algo == "qmix":
             raise ValueError("bench_update: times the PPO learners' update; qmix has none")
-        config = resolve(load_preset(preset), algo, task, seed=seed, tier="unicycle", env_workers=1)
+        config = resolve(load_preset(preset), algo, task, seed=seed, tier="unicycle", env_workers=env_workers)
         torch.set_num_threads(config.torch_threads)
         torch.manual_seed(seed)
         env = make_run_env(config, config.trainer.num_envs, seed)
@@ -335,7 +338,7 @@ def run_learn_bench(
     ppo = [a for a in algos if a in PPO_LEARNERS]
     for task in tasks if update_rounds > 0 and ppo else ():
         progress(f"  update {', '.join(ppo)} {task}, taking turns ({update_rounds} rounds) ...")
-        update += bench_update(ppo, task, update_rounds)
+        update += bench_update(ppo, task, update_rounds, env_workers=max(workers))
     checks = _checks(decode, train, update)
     result = {
         "benchmark": "learn",
