@@ -16,11 +16,12 @@ Two parts:
   is also timed with ``ppo.overlap`` (the next rollout collected while the update runs): there the
   iteration's wall time is the update plus the wait for the collection beside it (``wait_s``),
   and the environment's and acting's seconds, spent beside the update, are not split.
-* **update**: each PPO learner's update alone on one fixed rollout of its own, the learners taking
-  turns round after round in one process. The training rows above time COMAT and MAT minutes
-  apart, and on a shared VM the machine's speed drifts that much between them (MAT's unchanged
-  update measured 0.84 s and 1.17 s in two runs minutes apart, docs/speed.md); taking turns, both
-  see the same drift, so the median of their ratio is the comparison of the learners themselves.
+* **update**: each PPO learner's update alone on fixed rollouts (one per round, the same teams for
+  every learner), the learners taking turns round after round in one process. The training rows
+  above time COMAT and MAT minutes apart, and on a shared VM the machine's speed drifts that much
+  between them (MAT's unchanged update measured 0.84 s and 1.17 s in two runs minutes apart,
+  docs/speed.md); taking turns, both see the same drift, so the median of their ratio is the
+  comparison of the learners themselves.
 """
 
 from __future__ import annotations
@@ -388,6 +389,6 @@ def run_learn_bench(
         for r in update:
             rounds = " ".join(f"{t:.2f}" for t in r["update_s"])
             progress(f"{r['algo']:<17}{r['task']:>5}{r['torch_threads']:>8}{r['median_s']:>19.3f}  {rounds}")
-        progress("update: one PPO update on a fixed rollout, the learners taking turns in each round.")
+        progress("update: one PPO update on that round's rollout, the learners taking turns in each round.")
 
     return finish(result, checks, out, progress)

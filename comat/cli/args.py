@@ -60,6 +60,7 @@ __all__ = [
     "add_teams",
     "add_tier",
     "comat_version",
+    "int_at_least",
     "parse_team",
     "parse_teams",
     "reality_arg",
@@ -75,6 +76,22 @@ DEFAULT_SEED = 2_000_003
 """Default ``--seed`` of episodes a command plays (comat.eval.evaluate.EVAL_SEED)."""
 DEFAULT_TEAMS = "both"
 TEAM_SETS = (*COALITION_SETS, "both", "all")
+
+
+def int_at_least(minimum: int):
+    """An argparse ``type``: a whole number ``>= minimum``, else a usage error naming the value."""
+    wanted = "a positive integer" if minimum == 1 else f"a whole number {minimum} or more"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {wanted}, got {text!r}")
+        return value
+
+    return parse
 
 
 class _Deprecated(argparse.Action):

@@ -11,23 +11,13 @@ import time
 
 from comat.bench.safety_bench import DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
 from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES
-from comat.cli.args import TASKS, TIERS
+from comat.cli.args import TASKS, TIERS, int_at_least
 from comat.cli.rollout import add_viz_bench_parser
 from comat.config import LOOPS
 from comat.reality.config import REALITY_LEVELS
 from comat.team import COALITION_SETS
 
 __all__ = ["add_bench_parser"]
-
-
-def _non_negative(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number 0 or more, got {text!r}")
-    return value
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -205,11 +195,12 @@ def add_bench_parser(sub) -> None:
     )
     b.add_argument(
         "--update-rounds",
-        type=_non_negative,
+        type=int_at_least(0),
         default=5,
-        help="timed rounds of each PPO learner's update alone on a fixed rollout, the learners taking "
-        "turns in each round, so that a drift of the machine's speed touches them alike; the check "
-        "of COMAT's update against MAT's reads them; 0: skip (default: %(default)s)",
+        help="timed rounds of each PPO learner's update alone, each round on a rollout of its own (the "
+        "same teams for every learner), the learners taking turns, so that a drift of the machine's "
+        "speed touches them alike; the check of COMAT's update against MAT's reads them; 0: skip "
+        "(default: %(default)s)",
     )
     b.add_argument(
         "--tasks",

@@ -16,19 +16,12 @@ import argparse
 import sys
 import time
 
+from comat.cli.args import int_at_least
 from comat.viz.viewer import viewer_hint
 
 __all__ = ["add_rollout_parser", "add_viz_bench_parser", "cmd_rollout", "cmd_viz_bench"]
 
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+_positive_int = int_at_least(1)
 
 
 def cmd_rollout(args: argparse.Namespace) -> int:

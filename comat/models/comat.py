@@ -78,12 +78,12 @@ from comat.models.packing import PackedTeams, pack, split_teams
 __all__ = ["PAPER_FORM", "VALUE_CHUNK_EDGES", "Comat", "ComatConfig"]
 
 VALUE_CHUNK_EDGES = 20_000
-"""Edges of one packed pass of :meth:`Comat.values`, about: a PPO update's value passes score a
-whole rollout (a PCP rollout about 72,000 edges), and in one pass every per-edge tensor is a fresh
-allocation of tens of MB whose pages must be faulted in again (with glibc's mmap and trim
-thresholds raised, the one pass takes 35 ms instead of 48). In passes of about a minibatch's edges
-a PCP rollout's values took 35 ms against 48 (2 threads, medians of 10 alternating). Each team's
-values are its own, so they equal the one pass's within float rounding."""
+"""Edges of one packed pass of :meth:`Comat.values`, about. A PPO update's value passes score a
+whole rollout (PCP: about 72,000 edges); in one pass every per-edge tensor is a fresh allocation
+of tens of MB. In passes of about a minibatch's edges a PCP rollout's values took 35 ms against 48
+(2 threads, medians of 10, alternating), as did the one pass with glibc's mmap and trim thresholds
+raised: the cost was the allocations. Each team's values are its own, so the passes equal the one
+pass within float rounding."""
 
 
 PAPER_FORM = {
