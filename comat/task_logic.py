@@ -439,6 +439,19 @@ class TaskLogic:
         """Episode-level counts (B,) read from the state when an episode ends."""
         return {}
 
+    # -- coordination: how well the team shares its work out (beside progress in eval and Rerun) --
+    coordination_name = ""
+    """The task's coordination metric in a few words for tables and recordings (e.g. "goals open,
+    robots idle"); "" for a task without one."""
+    coordination_doc = ""
+    """One sentence for eval's footer: what :meth:`coordination` measures, its unit, which way is better."""
+
+    def coordination(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray):
+        """(B,) the coordination metric of every env now, after a step's update (true poses
+        (B, N, 3)); None for a task without one. An episode's ``coordination`` is its mean over the
+        episode's env steps."""
+        return None
+
     # -- export: what a reset drew at random (PCP: the prey), so the Robotarium runs the same episode --
     def layout(self, state: dict, b: int) -> dict[str, list]:
         """Env ``b``'s random layout as plain lists (JSON); {} for a task whose reset draws nothing."""

@@ -147,14 +147,15 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     assert "comat" in out and "heuristic" in out and "constant" in out and "random" in out and "±" in out
     result = read_results(tmp_path / "run" / "evaluation_unicycle.json")
     rows = {r["policy"]: r for r in result["rows"]}
-    assert set(rows) == {"comat", "heuristic", "constant", "random"} and all(r["set"] == "test" for r in rows.values())
+    assert set(rows) == {"comat", "heuristic", "type_only", "blind", "constant", "random"}
+    assert all(r["set"] == "test" for r in rows.values())
     assert all(r["episodes"] == 20 for r in rows.values())  # the 20 unseen coalitions, one episode each
     # the table's numbers are the per-episode metrics' means
     for r in rows.values():
         assert r["metrics"]["return"]["mean"] == pytest.approx(np.mean([e["return"] for e in r["per_episode"]]))
     assert rows["heuristic"]["metrics"]["finished"]["mean"] > rows["random"]["metrics"]["finished"]["mean"]
     csv_text = (tmp_path / "run" / "evaluation_unicycle.csv").read_text().splitlines()
-    assert csv_text[0] == "policy,task,set,tier,episodes,metric,mean,ci95" and len(csv_text) == 1 + 4 * len(REPORTED)
+    assert csv_text[0] == "policy,task,set,tier,episodes,metric,mean,ci95" and len(csv_text) == 1 + 6 * len(REPORTED)
     # the constant row is every robot always taking the task's best constant action (+x on PCP)
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions

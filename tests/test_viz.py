@@ -355,7 +355,8 @@ def test_policy_task_mismatch_and_unknown_policy_fail_before_anything_runs(tmp_p
         record_episodes(out, "pcp", ckpt)
     with pytest.raises(
         ValueError,
-        match=r"policy must be one of \('heuristic', 'random', 'constant'\) or a checkpoint file, got 'greedy'",
+        match=r"policy must be one of \('heuristic', 'type_only', 'blind', 'constant', 'random', 'scripted'\) or a "
+        r"checkpoint file, got 'greedy'",
     ):
         record_episodes(out, "pcp", "greedy")
     with pytest.raises(ValueError, match="episodes must be a positive integer, got 0"):

@@ -5,9 +5,10 @@ Shared flags, defined here once so their spelling, choices (in one order) and de
 ===================  =========================================================================
 ``--policy P``       a policy file (``policy.pt``), a checkpoint file, a run folder (its
                      ``checkpoint.pt``, else its ``policy.pt``), or a reference policy:
-                     ``heuristic`` (scripted, reads the task state), ``random``, ``constant``
-                     (every robot always the task's best single action); ``probe`` needs a
-                     checkpoint
+                     a rung of the reference ladder: ``heuristic`` (or ``scripted``: reads the
+                     task state), ``type_only`` (the same planner knowing types, not capabilities),
+                     ``blind`` (neither), ``constant`` (every robot always the task's best single
+                     action), ``random``; ``probe`` needs a checkpoint
 ``--task T``         ``pcp`` or ``hmt``; inferred from a checkpoint or policy file (a different
                      ``--task`` is an error); needed with a reference policy
 ``--team TEAM``      one team: ``SET:K`` (coalition K of a set below, e.g. ``capability:3``)
@@ -38,7 +39,7 @@ from pathlib import Path
 
 from comat.config import REFERENCE_TIER
 from comat.reality.config import REALITY_LEVELS
-from comat.tasks import task_names
+from comat.tasks import LADDER, RUNG_ALIASES, task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
@@ -71,7 +72,8 @@ TASKS = task_names()
 """Task choices, in this order in every command (the registered tasks, :mod:`comat.tasks`)."""
 TIERS = ("wheels", "unicycle")
 ALGOS = ("comat", "mat", "mappo", "qmix", "ippo", "cash")
-REFERENCE_POLICIES = ("heuristic", "random", "constant")
+REFERENCE_POLICIES = (*LADDER, *RUNG_ALIASES)
+"""The reference ladder's rungs (:mod:`comat.envs.heuristics`) and their other names."""
 DEFAULT_SEED = 2_000_003
 """Default ``--seed`` of episodes a command plays (comat.eval.evaluate.EVAL_SEED)."""
 DEFAULT_TEAMS = "both"
@@ -319,7 +321,7 @@ def resolve_policy_arg(
             )
         if task is None:
             raise ValueError(f"--task is needed with --policy {policy} (a reference policy has no task of its own)")
-        return PolicyArg(policy, task)
+        return PolicyArg(RUNG_ALIASES.get(policy, policy), task)
     path = Path(policy)
     if not path.exists() and not policy.startswith("pretrained:"):  # comat.rl.policy.PRETRAINED: policy_file_of
         refs = f", or one of {', '.join(references)}" if references else ""

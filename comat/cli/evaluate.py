@@ -212,8 +212,9 @@ def add_evaluate_parsers(sub) -> None:
     p = sub.add_parser(
         "eval",
         help="evaluate a policy (and reference policies) on training and unseen coalitions",
-        description="The paper's metrics with 95% confidence intervals for a trained policy, the "
-        "scripted heuristic, the best constant action and a random policy, on the coalition sets "
+        description="The paper's metrics with 95% confidence intervals for a trained policy and the "
+        "reference ladder (the scripted heuristic; type_only, the same planner knowing types but not "
+        "capabilities; blind, knowing neither; the best constant action; random actions), on the coalition sets "
         "(U_train, U_val, U_test, U_scale, U_size, U_cap) or teams of your own: a table on screen, "
         "evaluation_<tier>.json (the summary), .episodes.json.gz (per-episode detail) and .csv in --out (default: "
         "the checkpoint's run folder; runs/pretrained-NAME for a shipped policy); at --reality nominal or stress, "
@@ -238,7 +239,7 @@ def add_evaluate_parsers(sub) -> None:
         "shipped_legacy: comat's shipped filter); another loop writes evaluation_<tier>[_<level>]_<loop> "
         "(default: %(default)s)",
     )
-    p.add_argument("--no-references", action="store_true", help="skip the heuristic, constant and random rows")
+    p.add_argument("--no-references", action="store_true", help="skip the reference ladder's rows (a reference --policy: only its own)")
     p.add_argument(
         "--out",
         default=None,

@@ -33,7 +33,7 @@ import numpy as np
 
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
-from comat.envs.heuristics import blind_actions, has_blind, heuristic_actions, random_actions
+from comat.envs.heuristics import LADDER, RUNG_ALIASES, has_blind, reference_policy
 from comat.files import detail_name, relative_path, write_atomic, write_json_detail
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
@@ -59,24 +59,21 @@ EVAL_SEED = 2_000_003
 SETS = COALITION_SETS
 
 
-def _policies(config, checkpoint_act, env, seed: int) -> dict[str, Callable]:
-
-    rng = np.random.default_rng(seed)
+def _policies(config, checkpoint_act, env, seed: int, split: str, teams) -> dict[str, Callable]:
+    """The checkpoint's policy (when given) and every rung of the reference ladder on ``env``."""
     out = {}
     if checkpoint_act is not None:
         out[config.algo] = checkpoint_act
-    out["heuristic"] = lambda obs, mask, state: heuristic_actions(env.core)
-    if has_blind(env.task):
-        out["blind"] = lambda obs, mask, state: blind_actions(env.core)
-    constant = env.task.best_constant_action
-    out["constant"] = lambda obs, mask, state: np.where(mask, constant, 0)
-    out["random"] = lambda obs, mask, state: random_actions(rng, mask)
+    ours = {"split": split, "teams": None} if split in SETS else {"split": None, "teams": teams}
+    for name in REFERENCES:
+        if name != "blind" or has_blind(env.task):
+            out[name] = reference_policy(name, env.core, seed, **ours)
     return out
 
 
-REFERENCES = ("heuristic", "blind", "constant", "random")
-"""Reference rows, in table order ("blind": the capability-blind scripted policy, where the task
-has one)."""
+REFERENCES = LADDER
+"""Reference rows, in table order: the ladder (:mod:`comat.envs.heuristics`): heuristic (the scripted
+rung), type_only, blind (where the task has one), constant, random."""
 
 
 def evaluate_policies(
@@ -100,7 +97,8 @@ def evaluate_policies(
             its rows carry ``"set": name``).
         episodes: episodes per coalition (>= 1).
         tier: dynamics tier (default: the checkpoint's training tier, else unicycle).
-        references: add the heuristic, constant and random rows (True), none (False), or those named.
+        references: add every rung of the reference ladder (True: heuristic, type_only, blind,
+            constant, random), none (False), or those named (``scripted`` for the heuristic).
         reality: the reality layer every policy plays at: ``"off"`` (default, whatever the
             checkpoint trained at), ``"nominal"``, ``"stress"``, a RealityConfig or a mapping of
             its fields (:func:`comat.reality.resolve_reality`).
@@ -115,7 +113,7 @@ def evaluate_policies(
     bad = [s for s in sets if not (s in SETS or (isinstance(s, tuple) and len(s) == 2 and s[1]))]
     if bad or not sets:
         raise ValueError(f"sets must be a non-empty list of {list(SETS)} or (name, teams) pairs, got {sets!r:.200}")
-    refs = REFERENCES if references is True else tuple(references or ())
+    refs = REFERENCES if references is True else tuple(RUNG_ALIASES.get(r, r) for r in references or ())
     if any(r not in REFERENCES for r in refs):
         raise ValueError(f"references must be True, False or names from {REFERENCES}, got {references!r}")
     layer = resolve_reality(reality, "reality")
@@ -157,7 +155,7 @@ def evaluate_policies(
             reality=layer,
             safety=safety,
         )
-        policies = _policies(config, act, env, seed)
+        policies = _policies(config, act, env, seed, split, coalitions)
         policies = {k: v for k, v in policies.items() if k not in REFERENCES or k in refs}
         for name, policy in policies.items():
             t0 = time.perf_counter()

@@ -37,6 +37,8 @@ from comat.tasks.sensors import SensorNetwork
 
 __all__ = [
     "COALITION_SETS",
+    "LADDER",
+    "RUNG_ALIASES",
     "TASKS",
     "Band",
     "TaskEntry",
@@ -51,6 +53,13 @@ __all__ = [
 
 COALITION_SETS = ("train", "val", "test", "scale", "size", "capability")
 """The named composition sets, in the order commands list them (:mod:`comat.team`)."""
+
+LADDER = ("heuristic", "type_only", "blind", "constant", "random")
+"""Every task's reference ladder, most informed first (:mod:`comat.envs.heuristics` runs it): the
+scripted planner (``heuristic``), the same planner knowing types but not capabilities
+(``type_only``), the planner with neither (``blind``), the best constant action, random actions."""
+RUNG_ALIASES = {"scripted": "heuristic"}
+"""Other names of a rung (the ladder's word for the heuristic)."""
 
 _BANDS_FROM = {"val": "train", "size": "train", "scale": "test"}
 """U_val and U_size draw from the training bands, U_scale from the test ones; a task states the

@@ -204,6 +204,13 @@ class MaterialTransport(TaskLogic):
         empty_target = np.where((prefer2 | (has2 & ~has1))[..., None], zone2, zone1)
         return np.where(loaded[..., None], drop, empty_target), loaded | has1 | has2
 
+    def blind_scripted_actions(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """The scripted policy without types or capabilities: not knowing which robots are fast,
+        every empty robot follows one rule — the near zone 1 while it has material, then zone 2 —
+        and a loaded one the drop-off."""
+        target, ok = self.scripted_targets(state, poses[..., :2], np.ones_like(type_ids))
+        return self.drive(state, poses, caps, mask, target, ok)
+
     state_amount_scale = 160.0
     """Material units per 1.0 in :meth:`global_features`: eight robots' loads at the payload
     scale (8 × 20). Raw amounts reach ~155; centralized critics and QMIX's mixer take the state

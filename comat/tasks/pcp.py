@@ -304,6 +304,16 @@ class PredatorCapturePrey(TaskLogic):
         ok = np.where(sensing[..., 0], ok_sense | ok_any, ok_capture | ok_any)
         return target, ok
 
+    def blind_scripted_actions(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """The scripted policy without types or radii: a robot that does not know whether it senses
+        or captures heads for the nearest prey not captured yet, sensed or not (the plan's fallback
+        for either role)."""
+        centres = poses[..., :2]
+        B, N = mask.shape
+        open_prey = np.broadcast_to((~state["captured"])[:, None], (B, N, state["prey"].shape[1]))
+        target, ok = nearest(centres, state["prey"], open_prey)
+        return self.drive(state, poses, caps, mask, target, ok)
+
     def global_features(self, state: dict) -> np.ndarray:
         """(B, 4 K_max) prey positions, sensed and captured flags of every slot (inactive slots:
         parked, sensed and captured; K_max = 6 for teams of up to 8 robots, as before the rule)."""

@@ -32,7 +32,7 @@ import rerun as rr
 from comat.config import REFERENCE_TIER
 from comat.envs import make_env
 from comat.envs.base import resolve_coalitions
-from comat.envs.heuristics import heuristic_actions, random_actions
+from comat.envs.heuristics import LADDER, RUNG_ALIASES, reference_policy
 from comat.rl.algos import policy_act, robot_slots
 from comat.rl.config import RunConfig
 from comat.rl.policy import load_policy, shipped_name
@@ -55,8 +55,9 @@ __all__ = [
     "resolve_policy",
 ]
 
-POLICY_NAMES = ("heuristic", "random", "constant")
-"""Built-in policies; any other ``--policy`` value is a checkpoint path."""
+POLICY_NAMES = (*LADDER, *RUNG_ALIASES)
+"""Built-in policies (the reference ladder, :mod:`comat.envs.heuristics`); any other ``--policy`` value is a
+checkpoint path. The type_only rung believes U_train's type means here (a rollout's team may come from any set)."""
 TASKS = task_names()
 
 Act = Callable[[np.ndarray, np.ndarray, "np.ndarray | None"], np.ndarray]
@@ -107,23 +108,9 @@ class RolloutResult:
         return self.bytes / max(self.robot_steps, 1)
 
 
-def _heuristic(env, seed: int) -> Act:
-    core = env.core
-    return lambda obs, mask, state: heuristic_actions(core)
-
-
-def _random(env, seed: int) -> Act:
-    rng = np.random.default_rng(seed)
-    return lambda obs, mask, state: random_actions(rng, mask)
-
-
-def _constant(env, seed: int) -> Act:
-    action = env.task.best_constant_action
-    return lambda obs, mask, state: np.where(mask, action, 0)
-
-
 def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
-    """A :class:`PolicySpec` from ``"heuristic"``, ``"random"``, ``"constant"``, a checkpoint path or a callable.
+    """A :class:`PolicySpec` from a rung of the reference ladder (``"heuristic"``, ``"type_only"``, ``"blind"``,
+    ``"constant"``, ``"random"``), a checkpoint path or a callable.
 
     Raises:
         ValueError: an unknown name that is no file either, or a checkpoint for another task
@@ -135,15 +122,12 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         return PolicySpec(getattr(policy, "__name__", "policy"), lambda env, seed: policy)
     if not isinstance(policy, (str, Path)):
         raise TypeError(
-            "policy must be 'heuristic', 'random', 'constant', a checkpoint path or a callable, "
+            f"policy must be one of {POLICY_NAMES}, a checkpoint path or a callable, "
             f"got {type(policy).__name__}"
         )
-    if str(policy) == "heuristic":
-        return PolicySpec("heuristic", _heuristic)
-    if str(policy) == "random":
-        return PolicySpec("random", _random)
-    if str(policy) == "constant":
-        return PolicySpec("constant", _constant)
+    if str(policy) in POLICY_NAMES:
+        name = RUNG_ALIASES.get(str(policy), str(policy))
+        return PolicySpec(name, lambda env, seed: reference_policy(name, env.core, seed))
     if not Path(policy).is_file():
         why = "a folder; expected a checkpoint.pt file" if Path(policy).is_dir() else "no such file"
         raise ValueError(f"policy must be one of {POLICY_NAMES} or a checkpoint file, got {str(policy)!r} ({why})")
