@@ -9,7 +9,8 @@ Commands, by the module that declares and runs them:
 * :mod:`comat.cli.replay`: ``replay`` (a run's log beside its simulated twin);
 * :mod:`comat.cli.calibrate`: ``calibrate`` (fit the reality layer to calibration logs);
 * :mod:`comat.cli.bench`: ``bench`` (sim, env, learn, soak, fidelity, safety, viz);
-* here: ``demo`` (:mod:`comat.cli.demo`), ``mjcf`` (the golden MJCF files), ``coalitions``, ``tasks``.
+* :mod:`comat.cli.tasks`: ``tasks`` (the registered tasks), ``validity`` (the reference ladder and the families);
+* here: ``demo`` (:mod:`comat.cli.demo`), ``mjcf`` (the golden MJCF files), ``coalitions``.
 
 Handlers import the floors they need when they run: ``comat --help`` loads neither torch nor Rerun.
 """
@@ -27,8 +28,10 @@ from comat.cli.evaluate import add_evaluate_parsers
 from comat.cli.export import add_export_parser
 from comat.cli.replay import add_replay_parser
 from comat.cli.rollout import add_rollout_parser
+from comat.cli.tasks import add_tasks_parsers
 from comat.cli.train import add_train_parsers
 from comat.machine import RunRegistry, set_thread_waiting
+from comat.tasks import plugin_error
 from comat.team import COALITION_SETS, COALITIONS_DIR
 
 __all__ = ["build_parser", "main"]
@@ -80,33 +83,6 @@ def _cmd_coalitions(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_tasks(args: argparse.Namespace) -> int:
-    from comat.envs.registry import env_ids, make_task
-    from comat.tasks import task_entry
-    from comat.team import CAPABILITY_RANGES, SIZES, TASK_TYPES
-
-    for env_id in env_ids():
-        task, _ = make_task(env_id, {})
-        kinds = TASK_TYPES[task.name]
-        print(
-            f"{task.name} ({env_id}): {task_entry(task.name).title}; {task.horizon} steps of "
-            f"{task.ticks_per_step} ticks an episode; teams of up to {task.max_team_size()} robots "
-            f"(the sets: {min(min(v) for v in SIZES.values())} to {max(max(v) for v in SIZES.values())})"
-        )
-        names = ", ".join(f"{c} [{lo:g}, {hi:g}]" for c, (lo, hi) in zip(kinds.capabilities, kinds.limits))
-        print(f"  capabilities (physical limits): {names}")
-        train = CAPABILITY_RANGES[(task.name, "train")]
-        for t, kind in enumerate(kinds.types):
-            ranges = ", ".join(
-                f"{c} {'/'.join(f'{lo:g}-{hi:g}' for lo, hi in bands)}"
-                for c, bands in zip(kinds.capabilities, train[kind])
-                if any(hi > 0 for _, hi in bands)
-            )
-            optional = " (optional: a team may have none)" if kind in kinds.optional else ""
-            print(f"  type {t} {kind!r}{optional}: U_train draws {ranges}")
-    return 0
-
-
 def _cmd_demo(args: argparse.Namespace) -> int:
     from comat.cli.demo import run_demo
 
@@ -140,13 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_mjcf)
 
-    p = sub.add_parser(
-        "tasks",
-        help="list the tasks: robot types, capability names and limits, team sizes",
-        description="Every registered task: its env id, episode length, the team sizes it takes, its "
-        "robot types and capability names with their physical limits and U_train's ranges.",
-    )
-    p.set_defaults(func=_cmd_tasks)
+    add_tasks_parsers(sub)
 
     p = sub.add_parser(
         "coalitions",
@@ -203,6 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``comat`` console script."""
+    broken = plugin_error()  # a bad COMAT_TASKS entry: one line, before --help or any command
+    if broken:
+        print(f"comat: error: {broken}", file=sys.stderr)
+        return 2
     args = build_parser().parse_args(argv)  # before torch loads, as _single_thread must be
     # A training announces itself before it looks for others (the runner registers it fully
     # later), so two runs started together see each other and neither spins (comat/machine.py).
