@@ -11,6 +11,7 @@ robots; poses (B, N, 3); capabilities (B, N, C); type ids (B, N).
 
 from __future__ import annotations
 
+from abc import ABCMeta, abstractmethod
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -20,6 +21,7 @@ __all__ = [
     "ACTIONS",
     "ACTION_NAMES",
     "ARENA",
+    "REQUIRED_HOOKS",
     "Area",
     "Bar",
     "Items",
@@ -242,14 +244,33 @@ class Marks:
     legend: tuple[tuple[str, RGB], ...] = field(default=())
 
 
-class TaskLogic:
+REQUIRED_HOOKS = (
+    "new_state",
+    "reset_env",
+    "update",
+    "done",
+    "progress",
+    "step_lengths",
+    "task_features",
+    "global_features",
+    "scripted_actions or scripted_targets",
+    "blind_scripted_actions",
+)
+"""What every task implements (:meth:`TaskLogic.missing_hooks`; registration refuses a class that
+lacks one). The scripted planner is either hook: the base's ``scripted_actions`` drives every robot
+to the target ``scripted_targets`` gives it. Every other hook has a default."""
+
+
+class TaskLogic(metaclass=ABCMeta):
     """The base of every task's logic (``comat/tasks/*.py``): class attributes say what the task is
     (``name``, ``types``, ``capabilities``, ``horizon``, ``ticks_per_step``, ``spawn_box``,
-    ``reward_terms`` / ``reward_weights``, ``type_colors``); a task implements ``new_state``,
-    ``reset_env``, ``update``, ``done``, ``progress``, ``step_lengths``, ``task_features``,
-    ``global_features`` and ``scripted_targets``, and draws itself through the hooks ``areas``,
-    ``items``, ``rings``, ``bar``, ``counters`` (all optional). ``layout`` / ``set_layout`` carry
-    what a reset drew at random into an export."""
+    ``reward_terms`` / ``reward_weights``, ``type_colors``); a task implements the hooks of
+    :data:`REQUIRED_HOOKS` (``new_state``, ``reset_env``, ``update``, ``done``, ``progress``,
+    ``step_lengths``, ``task_features``, ``global_features``, the scripted planner
+    ``scripted_actions`` or ``scripted_targets``, and its blind twin ``blind_scripted_actions``),
+    and draws itself through the hooks ``areas``, ``items``, ``rings``, ``bar``, ``counters`` (all
+    optional). ``layout`` / ``set_layout`` carry what a reset drew at random into an export.
+    :func:`comat.tasks.check_task` runs a class through this contract."""
 
     name = ""
     version = 0
@@ -269,6 +290,62 @@ class TaskLogic:
     spawn_spacing = 0.3
     n_task_features = 0
     reward_terms: tuple[str, ...] = ()
+
+    @classmethod
+    def missing_hooks(cls) -> list[str]:
+        """The required hooks (:data:`REQUIRED_HOOKS`) this class does not implement, in that order."""
+        abstract = getattr(cls, "__abstractmethods__", frozenset())
+        no_planner = (
+            cls.scripted_actions is TaskLogic.scripted_actions and cls.scripted_targets is TaskLogic.scripted_targets
+        )
+        return [
+            hook
+            for hook in REQUIRED_HOOKS
+            if hook in abstract or (hook == "scripted_actions or scripted_targets" and no_planner)
+        ]
+
+    # -- the required hooks: state, dynamics, observations (arrays batched over B envs, N slots) --
+    @abstractmethod
+    def new_state(self, B: int, N: int) -> dict:
+        """The task state of B environments with N robot slots each: a dict of arrays (B, ...)."""
+
+    @abstractmethod
+    def reset_env(self, state: dict, b: int, rng: np.random.Generator, caps: np.ndarray) -> None:
+        """Start env ``b``'s episode in ``state`` for its team's capabilities (n, C), drawing only from
+        ``rng`` (with ``reset_uses_starts``, a fifth argument: the team's start poses (n, 3))."""
+
+    @abstractmethod
+    def update(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray) -> dict:
+        """One env step of the task's rules at the robots' true poses (B, N, 3): the raw value (B,) of
+        every reward term but ``time`` and ``violation`` (the env counts those), by name."""
+
+    @abstractmethod
+    def done(self, state: dict) -> np.ndarray:
+        """(B,) bool: the task is finished in each env."""
+
+    @abstractmethod
+    def progress(self, state: dict) -> np.ndarray:
+        """(B,) the share of the task done in each env, in [0, 1]."""
+
+    @abstractmethod
+    def step_lengths(self, caps: np.ndarray) -> np.ndarray:
+        """(B, N) each robot's waypoint step, m, from its capabilities (B, N, C)."""
+
+    @abstractmethod
+    def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """(B, N, n_task_features) what each robot observes of the task (the tail of :meth:`observe`)."""
+
+    @abstractmethod
+    def global_features(self, state: dict) -> np.ndarray:
+        """(B, G) the task's part of the centralized state (critics that read the state)."""
+
+    @abstractmethod
+    def blind_scripted_actions(
+        self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray
+    ) -> np.ndarray:
+        """Actions (B, N) of the ladder's blind rung: the scripted plan made without the robots'
+        types and capabilities (each task says how its plan reads without them; their motion, the
+        waypoint step, stays theirs)."""
 
     def obs_size(self) -> int:
         return 4 + len(self.types) + len(self.capabilities) + self.n_task_features
@@ -333,17 +410,15 @@ class TaskLogic:
         )
         return obs * mask[..., None]
 
-    def task_features(self, state, poses, type_ids, caps, mask) -> np.ndarray:
-        raise NotImplementedError
-
     def step_lengths_at(self, caps: np.ndarray, poses: np.ndarray, state: dict) -> np.ndarray:
         """Waypoint step (B, N), m, of robots at ``poses`` (B, N, 3) now: :meth:`step_lengths`, unless a
         task's ground changes how far a robot gets (Arctic transport's ice and water)."""
         return self.step_lengths(caps)
 
     def scripted_targets(self, state: dict, centres: np.ndarray, type_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The scripted policy's target per robot (B, N, 2) and whether it has one (B, N)."""
-        raise NotImplementedError
+        """The scripted policy's target per robot (B, N, 2) and whether it has one (B, N); a task whose
+        planner overrides :meth:`scripted_actions` instead need not have it."""
+        raise NotImplementedError(f"{type(self).__name__} has no scripted_targets (its scripted_actions plans)")
 
     def scripted_actions(
         self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray

@@ -1,6 +1,7 @@
 """docs/write-a-task.md, run as written (issue 49): its task module registered through COMAT_TASKS,
 listed, trained for a few steps, evaluated, recorded, exported and checked under the PyPI rps."""
 
+import functools
 import os
 import re
 import subprocess
@@ -10,7 +11,7 @@ from pathlib import Path
 import pytest
 from test_policy_file import TINY_CLI
 
-from comat.tasks import load_plugins
+from comat.tasks import check_task, load_plugins
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "write-a-task.md"
 TINY = TINY_CLI  # a 20-step run with a small COMAT (test_policy_file.py)
@@ -21,6 +22,20 @@ def _module() -> str:
     blocks = re.findall(r"```python\n(.*?)```", PAGE.read_text(), flags=re.DOTALL)
     assert blocks and blocks[0].startswith("# gather_example.py"), "the page's first python block is the module"
     return blocks[0]
+
+
+@functools.cache
+def page_task() -> type:
+    """The page's task class (``Gather``), its module run as ``gather_example``."""
+    space = {"__name__": "gather_example"}
+    exec(compile(_module(), "gather_example.py", "exec"), space)  # noqa: S102 - the page's own code
+    return space["Gather"]
+
+
+def test_the_page_s_task_keeps_the_contract():
+    means = check_task(page_task())
+    # a crawler the type's mean speed sends far but too slow for it, or that the blind plan sends far, arrives nowhere
+    assert means["heuristic"] > means["type_only"] and means["heuristic"] > means["blind"] > means["random"]
 
 
 def _comat(args, folder: Path, check=True) -> subprocess.CompletedProcess:
@@ -56,7 +71,9 @@ def test_the_page_s_task_is_listed_and_runs_through_every_command(folder):
 
 
 def test_a_bad_entry_is_named():
-    with pytest.raises(ValueError, match="COMAT_TASKS / comat.tasks entry 'no_such_module:Task'"):
+    with pytest.raises(
+        ValueError, match="^COMAT_TASKS entry 'no_such_module:Task': module 'no_such_module' did not import"
+    ):
         load_plugins("no_such_module:Task")
     with pytest.raises(ValueError, match="expected module:Class"):
         load_plugins("just_a_module")

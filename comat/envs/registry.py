@@ -15,7 +15,7 @@ from typing import Any
 from comat.envs.base import TaskEnv
 from comat.envs.options import EnvOptions
 from comat.envs.vector import VectorEnv
-from comat.tasks import TASKS, TaskEntry
+from comat.tasks import TASKS, TaskEntry, plugin_error
 
 __all__ = ["check_options", "env_class", "env_ids", "make_env", "make_local_vec_env", "make_task"]
 
@@ -44,13 +44,17 @@ def _new_class(entry: TaskEntry) -> type[TaskEnv]:
 
 
 def env_class(env_id: str) -> type[TaskEnv]:
-    """The PettingZoo env class of a registered task's ``env_id`` (made once, on first use)."""
+    """The PettingZoo env class of a registered task's ``env_id`` (made once, on first use); a task's
+    bare name (``"navigation"``) is its current env id."""
+    if env_id in TASKS:
+        env_id = TASKS[env_id].env_id
     if env_id not in _CLASSES:
         entry = next((e for e in TASKS.values() if e.env_id == env_id), None)
         if entry is None:
-            now = TASKS.get(env_id.rsplit("_v", 1)[0])
+            now = TASKS.get(env_id.rsplit("_v", 1)[0]) if isinstance(env_id, str) else None
             hint = f" ({now.name}'s rules changed: it is {now.env_id} now)" if now is not None else ""
-            raise ValueError(f"env_id must be one of {env_ids()}, got {env_id!r}{hint}")
+            broken = f" ({plugin_error()})" if plugin_error() else ""
+            raise ValueError(f"env_id must be one of {env_ids()} or a task's name, got {env_id!r}{hint}{broken}")
         _CLASSES[env_id] = _new_class(entry)
     return _CLASSES[env_id]
 
@@ -74,7 +78,8 @@ def check_options(env_id: str, options: dict[str, Any], extra: tuple[str, ...] =
 
 
 def make_env(env_id: str, **options: Any) -> TaskEnv:
-    """A PettingZoo parallel environment: ``"pcp_v0"`` or ``"hmt_v0"`` (options: see TaskEnv)."""
+    """A PettingZoo parallel environment: ``"pcp_v0"``, ``"hmt_v0"``, … or a task's name for its current
+    version (``"navigation"``; options: see TaskEnv)."""
     check_options(env_id, options)
     return _env_class(env_id)(**options)
 

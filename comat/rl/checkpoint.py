@@ -43,7 +43,7 @@ import torch
 
 from comat._version import __version__
 from comat.models.comat import PAPER_FORM
-from comat.tasks import TASKS, env_id
+from comat.tasks import TASKS, env_id, not_registered
 
 __all__ = [
     "POLICY_FORMAT",
@@ -310,6 +310,8 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
         if want is not None and data.get(key) != want:
             raise CheckpointError(f"{noun} {str(path)!r} is for {key} {data.get(key)!r}, expected {want!r}")
     made_for = data.get("env_id", f"{data.get('task')}_v0")  # files older than task versions: v0
+    if isinstance(data.get("task"), str) and data["task"] not in TASKS:  # a plug-in task's, read without it
+        raise CheckpointError(f"{noun} {str(path)!r} was trained on {made_for}, but {not_registered(data['task'])}")
     if data.get("task") in TASKS and made_for != env_id(data["task"]):
         raise CheckpointError(
             f"{noun} {str(path)!r} was trained on {made_for}, but this comat has {env_id(data['task'])} "

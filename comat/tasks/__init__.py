@@ -28,6 +28,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 
+from comat.task_logic import TaskLogic
 from comat.tasks.arctic import ArcticTransport
 from comat.tasks.forage import LevelForaging
 from comat.tasks.hmt import HMT
@@ -43,8 +44,10 @@ __all__ = [
     "Band",
     "TaskEntry",
     "TaskTypes",
+    "check_task",
     "env_id",
     "load_plugins",
+    "plugin_error",
     "register_task",
     "task_entry",
     "task_from_logic",
@@ -120,8 +123,24 @@ TASKS: dict[str, TaskEntry] = {}
 """name -> entry, in registration order."""
 
 
+def check_hooks(logic: type) -> None:
+    """ValueError naming the task, the class and the required hooks (:data:`comat.task_logic.REQUIRED_HOOKS`)
+    that ``logic`` lacks, or saying it is not a TaskLogic class."""
+    name = getattr(logic, "name", None)
+    if not (isinstance(logic, type) and issubclass(logic, TaskLogic)):
+        raise TypeError(f"task {name!r}: its logic must be a class built on comat.task_logic.TaskLogic, got {logic!r}")
+    missing = logic.missing_hooks()
+    if missing:
+        raise ValueError(
+            f"task {name!r}: class {logic.__name__} lacks the required hook(s) {', '.join(missing)} "
+            "(comat.task_logic.REQUIRED_HOOKS; docs/write-a-task.md)"
+        )
+
+
 def register_task(entry: TaskEntry) -> TaskEntry:
-    """Add ``entry``; a name or env id that is taken, or a logic class of another name, is refused."""
+    """Add ``entry``; a logic class that lacks a required hook (:func:`check_hooks`), a name or env id
+    that is taken, or a logic class of another name, is refused."""
+    check_hooks(entry.logic)
     if entry.name in TASKS or any(e.env_id == entry.env_id for e in TASKS.values()):
         raise ValueError(f"task {entry.name!r} ({entry.env_id}) is registered already")
     if getattr(entry.logic, "name", None) != entry.name:
@@ -145,7 +164,7 @@ def task_names() -> tuple[str, ...]:
 def task_entry(name: str) -> TaskEntry:
     """The entry of task ``name``; ValueError naming the registered ones otherwise."""
     if name not in TASKS:
-        raise ValueError(f"task must be one of {list(TASKS)}, got {name!r}")
+        raise ValueError(f"task must be one of {list(TASKS)}, got {name!r}{_plugin_hint()}")
     return TASKS[name]
 
 
@@ -159,7 +178,13 @@ def task_from_logic(logic: type, title: str) -> TaskEntry:
     """Register the task whose logic class states its composition sets (module docstring): its env
     id is ``<name>_v<version>`` (the class's ``version``: 0 until a rule changes). ``set_streams``
     is the first of six consecutive streams (in :data:`COALITION_SETS` order) or a mapping set ->
-    stream."""
+    stream. A class that lacks a required hook is refused (:func:`check_hooks`)."""
+    return register_task(entry_of(logic, title))
+
+
+def entry_of(logic: type, title: str) -> TaskEntry:
+    """The entry :func:`task_from_logic` registers for ``logic``, checked but not registered."""
+    check_hooks(logic)
     name = logic.name
     types = TaskTypes(
         tuple(logic.types),
@@ -203,7 +228,7 @@ def task_from_logic(logic: type, title: str) -> TaskEntry:
             f"task {name!r}: set_streams must give every set {list(COALITION_SETS)}, got {sorted(streams)}"
         )
     version = int(getattr(logic, "version", 0))
-    return register_task(TaskEntry(name, f"{name}_v{version}", title, logic, types, bands, streams))
+    return TaskEntry(name, f"{name}_v{version}", title, logic, types, bands, streams)
 
 
 task_from_logic(PCP, "Predator Capture Prey")
@@ -218,27 +243,72 @@ def load_plugins(spec: str | None = None) -> list[str]:
     """Register the tasks named by ``spec`` (default: the :data:`PLUGIN_ENV` variable) and by the
     ``comat.tasks`` entry points: each a task-logic class that states its composition sets (see
     :func:`task_from_logic`; its title is its ``title`` attribute or its class name). Returns the
-    names registered; a bad entry raises ValueError naming it."""
+    names registered; after registering every entry that loads, one ValueError line names each
+    entry that did not, and why."""
     spec = os.environ.get(PLUGIN_ENV, "") if spec is None else spec
-    found = [(s.strip(), None) for s in spec.split(",") if s.strip()]
-    found += [(ep.value, ep) for ep in entry_points(group="comat.tasks")]
-    names = []
-    for target, ep in found:
+    found = [(f"{PLUGIN_ENV} entry {s.strip()!r}", s.strip(), None) for s in spec.split(",") if s.strip()]
+    found += [
+        (f"entry point {ep.name!r} = {ep.value!r} (group comat.tasks)", ep.value, ep)
+        for ep in entry_points(group="comat.tasks")
+    ]
+    names, failed = [], []
+    for where, target, ep in found:
         try:
-            if ep is not None:
-                cls = ep.load()
-            else:
-                module, _, attr = target.partition(":")
-                if not module or not attr:
-                    raise ValueError("expected module:Class")
-                cls = getattr(importlib.import_module(module), attr)
-        except (ImportError, AttributeError, ValueError) as err:
-            raise ValueError(f"{PLUGIN_ENV} / comat.tasks entry {target!r}: {err}") from err
-        if getattr(cls, "name", "") in TASKS and TASKS[cls.name].logic is cls:
+            cls = _plugin_class(target, ep)
+            if getattr(cls, "name", "") in TASKS and TASKS[cls.name].logic is cls:
+                continue
+            task_from_logic(cls, getattr(cls, "title", "") or cls.__name__)
+        except (ValueError, TypeError) as err:
+            failed.append(f"{where}: {err}")
             continue
-        task_from_logic(cls, getattr(cls, "title", "") or cls.__name__)
         names.append(cls.name)
+    if failed:
+        raise ValueError("; ".join(failed))
     return names
 
 
-load_plugins()
+def _plugin_class(target: str, ep) -> type:
+    """The class a ``module:Class`` entry (or entry point ``ep``) names; ValueError (one line) saying
+    why not: the module would not import (and what it raised) or lacks the class."""
+    module, _, attr = target.partition(":")
+    if not module or not attr:
+        raise ValueError("expected module:Class")
+    try:
+        found = importlib.import_module(module)
+    except Exception as err:  # whatever the module raises, said in one line
+        why = err.msg if isinstance(err, ModuleNotFoundError) and err.name == module else f"{type(err).__name__}: {err}"
+        raise ValueError(f"module {module!r} did not import ({' '.join(str(why).split())})") from err
+    try:
+        return ep.load() if ep is not None else getattr(found, attr)
+    except AttributeError as err:
+        raise ValueError(f"module {module!r} has no {attr!r}") from err
+
+
+def plugin_error() -> str | None:
+    """Why a plug-in task named by :data:`PLUGIN_ENV` or an entry point did not register when this
+    module was imported (one line; None: every one did). Commands print it and stop (exit 2); a
+    name asked for that is not registered is told it."""
+    return _PLUGIN_ERROR
+
+
+def _plugin_hint() -> str:
+    return f" ({_PLUGIN_ERROR})" if _PLUGIN_ERROR else ""
+
+
+def not_registered(name: str) -> str:
+    """What to say of a task ``name`` that is not registered here (a run or file of a plug-in task
+    read without it): how to register it."""
+    return (
+        f"task {name!r} is not registered here (registered: {', '.join(TASKS)}): register its task class "
+        f"with {PLUGIN_ENV}=module:Class (the module on PYTHONPATH) or a comat.tasks entry point, as "
+        f"when it was trained (docs/write-a-task.md){_plugin_hint()}"
+    )
+
+
+from comat.tasks.contract import check_task  # it builds on the registration above
+
+try:  # a bad plug-in entry must not stop `import comat.tasks`: it is said where a task is asked for
+    load_plugins()
+    _PLUGIN_ERROR: str | None = None
+except ValueError as _err:
+    _PLUGIN_ERROR = str(_err)
