@@ -1,12 +1,16 @@
 """A task is a contract (issue 64): required hooks refused at registration, comat.tasks.check_task on
 every registered task and on broken ones (each message), a bad COMAT_TASKS in one line, a plug-in
-task's run read without it, and a task's bare name as its current env id."""
+task's run read without it, a task's bare name as its current env id, and every task's spec sheet on
+the docs site."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -251,3 +255,16 @@ def test_a_task_s_bare_name_is_its_current_env_id():
     assert vec.task.name == "pcp"
     with pytest.raises(ValueError, match=r"env_id must be one of \(.*\) or a task's name, got 'nosuch'$"):
         comat.make_env("nosuch")
+
+
+# -- the docs site -----------------------------------------------------------------------------------
+def test_the_tasks_page_shows_every_registered_task_s_spec_sheet():
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("spec_sheets", root / "docs" / "_hooks" / "spec_sheets.py")
+    hook = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hook)
+    page = (root / "docs" / "tasks.md").read_text()
+    assert hook.MARKER in page and "docs/_hooks/spec_sheets.py" in (root / "mkdocs.yml").read_text()
+    shown = re.findall(r"^::: (\S+)$", hook.on_page_markdown(page), flags=re.MULTILINE)
+    assert shown == [TASKS[name].logic.__module__ for name in task_names()]
+    assert hook.on_page_markdown("no marker") == "no marker"
