@@ -3,6 +3,7 @@ tests/test_report.py; `comat sweep`: tests/test_sweep.py)."""
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -55,9 +56,10 @@ def test_summarize_ci_by_hand():
     ]
     assert [violations(e) for e in eps] == [3.0, 1.0, 0.0, 0.0]
     table = summarize_ci(eps)
-    # rows from before the progress curve (older files) have no AUC or t90: left out, not made up
-    assert list(table) == [m for m in REPORTED if m not in ("progress_auc", "time_to_90")]
-    full = summarize_ci([{**e, "progress_auc": 0.5, "time_to_90": 70.0} for e in eps])
+    # rows from before the progress curve (older files) have no AUC or t90, and none from before the
+    # coordination metric (or of a task without one) has it: left out, not made up
+    assert list(table) == [m for m in REPORTED if m not in ("progress_auc", "time_to_90", "coordination")]
+    full = summarize_ci([{**e, "progress_auc": 0.5, "time_to_90": 70.0, "coordination": 0.25} for e in eps])
     assert list(full) == list(REPORTED) and full["time_to_90"] == {"mean": 70.0, "ci95": 0.0, "n": 4}
     assert table["return"]["mean"] == 25.0 and table["return"]["n"] == 4
     assert table["return"]["ci95"] == pytest.approx(T_975_3 * np.std([10, 20, 30, 40], ddof=1) / 2)
@@ -94,9 +96,10 @@ def test_summarize_ci_averages_within_coalitions_first():
 
 def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     """Two episodes per coalition of a two-team set: rows name their coalition and start, the
-    table shows AUC and t90 with a footnote saying what ± is over, the file round-trips."""
+    table shows AUC, t90 and the task's coordination metric with a footer saying what each means
+    for this task and what ± is over, the file round-trips."""
     from comat.envs.base import resolve_coalitions
-    from comat.eval.evaluate import evaluate_policies, print_table, write_results
+    from comat.eval.evaluate import evaluate_policies, print_table, table_lines, write_results
 
     own = resolve_coalitions("train", "pcp")[:2]
     result = evaluate_policies(
@@ -121,17 +124,31 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
             "robots",
             "by_type",
             "sensed_not_captured",
+            "coordination",
         } <= set(e)
+    assert row["metrics"]["coordination"]["n"] == 2
     lines = []
     print_table(result, out=lines.append)
     head = lines[0].split()
-    assert head[head.index("finished") + 1 : head.index("finished") + 3] == ["AUC", "t90"]
-    assert "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first" in lines[-2]
-    assert lines[-1].startswith(f"start states: drawn from seed {result['seed']}")
+    assert head[head.index("finished") + 1 : head.index("finished") + 4] == ["AUC", "t90", "coord."]
+    footer = lines[2:]
+    assert footer[0] == "progress (pcp) = fraction of the active prey captured"
+    assert footer[2].startswith("coord. = sensed prey waiting: share of the team's prey sensed but not yet captured")
+    assert "reality layer off (comat eval --reality)" in footer
+    assert any(
+        "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first" in x for x in footer
+    )
+    assert footer[-2].startswith(f"start states: drawn from seed {result['seed']}")
     json_path, detail_path, csv_path = write_results(result, tmp_path)
     assert read_results(json_path) == result  # the summary with its per-episode detail put back
     assert detail_path.name == "eval.episodes.json.gz" and '"per_episode":' not in json_path.read_text()
     assert "constant,pcp,two,unicycle,4,progress_auc," in csv_path.read_text()
+    assert "constant,pcp,two,unicycle,4,coordination," in csv_path.read_text()
+    # a file from before the metric: its column says n/a
+    old = {**result, "rows": [{**row, "metrics": {k: v for k, v in row["metrics"].items() if k != "coordination"}}]}
+    old_lines = table_lines(old)
+    cells = re.split(r" {2,}", old_lines[2])
+    assert cells[re.split(r" {2,}", old_lines[0]).index("coord.")] == "n/a"
 
 
 # -- comat eval -------------------------------------------------------------------------------------

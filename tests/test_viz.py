@@ -96,6 +96,7 @@ def record_one(tmp_path, task, policy, team_size=8, seed=3):
         "actions": [],
         "rewards": [],
         "terms": [],
+        "coordination": [],
     }
     info = {}
     while env.agents:
@@ -110,6 +111,7 @@ def record_one(tmp_path, task, policy, team_size=8, seed=3):
         kept["actions"].append(actions)
         kept["rewards"].append(rewards["robot_0"])
         kept["terms"].append([terms[t] for t in core.task.reward_terms])
+        kept["coordination"].append(float(core.coordination_now[0]))
     outcome = recorder.end()
     rec.disconnect()
     assert recorder.cpu_s > 0
@@ -248,6 +250,15 @@ def test_recording_matches_the_env(tmp_path, task, policy):
         payload = team.capability_array()[:, 1]
         fill = (bars[:, :, 1, 0] - bars[:, :, 0, 0]) / (payload * 0.006)
         np.testing.assert_allclose(fill, np.stack([s["load"][:n] for s in kept["state"]]) / payload, atol=1e-4)
+
+    # The task's coordination metric beside its counters: after each step, and the episode's mean so far.
+    coord = temporal["/episode_0/task/coordination"]
+    np.testing.assert_array_equal(coord.column("step").to_numpy(), np.arange(1, T + 1))
+    values = np.stack(column(coord, "Scalars:scalars"))
+    np.testing.assert_allclose(values[:, 0], kept["coordination"])
+    np.testing.assert_allclose(values[-1, 1], kept["episode"]["coordination"])
+    names = static["/episode_0/task/coordination"]["SeriesLines:names"].to_pylist()[0]
+    assert names == [core.task.coordination_name, "episode mean"]
 
     # Metadata: team composition with each robot's type and capabilities, policy and seed.
     meta = static["/episode_0/meta"]

@@ -4,8 +4,9 @@ Per env step and environment: each robot's discrete action sets a waypoint for i
 point (:func:`comat.task_logic.waypoint_goals`); then ``ticks_per_step`` control ticks of
 waypoint controller → safety filter → physics run for all B teams at once
 (:class:`comat.control.SafeTeams`: one physics call per team size and one QP per tick); then
-the task logic (:mod:`comat.task_logic`) updates its state and the named reward terms, and
-the episode record (:mod:`comat.envs.diagnostics`: progress curve, per-robot counts) one step.
+the task logic (:mod:`comat.task_logic`) updates its state and the named reward terms, the
+task's coordination metric is read (where the task has one), and the episode record
+(:mod:`comat.envs.diagnostics`: progress curve, per-robot counts) moves one step.
 
 With a reality layer (``reality=``, :mod:`comat.reality`) the waypoints, the controller, the
 filter and the observations read *measured* poses; the task logic, rewards and metrics read
@@ -31,7 +32,7 @@ from comat.reality import RealityConfig, episode_key, resolve_reality
 from comat.task_logic import waypoint_goals
 from comat.team import TeamSpec
 
-__all__ = ["EPISODE_METRICS", "StepResult", "TaskCore"]
+__all__ = ["COORDINATION", "EPISODE_METRICS", "StepResult", "TaskCore"]
 
 WAYPOINT_GAIN = 4.0
 """Proportional gain (1/s) of the waypoint controller: covers ~90 % of a 0.2 m step in 29 ticks."""
@@ -49,7 +50,10 @@ EPISODE_METRICS = (
     "fallbacks",
     "recoveries",
 )
-"""Per-episode metrics (see :meth:`TaskCore.episode_metrics`)."""
+"""Per-episode metrics of every task (see :meth:`TaskCore.episode_metrics`)."""
+COORDINATION = "coordination"
+"""The episode metric of a task's coordination hook (:meth:`comat.task_logic.TaskLogic.coordination`):
+the mean over the episode's env steps; left out of the episode's metrics for a task without one."""
 
 
 @dataclass
@@ -125,6 +129,11 @@ class TaskCore:
         self.steps = np.zeros(self.B, dtype=np.int64)
         self.stats = _Stats(self.B)
         self.record = EpisodeRecorder(task, self.B, self.N)
+        self.coordination_now: np.ndarray | None = None
+        """(B,) the task's coordination metric after the last env step (true poses); None before
+        the first step and for a task without one (its hook returns None)."""
+        self._coordination_sum = np.zeros(self.B)
+        self._coordination_steps = np.zeros(self.B, dtype=np.int64)
         self.safe: SafeTeams | None = None
         self._flat = np.zeros((self.B, self.N), dtype=np.int64)
 
@@ -191,6 +200,8 @@ class TaskCore:
         self.steps[envs] = 0
         self.stats.zero(envs)
         self.record.zero(envs)
+        self._coordination_sum[envs] = 0.0
+        self._coordination_steps[envs] = 0
         self._last_contact = np.zeros(self.safe.world.layout.n_robots, dtype=bool)
 
     def step(self, actions: np.ndarray) -> StepResult:
@@ -236,6 +247,7 @@ class TaskCore:
         s["steps"] = self.steps.astype(float)
         s["progress"] = task.progress(self.state)
         s["finished"] = terminated.astype(float)
+        self._add_coordination(poses)
         moved = self.padded(np.hypot(*(safe.points - points).T))
         self.record.add(
             before,
@@ -252,6 +264,24 @@ class TaskCore:
             s["progress"],
         )
         return StepResult(rewards, terms, terminated, truncated)
+
+    def _add_coordination(self, poses: np.ndarray) -> None:
+        """Read the task's coordination metric after this step's update (true ``poses`` (B, N, 3))
+        into :attr:`coordination_now` and the episode's running sum; nothing for a task without one."""
+        task = self.task
+        value = task.coordination(self.state, poses, self.type_ids, self.caps, self.mask)
+        if value is None:
+            self.coordination_now = None
+            return
+        value = np.asarray(value, dtype=float)
+        if value.shape != (self.B,) or not np.isfinite(value).all():
+            raise ValueError(
+                f"{type(task).__name__}.coordination must return None or ({self.B},) finite values (one per env), "
+                f"got shape {value.shape}: {value.ravel()[:4]}"
+            )
+        self.coordination_now = value
+        self._coordination_sum += value
+        self._coordination_steps += 1
 
     def _count_tick(self, starts: np.ndarray, events, info, last: np.ndarray, violations: np.ndarray) -> None:
         """Add one tick's events to the episode counters and to this env step's violations (B,);
@@ -279,16 +309,20 @@ class TaskCore:
     def episode_metrics(self, b: int) -> dict[str, float]:
         """The paper's metrics for env b's episode so far.
 
-        return; steps; progress (fraction of prey captured / material delivered); finished
-        (task finished before the horizon); collisions (MuJoCo robot–robot contact onsets,
+        return; steps; progress (the task's share of its work done: its ``progress``); finished
+        (the task done before the horizon: its ``done``); collisions (MuJoCo robot–robot contact onsets,
         summed over robots); robotarium_collisions (pair-ticks with offset centres <= 0.135 m);
         boundary_exits (robot-ticks outside the arena); actuator_errors (ticks with a wheel
         over 12.5 rad/s requested); interventions (ticks the filter changed a command);
         fallbacks (ticks the filter braked: no trusted command, not even a recovery one);
         recoveries (ticks the team was outside the safe set and the filter's softened problem
-        moved it back toward it).
+        moved it back toward it); and, for a task with a coordination hook, :data:`COORDINATION`
+        (its mean over the episode's env steps so far; absent before the first step).
         """
-        return {name: float(v[b]) for name, v in self.stats.values.items()}
+        out = {name: float(v[b]) for name, v in self.stats.values.items()}
+        if self._coordination_steps[b] > 0:
+            out[COORDINATION] = float(self._coordination_sum[b] / self._coordination_steps[b])
+        return out
 
     def episode_detail(self) -> dict:
         """Copies of every environment's current episode record (:mod:`comat.envs.diagnostics`),

@@ -15,7 +15,9 @@ state — PCP's prey free / sensed / captured —, each robot's capability rings
 sensing or capture radius, HMT's step length and payload filled to its load); every robot as a
 disc of its body radius coloured by type, with its heading; its trail; a red ring and the nominal
 (grey) → filtered (red) velocity arrow where the barrier filter changed its command in the last
-step; a red cross where a contact, collision or boundary exit happened.
+step; a red cross where a contact, collision or boundary exit happened. Above it, the caption and
+the task's status line, and at the right, for a task with a coordination metric, its value after
+the last step and its episode mean so far.
 """
 
 from __future__ import annotations
@@ -109,6 +111,11 @@ class FrameState:
     """(n, 3) the poses the robots' script saw (reality layer on), drawn as ghosts; None: off."""
     faulty: np.ndarray | None = None
     """(n,) the robot's motors run at a fault's fraction now (reality layer faults)."""
+    coordination: tuple[float, float] | None = None
+    """The task's coordination metric after the last step and its episode mean so far (drawn at the
+    header's right); None before the first step or for a task without one."""
+    coordination_name: str = "coordination"
+    """What the task calls its coordination metric (its ``coordination_name``)."""
 
 
 def _figure():
@@ -140,6 +147,10 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
     _draw_safety(ax, state)
     fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
     fig.text(0.01, 1 - 26 / h, _status_line(state), ha="left", va="top", fontsize=8, family="monospace")
+    if state.coordination is not None:
+        now, mean = state.coordination
+        text = f"{state.coordination_name} {now:.2f} (episode {mean:.2f})"
+        fig.text(0.99, 1 - 6 / h, text, ha="right", va="top", fontsize=8, family="monospace")
     _draw_legend(ax, state)
     fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
@@ -380,6 +391,10 @@ class EpisodeFrames:
             title=self.title,
             **reality_view(core, b, n),
         )
+        if core.coordination_now is not None and core.steps[b] > 0:
+            mean = core.episode_metrics(b).get("coordination", float(core.coordination_now[b]))
+            state.coordination = (float(core.coordination_now[b]), mean)
+            state.coordination_name = task.coordination_name or "coordination"
         if self._fig is None:
             self._fig = _figure()  # one figure per follower: drawing reuses it
         return draw_frame(state, self._fig)

@@ -8,7 +8,8 @@ Autoreset is *same-step*: when an environment's episode ends, the step that ends
 returns the first observation of its next episode (new team, new start); the finished
 episode's last observation is in ``info["final_obs"]`` (its global state in
 ``info["final_state"]`` when every team fits the state's ``state_robots`` slots), its metrics in
-``info["episode"]`` and its record (:meth:`comat.envs.core.TaskCore.episode_detail`: progress
+``info["episode"]`` (:data:`comat.envs.core.EPISODE_METRICS`, and ``coordination`` for a task with a
+coordination metric) and its record (:meth:`comat.envs.core.TaskCore.episode_detail`: progress
 curve ``episode_curve``, per-robot counts ``episode_robots``, end counts ``episode_end``), all
 valid where ``info["_episode"]`` is True.
 """
@@ -139,11 +140,12 @@ class VectorEnv:
             # The state covers state_robots slots; larger teams (COMAT only) have none.
             fits = not self.core.mask[:, self.core.state_robots :].any()
             final_state = self.core.global_state() if fits else None
+            # Every task's metrics, then the task's own (its coordination metric, where it has one).
             metrics = {name: np.zeros(B) for name in EPISODE_METRICS}
             envs = np.flatnonzero(done)
             for b in envs:
                 for name, value in self.core.episode_metrics(b).items():
-                    metrics[name][b] = value
+                    metrics.setdefault(name, np.zeros(B))[b] = value
             info.update(self.core.episode_detail())
             self.core.reset(envs, [self._draw(b) for b in envs], [self._rngs[b] for b in envs])
             info.update({"episode": metrics, "_episode": done.copy(), "final_obs": final_obs})

@@ -25,11 +25,10 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 import time
 from collections.abc import Callable
 from pathlib import Path
-
-import numpy as np
 
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
@@ -40,7 +39,8 @@ from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
 from comat.reality import resolve_reality
 from comat.rl.algos import BASELINE_ROBOTS, robot_slots
 from comat.rl.policy import load_policy
-from comat.tasks import env_id, task_names
+from comat.task_logic import TaskLogic
+from comat.tasks import env_id, task_entry, task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
@@ -197,6 +197,7 @@ TABLE_NAMES = {
     "finished": "finished",
     "progress_auc": "AUC",
     "time_to_90": "t90",
+    "coordination": "coord.",
     "collisions": "collisions",
     "violations": "violations",
     "interventions": "interv.",
@@ -232,30 +233,74 @@ def table_lines(result: dict) -> list[str]:
     return [head, "-" * len(head), *(line(c) for c in rows)]
 
 
+def _own_sentence(logic: type | None, method: str) -> str:
+    """The first sentence of ``logic``'s own docstring of ``method`` (not a base class's generic
+    one), shape notes such as "(B,)" dropped, lower-cased at its start; "" without one."""
+    fn = getattr(logic, method, None)
+    if fn is None or fn is getattr(TaskLogic, method, None) or not fn.__doc__:
+        return ""
+    text = " ".join(fn.__doc__.split())
+    sentence = re.split(r"(?<=[.!?]) ", text, maxsplit=1)[0].rstrip(".")
+    sentence = re.sub(r" ?\(B(?:, N)?,?\)", "", sentence).strip()
+    # "Fraction ..." -> "fraction ...", an initialism ("HMT ...") kept.
+    return sentence[:1].lower() + sentence[1:] if sentence[1:2].islower() else sentence
+
+
+def task_legend(task: str | None) -> list[str]:
+    """What progress, finished and coord. mean for ``task``, one line each, read from its registered
+    logic class (:func:`comat.tasks.task_entry`): the first sentence of its ``progress`` and ``done``
+    docstrings, its ``coordination_name`` and ``coordination_doc``; general words for a task not
+    registered here (a plugin not loaded) or a docstring it lacks."""
+    try:
+        logic = task_entry(task).logic
+    except ValueError:
+        logic = None
+    progress = _own_sentence(logic, "progress") or "the task's share of its work done"
+    done = _own_sentence(logic, "done")
+    name, doc = getattr(logic, "coordination_name", ""), getattr(logic, "coordination_doc", "")
+    label = task or "the task"
+    finished = "share of episodes done before the horizon" + (f": {done}" if done else "")
+    coord = f"{name}: {doc or 'its mean over the episode'}" if name else f"n/a ({label} has no coordination metric)"
+    return [
+        f"progress ({label}) = {progress}",
+        f'finished = {finished} (the paper\'s "completion")',
+        f"coord. = {coord}",
+    ]
+
+
 def print_table(result: dict, out=print) -> None:
     """The rows as a fixed-width table (:func:`table_lines`), ``mean ± 95 % CI`` (over coalitions);
-    "n/a" for a metric a row lacks (a file written before the metric existed)."""
+    "n/a" for a metric a row lacks (a file written before the metric existed, or a task without a
+    coordination metric). Under it, a few short lines: what the columns mean for the task at hand
+    (:func:`task_legend`), the interval, the reality layer and the start states."""
     lines = table_lines(result)
     out("\n".join(lines[:2]))
     for text in lines[2:]:
         out(text)
     k = result.get("episodes_per_coalition", 1)
-    # Old result files predate the layer (their episodes were all in the ideal world).
-    level = f"reality layer {result['reality']} (comat eval --reality); " if "reality" in result else ""
+    for text in task_legend(result.get("task")):
+        out(text)
     out(
-        f"{level}finished = share of episodes with every prey captured / all material delivered (the paper's "
-        '"completion"); progress = fraction captured / delivered; AUC = mean progress over the horizon\'s env steps '
-        "(the final value held after an early finish); t90 = env steps to 90 % progress (the horizon when never "
-        f"reached); n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each "
-        f"coalition's {k} episode(s) averaged first; [low, high] where a share's interval is cut to [0, 1]; none with "
-        "one coalition), one policy: seed-to-seed spread is not in it"
+        "AUC = mean progress over the horizon's env steps (the last value held after an early finish); "
+        "t90 = env steps to 90 % progress (the horizon if never)"
+    )
+    # Old result files predate the layer (their episodes were all in the ideal world).
+    if "reality" in result:
+        out(f"reality layer {result['reality']} (comat eval --reality)")
+    out(
+        f"n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each coalition's {k} "
+        "episode(s) averaged first)"
+    )
+    out(
+        "  [low, high]: a share's interval cut to [0, 1]; none with one coalition; one policy: seed-to-seed spread "
+        "is not in it"
     )
     if "seed" in result:
         out(
-            f"start states: drawn from seed {result['seed']} (comat eval --seed; the same teams and starts for every "
-            "policy here). The evaluations during training draw theirs from the run's seed + 1,000,003: other start "
-            "states, so other numbers for the same policy."
+            f"start states: drawn from seed {result['seed']} (comat eval --seed), the same teams and starts for every "
+            "policy here;"
         )
+        out("  training's evaluations draw theirs from the run's seed + 1,000,003: other starts, other numbers")
 
 
 def result_files(stem: str) -> list[str]:

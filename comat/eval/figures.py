@@ -62,7 +62,7 @@ TRAIN_SIZES = (3, 5, 7)
 """Team sizes of U_train (paper §III-D)."""
 METRIC_AXES = {
     "return": "episode return (team reward, sum over steps)",
-    "progress": "progress (% of prey captured / material delivered)",
+    "progress": "progress (% of the task's work done)",
 }
 FORMATS = ("png", "pdf")
 

@@ -130,7 +130,8 @@ def generalization_md(
     lines += [
         "",
         (
-            f"Progress: share of prey captured / material delivered (deterministic policy); {method}. "
+            "Progress: the task's share of its work done (PCP: prey captured; HMT: material delivered; "
+            f"deterministic policy); {method}. "
             "Retention: progress on the set / progress on U_train, per seed, then the same t-interval (undefined "
             "for a seed with no U_train progress, which the cell then names)."
         ),
@@ -141,7 +142,7 @@ def generalization_md(
     lines += [
         "",
         (
-            "Finished: share of episodes in which every prey was captured / all material delivered (the paper's "
+            "Finished: share of episodes in which the task was done before the horizon (the paper's "
             f'"completion"); {method}. A binary endpoint: it needs many more seeds than progress to separate '
             "anything, read it as descriptive."
         ),

@@ -178,8 +178,9 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
         "",
         "Training coalitions (U_train), deterministic actions; ours: "
         + method_text("seeds per cell: " + ", ".join(f"{k} {v}" for k, v in seeds.items()), k_text(every))
-        + ". Finished = share of episodes in which every prey was captured / all material delivered (the "
-        "paper's \"completion\"). The paper trains 4 M env steps per run. The paper's "
+        + ". Finished = share of episodes in which the task was done before the horizon (PCP: every prey "
+        'captured; HMT: all material delivered; the paper\'s "completion"). The paper trains 4 M env steps per '
+        "run. The paper's "
         "columns hold only what compares: the finished share, episode steps and collisions. Its returns are "
         "left out: they are on another reward scale (our scripted policy, which finishes every episode, scores "
         "35 on PCP; the paper's COMAT 82.5), so a return next to a return would mislead. Shares' intervals are "

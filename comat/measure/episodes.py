@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from comat.envs.core import EPISODE_METRICS
+from comat.envs.core import COORDINATION, EPISODE_METRICS
 from comat.envs.vector import VectorEnv
 from comat.measure.metrics import curve_endpoints
 from comat.team import TeamSpec
@@ -55,6 +55,8 @@ def robot_rows(team: TeamSpec, counts: dict[str, np.ndarray]) -> tuple[list[dict
 def _row(info: dict, b: int, team: TeamSpec, horizon: int) -> dict:
     """Episode row of env b's episode that ended in this step (see :func:`run_episodes`)."""
     row = {name: float(info["episode"][name][b]) for name in EPISODE_METRICS}
+    if COORDINATION in info["episode"]:  # a task with a coordination metric: its mean over the steps
+        row[COORDINATION] = float(info["episode"][COORDINATION][b])
     row["team_size"] = team.size
     curve = info["episode_curve"][b, : int(row["steps"])]
     row.update(curve_endpoints(curve, horizon))
@@ -75,12 +77,13 @@ def run_episodes(
     """One episode per entry of ``teams``, ``env.num_envs`` at a time; returns their rows, in the
     order of ``teams``.
 
-    A row holds ``EPISODE_METRICS``, ``team_size``; ``coalition`` (i % n_coalitions) and
+    A row holds ``EPISODE_METRICS``, ``coordination`` (the task's coordination metric, mean over the
+    episode's env steps; only for a task that has one), ``team_size``; ``coalition`` (i % n_coalitions) and
     ``episode_in_coalition`` (i // n_coalitions) for ``teams`` = n_coalitions coalitions
     repeated K times (None: every team its own coalition); ``progress_curve`` (progress after
     each env step, :data:`CURVE_DECIMALS`) with its endpoints ``progress_auc``, ``time_to_90``,
-    ``reached_90`` (:func:`comat.measure.metrics.curve_endpoints`); the task's end counts (HMT
-    ``on_board_end``, PCP ``sensed_not_captured``); ``robots`` and ``by_type``
+    ``reached_90`` (:func:`comat.measure.metrics.curve_endpoints`); the task's end counts (its
+    ``end_count_names``: e.g. HMT ``on_board_end``, PCP ``sensed_not_captured``); ``robots`` and ``by_type``
     (:func:`robot_rows`; the counts are the task's ``robot_count_names``).
 
     Chunk k is reset with seed ``seed + k``, so the result depends only on the policy, the

@@ -1,11 +1,13 @@
 """The paper's evaluation metrics over episodes, each with a 95 % confidence interval.
 
-Per episode (``EPISODE_METRICS`` of the env): return, steps, progress (the fraction of prey
-captured / material delivered, 1 when the task is done), finished (1 if every prey was captured /
-all material delivered within the horizon: the paper's Table I "completion"), MuJoCo robot–robot collisions,
-Robotarium-style violations
+Per episode (``EPISODE_METRICS`` of the env): return, steps, progress (the task's share of its
+work done, its ``progress``: PCP the prey captured, HMT the material delivered; 1 when the task
+is done), finished (1 if the task was done within the horizon, its ``done``: the paper's Table I
+"completion"), MuJoCo robot–robot collisions, Robotarium-style violations
 (``robotarium_collisions`` + ``boundary_exits`` + ``actuator_errors``: what the real testbed
-would flag) and safety-filter interventions; from the progress curve (:func:`curve_endpoints`)
+would flag) and safety-filter interventions; the task's coordination metric (``coordination``,
+the mean over the episode's env steps of its ``coordination`` hook: how well the team shares its
+work out; only for a task that has one); from the progress curve (:func:`curve_endpoints`)
 the area under it (``progress_auc``) and the env steps to 90 % progress (``time_to_90``),
 continuous endpoints that still separate policies when progress itself saturates near 100 %.
 
@@ -100,13 +102,16 @@ REPORTED = (
     "finished",
     "progress_auc",
     "time_to_90",
+    "coordination",
     "collisions",
     "violations",
     "interventions",
     "fallbacks",
     "recoveries",
 )
-"""Metrics in evaluation tables, in order."""
+"""Metrics in evaluation tables, in order. ``coordination`` is the task's own (a task without one,
+and rows of files written before it, leave it out: the table prints "n/a"); it is not one of
+:data:`SHARES`, since a task's metric need not be a share."""
 
 PROGRESS_MARK = 0.9
 """Progress whose first crossing ``time_to_90`` times (reached when progress >= 0.9 - 1e-9: the

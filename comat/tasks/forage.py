@@ -176,6 +176,7 @@ class LevelForaging(TaskLogic):
         return {"collected": (state["level"] * lift).sum(axis=1)}
 
     def done(self, state: dict) -> np.ndarray:
+        """Every item of the team collected (B,)."""
         return state["collected"].all(axis=1)
 
     def progress(self, state: dict) -> np.ndarray:
@@ -276,6 +277,20 @@ class LevelForaging(TaskLogic):
 
     def end_counts(self, state: dict) -> dict[str, np.ndarray]:
         return {"items_left": (state["active"] & ~state["collected"]).sum(1).astype(float)}
+
+    # -- coordination ---------------------------------------------------------------------------
+    coordination_name = "robots waiting"
+    coordination_doc = (
+        "share of the robots at an item too heavy for those there (waiting for help), mean over the steps; lower "
+        "is better (0 also when no robot reaches an item)"
+    )
+
+    def coordination(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """(B,) share of the team's robots within reach of an open item. Read after the step's lifts,
+        every item still open lacks level: those robots wait for help (a group formed too weak waits
+        for good). An item lifted with more level than needed is not seen here (it is lifted at once)."""
+        waiting = (self._near(state, poses, mask) & ~state["collected"][:, None, :]).any(axis=-1)
+        return waiting.sum(axis=1) / np.maximum(mask.sum(axis=1), 1)
 
     # -- drawing and export -----------------------------------------------------------------------
     type_colors: ClassVar[dict] = {"heavy": (121, 85, 72), "light": (0, 172, 193)}

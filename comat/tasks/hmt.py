@@ -165,6 +165,7 @@ class MaterialTransport(TaskLogic):
         return {"loaded": loaded.sum(axis=1), "unloaded": unload.sum(axis=1), "unloaded_by_robot": unload}
 
     def done(self, state: dict) -> np.ndarray:
+        """All the material delivered (B,)."""
         return state["delivered"] >= state["initial"].sum(axis=1) * (1.0 - 1e-12)
 
     def progress(self, state: dict) -> np.ndarray:
@@ -229,6 +230,21 @@ class MaterialTransport(TaskLogic):
 
     def end_counts(self, state: dict) -> dict[str, np.ndarray]:
         return {"on_board_end": state["load"].sum(1) / state["initial"].sum(1)}
+
+    # -- coordination ---------------------------------------------------------------------------
+    coordination_name = "payload empty"
+    coordination_doc = (
+        "share of the payload that the material left could fill riding empty, mean over the steps; lower is better "
+        "(trips back to a zone keep it above 0)"
+    )
+
+    def coordination(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """(B,) share of the team's usable payload that is empty now: 1 − carried / usable, usable =
+        min(the team's payload, material left in the zones + carried). 0 once no material is left to
+        load (nobody can carry more); a team that never loads scores 1; lower is better."""
+        carried = (state["load"] * mask).sum(axis=1)
+        usable = np.minimum((caps[..., 1] * mask).sum(axis=1), state["left"].sum(axis=1) + carried)
+        return np.where(usable > 1e-9, 1.0 - carried / np.maximum(usable, 1e-9), 0.0)
 
     # -- drawing ----------------------------------------------------------------------------------
     type_colors: ClassVar[dict] = {"fast": (15, 157, 88), "slow": (142, 68, 173)}

@@ -255,6 +255,7 @@ class PredatorCapturePrey(TaskLogic):
         return {"sensed": new_sensed.sum(axis=1).astype(float), "captured": new_captured.sum(axis=1).astype(float)}
 
     def done(self, state: dict) -> np.ndarray:
+        """Every prey of the team captured (B,)."""
         return state["captured"].all(axis=1)
 
     def progress(self, state: dict) -> np.ndarray:
@@ -346,6 +347,19 @@ class PredatorCapturePrey(TaskLogic):
 
     def end_counts(self, state: dict) -> dict[str, np.ndarray]:
         return {"sensed_not_captured": (state["sensed"] & ~state["captured"]).sum(1).astype(float)}
+
+    # -- coordination ---------------------------------------------------------------------------
+    coordination_name = "sensed prey waiting"
+    coordination_doc = (
+        "share of the team's prey sensed but not yet captured (the hand-off to capture robots lagging), mean over "
+        "the steps; lower is better (0 also when nothing is sensed)"
+    )
+
+    def coordination(self, state, poses, type_ids, caps, mask) -> np.ndarray:
+        """(B,) share of the team's prey sensed but not captured now: prey the sensing robots found that
+        no capture robot has reached yet. Its mean over an episode's steps is the mean time a prey
+        waits between sensed and captured, per prey, in shares of the episode; lower is better."""
+        return self._fraction(state["sensed"] & ~state["captured"], state)
 
     # -- drawing and export -------------------------------------------------------------------
     type_colors: ClassVar[dict] = {"sensing": (66, 133, 244), "capture": (219, 68, 55)}

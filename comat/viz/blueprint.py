@@ -1,8 +1,8 @@
 """The layout a rollout file opens in: one tab per episode.
 
 Each tab: the arena (left, 3/5 of the width) with trails shown from the episode start up to
-the time cursor, and on the right the reward terms, the task progress, the safety counters,
-and a tab pair with the episode's metadata and its event log.
+the time cursor, and on the right the reward terms, the task progress and its coordination
+metric, the safety counters, and a tab pair with the episode's metadata and its event log.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def episode_view(index: int) -> rrb.Horizontal:
     )
     side = rrb.Vertical(
         rrb.TimeSeriesView(origin=f"{p}/reward", name="reward and terms"),
-        rrb.TimeSeriesView(origin=f"{p}/task", name="task progress"),
+        rrb.TimeSeriesView(origin=f"{p}/task", name="task progress and coordination"),
         rrb.TimeSeriesView(origin=f"{p}/safety", name="safety filter and violations"),
         rrb.Tabs(
             rrb.TextDocumentView(origin=f"{p}/meta", name="episode"),

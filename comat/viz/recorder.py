@@ -15,8 +15,8 @@ Per episode::
 to buffers; ``end`` sends every per-step entity in one ``send_columns`` call each, on the
 timelines ``step`` (sequence) and ``sim_time`` (duration, step × ticks × 0.033 s). Row counts
 per entity for an episode of T steps: state entities (robots, prey, task series) T + 1 rows,
-steps 0…T; per-step outcomes (rewards, trails, safety arrows, events markers, safety series)
-T rows, steps 1…T; actions T rows, steps 0…T−1 (the state they were chosen in).
+steps 0…T; per-step outcomes (rewards, trails, safety arrows, events markers, safety series,
+the task's coordination metric) T rows, steps 1…T; actions T rows, steps 0…T−1 (the state they were chosen in).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ import numpy as np
 import rerun as rr
 
 from comat import constants as C
+from comat.envs.core import COORDINATION
 from comat.envs.render import reality_view
 from comat.envs.tap import EVENT_KINDS, StepSummary, TickTap
 from comat.sim.kinematics import projected_points
@@ -138,6 +139,7 @@ class EpisodeRecorder:
         self._action_vec: list[np.ndarray] = []
         self._rewards: list[float] = []
         self._terms: dict[str, list[float]] = {name: [] for name in core.task.reward_terms}
+        self._coordination: list[float] = []
         self._summaries: list[StepSummary] = []
 
     @_when_enabled
@@ -163,6 +165,8 @@ class EpisodeRecorder:
             self._reality.append(reality_view(core, b, n))
         self._task.append(_snapshot(core, b, n))
         self._rewards.append(float(reward))
+        if core.coordination_now is not None:  # a task with a coordination metric
+            self._coordination.append(float(core.coordination_now[b]))
         for name in self._terms:
             self._terms[name].append(float(terms[name]))
 
@@ -230,6 +234,11 @@ class EpisodeRecorder:
             rewards = np.asarray(self._rewards)
             _series(rec, f"{p}/reward/total", after, {"reward": rewards, "return": np.cumsum(rewards)})
             _series(rec, f"{p}/reward/terms", after, {k: np.asarray(v) for k, v in self._terms.items()})
+        if len(self._coordination) == T and T:
+            # Beside the task's counters: the metric after each step and the episode's value so far.
+            now = np.asarray(self._coordination)
+            name = core.task.coordination_name or COORDINATION
+            _series(rec, f"{p}/task/{COORDINATION}", after, {name: now, "episode mean": np.cumsum(now) / steps[1:]})
 
     def _send_reality(self, w: str, states, poses: np.ndarray, every: list[int]) -> None:
         """The reality layer's view: measured poses (grey ghosts), a red line from each true pose to

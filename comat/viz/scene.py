@@ -21,6 +21,7 @@ time. Entity tree of one episode (``E`` = ``episode_<k>``; arena metres, x right
 | ``E/reward/total`` | Scalars ×2 | per step: reward, return so far |
 | ``E/reward/terms`` | Scalars ×terms | per step: each named reward term (task order) |
 | ``E/task/<counters>`` | Scalars | the task's counters (PCP ``prey``: sensed, captured; HMT ``material``: left per zone, carried, delivered) |
+| ``E/task/coordination`` | Scalars ×2 | per step, for a task with a coordination metric: its value after the step (named by the task's ``coordination_name``) and the episode's mean so far (at the last step, the episode's ``coordination``) |
 | ``E/safety/counts`` | Scalars ×7 | per step: interventions, fallbacks, recoveries, collisions, robotarium_collisions, boundary_exits, actuator_errors |
 | ``E/meta`` | TextDocument + AnyValues | static: task, team, policy, seed, tier, outcome |
 """
