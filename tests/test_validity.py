@@ -4,6 +4,7 @@ the page, and the type_only rung it rests on (comat.envs.heuristics)."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -19,7 +20,7 @@ from comat.eval.validity import (
     write_summary,
 )
 from comat.measure.metrics import mean_ci
-from comat.tasks import COALITION_SETS, LADDER
+from comat.tasks import COALITION_SETS, LADDER, task_names
 
 
 def _row(split: str, policy: str, per_coalition: list[float], episodes: int = 2) -> dict:
@@ -124,8 +125,8 @@ def test_type_only_plays_the_planner_with_type_means():
     env = make_vec_env("forage_v0", 4, seed=0, coalitions=teams)
     env.reset(seed=5, teams=teams)
     seen = []
-    env.task.scripted_actions = lambda state, poses, type_ids, caps, mask: seen.append(caps.copy()) or np.zeros(
-        mask.shape, np.int64
+    env.task.scripted_actions = lambda state, poses, type_ids, caps, mask: (
+        seen.append(caps.copy()) or np.zeros(mask.shape, np.int64)
     )
     means = type_mean_capabilities("forage", "capability")
     type_only_actions(env.core, means)
@@ -168,3 +169,51 @@ def _pcp_teams():
     from comat.team import generate_coalitions
 
     return generate_coalitions("pcp", "capability", 3, seed=1)
+
+
+@pytest.mark.parametrize("rung", ["type_only", "blind", "random"])
+def test_rungs_are_deterministic_per_seed(rung):
+    from comat.eval.evaluate import evaluate_policies
+
+    def progress(seed: int) -> list[float]:
+        result = evaluate_policies(
+            None,
+            "forage",
+            [("test", _forage_teams())],
+            1,
+            "unicycle",
+            seed,
+            references=(rung,),
+            progress=lambda m: None,
+        )
+        return [e["progress_curve"] for e in result["rows"][0]["per_episode"]]
+
+    assert progress(3) == progress(3)
+
+
+def _forage_teams():
+    from comat.team import generate_coalitions
+
+    return generate_coalitions("forage", "test", 2, seed=1)
+
+
+@pytest.mark.parametrize("task", task_names())
+def test_eval_type_only_runs_for_every_task(task, tmp_path, capsys):
+    """``comat eval --policy type_only --task T --teams capability`` (the issue's check), on every task."""
+    code = main(
+        [
+            "eval",
+            "--policy",
+            "type_only",
+            "--task",
+            task,
+            "--teams",
+            "capability",
+            "--no-references",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert code == 0
+    table = capsys.readouterr().out
+    assert re.search(r"^type_only +capability +20 ", table, re.M), table
