@@ -109,6 +109,19 @@ def _unseeded_blind(self, state, poses, type_ids, caps, mask):  # not the genera
     return np.where(mask, np.random.default_rng().integers(0, 5, mask.shape), 0)
 
 
+def _state_with_draw(self, B, N):
+    return {**page_task().new_state(self, B, N), "draw": np.zeros(B, np.int64)}
+
+
+def _reset_with_draw(self, state, b, rng, caps):  # a draw the plan reads and layout does not carry
+    page_task().reset_env(self, state, b, rng, caps)
+    state["draw"][b] = rng.integers(1, 5)
+
+
+def _drawn_actions(self, state, poses, type_ids, caps, mask):
+    return np.where(mask, state["draw"][:, None], 0)
+
+
 def _padded_moves(self, state, poses, type_ids, caps, mask):
     return np.ones(mask.shape, np.int64)
 
@@ -155,6 +168,47 @@ def _coordination_per_robot(self, state, poses, type_ids, caps, mask):
         ),
         ({"capability_scale": np.array([0.2, 0.2])}, r"capability_scale must be 1 positive value\(s\)"),
         ({"horizon": 0}, r"horizon must be a positive integer, got 0"),
+        ({"ticks_per_step": 0}, r"ticks_per_step must be a positive integer, got 0"),
+        ({"best_constant_action": 9}, r"best_constant_action must be an action 0-4, got 9"),
+        ({"speed_capability": 3}, r"speed_capability must be None or a capability index 0-0, got 3"),
+        (
+            {"reward_weights": {"near": np.nan, "far": 2.0, "time": -0.05, "violation": -5.0}},
+            r"the reward \(the sum of the weighted terms\) must be finite",
+        ),
+        ({"new_state": lambda self, B, N: [B, N]}, r"new_state must return a dict of arrays, got list \(reset\)"),
+        (
+            {"spawn": lambda self, rng, n: np.zeros((n, 2))},
+            (
+                r"spawn must have shape \(2, 3\), got \(2, 2\) "
+                r"\(rung 'heuristic', env 0 \(2 robots, set 'train'\), reset\)"
+            ),
+        ),
+        ({"layout": lambda self, state, b: [1, 2]}, r"layout must return a dict, got list"),
+        (
+            {"global_features": lambda self, state: np.zeros((4, 2 + int(state["steps"][0] > 1)))},
+            r"global_features' width G changed from 2 to 3 in a batch \(rung 'heuristic', step 2\)",
+        ),
+        ({"step_lengths": lambda self, caps: -caps[..., 0]}, r"step_lengths_at must be >= 0 m"),
+        (
+            {"global_features": lambda self, state: self.progress(state)},
+            r"global_features must be finite with shape \(B, G\) = \(4, G\), got shape \(4,\)",
+        ),
+        (
+            {"scripted_actions": lambda self, state, poses, t, c, mask: np.where(mask, 7, 0)},
+            r"actions must be 0-4 \(stay, \+x, -x, \+y, -y\), got \[7\]",
+        ),
+        (
+            {"scripted_actions": lambda self, state, poses, t, c, mask: np.zeros(mask.shape[0], np.int64)},
+            r"actions must have shape \(B, N\) = \(4, 8\), got \(4,\)",
+        ),
+        (
+            {"coordination": lambda self, state, *a: None if state["steps"][0] < 2 else np.zeros(4)},
+            r"coordination must return None always or a \(B,\) array always",
+        ),
+        (
+            {"new_state": _state_with_draw, "reset_env": _reset_with_draw, "scripted_actions": _drawn_actions},
+            r"the export round trip gives another episode: env \d's scripted actions differ from those of a fresh task",
+        ),
         (
             {"capability_bands": {"train": {}}},
             r"task 'broken': capability_bands must name the sets train, test, capability",

@@ -200,7 +200,6 @@ class _Run:
         if hasattr(task, "reserve"):
             self._hook("reserve", task.reserve, self.state, N)
         self.poses = np.zeros((B, N, 3))
-        self.starts: list[np.ndarray] = [np.zeros((0, 3))] * B
         self.steps = np.zeros(B, np.int64)
         self.episode = np.zeros(B, np.int64)
         self.first_progress = np.zeros(B)
@@ -240,7 +239,6 @@ class _Run:
             self._hook("reset_env", task.reset_env, self.state, b, rng, caps)
         self.poses[b] = 0.0
         self.poses[b, :n] = starts
-        self.starts[b] = starts
         self.steps[b] = 0
         if self.rung == LADDER[0] and self.episode[b] == 0:
             self.twins[b] = self._twin(b, starts)
@@ -294,9 +292,12 @@ class _Run:
                 self._hook("observe", task.observe, self.state, poses, self.type_ids, self.caps, self.mask),
                 (B, N, task.obs_size()),
             )
-            width = np.asarray(self._hook("global_features", task.global_features, self.state))
-            if width.ndim != 2 or width.shape[0] != B or not np.all(np.isfinite(width)):
-                self._fail(f"global_features must be finite with shape (B, G) = ({B}, G), got shape {width.shape}")
+            centre = np.asarray(self._hook("global_features", task.global_features, self.state))
+            if centre.ndim != 2 or centre.shape[0] != B or not np.all(np.isfinite(centre)):
+                self._fail(f"global_features must be finite with shape (B, G) = ({B}, G), got shape {centre.shape}")
+            if self.global_width not in (None, centre.shape[1]):
+                self._fail(f"global_features' width G changed from {self.global_width} to {centre.shape[1]} in a batch")
+            self.global_width = centre.shape[1]
             actions = np.asarray(self._actions(poses))
             self._check_actions(actions)
             step = self._array(
@@ -339,9 +340,8 @@ class _Run:
         if not np.issubdtype(actions.dtype, np.integer):
             self._fail(f"actions must be whole numbers (an integer dtype), got {actions.dtype}")
         if np.any((actions < 0) | (actions > 4)):
-            self._fail(
-                f"actions must be 0-4 (stay, +x, -x, +y, -y), got {sorted(set(actions.ravel().tolist()) - set(range(5)))[:5]}"
-            )
+            bad = sorted(set(actions.ravel().tolist()) - set(range(5)))[:5]
+            self._fail(f"actions must be 0-4 (stay, +x, -x, +y, -y), got {bad}")
         if np.any(actions[~self.mask] != 0):
             self._fail("actions of padded slots must be 0 (stay)")
 
