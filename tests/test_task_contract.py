@@ -185,6 +185,17 @@ def _coordination_per_robot(self, state, poses, type_ids, caps, mask):
         ),
         ({"layout": lambda self, state, b: [1, 2]}, r"layout must return a dict, got list"),
         (
+            {"marks": lambda self, state, b, caps, type_ids: None},
+            r"marks must return comat.task_logic.Marks, got NoneType \(rung 'heuristic', step 0\)",
+        ),
+        (
+            {"counters": lambda self, state, b, n: 1 / 0},
+            (
+                r"marks \(env 0: the drawing hooks areas, items, rings, bar, counters\) \(rung 'heuristic', step 0\) "
+                r"raised ZeroDivisionError: division by zero"
+            ),
+        ),
+        (
             {"global_features": lambda self, state: np.zeros((4, 2 + int(state["steps"][0] > 1)))},
             r"global_features' width G changed from 2 to 3 in a batch \(rung 'heuristic', step 2\)",
         ),

@@ -16,8 +16,8 @@ It checks, in this order:
    in padded slots; the waypoint steps (B, N) finite and >= 0; ``update`` gives a finite (B,) value
    for every task reward term, so that the reward (the sum of the weighted terms, as the env
    reports them) is finite; ``done`` is (B,) bool; ``progress`` (B,) in [0, 1];
-   ``global_features`` (B, G) finite with G fixed over an episode; ``coordination`` None or (B,)
-   finite;
+   ``global_features`` (B, G) finite with G fixed in the batch; ``coordination`` None or (B,)
+   finite; under the scripted planner, what every env draws (``marks``: the drawing hooks) comes out;
 3. determinism: every rung run a second time from the same seed gives the same observations,
    actions, reward terms, progress and done flags, bit for bit;
 4. the export round trip: each env's ``layout``, through JSON, put back with ``set_layout`` (and
@@ -39,7 +39,7 @@ import json
 
 import numpy as np
 
-from comat.task_logic import TaskLogic, waypoint_goals
+from comat.task_logic import Marks, TaskLogic, waypoint_goals
 from comat.tasks import LADDER, entry_of
 
 __all__ = ["CHECK_SETS", "CHECK_SIZES", "TaskCheckError", "check_task"]
@@ -318,6 +318,8 @@ class _Run:
             if np.any(progress < -1e-12) or np.any(progress > 1 + 1e-12):
                 self._fail(f"progress must lie in [0, 1], got {progress.min():g} to {progress.max():g}")
             self._check_coordination()
+            if self.rung == LADDER[0]:
+                self._check_marks()
             self._twins_after(raw, progress, done)
             digest = hashlib.sha256()
             for part in (obs, actions.astype(np.int64), *(terms[t] for t in sorted(terms)), progress, done):
@@ -388,6 +390,21 @@ class _Run:
             self._fail("coordination must return None always or a (B,) array always")
         if value is not None:
             self._array("coordination", value, (self.B,))
+
+    def _check_marks(self) -> None:
+        """What each env draws now (frames, Rerun, the exported figure): it must come out."""
+        for b in range(self.B):
+            n = int(self.mask[b].sum())
+            marks = self._hook(
+                f"marks (env {b}: the drawing hooks areas, items, rings, bar, counters)",
+                self.task.marks,
+                self.state,
+                b,
+                self.caps[b, :n],
+                self.type_ids[b, :n],
+            )
+            if not isinstance(marks, Marks):
+                self._fail(f"marks must return comat.task_logic.Marks, got {type(marks).__name__}")
 
     # -- the export round trip --
     def _twins_before(self, poses: np.ndarray, obs: np.ndarray, actions: np.ndarray) -> None:
