@@ -318,7 +318,7 @@ def test_a_task_s_bare_name_is_its_current_env_id():
     assert env.metadata["name"] == TASKS["navigation"].env_id
     vec = make_local_vec_env("pcp", 2, seed=0)
     assert vec.task.name == "pcp"
-    with pytest.raises(ValueError, match=r"env_id must be one of \(.*\) or a task's name, got 'nosuch'$"):
+    with pytest.raises(ValueError, match=r"env_id must be one of \(.*\), got 'nosuch'$"):
         comat.make_env("nosuch")
 
 

@@ -54,7 +54,7 @@ def env_class(env_id: str) -> type[TaskEnv]:
             now = TASKS.get(env_id.rsplit("_v", 1)[0]) if isinstance(env_id, str) else None
             hint = f" ({now.name}'s rules changed: it is {now.env_id} now)" if now is not None else ""
             broken = f" ({plugin_error()})" if plugin_error() else ""
-            raise ValueError(f"env_id must be one of {env_ids()} or a task's name, got {env_id!r}{hint}{broken}")
+            raise ValueError(f"env_id must be one of {env_ids()}, got {env_id!r}{hint}{broken}")
         _CLASSES[env_id] = _new_class(entry)
     return _CLASSES[env_id]
 
