@@ -235,13 +235,15 @@ class MaterialTransport(TaskLogic):
     coordination_name = "payload empty"
     coordination_doc = (
         "share of the payload that the material left could fill riding empty, mean over the steps; lower is better "
-        "(trips back to a zone keep it above 0)"
+        "(loads held but never delivered keep it low too: read it beside progress)"
     )
 
     def coordination(self, state, poses, type_ids, caps, mask) -> np.ndarray:
         """(B,) share of the team's usable payload that is empty now: 1 − carried / usable, usable =
         min(the team's payload, material left in the zones + carried). 0 once no material is left to
-        load (nobody can carry more); a team that never loads scores 1; lower is better."""
+        load (nobody can carry more); a team that never loads scores 1; lower is better. Loads
+        never delivered keep it low: the constant +x action, whose robots load in zone 2 and stay
+        there, scores below the scripted policy (0.30 against 0.43 on U_cap's design coalitions)."""
         carried = (state["load"] * mask).sum(axis=1)
         usable = np.minimum((caps[..., 1] * mask).sum(axis=1), state["left"].sum(axis=1) + carried)
         return np.where(usable > 1e-9, 1.0 - carried / np.maximum(usable, 1e-9), 0.0)
