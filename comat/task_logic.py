@@ -521,7 +521,9 @@ class TaskLogic(metaclass=ABCMeta):
     coordination_doc = ""
     """One sentence for eval's footer: what :meth:`coordination` measures, its unit, which way is better."""
 
-    def coordination(self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray):
+    def coordination(
+        self, state: dict, poses: np.ndarray, type_ids: np.ndarray, caps: np.ndarray, mask: np.ndarray
+    ) -> np.ndarray | None:
         """(B,) the coordination metric of every env now, after a step's update (true poses
         (B, N, 3)); None for a task without one. An episode's ``coordination`` is its mean over the
         episode's env steps."""

@@ -46,6 +46,8 @@ EXCEPTIONS = {
     ("--episodes", "sweep"): "not given: the recorded sweep's (see the sweep test below)",
     ("--tasks", "sweep"): "not given: the recorded sweep's",
     ("--tier", "sweep"): "not given: the recorded sweep's, else the preset's",
+    ("--seed", "validity"): "the held-out validity seed, never used to design a task",
+    ("--episodes", "validity"): "5 per coalition, as the committed validity page",
 }
 
 

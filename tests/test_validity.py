@@ -216,4 +216,4 @@ def test_eval_type_only_runs_for_every_task(task, tmp_path, capsys):
     )
     assert code == 0
     table = capsys.readouterr().out
-    assert re.search(r"^type_only +capability +20 ", table, re.M), table
+    assert re.search(r"^type_only +capability +20 ", table, re.MULTILINE), table

@@ -239,7 +239,11 @@ def add_evaluate_parsers(sub) -> None:
         "shipped_legacy: comat's shipped filter); another loop writes evaluation_<tier>[_<level>]_<loop> "
         "(default: %(default)s)",
     )
-    p.add_argument("--no-references", action="store_true", help="skip the reference ladder's rows (a reference --policy: only its own)")
+    p.add_argument(
+        "--no-references",
+        action="store_true",
+        help="skip the reference ladder's rows (a reference --policy: only its own)",
+    )
     p.add_argument(
         "--out",
         default=None,

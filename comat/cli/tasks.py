@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from comat.cli.args import TASKS, TIERS, add_force, int_at_least
+from comat.config import REFERENCE_TIER
 
 __all__ = ["add_tasks_parsers", "recorded_families"]
 
@@ -72,19 +73,17 @@ def _cmd_validity(args: argparse.Namespace) -> int:
     from comat.eval.validity import collect, run_validity, write_summary
     from comat.files import write_atomic
 
-    out = Path(args.out)
+    out, tier = Path(args.out), args.tier or REFERENCE_TIER
     if args.summary_only:
-        data = write_summary(out, collect(out, args.tier), args.tier)
+        data = write_summary(out, collect(out, tier), tier)
     else:
-        tasks = args.tasks or list(TASKS)
+        tasks = list(args.tasks)
         folders = [out / "validity" / t for t in tasks]
         taken = [str(f) for f in folders if f.exists() and any(f.iterdir())]
         if taken and not args.force:
             raise ValueError(f"--out already holds validity results for {taken}; --force replaces them")
         out.mkdir(parents=True, exist_ok=True)
-        data = run_validity(
-            tasks, out, args.episodes, args.seed, args.tier, progress=lambda m: print(m, file=sys.stderr)
-        )
+        data = run_validity(tasks, out, args.episodes, args.seed, tier, progress=lambda m: print(m, file=sys.stderr))
     for name, s in data["tasks"].items():
         fam = s["families"]
         print(f"{name}: capability {'yes' if fam['capability'][0] else 'no'} ({fam['capability'][1]})")
@@ -120,17 +119,17 @@ def add_tasks_parsers(sub) -> None:
         "lower bound > 5; size: scripted >= 90 %% and scripted − blind >= 10 on U_size and U_scale). About 5 "
         "minutes a task on one core at 5 episodes per coalition.",
     )
-    p.add_argument("--tasks", nargs="+", choices=TASKS, default=None, help="tasks (default: every registered one)")
-    p.add_argument(
-        "--episodes", type=int_at_least(1), default=5, help="episodes per coalition (default: %(default)s)"
-    )
+    p.add_argument("--tasks", nargs="+", choices=TASKS, default=TASKS, help="tasks (default: every registered one)")
+    p.add_argument("--episodes", type=int_at_least(1), default=5, help="episodes per coalition (default: %(default)s)")
     p.add_argument(
         "--seed",
         type=int,
         default=VALIDITY_SEED,
         help="evaluation seed (default: %(default)s, held out: never used to design a task)",
     )
-    p.add_argument("--tier", choices=TIERS, default="unicycle", help="dynamics tier (default: %(default)s)")
+    p.add_argument(
+        "--tier", choices=TIERS, default=None, help=f"dynamics tier (default: {REFERENCE_TIER}, the references' tier)"
+    )
     p.add_argument("--out", default="results/sets", help="output folder (default: %(default)s)")
     p.add_argument(
         "--summary-only",

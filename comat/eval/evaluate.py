@@ -179,6 +179,7 @@ def evaluate_policies(
         "trained_tier": None if config is None else config.tier,
         "trained_reality": None if config is None else config.reality.label,
         "task": task,
+        "env_id": env_id(task),
         "tier": tier,
         "seed": seed,
         "episodes_per_coalition": episodes,
