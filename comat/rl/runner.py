@@ -48,7 +48,9 @@ Recorder = Callable[[RunConfig, dict, Path, int], tuple[Path, str]]
 """``record(config, modules, out, env_steps) -> (path, how to view it)``: records evaluation episodes
 of the modules being trained (:func:`comat.viz.record_training`)."""
 """Evaluation episodes use seed ``run seed + EVAL_SEED_OFFSET`` (never a training seed)."""
-_SUMMARY_KEYS = ("return", "steps", "progress", "finished", "collisions", "interventions", "fallbacks")
+_SUMMARY_KEYS = ("return", "steps", "progress", "finished", "coordination", "collisions", "interventions", "fallbacks")
+"""Episode metrics logged per update in progress.csv and TensorBoard (a task without a coordination
+metric logs NaN there; a run resumed from an older progress.csv keeps its own columns)."""
 
 
 def _write_config(
