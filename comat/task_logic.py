@@ -278,6 +278,10 @@ class TaskLogic(metaclass=ABCMeta):
     rewarded or counted, the ground, the sets' ranges) is a new version."""
     title = ""
     """For people: "Predator Capture Prey" (default: the class name)."""
+    meant_for: tuple[str, ...] = ()
+    """The questions the task is designed to ask (its spec sheet says why): ``"capability"`` (do
+    capabilities beyond the type decide?) and/or ``"size"`` (unseen team sizes); ``comat validity``
+    measures which it can (:mod:`comat.eval.validity`)."""
     types: tuple[str, ...] = ()
     capabilities: tuple[str, ...] = ()
     capability_scale = np.ones(2)

@@ -28,7 +28,7 @@ import numpy as np
 
 from comat.files import write_atomic
 from comat.measure.metrics import mean_ci, read_results
-from comat.tasks import COALITION_SETS, LADDER, env_id, task_entry
+from comat.tasks import COALITION_SETS, LADDER, TASKS, env_id, task_entry
 
 __all__ = [
     "CAPABILITY_GAP",
@@ -89,8 +89,10 @@ def summarize_task(result: dict) -> dict:
     pooled U_size ∪ U_scale; and the two family verdicts with their reasons."""
     rows = {(r["set"], r["policy"]): _coalition_progress(r) for r in result["rows"]}
     sets = [s for s in COALITION_SETS if (s, "heuristic") in rows]
+    logic = TASKS[result["task"]].logic if result["task"] in TASKS else None
     out: dict = {
         "task": result["task"],
+        "meant_for": list(getattr(logic, "meant_for", ())),
         "env_id": result.get("env_id", ""),
         "seed": result["seed"],
         "episodes": result["episodes_per_coalition"],
@@ -243,13 +245,14 @@ def validity_markdown(data: dict) -> str:
             "composition costs progress there."
         ),
         "",
-        "| task | env id | capability family | size family |",
-        "|---|---|---|---|",
+        "| task | env id | meant for | capability family | size family |",
+        "|---|---|---|---|---|",
     ]
     for name, s in tasks.items():
         fam = s["families"]
         lines.append(
-            f"| {name} | {s.get('env_id') or '?'} | {'**yes**' if fam['capability'][0] else 'no'}: "
+            f"| {name} | {s.get('env_id') or '?'} | {', '.join(s.get('meant_for', ())) or '—'} | "
+            f"{'**yes**' if fam['capability'][0] else 'no'}: "
             f"{fam['capability'][1]} | {'**yes**' if fam['size'][0] else 'no'}: {fam['size'][1]} |"
         )
     cap = sum(s["families"]["capability"][0] for s in tasks.values())
@@ -271,11 +274,19 @@ def validity_markdown(data: dict) -> str:
                 _cell(e[k]) if k in e else "—" for k in ("scripted_minus_type_only", "scripted_minus_blind")
             )
             lines.append(f"| {SET_LABELS[split]} | {rungs} | {gaps} |")
+        same = [e["scripted_minus_type_only"] for e in s["sets"].values() if "scripted_minus_type_only" in e]
+        if same and all(g["low"] == g["high"] == 0 for g in same):
+            note = (
+                "type_only plays exactly as scripted on every set: the scripted planner reads no capability, so "
+                "this ladder cannot show what capabilities decide here (the task may still reward them)."
+            )
+        else:
+            note = ""
         pooled = s.get("size_pooled")
         if pooled:
             lines.append(
                 f"| U_size ∪ U_scale | {pooled['heuristic']:.1f} | — | {pooled['blind']:.1f} | — | — | — | "
                 f"{_cell(pooled['scripted_minus_blind'])} |"
             )
-        lines.append("")
+        lines += ["", note, ""] if note else [""]
     return "\n".join(lines)

@@ -73,6 +73,8 @@ class LevelForaging(TaskLogic):
     (B, K), collected (B, K), active (B, K); inactive slots are parked and collected."""
 
     name = "forage"
+    meant_for = ("capability", "size")
+    """Continuous levels decide which groups can lift an item; teams 2-20 (:mod:`comat.eval.validity`)."""
     types = ("heavy", "light")
     capabilities = ("level", "speed_m")
     capability_scale = np.array([5.0, 0.2])

@@ -90,6 +90,9 @@ class MaterialTransport(TaskLogic):
     """
 
     name = "hmt"
+    meant_for = ("capability", "size")
+    """The paper's question (unseen capabilities and team sizes; :mod:`comat.eval.validity` measures which
+    its references can ask)."""
     types = ("fast", "slow")
     capabilities = ("speed_m", "payload")
     capability_scale = np.array([0.5, 20.0])

@@ -98,6 +98,9 @@ class PredatorCapturePrey(TaskLogic):
     """
 
     name = "pcp"
+    meant_for = ("capability", "size")
+    """The paper's question (unseen capabilities and team sizes; :mod:`comat.eval.validity` measures which
+    its references can ask)."""
     types = ("sensing", "capture")
     capabilities = ("sensing_radius_m", "capture_radius_m")
     capability_scale = np.array([0.5, 0.5])
