@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from abc import ABCMeta, abstractmethod
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import ClassVar, Tuple  # noqa: UP035 (the Robotarium imports this file on Python 3.8)
 
 import numpy as np
 
@@ -38,7 +38,7 @@ __all__ = [
     "waypoint_goals",
 ]
 
-RGB = tuple[int, int, int]
+RGB = Tuple[int, int, int]  # noqa: UP006 (tuple[int, int, int] run at import fails on Python 3.8, where exports run)
 
 ARENA = (-1.6, 1.6, -1.0, 1.0)
 """Robotarium arena (x_min, x_max, y_min, y_max), m; equal to comat.constants.ARENA_BOUNDS_M."""

@@ -1,6 +1,6 @@
 """The tasks: one module per task (``pcp.py``, ``hmt.py``, ``forage.py``, ``navigation.py``,
-``sensors.py``, ``arctic.py``) and the one list of registered tasks that every command, composition set,
-benchmark, sweep and export reads.
+``sensors.py``, ``arctic.py``, ``warehouse.py``) and the one list of registered tasks that every
+command, composition set, benchmark, sweep and export reads.
 
 A task's module holds everything that is its own, in numpy only (an export ships it): its spec
 sheet (the module docstring), robot types and capabilities, reset, the dynamics of its objects,
@@ -35,6 +35,7 @@ from comat.tasks.hmt import HMT
 from comat.tasks.navigation import Navigation
 from comat.tasks.pcp import PCP
 from comat.tasks.sensors import SensorNetwork
+from comat.tasks.warehouse import Warehouse
 
 __all__ = [
     "COALITION_SETS",
@@ -237,6 +238,7 @@ task_from_logic(LevelForaging, "Level-Based Foraging")
 task_from_logic(Navigation, "Navigation")
 task_from_logic(SensorNetwork, SensorNetwork.title)
 task_from_logic(ArcticTransport, ArcticTransport.title)
+task_from_logic(Warehouse, Warehouse.title)
 
 
 def load_plugins(spec: str | None = None) -> list[str]:
