@@ -141,7 +141,7 @@ class Warehouse(TaskLogic):
     """Where the scripted references send a robot with nothing to do (deep in the zone, out of the way)."""
     reach_m = 0.14
     """A robot lifts an item whose shelf is within this of its centre (less than half the shelves'
-    0.35 m spacing: one shelf at a time)."""
+    0.3 m spacing: one shelf at a time)."""
     stop_fraction = 0.5
     """Stopping at a shelf: the robot's centre moved less than this fraction of its step in the env step."""
     weight_fraction = (0.85, 1.0)
