@@ -160,8 +160,8 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
 
 def _draw_legend(ax, s: FrameState) -> None:
     """What the marks mean, in a strip along the arena's bottom wall: the robot types present, then
-    the task's marks (item states, capability rings, the bar), the filter's ring and, under the
-    reality layer, the measured-pose ghost."""
+    the task's marks (item states, capability rings, the bar, any other entry of its legend, e.g. the
+    kinds of its areas), the filter's ring and, under the reality layer, the measured-pose ghost."""
     from matplotlib.lines import Line2D
 
     def dot(color, label, marker="o", size=7, fill=True, ls="none"):
@@ -184,6 +184,8 @@ def _draw_legend(ax, s: FrameState) -> None:
     items += [dot(_rgb(r.color), r.label, size=9, fill=False) for r in m.rings]
     if m.bar is not None:
         items.append(dot(_rgb(BAR_FILL), m.bar.label, marker="s", size=6))
+    shown = {h.get_label() for h in items}  # the task's other legend entries (Arctic's ground kinds): squares
+    items += [dot(_rgb(c), label, marker="s", size=7) for label, c in m.legend if label not in shown]
     items.append(dot("red", "red ring: filter changed the command", size=9, fill=False))
     if s.measured is not None:
         items.append(Line2D([], [], color="#404040", ls="--", label="dashed: measured pose"))
