@@ -9,7 +9,8 @@ Rungs, from most to least informed (:data:`LADDER`; ``comat eval --policy RUNG``
 * ``type_only`` — the same planner given every robot's *type* but not its capabilities: each robot's
   capabilities replaced by its type's mean over the set's ranges (:func:`type_mean_capabilities`).
   What the scripted rung gains over it is what continuous capabilities decide beyond the type.
-  It does not adapt (a robot it believes strong enough keeps trying), as the scripted rung does not.
+  It learns only what the task's planner learns from what robots measure (a failed lift, a
+  cluster seen short: warehouse, sensors), never the capabilities themselves.
 * ``blind`` — the task's ``blind_scripted_actions``: the planner with neither types nor
   capabilities (each task says how its plan reads without them).
 * ``constant`` — every robot always the task's ``best_constant_action``.
