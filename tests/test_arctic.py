@@ -254,8 +254,14 @@ def test_layout_round_trips_and_the_ground_is_drawn_and_named_in_the_legend():
     hidden = [a for a in marks.areas if a.label == "?"]
     assert len(hidden) == int((~core.state["seen"][0][:, list(task.field_cols)]).sum())
     legend = dict(marks.legend)
-    assert {"ice", "water", "snow"} <= set(legend) and legend["ice"] != legend["water"]
+    assert {"ground: ice", "ground: water", "ground: snow"} <= set(legend)
+    assert legend["ground: ice"] != legend["ground: water"]
     assert env.render().shape == (448, 640, 3)
+    # the video's legend and the recording's list them beside the robot types "ice" and "water"
+    from comat.viz.scene import legend_items
+
+    labels = [label for label, _ in legend_items(task, [r.type for r in env.team.robots], False, marks)]
+    assert {"ice", "water", "ground: ice", "ground: water", "ground: snow"} <= set(labels)
 
 
 def test_a_team_needs_ice_and_water_robots_and_may_lack_a_scout():

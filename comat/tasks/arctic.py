@@ -566,9 +566,10 @@ class ArcticTransport(TaskLogic):
         }
 
     def marks(self, state: dict, b: int, caps: np.ndarray, type_ids: np.ndarray) -> Marks:
-        """The base's marks with the ground kinds in the legend (ice, water, snow)."""
+        """The base's marks with the ground kinds in the legend ("ground: ice", … : the types are
+        "ice" and "water" too)."""
         out = super().marks(state, b, caps, type_ids)
-        return replace(out, legend=tuple(GROUND_COLORS.items()) + out.legend)
+        return replace(out, legend=tuple((f"ground: {k}", c) for k, c in GROUND_COLORS.items()) + out.legend)
 
     def rings(self, caps: np.ndarray, type_ids: np.ndarray) -> tuple[Ring, ...]:
         return (Ring("sight", np.ones(caps.shape[0], bool), caps[:, 2], (120, 120, 120), "dotted ring: sight", True),)
