@@ -170,13 +170,11 @@ def test_parse_team(tmp_path):
 
 
 # -- the scripted policy: completes each task under rps --------------------------------------------
-SCRIPTED_TEAM = {"arctic": "test:5", "warehouse": "test:8"}
-"""The team each task's scripted policy is exported with (default ``test:3``). Arctic's test:3 has
-a crosser 0.018 m per step on its slow ground, and whether the scripted crossers find their fast
-route depends on what the scouts have seen when they enter the field: with the start poses moved
-by up to 5 cm and 0.2 rad (what V2's random drive to the start poses leaves) 2 of 7 MuJoCo runs
-lose it. test:5 (8 robots, 3 scouts) finished 8 of 8 (its own starts and 7 moved), so one V2 run
-checks the export rather than that luck. Warehouse's test:3 (6 robots) delivers its last item in the
+SCRIPTED_TEAM = {"arctic": "test:0", "warehouse": "test:8"}
+"""The team each task's scripted policy is exported with (default ``test:3``). arctic_v2's test:3
+(8 robots) does not finish in its 40 steps (progress legacy rps 0.6, MuJoCo 0.8) and test:5 only
+just does (rps 38 steps, MuJoCo 37): test:0 (4 robots, 2 scouts) finishes with room (rps and
+MuJoCo 25 steps), so one V2 run checks the export rather than luck. Warehouse's test:3 (6 robots) delivers its last item in the
 horizon's last step (rps 71 of 72 steps, MuJoCo 8 of 9 items): test:8 (4 robots) finishes with room
 (legacy rps 55 steps, V2 52, MuJoCo 49)."""
 
