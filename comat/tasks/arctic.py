@@ -90,10 +90,10 @@ the crossers still in the field of 1 − their step on the cell under them / the
 lower is better.
 
 Design measurements (coalition seed 1, episode seed 2,000,003, 20 coalitions × 3 episodes,
-unicycle; progress %, the paired 95 % t-interval over coalitions): scripted 98.3 on U_train, 98.6 on
-U_size, 96.0 on U_scale; scripted − blind 29.6 [23.9, 35.3] on U_size and 28.6 [23.0, 34.2] on
-U_scale; scripted − type_only 19.3 [14.5, 24.1] on U_cap (2.7 on U_train); blind 69.2 against the
-constant action's 65.5 on U_train.
+unicycle; progress %, paired 95 % t-intervals over coalitions): scripted 98.3 on U_train and 97.3
+on U_size ∪ U_scale, where scripted − blind is 29.1 [25.3, 33.0]; scripted − type_only 19.3
+[14.5, 24.1] on U_cap (2.7 on U_train); the blind plan 4–13 points above the constant action on
+every set (U_train 69.2 against 65.5).
 
 This follows MARBLER's and JaxRobotarium's Arctic Transport (ice and water robots crossing a
 field, a drone that sees for them); here the far-seeing robot is a slow ground robot.
