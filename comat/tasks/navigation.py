@@ -341,10 +341,12 @@ class Navigation(TaskLogic):
     # -- the scripted references ------------------------------------------------------------------
     def _plan(self, state: dict, speed: np.ndarray, mask: np.ndarray) -> tuple:
         """Each free robot's goal (B, N, 2) and whether it has one: the assignment of free robots to
-        open goals with the least summed squared travel time from where they started (Manhattan
-        distance / ``speed`` (B, N)), squared so that no robot is left with a far goal to spare the
-        others a little. Planned from the starts, the plan holds over the episode (a goal claimed
-        leaves the rest as they were): a plan made at departure, as a dispatcher would."""
+        open goals with the least summed squared travel time from where they started (steps to go at
+        ``speed`` (B, N)), squared so that no robot is left with a far goal to spare the others a
+        little; a travel beyond :attr:`plan_budget_steps` costs more, one the horizon cannot hold is
+        hopeless. Planned from the starts, the plan holds over the episode (a goal claimed leaves the
+        rest as they were): a plan made at departure, as a dispatcher would, by every rung alike (a
+        re-planning blind twin would read the robots' speeds off how far they got)."""
         B, N = mask.shape
         _, t = self._steps_to(state, state["start"], speed)  # (B, N, K)
         target = np.zeros((B, N), np.int64)
