@@ -78,7 +78,10 @@ the plan by distance alone, as if every robot were equally fast.
 Design measurements (coalition seed 1, episode seed 2,000,003, 20 coalitions × 3 episodes, unicycle
 tier; progress %, differences with 95 % t-intervals over coalitions): scripted 98.9 on U_train,
 95.5 on U_size ∪ U_scale; scripted − type_only on U_cap +19.4 [13.6, 25.1] (U_train +12.7);
-scripted − blind on U_size ∪ U_scale +12.4 (U_size +11.4, U_scale +13.4).
+scripted − blind on U_size ∪ U_scale +12.4 [10.0, 14.9] (U_size +11.4, U_scale +13.4). The size gap
+rests on planning at departure: re-planned every step from where the robots are, distance alone
+reads much of the speeds off how far each robot got (1 episode per coalition: U_size 95.0 against
+98.0 with speeds, U_scale 90.3 against 95.7), while on U_cap it does not (86.1 against 98.6).
 
 Version history: v0 — first version (issue 49; after MARBLER's Simple and JaxRobotarium's
 Navigation, with goals shared by the team instead of one fixed goal per robot). v1 (issue 64) —
