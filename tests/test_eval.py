@@ -289,8 +289,8 @@ def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("task", ["pcp", "hmt", "forage", "navigation"])
 def test_best_constant_action_is_the_best_of_the_five(task):
-    """BEST_CONSTANT_ACTION: of the five actions, taken by every robot at every step, the one with
-    the highest mean return on U_train (one episode per coalition, the evaluation seed)."""
+    """BEST_CONSTANT_ACTION: of the five actions, taken by every robot at every step, one with the
+    highest mean return on U_train (one episode per coalition, the evaluation seed)."""
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
     from comat.envs.heuristics import BEST_CONSTANT_ACTION
@@ -303,7 +303,8 @@ def test_best_constant_action_is_the_best_of_the_five(task):
         np.mean([e["return"] for e in run_episodes(env, lambda o, m, s, a=a: np.where(m, a, 0), teams, EVAL_SEED)])
         for a in range(5)
     ]
-    assert int(np.argmax(returns)) == BEST_CONSTANT_ACTION[task], returns
+    # Ties are possible (navigation_v1: +x, +y and -y earn the same): the declared action earns the most.
+    assert returns[BEST_CONSTANT_ACTION[task]] == pytest.approx(max(returns)), returns
 
 
 def test_share_intervals_stay_inside_0_1_and_one_unit_says_it_has_none():

@@ -44,12 +44,12 @@ __all__ = [
 
 
 BEST_CONSTANT_ACTION = {name: entry.logic.best_constant_action for name, entry in TASKS.items()}
-"""Per task registered when this module loaded, its ``best_constant_action``: the action (0 stay,
+"""Per task registered when this module loaded, its ``best_constant_action``: an action (0 stay,
 1 +x, 2 −x, 3 +y, 4 −y) that earns the highest return on U_train when every robot always takes
 it (all five tried, one episode per coalition, the evaluation seed; tests/test_eval.py, slow
-tier): +x on the four built-in tasks (forage: return −2.2 against −4.0 for each of the others;
-navigation: −1.45 against −1.75 to −1.8). On PCP it captures half the prey (return 16.4, 20 % of
-the episodes finished): early learning curves must beat it to mean anything."""
+tier; where actions tie, as +x, +y and −y do on navigation_v1, the task names one of them). On
+PCP it captures half the prey (return 16.4, 20 % of the episodes finished): early learning
+curves must beat it to mean anything."""
 
 
 def heuristic_actions(core: TaskCore) -> np.ndarray:
