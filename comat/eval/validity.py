@@ -29,6 +29,7 @@ import numpy as np
 from comat.files import write_atomic
 from comat.measure.metrics import mean_ci, read_results
 from comat.tasks import COALITION_SETS, LADDER, TASKS, env_id, task_entry
+from comat.team import SET_LABELS
 
 __all__ = [
     "CAPABILITY_GAP",
@@ -56,14 +57,6 @@ SIZE_SCRIPTED = 90.0
 SIZE_GAP = 10.0
 """... and scripted − blind there at least this many points."""
 SIZE_SETS = ("size", "scale")
-SET_LABELS = {
-    "train": "U_train",
-    "val": "U_val",
-    "test": "U_test",
-    "scale": "U_scale",
-    "size": "U_size",
-    "capability": "U_cap",
-}
 
 
 def _coalition_progress(row: dict) -> dict[int, float]:
