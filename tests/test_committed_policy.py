@@ -53,7 +53,7 @@ def test_a_committed_policy_evaluates_on_the_capability_set_with_one_command(tmp
     assert [e["coalition"] for e in row["per_episode"]] == list(range(20))
     assert all(e["robots"] and e["by_type"] for e in row["per_episode"])
     # The policy does the task on robots it never saw: its committed 5-episode evaluation captured
-    # 99 % of the prey on U_cap; a random policy captures under 10 % (results/sets/references.md).
+    # 99 % of the prey on U_cap; a random policy captures under 10 % (results/sets/validity.md).
     # Not an exact match: another CPU may order the network's sums differently (README).
     assert row["metrics"]["progress"]["mean"] > 0.8
     assert "comat" in capsys.readouterr().out

@@ -70,7 +70,7 @@ Reward (shared) = named terms: ``arrived`` +1 per crosser arriving, ``time`` −
 ``violation`` −5 in a step with any robot–robot contact, Robotarium-style collision or boundary
 exit.
 
-References (the ladder, :mod:`comat.envs.heuristics`; ``results/sets/references.md``): the scripted
+References (the ladder, :mod:`comat.envs.heuristics`; ``results/sets/validity.md``): the scripted
 plan gives each robot its own time-to-go field over the cells, for its own speeds (``caps``; the
 state's copy of each robot's sight, kept for the rules, is never read), on the field as the team
 knows it: a cell costs its crossing time (40 steps where the robot misses its need), a cell not

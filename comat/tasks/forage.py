@@ -46,7 +46,7 @@ Reward (shared) = named terms in ``infos[agent]["reward/<term>"]``: ``collected`
 level collected, ``time`` −0.05 per step, ``violation`` −5 in a step with any robot–robot contact,
 Robotarium-style collision or boundary exit.
 
-References (``results/sets/references.md``): the scripted policy forms, item by item, a group of
+References (``results/sets/validity.md``): the scripted policy forms, item by item, a group of
 the nearest free robots whose levels reach the item's level (robots left over go to an item no
 group could be formed for, or wait); its capability-blind twin (``blind_scripted_actions``) forms
 the same groups believing every robot has the training mean level (1.85): a group of weaker robots

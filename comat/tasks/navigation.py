@@ -67,7 +67,7 @@ and out of reach of every robot still free (Manhattan distance less the claim ra
 the steps left). 0 at the start by construction; a goal is stranded once every robot that could
 have taken it went elsewhere or claimed another. An episode's value is its mean over its steps.
 
-References (``results/sets/references.md``): the scripted policy shares the goals out at departure,
+References (``results/sets/validity.md``): the scripted policy shares the goals out at departure,
 reading the speeds from ``caps`` only: the assignment of free robots to open goals (from where they
 started) with the least summed squared travel time (steps to go), each travel beyond 15 steps
 costing 100 × its excess² more and one beyond the horizon less 3 steps counted as hopeless first;

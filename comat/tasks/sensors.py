@@ -70,7 +70,7 @@ stop only where they cover or measure, sit near 0 (design data, U_train, one epi
 scripted 0.001, type_only 0.004, blind 0.009) and a policy that parks robots where they are useless
 does not (constant +x 0.37, random 0.52).
 
-References (``results/sets/references.md``): one planner for the three planning rungs. It pairs
+References (``results/sets/validity.md``): one planner for the three planning rungs. It pairs
 robots and clusters with the least summed squared distance from ``plan_from``, plus 100 m² (and
 100 m² more per 0.1 m of believed shortfall) for a pair it doubts and 10⁴ m² for a pair measured to
 fall short, and sends each robot to its cluster's centre, around settled teammates rather than

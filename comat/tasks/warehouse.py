@@ -63,7 +63,7 @@ Reward (shared) = named terms in ``infos[agent]["reward/<term>"]``: ``delivered`
 delivered, ``lifted`` +0.2 per item lifted, ``time`` −0.05 per step, ``violation`` −5 in a step with
 any robot–robot contact, Robotarium-style collision or boundary exit.
 
-References (``results/sets/references.md``; :meth:`Warehouse._plan`, re-planned every step): the
+References (``results/sets/validity.md``; :meth:`Warehouse._plan`, re-planned every step): the
 scripted policy lists the items on shelves heaviest first (the fewest robots lift them) and gives
 each to the robot believed to lift it that would have it delivered soonest after the items it
 already has (Manhattan distance over its speed, from where it will be free); a free robot heads for
