@@ -207,7 +207,7 @@ def test_the_coordination_metric_is_the_speed_the_crossers_lose_to_the_ground():
 
 def test_the_observation_layout_is_the_spec_sheet_s():
     task = ArcticTransport()
-    rows = re.findall(r"^\| (\d+)(?:–(\d+))? \| (.+?) \|$", arctic.__doc__, flags=re.M)
+    rows = re.findall(r"^\| (\d+)(?:–(\d+))? \| (.+?) \|$", arctic.__doc__, flags=re.MULTILINE)
     covered = [i for lo, hi, _ in rows for i in range(int(lo), int(hi or lo) + 1)]
     assert covered == list(range(task.obs_size())) == list(range(40)), covered
     assert f"Box({task.obs_size()},)" in arctic.__doc__

@@ -174,9 +174,9 @@ SCRIPTED_TEAM = {"arctic": "test:0", "warehouse": "test:8"}
 """The team each task's scripted policy is exported with (default ``test:3``). arctic_v2's test:3
 (8 robots) does not finish in its 40 steps (progress legacy rps 0.6, MuJoCo 0.8) and test:5 only
 just does (rps 38 steps, MuJoCo 37): test:0 (4 robots, 2 scouts) finishes with room (rps and
-MuJoCo 25 steps), so one V2 run checks the export rather than luck. Warehouse's test:3 (6 robots) delivers its last item in the
-horizon's last step (rps 71 of 72 steps, MuJoCo 8 of 9 items): test:8 (4 robots) finishes with room
-(legacy rps 55 steps, V2 52, MuJoCo 49)."""
+MuJoCo 25 steps), so one V2 run checks the export rather than luck. Warehouse's test:3 (6 robots)
+delivers its last item in the horizon's last step (rps 71 of 72 steps, MuJoCo 8 of 9 items): test:8
+(4 robots) finishes with room (legacy rps 55 steps, V2 52, MuJoCo 49)."""
 
 
 @pytest.fixture(scope="module")

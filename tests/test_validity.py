@@ -85,7 +85,9 @@ def test_page_and_summary_files(tmp_path):
     data = write_summary(tmp_path, {"demo": summarize_task(_result(progress))})
     page = (tmp_path / "validity.md").read_text()
     assert json.loads((tmp_path / "validity.json").read_text()) == json.loads(json.dumps(data))
-    assert "| demo | demo_v0 | — | **yes**" in page and "1 tasks: 1 in the capability family, 1 in the size family" in page
+    assert (
+        "| demo | demo_v0 | — | **yes**" in page and "1 tasks: 1 in the capability family, 1 in the size family" in page
+    )
     assert "| U_cap | 100.0 | 70.0 | 50.0 | 10.0 | 0.0 | +30.0 [+30.0, +30.0] | +50.0 [+50.0, +50.0] |" in page
     # Merged: a second task's summary keeps the first one's.
     write_summary(tmp_path, {"other": summarize_task(_result(progress, "other"))})

@@ -168,6 +168,8 @@ class ArcticTransport(TaskLogic):
     planners read capabilities only from their ``caps`` argument)."""
 
     name = "arctic"
+    meant_for = ("capability", "size")
+    """Both families (its spec sheet says why; :mod:`comat.eval.validity` measures them)."""
     version = 2
     title = "Arctic Transport"
     types = ("ice", "water", "scout")
@@ -299,7 +301,9 @@ class ArcticTransport(TaskLogic):
         at = np.arange(caps.shape[0]), row, col
         return self.time_to_go(cross, goal)[0][at] / self.time_to_go(ideal, goal)[0][at]
 
-    def draw_field(self, rng: np.random.Generator, caps: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def draw_field(
+        self, rng: np.random.Generator, caps: np.ndarray, starts: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """A new field (ground, need) for a team of capabilities caps (n, 3) starting at ``starts``
         (n, 3): drawn (:meth:`_random_field`) until every robot faster than :attr:`crosser_speed_m` has
         :meth:`route_ratios` at most :attr:`route_slack`; after :attr:`max_draws` draws, the draw whose
@@ -553,7 +557,12 @@ class ArcticTransport(TaskLogic):
         if state is not None:
             labels = self.area_labels(state, b)
             for name, r, c, kind in self._field_cells(state, b):
-                box = (x0 + c * self.cell_m, x0 + (c + 1) * self.cell_m, y0 + r * self.cell_m, y0 + (r + 1) * self.cell_m)
+                box = (
+                    x0 + c * self.cell_m,
+                    x0 + (c + 1) * self.cell_m,
+                    y0 + r * self.cell_m,
+                    y0 + (r + 1) * self.cell_m,
+                )
                 out.append(Area(name, "box", box, GROUND_COLORS[kind], labels[name]))
         return tuple(out)
 

@@ -114,6 +114,8 @@ class Navigation(TaskLogic):
     claimed (B, K), active (B, K), each robot's claimed flag (B, N) and start (B, N, 2)."""
 
     name = "navigation"
+    meant_for = ("capability", "size")
+    """Both families (its spec sheet says why; :mod:`comat.eval.validity` measures them)."""
     version = 1
     types = ("fast", "slow")
     capabilities = ("speed_m",)

@@ -135,6 +135,8 @@ class SensorNetwork(TaskLogic):
     the robots were a step ago (``last_xy`` (B, N, 2))."""
 
     name = "sensors"
+    meant_for = ("capability", "size")
+    """Both families (its spec sheet says why; :mod:`comat.eval.validity` measures them)."""
     version = 2
     title = "Heterogeneous Sensor Network"
     types = ("wide", "narrow")

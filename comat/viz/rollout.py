@@ -122,8 +122,7 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
         return PolicySpec(getattr(policy, "__name__", "policy"), lambda env, seed: policy)
     if not isinstance(policy, (str, Path)):
         raise TypeError(
-            f"policy must be one of {POLICY_NAMES}, a checkpoint path or a callable, "
-            f"got {type(policy).__name__}"
+            f"policy must be one of {POLICY_NAMES}, a checkpoint path or a callable, got {type(policy).__name__}"
         )
     if str(policy) in POLICY_NAMES:
         name = RUNG_ALIASES.get(str(policy), str(policy))
