@@ -219,3 +219,28 @@ def test_eval_type_only_runs_for_every_task(task, tmp_path, capsys):
     assert code == 0
     table = capsys.readouterr().out
     assert re.search(r"^type_only +capability +20 ", table, re.MULTILINE), table
+
+
+def test_page_says_when_type_only_is_below_blind(tmp_path):
+    progress = {}
+    for split in COALITION_SETS:
+        progress.update(_ladder(split, [1.0] * 20, [0.5] * 20, [0.8] * 20))
+    write_summary(tmp_path, {"demo": summarize_task(_result(progress))})
+    page = (tmp_path / "validity.md").read_text()
+    assert "On U_cap type_only (50.0 %) is below blind (80.0 %)" in page
+    assert "the scripted plan gains +20.0 [+20.0, +20.0] points there" in page
+
+
+def test_recorded_families_are_of_every_task_as_it_is_now(capsys):
+    """comat/data/validity.json (``comat validity --record``) holds every registered task at its current
+    version: a task whose rules change (a new env id) must be judged again."""
+    from comat.cli.tasks import recorded_families
+    from comat.tasks import TASKS, env_id
+
+    recorded = recorded_families()
+    for task in task_names():
+        if not TASKS[task].logic.__module__.startswith("comat.tasks."):
+            continue  # a plug-in task another test registered (the docs page's example)
+        assert recorded[task]["env_id"] == env_id(task), f"{task}: run comat validity --tasks {task} --record"
+    assert main(["tasks"]) == 0
+    assert "families (comat validity, seed 4000037): capability, size" in capsys.readouterr().out

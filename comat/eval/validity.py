@@ -87,6 +87,7 @@ def summarize_task(result: dict) -> dict:
         "task": result["task"],
         "meant_for": list(getattr(logic, "meant_for", ())),
         "env_id": result.get("env_id", ""),
+        "source_commit": result.get("source_commit", ""),
         "seed": result["seed"],
         "episodes": result["episodes_per_coalition"],
     }
@@ -169,6 +170,7 @@ def run_validity(
         result = evaluate_policies(
             None, task, COALITION_SETS, episodes, tier, seed, references=LADDER, progress=progress
         )
+        result["source_commit"] = _source_commit()  # the code that played it (the summary may come later)
         folder = out_dir / "validity" / task
         folder.mkdir(parents=True, exist_ok=True)
         write_results(result, folder, f"evaluation_{tier}")
@@ -191,6 +193,8 @@ def write_summary(out_dir: str | Path, summaries: dict, tier: str = "unicycle") 
     path = out_dir / "validity.json"
     merged = json.loads(path.read_text())["tasks"] if path.is_file() else {}
     merged.update(summaries)
+    order = {name: i for i, name in enumerate(TASKS)}  # registration order; tasks no longer registered last
+    merged = dict(sorted(merged.items(), key=lambda kv: order.get(kv[0], len(order))))
     data = {"tier": tier, "source_commit": _source_commit(), "tasks": merged}
     write_atomic(path, json.dumps(data, indent=1) + "\n")
     write_atomic(out_dir / "validity.md", validity_markdown(data))
@@ -218,8 +222,9 @@ def validity_markdown(data: dict) -> str:
             f"{' or '.join(str(k) for k in episodes)} episodes per coalition, unicycle "
             f"tier, reality off, evaluation seed {', '.join(str(s) for s in seeds)} (held out: no task version was "
             f"designed on it; the versions of issue 64 were designed on coalitions drawn with seed 1 and episode "
-            f"seed {DESIGN_SEED:,}, and are judged here on the stored coalition files), code at "
-            f"`{data.get('source_commit', 'unknown')}`."
+            f"seed {DESIGN_SEED:,}, and are judged here on the stored coalition files); summary written at "
+            f"`{data.get('source_commit', 'unknown')}`, each task's episodes played by the code its section names "
+            "(where recorded)."
         ),
         "",
         (
@@ -252,8 +257,11 @@ def validity_markdown(data: dict) -> str:
     size = sum(s["families"]["size"][0] for s in tasks.values())
     lines += ["", f"{len(tasks)} tasks: {cap} in the capability family, {size} in the size family.", ""]
     for name, s in tasks.items():
+        played = f" (played at `{s['source_commit']}`)" if s.get("source_commit") else ""
         lines += [
             f"## {name}",
+            "",
+            f"{s.get('env_id') or name}{played}; meant for: {', '.join(s.get('meant_for', ())) or 'not stated'}.",
             "",
             (
                 "| set | scripted % | type_only % | blind % | constant % | random % | scripted − type_only | "
@@ -275,6 +283,15 @@ def validity_markdown(data: dict) -> str:
             )
         else:
             note = ""
+        cap = s["sets"].get("capability", {})
+        if "blind" in cap and "type_only" in cap and cap["blind"] > cap["type_only"]:
+            gap = cap["scripted_minus_blind"]
+            note += (
+                f"On U_cap type_only ({cap['type_only']:.1f} %) is below blind ({cap['blind']:.1f} %): believing each "
+                "type's mean capabilities misleads more than believing nothing, so the capability gap is measured "
+                "against a rung that uses the type badly; over blind, the better rung that does not know "
+                f"capabilities, the scripted plan gains {_cell(gap)} points there."
+            )
         pooled = s.get("size_pooled")
         if pooled:
             lines.append(

@@ -1,13 +1,10 @@
 #!/usr/bin/env bash
-# Issue 28: the reference policies (scripted heuristic, best constant action, random; issue 49: the
-# capability-blind heuristic where a task has one) on every composition set of every task, 5 episodes per coalition, unicycle tier, from the repository root.
-#   results/sets/run.sh          evaluate (about 30 min on one core) and write the table
-# Outputs: results/sets/references_<task>/evaluation_unicycle.{json,episodes.json.gz,csv} and results/sets/README.md's table
-# (written by results/sets/table.py).
+# Issue 64: the reference ladder (scripted, type_only, blind, constant, random) on every composition set of
+# every task, 5 episodes per coalition, unicycle tier, on the held-out evaluation seed 4,000,037, and the
+# families each task is in. From the repository root:
+#   results/sets/run.sh          about 5 minutes a task on one core (two tasks at once: run it twice with
+#                                disjoint --tasks; the summary merges)
+# Outputs: results/sets/validity/<task>/evaluation_unicycle.{json,episodes.json.gz,csv},
+# results/sets/validity.{md,json}, and the families recorded for `comat tasks` (comat/data/validity.json).
 set -euo pipefail
-HERE=results/sets
-for task in pcp hmt forage navigation sensors arctic; do
-  comat eval --policy heuristic --task "$task" --teams all --episodes 5 --tier unicycle \
-    --out "$HERE/references_$task" --force
-done
-python "$HERE/table.py"
+comat validity --out results/sets --episodes 5 --record --force "$@"

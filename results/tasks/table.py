@@ -1,6 +1,7 @@
 """The learnability check's table (issue 49): results/tasks/README.md between its table markers, from
-each kept run's evaluation (runs/NAME/evaluation_unicycle.json) beside the task's references
-(results/sets/references_<task>/); no number typed by hand."""
+each kept run's evaluation (runs/NAME/evaluation_unicycle.json) beside the task's reference ladder
+(results/sets/validity/<task>/, written by ``comat validity``); no number typed by hand. Only forage's runs
+are of the task's current version (navigation, sensors and arctic changed rules in issue 64)."""
 
 from pathlib import Path
 
@@ -11,8 +12,8 @@ from comat.measure.metrics import read_results
 HERE = Path(__file__).resolve().parent
 SETS = ("train", "val", "test", "scale", "size", "capability")
 ALGOS = ("comat", "mat", "mappo")
-TASKS = ("forage", "navigation", "sensors", "arctic")
-REFERENCES = ("heuristic", "blind", "random")
+TASKS = ("forage",)
+REFERENCES = ("heuristic", "type_only", "blind", "random")
 
 
 def _progress(rows: list[dict], policy: str) -> dict[str, float]:
@@ -23,15 +24,17 @@ def main() -> None:
     lines = [
         (
             "Progress % (deterministic policy, 5 episodes per coalition, 20 coalitions per set, reality off, "
-            "unicycle; one seed, 300 k env steps, `sweep` preset). References from `results/sets/references.md`. "
+            "unicycle; one seed, 300 k env steps, `sweep` preset). References from `results/sets/validity.md` "
+            "(their own evaluation seed, 4,000,037; the runs' is 2,000,003). "
             "A run not yet kept shows as —."
         ),
         "",
     ]
     for task in TASKS:
-        if not (HERE.parent / "sets" / f"references_{task}" / "evaluation_unicycle.json").is_file():
+        ladder = HERE.parent / "sets" / "validity" / task / "evaluation_unicycle.json"
+        if not ladder.is_file():
             continue
-        refs = read_results(HERE.parent / "sets" / f"references_{task}" / "evaluation_unicycle.json", detail=False)
+        refs = read_results(ladder, detail=False)
         lines += [f"### {task}", "", "| policy | " + " | ".join(SET_NAMES[s] for s in SETS) + " |"]
         lines.append("|---|" + "---:|" * len(SETS))
         for algo in ALGOS:
