@@ -357,6 +357,7 @@ class ArcticTransport(TaskLogic):
         return {"arrived": new.sum(axis=1).astype(float)}
 
     def done(self, state: dict) -> np.ndarray:
+        """Every crosser of the team arrived (B,) (a team without crossers never is)."""
         need = state["crosser"].sum(axis=1)
         return (need > 0) & (state["arrived"].sum(axis=1) >= need)
 

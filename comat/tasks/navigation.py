@@ -302,6 +302,7 @@ class Navigation(TaskLogic):
         return {"claimed": claimed}
 
     def done(self, state: dict) -> np.ndarray:
+        """Every goal of the team claimed (B,)."""
         return state["claimed"].all(axis=1)
 
     def progress(self, state: dict) -> np.ndarray:

@@ -302,6 +302,7 @@ class SensorNetwork(TaskLogic):
         state["plan_from"][learned] = poses[learned, :, :2]
 
     def done(self, state: dict) -> np.ndarray:
+        """Every cluster of the team covered at once (B,)."""
         return state["best"] >= state["clusters"]
 
     def progress(self, state: dict) -> np.ndarray:

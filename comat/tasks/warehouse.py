@@ -308,6 +308,7 @@ class Warehouse(TaskLogic):
         return {"delivered": drop.sum(axis=1).astype(float), "lifted": lifted}
 
     def done(self, state: dict) -> np.ndarray:
+        """Every item of the team delivered (B,)."""
         return ((state["status"] == DELIVERED) | ~state["active"]).all(axis=1)
 
     def progress(self, state: dict) -> np.ndarray:
