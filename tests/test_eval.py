@@ -11,7 +11,7 @@ import yaml
 
 from comat.cli import main
 from comat.measure.metrics import REPORTED, mean_ci, read_results, summarize_ci, violations
-from comat.tasks import env_id
+from comat.tasks import env_id, task_names
 
 T_975_3 = 3.182446305284263  # Student t quantile, 97.5 %, 3 degrees of freedom
 
@@ -287,7 +287,7 @@ def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("task", ["pcp", "hmt", "forage", "navigation"])
+@pytest.mark.parametrize("task", task_names())
 def test_best_constant_action_is_the_best_of_the_five(task):
     """BEST_CONSTANT_ACTION: of the five actions, taken by every robot at every step, one with the
     highest mean return on U_train (one episode per coalition, the evaluation seed)."""

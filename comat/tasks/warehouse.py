@@ -153,6 +153,9 @@ class Warehouse(TaskLogic):
     reward_weights: ClassVar[dict] = {"delivered": 1.0, "lifted": 0.2, "time": -0.05, "violation": -5.0}
     parked = (2.6, 0.0)
     reset_uses_starts = True
+    best_constant_action = 3
+    """+y: every constant action delivers nothing on U_train; +y earns the most (return −3.59 against
+    −3.60 for the other four: a robot or two passing a shelf lift an item on the way; tests/test_eval.py)."""
 
     capability_limits = ((0.0, 5.0), (0.0, 0.19))
     """Physical limits: a load up to 5 units; a step up to 0.2 m/s × 0.96 s."""
