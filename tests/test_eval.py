@@ -222,8 +222,8 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     assert "(no such file)" in capsys.readouterr().err
     assert main(["eval", "--policy", "heuristic"]) == 2
     assert "--task is needed with --policy heuristic" in capsys.readouterr().err
-    assert main(["eval", "--policy", "heuristic", "--task", "pcp"]) == 2
-    assert "--out is needed with --policy heuristic" in capsys.readouterr().err
+    assert main(["eval", "--policy", "heuristic", "--task", "pcp", "--episodes", "0"]) == 2
+    assert "episodes must be an integer >= 1" in capsys.readouterr().err
     assert main(["eval", "--policy", str(ckpt), "--episodes", "0", "--out", str(tmp_path / "failed" / "x")]) == 2
     assert "episodes must be an integer >= 1" in capsys.readouterr().err
     assert not (tmp_path / "failed").exists()

@@ -200,25 +200,15 @@ def _forage_teams():
 
 
 @pytest.mark.parametrize("task", task_names())
-def test_eval_type_only_runs_for_every_task(task, tmp_path, capsys):
-    """``comat eval --policy type_only --task T --teams capability`` (the issue's check), on every task."""
-    code = main(
-        [
-            "eval",
-            "--policy",
-            "type_only",
-            "--task",
-            task,
-            "--teams",
-            "capability",
-            "--no-references",
-            "--out",
-            str(tmp_path),
-        ]
-    )
+def test_eval_type_only_runs_for_every_task(task, tmp_path, capsys, monkeypatch):
+    """``comat eval --policy type_only --task T --teams capability`` (the issue's check), on every task,
+    as written: without ``--out`` it writes to ``runs/type_only-T``."""
+    monkeypatch.chdir(tmp_path)
+    code = main(["eval", "--policy", "type_only", "--task", task, "--teams", "capability", "--no-references"])
     assert code == 0
     table = capsys.readouterr().out
     assert re.search(r"^type_only +capability +20 ", table, re.MULTILINE), table
+    assert (tmp_path / "runs" / f"type_only-{task}" / "evaluation_unicycle.json").is_file()
 
 
 def test_page_says_when_type_only_is_below_blind(tmp_path):

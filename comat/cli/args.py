@@ -276,10 +276,13 @@ class PolicyArg:
     def default_out(self) -> Path | None:
         """Where a command writes when ``--out`` is not given: a trained policy's run folder, but for a
         shipped policy ``runs/pretrained-NAME`` (nothing is ever written into the installed package,
-        and each shipped policy gets its own folder); None for a reference policy (``--out`` needed)."""
+        and each shipped policy gets its own folder), and for a reference policy ``runs/POLICY-TASK``
+        (``runs/type_only-forage``)."""
         if self.shipped is not None:
             return Path("runs") / self.shipped.replace(":", "-")
-        return None if self.checkpoint is None else self.checkpoint.parent
+        if self.checkpoint is None:
+            return Path("runs") / f"{self.name}-{self.task}"
+        return self.checkpoint.parent
 
     @property
     def tier(self) -> str:

@@ -38,8 +38,6 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
     reality = reality_arg(args.reality)
     pol = resolve_policy_arg(args.policy, args.task)
-    if args.out is None and pol.checkpoint is None:
-        raise ValueError(f"--out is needed with --policy {pol.name} (the default is a checkpoint's run folder)")
     out = Path(args.out) if args.out else pol.default_out
     named = parse_teams(args.teams, pol.task)
     tier = args.tier or pol.tier
@@ -248,7 +246,8 @@ def add_evaluate_parsers(sub) -> None:
         "--out",
         default=None,
         help="output folder, created if missing (default: the checkpoint's run "
-        "folder; for pretrained:NAME, runs/pretrained-NAME: nothing is written into the package)",
+        "folder; for pretrained:NAME, runs/pretrained-NAME: nothing is written into the package; for a "
+        "reference policy, runs/POLICY-TASK)",
     )
     add_force(p)
     p.set_defaults(func=_cmd_eval)
