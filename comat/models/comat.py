@@ -75,7 +75,7 @@ from comat.models.heat_kernels import edge_stage
 from comat.models.layers import Attention, KVCache, TypeHeads, causal, init_linear, mlp, score_actions
 from comat.models.packing import PackedTeams, pack, split_teams
 
-__all__ = ["PAPER_FORM", "VALUE_CHUNK_EDGES", "Comat", "ComatConfig"]
+__all__ = ["PAPER_FORM", "VALUE_CHUNK_EDGES", "Comat", "ComatConfig", "build"]
 
 VALUE_CHUNK_EDGES = 20_000
 """Edges of one packed pass of :meth:`Comat.values`, about. A PPO update's value passes score a
@@ -533,3 +533,9 @@ class _Decoding:
     cross_cache: KVCache
     cross_q: torch.Tensor
     caps: torch.Tensor
+
+
+def build(dims, config: ComatConfig, acting_only: bool = False) -> dict[str, nn.Module]:
+    """COMAT's network (learner ``comat``, :mod:`comat.learners`): acting needs all of it (its value
+    head shares the encoder the actions are decoded from)."""
+    return {"policy": Comat(dims.layout, config)}

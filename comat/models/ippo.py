@@ -25,7 +25,7 @@ from comat.config import check_numbers
 from comat.models.features import ObsLayout
 from comat.models.layers import TypeHeads, choose_actions, score_actions
 
-__all__ = ["Ippo", "IppoConfig"]
+__all__ = ["Ippo", "IppoConfig", "build"]
 
 
 @dataclass(frozen=True)
@@ -72,3 +72,8 @@ class Ippo(nn.Module):
     def evaluate_actions(self, obs, mask, actions, state=None):
         logp, entropy = score_actions(self.actor(obs, self._types(obs)), actions, mask)
         return logp, entropy, self.values(obs, mask)
+
+
+def build(dims, config: IppoConfig, acting_only: bool = False) -> dict[str, nn.Module]:
+    """IPPO's networks (learner ``ippo``, :mod:`comat.learners`): the actors alone where ``acting_only``."""
+    return {"policy": Ippo(dims.layout, config, critic=not acting_only)}

@@ -22,7 +22,7 @@ from comat.config import check_numbers
 from comat.models.features import ObsLayout
 from comat.models.layers import TypeHeads, choose_actions, mlp, score_actions
 
-__all__ = ["Mappo", "MappoConfig"]
+__all__ = ["Mappo", "MappoConfig", "build"]
 
 
 @dataclass(frozen=True)
@@ -78,3 +78,9 @@ class Mappo(nn.Module):
     def evaluate_actions(self, obs, mask, actions, state=None):
         logp, entropy = score_actions(self._logits(obs), actions, mask)
         return logp, entropy, self.values(obs, mask, state)
+
+
+def build(dims, config: MappoConfig, acting_only: bool = False) -> dict[str, nn.Module]:
+    """MAPPO's networks (learner ``mappo``, :mod:`comat.learners`): the critic reads the state of
+    ``dims.state_dim``; the actors alone where ``acting_only``."""
+    return {"policy": Mappo(dims.layout, dims.state_dim, config, critic=not acting_only)}

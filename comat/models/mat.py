@@ -25,7 +25,7 @@ from comat.models.autoregressive import AutoregressivePolicy, numpy_view
 from comat.models.features import ObsLayout
 from comat.models.layers import Attention, KVCache, causal, init_linear, mlp
 
-__all__ = ["Mat", "MatConfig"]
+__all__ = ["Mat", "MatConfig", "build"]
 
 
 @dataclass(frozen=True)
@@ -157,3 +157,9 @@ class Mat(AutoregressivePolicy):
         for block, block_caches in zip(self.decoder, caches):
             x = block.step(x, rep[:, m : m + 1], block_caches)
         return self.head(x)[:, 0]
+
+
+def build(dims, config: MatConfig, acting_only: bool = False) -> dict[str, nn.Module]:
+    """MAT's network (learner ``mat``, :mod:`comat.learners`): acting needs all of it (its value
+    head shares the encoder the actions are decoded from)."""
+    return {"policy": Mat(dims.layout, config)}

@@ -22,7 +22,7 @@ from comat.config import check_numbers
 from comat.models.features import ObsLayout
 from comat.models.layers import TypeHeads, mlp
 
-__all__ = ["QmixAgents", "QmixMixer", "QmixNetConfig"]
+__all__ = ["QmixAgents", "QmixMixer", "QmixNetConfig", "build"]
 
 
 @dataclass(frozen=True)
@@ -79,3 +79,10 @@ class QmixMixer(nn.Module):
         w1 = self.w1(state).abs().view(B, M, H)
         hidden = F.elu(torch.einsum("bm,bmh->bh", qs, w1) + self.b1(state))
         return (hidden * self.w2(state).abs()).sum(-1) + self.v(state)[:, 0]
+
+
+def build(dims, config: QmixNetConfig, acting_only: bool = False) -> dict[str, nn.Module]:
+    """QMIX's networks (learner ``qmix``, :mod:`comat.learners`): the agent Q-networks, and the
+    mixer on the state of ``dims.state_dim`` unless ``acting_only``."""
+    agents = {"agents": QmixAgents(dims.layout, config)}
+    return agents if acting_only else {**agents, "mixer": QmixMixer(dims.state_dim, config)}

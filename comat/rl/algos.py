@@ -1,9 +1,10 @@
-"""The four algorithms behind one small interface: build, iterate (collect + update), act.
+"""The registered learners (:mod:`comat.learners`) behind one small interface: build, iterate
+(collect + update), act.
 
 ``Dims`` are the sizes a model is built from (stored in checkpoints, so a policy can be
-rebuilt without an environment). Fixed-size baselines (MAT, MAPPO, QMIX) get environments with
+rebuilt without an environment). Team-sized learners (MAT, MAPPO, QMIX) get environments with
 ``max_robots`` robot slots from their model config (``BASELINE_ROBOTS``, 8, by default, as in the
-paper; 20 to play U_scale); COMAT gets as many as its teams need.
+paper; 20 to play U_scale); the others (COMAT, IPPO, CASH) get as many as their teams need.
 """
 
 from __future__ import annotations
@@ -15,22 +16,17 @@ import torch
 
 from comat.config import SafetyConfig, SimConfig
 from comat.envs import make_vec_env
-from comat.models.cash import Cash
-from comat.models.comat import Comat
+from comat.learners import learner_entry
 from comat.models.features import ObsLayout
-from comat.models.ippo import Ippo
-from comat.models.mappo import Mappo
-from comat.models.mat import Mat
-from comat.models.qmix import QmixAgents, QmixMixer
 from comat.rl.config import RunConfig
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer
 
 __all__ = [
-    "ACTING_MODULES",
     "BASELINE_ROBOTS",
     "Dims",
     "Learner",
+    "act_with",
     "build_modules",
     "env_slots",
     "make_learner",
@@ -39,19 +35,20 @@ __all__ = [
 ]
 
 BASELINE_ROBOTS = 8
-"""Default robot slots of the fixed-size baselines (``max_robots`` of their model configs)."""
+"""Default robot slots of the team-sized learners (``max_robots`` of their model configs)."""
 
 
 def robot_slots(config) -> int | None:
-    """Robot slots of the environments a run's policy plays in: None (as many as the team has) for
-    COMAT, IPPO and CASH (no part of them is sized by the team), the model config's ``max_robots`` for
-    the fixed-size baselines."""
-    return None if config.algo in ("comat", "ippo", "cash") else config.model.max_robots
+    """Robot slots of the environments a run's policy plays in: None (as many as the team has) for a
+    learner no part of which is sized by the team (COMAT, IPPO, CASH), the model config's
+    ``max_robots`` for a team-sized one (:attr:`comat.learners.LearnerEntry.team_sized`)."""
+    return config.model.max_robots if learner_entry(config.algo).team_sized else None
 
 
 def env_slots(config) -> dict[str, int | None]:
-    """``max_robots`` and ``state_robots`` of a run's environments: the baselines' centralized state
-    (MAPPO's critic, QMIX's mixer) covers all their slots; COMAT's, unused, the default 8."""
+    """``max_robots`` and ``state_robots`` of a run's environments: the team-sized learners'
+    centralized state (MAPPO's critic, QMIX's mixer) covers all their slots; the others', unused,
+    the default 8."""
     slots = robot_slots(config)
     return {"max_robots": slots, "state_robots": slots or BASELINE_ROBOTS}
 
@@ -76,44 +73,47 @@ class Dims:
         return asdict(self)
 
 
-ACTING_MODULES = {
-    "comat": ("policy",),
-    "mat": ("policy",),
-    "mappo": ("policy",),
-    "qmix": ("agents",),
-    "ippo": ("policy",),
-    "cash": ("policy",),
-}
-"""The modules deterministic acting needs, per algo: COMAT's and MAT's whole policy (their value
-heads share the encoder the actions are decoded from), MAPPO's policy without its critic, QMIX's
-agent network without the mixer. A policy file keeps exactly these weights."""
-
-
 def build_modules(algo: str, dims: Dims, model_config, acting_only: bool = False) -> dict[str, torch.nn.Module]:
-    """The networks of ``algo``, freshly initialized (seed torch first for reproducible weights);
-    ``acting_only``: only those deterministic acting needs (:data:`ACTING_MODULES`)."""
-    if algo == "comat":
-        return {"policy": Comat(dims.layout, model_config)}
-    if algo == "mat":
-        return {"policy": Mat(dims.layout, model_config)}
-    if algo == "mappo":
-        return {"policy": Mappo(dims.layout, dims.state_dim, model_config, critic=not acting_only)}
-    if algo == "ippo":
-        return {"policy": Ippo(dims.layout, model_config, critic=not acting_only)}
-    if algo == "cash":
-        return {"policy": Cash(dims.layout, model_config, critic=not acting_only)}
-    if algo == "qmix":
-        agents = {"agents": QmixAgents(dims.layout, model_config)}
-        return agents if acting_only else {**agents, "mixer": QmixMixer(dims.state_dim, model_config)}
-    raise ValueError(f"algo must be one of {list(ACTING_MODULES)}, got {algo!r}")
+    """The networks of learner ``algo``, freshly initialized (seed torch first for reproducible
+    weights); ``acting_only``: only those deterministic acting needs
+    (:attr:`comat.learners.LearnerEntry.acts_with`)."""
+    entry = learner_entry(algo)
+    modules = entry.build(dims, model_config, acting_only)
+    wanted = set(entry.acts_with) if acting_only else None
+    if not isinstance(modules, dict) or (wanted is not None and set(modules) != wanted):
+        got = sorted(modules) if isinstance(modules, dict) else type(modules).__name__
+        raise ValueError(
+            f"learner {algo!r}: its builder {entry.builder} must return "
+            + (f"the modules {sorted(wanted)} with acting_only" if wanted else "a dict of modules")
+            + f", got {got}"
+        )
+    return modules
 
 
-def uses_state(algo: str) -> bool:
-    """Whether the trainer hands ``act`` ``env.state()`` (MAPPO's critic; QMIX's trainer reads it for
-    its mixer by itself). Deterministic actions (:func:`policy_act`) never use it: MAPPO's actors
-    read the robot's own observation, and MAPPO without a state (or without its critic) returns no
-    values."""
-    return algo == "mappo"
+def build_cash(dims: Dims, config, acting_only: bool = False) -> dict[str, torch.nn.Module]:
+    """CASH's network (learner ``cash``): the encoder and hypernetwork alone where ``acting_only``.
+    It sits here only until comat/models/cash.py declares a ``build`` of its own (issue 65)."""
+    from comat.models.cash import Cash
+
+    return {"policy": Cash(dims.layout, config, critic=not acting_only)}
+
+
+def act_with(
+    algo: str,
+    modules: dict[str, torch.nn.Module],
+    obs: torch.Tensor,
+    mask: torch.Tensor,
+    deterministic: bool = True,
+    generator: torch.Generator | None = None,
+) -> torch.Tensor:
+    """Actions (B, N) of learner ``algo``'s ``modules`` for ``obs`` (B, N, D) and ``mask`` (B, N), with
+    no state: the most likely (QMIX: the greedy) action, or one sampled with ``generator``. Padded
+    slots: action 0 where the learner acts greedily."""
+    entry = learner_entry(algo)
+    module = modules[entry.acts_with[0]]
+    if not entry.samples:
+        return torch.where(mask, module(obs, mask).argmax(-1), 0)
+    return module.act(obs, mask, None, deterministic=deterministic, generator=generator)[0]
 
 
 def policy_act(algo: str, modules: dict[str, torch.nn.Module]):
@@ -125,29 +125,26 @@ def policy_act(algo: str, modules: dict[str, torch.nn.Module]):
 
     @torch.no_grad()
     def act(obs: np.ndarray, mask: np.ndarray, state: np.ndarray | None) -> np.ndarray:
-        o = torch.as_tensor(obs, dtype=torch.float32)
-        m = torch.as_tensor(mask)
-        if algo == "qmix":
-            return torch.where(m, modules["agents"](o, m).argmax(-1), 0).numpy()
-        return modules["policy"].act(o, m, None, deterministic=True)[0].numpy()
+        return act_with(algo, modules, torch.as_tensor(obs, dtype=torch.float32), torch.as_tensor(mask)).numpy()
 
     return act
 
 
 class Learner:
-    """One algorithm's trainer with a uniform loop interface."""
+    """One learner's trainer with a uniform loop interface."""
 
     def __init__(self, algo: str, modules: dict, trainer) -> None:
         self.algo, self.modules, self.trainer = algo, modules, trainer
+        self.family = learner_entry(algo).family
 
     def set_progress(self, done: float) -> None:
         """The share of the run done before the next update (the PPO learning-rate schedule)."""
-        if self.algo != "qmix":
+        if self.family == "ppo":
             self.trainer.set_progress(done)
 
     def iterate(self) -> tuple[list[dict], dict[str, float], int]:
         """Collect and learn once: finished episodes' metrics, training statistics, env steps."""
-        if self.algo == "qmix":
+        if self.family == "qmix":
             before = self.trainer.env_steps
             episodes = self.trainer.collect()
             return episodes, self.trainer.update(), self.trainer.env_steps - before
@@ -164,13 +161,14 @@ class Learner:
 
 def make_learner(config, env, dims: Dims) -> Learner:
     """Modules and trainer for a :class:`comat.rl.config.RunConfig` on ``env``."""
+    entry = learner_entry(config.algo)
     modules = build_modules(config.algo, dims, config.model)
     device = None if config.device == "cpu" else config.device  # on the CPU the update trains in place
-    if config.algo == "qmix":
+    if entry.family == "qmix":
         trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, seed=config.seed, device=device)
     else:
         trainer = PPOTrainer(
-            modules["policy"], env, config.trainer, seed=config.seed, use_state=uses_state(config.algo), device=device
+            modules["policy"], env, config.trainer, seed=config.seed, use_state=entry.uses_state, device=device
         )
     return Learner(config.algo, modules, trainer)
 
