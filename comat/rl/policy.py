@@ -2,14 +2,14 @@
 
 ``comat train`` writes ``policy.pt`` into the run folder when the run finishes (and again when a
 finished run is resumed); ``comat policy RUN`` makes one from an existing checkpoint. It holds the
-float32 weights deterministic acting needs (:data:`comat.rl.algos.ACTING_MODULES`: COMAT's and
+float32 weights deterministic acting needs (:attr:`comat.learners.LearnerEntry.acts_with`: COMAT's and
 MAT's policy module, MAPPO's actors, QMIX's agent network), the resolved run config and the sizes
 to rebuild the model, the versions of the code that trained it and the env steps it was taken at
 (format: :mod:`comat.rl.checkpoint`). It cannot resume a run or be probed: those need the
 checkpoint (optimizer, normalizers, critic or mixer, replay buffer, generators).
 
 A policy loaded from ``policy.pt`` acts bit for bit as the one loaded from the checkpoint it was
-taken from (tested for all four algorithms).
+taken from (tested for every registered learner).
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ from pathlib import Path
 
 import torch
 
-from comat.rl.algos import ACTING_MODULES, Dims, build_modules, make_run_env, policy_act
+from comat.learners import learner_names
+from comat.rl.algos import Dims, build_modules, make_run_env, policy_act
 from comat.rl.checkpoint import (
     FORMAT,
     POLICY_FORMAT,
@@ -244,15 +245,17 @@ def describe_policy(path: str | Path, data: dict) -> str:
 
 
 def policy_weights(
-    preset: str = "sweep", algos=ACTING_MODULES, tasks=None, folder: str | Path | None = None, seed: int = 0
+    preset: str = "sweep", algos=None, tasks=None, folder: str | Path | None = None, seed: int = 0
 ) -> list[dict]:
-    """What one policy file weighs per algorithm and task with a preset's model config: each
+    """What one policy file weighs per learner (default: every registered one) and task with a
+    preset's model config: each
     model built (seeded, untrained: the size does not depend on the values) for the task's
     environments, its policy file written to ``folder`` (a temporary one if None) and measured.
 
     Rows: ``algo``, ``task``, ``parameters`` (kept in the policy file), ``learner_parameters``
     (all the learner's modules, critic and mixer included), ``bytes`` (the file)."""
     tasks = task_names() if tasks is None else tuple(tasks)
+    algos = learner_names() if algos is None else tuple(algos)
     import tempfile
 
     settings = load_preset(preset)
