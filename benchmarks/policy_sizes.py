@@ -13,6 +13,7 @@ import argparse
 import json
 
 from comat.files import write_atomic
+from comat.learners import learner_entry
 from comat.rl.policy import format_size, policy_weights
 
 
@@ -21,14 +22,6 @@ def table(rows: list[dict]) -> str:
     keeps (in brackets: all of the learner's, critic or mixer included)."""
     tasks = list(dict.fromkeys(r["task"] for r in rows))
     by = {(r["algo"], r["task"]): r for r in rows}
-    kept = {
-        "comat": "policy (encoder, decoder, value head)",
-        "mat": "policy (encoder, decoder, value head)",
-        "mappo": "actors (no critic)",
-        "qmix": "agent network (no mixer)",
-        "ippo": "actors (no critic)",
-        "cash": "encoder, hypernetwork (no critic)",
-    }
     lines = [
         "| algorithm | kept to act | "
         + " | ".join(f"{t.upper()} policy.pt | {t.upper()} parameters (learner)" for t in tasks)
@@ -41,8 +34,8 @@ def table(rows: list[dict]) -> str:
             f"({by[algo, t]['learner_parameters']:,})"
             for t in tasks
         ]
-        name = "COMAT" if algo == "comat" else algo.upper()
-        lines.append(f"| {name} | {kept[algo]} | " + " | ".join(cells) + " |")
+        entry = learner_entry(algo)
+        lines.append(f"| {entry.label} | {entry.keeps} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from comat.rl.algos import robot_slots
+from comat.learners import learner_entry
+from comat.rl.algos import act_with, robot_slots
 from comat.rl.checkpoint import load_trained
 from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, policy_modules, pretrained_path
 
@@ -34,9 +35,10 @@ __all__ = ["PRETRAINED", "Policy", "load_policy", "pretrained_path"]
 class Policy:
     """A trained policy: ``policy(observations) -> actions`` on PettingZoo dicts, ``act`` on batches.
 
-    Attributes: ``algo`` ("comat", "mat", "mappo", "qmix", "ippo", "cash"), ``task`` ("pcp", "hmt"), ``config`` (the
-    run's :class:`comat.rl.config.RunConfig`), ``slots`` (robots it can act for: None = any team
-    size, COMAT; else the baseline's ``max_robots``), ``path`` (the file it was read from).
+    Attributes: ``algo`` (the learner, :func:`comat.learners.learner_names`), ``task`` ("pcp",
+    "hmt" ...), ``config`` (the run's :class:`comat.rl.config.RunConfig`), ``slots`` (robots it can
+    act for: None = any team size, COMAT; else a team-sized learner's ``max_robots``), ``path`` (the
+    file it was read from).
     """
 
     def __init__(self, modules: dict, config, path: Path, deterministic: bool = True, seed: int = 0) -> None:
@@ -44,16 +46,17 @@ class Policy:
             raise TypeError(f"deterministic must be True or False, got {deterministic!r}")
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
             raise TypeError(f"seed must be an integer, got {seed!r} ({type(seed).__name__})")
-        if not deterministic and config.algo == "qmix":
+        entry = learner_entry(config.algo)
+        if not deterministic and not entry.samples:
             raise ValueError(
-                "deterministic=False: QMIX acts greedily (it explores epsilon-greedily only while it "
+                f"deterministic=False: {entry.label} acts greedily (it explores epsilon-greedily only while it "
                 "trains), so it has no policy to sample from; use deterministic=True"
             )
         self.modules, self.config, self.path = modules, config, Path(path)
         self.algo, self.task, self.slots = config.algo, config.task, robot_slots(config)
         self.deterministic = deterministic
         self._generator = torch.Generator().manual_seed(int(seed))
-        self._obs_dim = modules["agents" if self.algo == "qmix" else "policy"].layout.obs_dim
+        self._obs_dim = modules[entry.acts_with[0]].layout.obs_dim
 
     def __repr__(self) -> str:
         slots = "any team size" if self.slots is None else f"{self.slots} robot slots"
@@ -84,16 +87,8 @@ class Policy:
             mask = np.concatenate([mask, np.zeros((B, self.slots - N), bool)], 1)
         o, m = torch.as_tensor(obs), torch.as_tensor(mask)
         with torch.no_grad():
-            if self.algo == "qmix":
-                a = torch.where(m, self.modules["agents"](o, m).argmax(-1), 0)
-            else:
-                a = self.modules["policy"].act(
-                    o,
-                    m,
-                    None,
-                    deterministic=self.deterministic,
-                    generator=None if self.deterministic else self._generator,
-                )[0]
+            generator = None if self.deterministic else self._generator
+            a = act_with(self.algo, self.modules, o, m, self.deterministic, generator)
         actions = a.numpy()[:, :N].astype(np.int64)
         return actions[0] if single else actions
 

@@ -7,7 +7,8 @@ import torch
 from test_rl import assert_same, tiny
 
 from comat.cli import main
-from comat.rl.algos import Dims, Learner, build_modules, make_run_env, uses_state
+from comat.learners import learner_entry
+from comat.rl.algos import Dims, Learner, build_modules, make_run_env
 from comat.rl.checkpoint import to_plain
 from comat.rl.device import resolve_device
 from comat.rl.ppo import PPOTrainer
@@ -19,11 +20,11 @@ def _learner(config, device):
     env.reset()
     torch.manual_seed(config.seed)
     modules = build_modules(config.algo, Dims.of(env), config.model)
-    if config.algo == "qmix":
+    if learner_entry(config.algo).family == "qmix":
         trainer = QmixTrainer(modules["agents"], modules["mixer"], env, config.trainer, config.seed, device=device)
     else:
         trainer = PPOTrainer(
-            modules["policy"], env, config.trainer, config.seed, uses_state(config.algo), device=device
+            modules["policy"], env, config.trainer, config.seed, learner_entry(config.algo).uses_state, device=device
         )
     return Learner(config.algo, modules, trainer), env
 

@@ -18,8 +18,9 @@ import torch
 
 from comat.cli import main
 from comat.envs import make_vec_env
+from comat.learners import learner_entry
 from comat.measure.episodes import run_episodes
-from comat.rl.algos import ACTING_MODULES, env_slots, uses_state
+from comat.rl.algos import env_slots
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, load_policy_file
 from comat.rl.policy import POLICY_FILE, load_policy, policy_file_of
 from comat.rl.runner import train
@@ -64,7 +65,7 @@ def test_the_policy_file_keeps_only_the_acting_weights_and_acts_exactly_as_the_c
     assert raw["env_steps"] == ckpt["progress"]["env_steps"] >= 20 and raw["updates"] == ckpt["progress"]["updates"]
     assert raw["dims"] == ckpt["progress"]["dims"] and raw["versions"]["commit"] == ckpt["versions"]["commit"]
     assert not {"trainer", "optimizer", "progress", "env_rngs", "torch_rng"} & set(raw)
-    assert tuple(raw["weights"]) == ACTING_MODULES[algo]
+    assert tuple(raw["weights"]) == learner_entry(algo).acts_with
     for name, state in raw["weights"].items():
         full = ckpt["trainer"][name]
         assert set(state) <= set(full)
@@ -89,7 +90,8 @@ def test_the_policy_file_keeps_only_the_acting_weights_and_acts_exactly_as_the_c
             np.testing.assert_array_equal(a, act_pol(obs, info["agent_mask"], None))  # acting needs no state
             obs, *_, info = env.step(a)
         teams = [random_team(np.random.default_rng(1), "pcp", "test", n) for n in (3, 5)]
-        one, two = (run_episodes(env, act, teams, seed=4, use_state=uses_state(algo)) for act in (act_ckpt, act_pol))
+        state = learner_entry(algo).uses_state
+        one, two = (run_episodes(env, act, teams, seed=4, use_state=state) for act in (act_ckpt, act_pol))
     finally:
         env.close()
     assert one == two

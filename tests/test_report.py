@@ -132,7 +132,7 @@ def test_report_on_fake_runs(tmp_path, capsys):
     assert not any("progress_auc" in k or "time_to_90" in k for k in gen)  # older files: no such columns
     assert "progress AUC" not in gen_md and "Steps to 90" not in gen_md
     assert gen["paper_retention_return_ratio"] == 0.88
-    assert PAPER_TABLE1[("pcp", "return")][3] == 82.47
+    assert PAPER_TABLE1[("pcp", "return")]["comat"] == 82.47
     assert "* PCP: COMAT alone, no baseline in these runs: nothing to compare." in gen_md
     with pytest.raises(FileNotFoundError, match="not a run folder"):
         make_report([tmp_path / "results"], out)
@@ -200,7 +200,7 @@ def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, 
         lines = {ln.get_label(): ln for ln in fig6.axes[0].get_lines()}
         comat = next(ln for k, ln in lines.items() if k.startswith("COMAT (3 seeds)"))
         assert list(comat.get_xdata()) == [2, 3, 4, 5, 10, 20]
-        assert comat.get_color() == figures.ALGO_COLORS["comat"]
+        assert comat.get_color() == figures.algo_colour("comat")
         assert "U_train's sizes 3, 5, 7" in fig6.axes[0].get_xlabel()
         assert fig6.axes[1].get_ylim() == (0.0, 105.0)  # progress from 0
         # the count behind every point: one coalition of each size per seed for both, so once per size
@@ -209,7 +209,7 @@ def test_report_with_u_scale_team_size_and_fixed_colours(tmp_path, monkeypatch, 
         rows = _csv(out / "aggregates.csv")
         assert {(r["algo"], r["set"]) for r in rows} >= {("comat", "scale"), ("mat", "test")}
     assert colours[0] == colours[1]
-    expected = sorted(tuple(round(c, 3) for c in mcolors.to_rgb(figures.ALGO_COLORS[a])) for a in ("comat", "mat"))
+    expected = sorted(tuple(round(c, 3) for c in mcolors.to_rgb(figures.algo_colour(a))) for a in ("comat", "mat"))
     assert all(any(np.allclose(c, e, atol=0.01) for e in expected) for c in colours[0])
 
 
@@ -230,9 +230,9 @@ def test_team_size_counts_per_algorithm_where_they_differ(tmp_path, monkeypatch)
     figures.fig_team_size(by_size, ["pcp"], ["mat", "comat"], {"pcp": {"mat": [1], "comat": [1]}}, tmp_path / "f")
     labels = {(t.get_text(), t.get_color()) for t in drawn["f"].axes[1].texts}
     assert labels == {
-        ("1", figures.ALGO_COLORS["mat"]),
-        ("2", figures.ALGO_COLORS["comat"]),
-        ("1 (2 seeds)", figures.ALGO_COLORS["comat"]),
+        ("1", figures.algo_colour("mat")),
+        ("2", figures.algo_colour("comat")),
+        ("1 (2 seeds)", figures.algo_colour("comat")),
     }
 
 

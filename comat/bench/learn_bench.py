@@ -2,7 +2,7 @@
 
 Two parts:
 
-* **decode**: COMAT's and MAT's autoregressive ``act`` with cached keys/values (one decoder
+* **decode**: the autoregressive learners' ``act`` (COMAT's and MAT's) with cached keys/values (one decoder
   step per robot) against ``act_uncached`` (the whole decoder re-run on the prefix for every
   robot), 8 robots, for several batch sizes. Each path's encoder pass is timed on its own and
   subtracted (``act`` encodes with COMAT's compiled encoder, the re-run with torch), so
@@ -10,8 +10,8 @@ Two parts:
 * **train**: env steps per second of complete training iterations (collect a rollout + learn
   from it, exactly what ``comat train`` runs) for each algorithm on PCP (``tasks``: HMT too) in the unicycle tier
   with the paper's settings, split into time in the environment, in acting and in learning.
-  The first iteration (set-ups, caches) is not timed. ``mat_20``, ``mappo_20``, ``qmix_20``: the
-  baseline with 20 robot slots (``max_robots: 20``, to play U_scale) instead of 8, on the same
+  The first iteration (set-ups, caches) is not timed. ``mat_20``, ``mappo_20``, ``qmix_20``: a
+  team-sized learner with 20 robot slots (``max_robots: 20``, to play U_scale) instead of 8, on the same
   U_train teams: what the extra slots cost. With ``overlap`` (``--overlap on|both``) a PPO learner
   is also timed with ``ppo.overlap`` (the next rollout collected while the update runs): there the
   iteration's wall time is the update plus the wait for the collection beside it (``wait_s``),
@@ -35,12 +35,12 @@ import numpy as np
 import torch
 
 from comat.bench.sim_bench import finish
-from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES
+from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES, WIDE_SLOTS
+from comat.learners import learner_entry, learner_names
 from comat.models.autoregressive import AutoregressivePolicy
-from comat.models.comat import PAPER_FORM, Comat, ComatConfig
+from comat.models.comat import PAPER_FORM
 from comat.models.features import ObsLayout
-from comat.models.mat import Mat, MatConfig
-from comat.rl.algos import Dims, make_learner, make_run_env
+from comat.rl.algos import Dims, build_modules, make_learner, make_run_env
 from comat.rl.config import load_preset, resolve
 from comat.tasks import task_names
 from comat.tasks.pcp import PCP
@@ -52,12 +52,8 @@ TRAIN_TARGET = 400.0
 LEARN_RATIO_TARGET = 1.3
 """COMAT's learning seconds over MAT's in the same run (the same rollout size), at most: the
 speed issue's target (issue 48)."""
-PPO_LEARNERS = ("comat", "mat", "mappo", "ippo", "cash")
-"""The learners with a PPO update, which the update part times."""
 DECODE_TARGET = 3.0
 """Cached decoding vs a full re-run per robot, 8 robots."""
-WIDE_SLOTS = 20
-"""Robot slots of the ``<baseline>_20`` rows (the Robotarium's largest team)."""
 
 
 def _best_time(fn, repeats: int) -> float:
@@ -73,11 +69,16 @@ def _best_time(fn, repeats: int) -> float:
 
 @torch.no_grad()
 def bench_decode(model_name: str, n_robots: int = 8, batch: int = 32, repeats: int = 20, seed: int = 0) -> dict:
-    """Cached vs uncached autoregressive decoding of ``model_name`` ("comat" or "mat")."""
-
+    """Cached vs uncached autoregressive decoding of learner ``model_name`` ("comat", "mat": an
+    autoregressive one, :attr:`comat.learners.LearnerEntry.autoregressive`), its default config."""
+    entry = learner_entry(model_name)
+    if not entry.autoregressive:
+        decoders = [n for n in learner_names() if learner_entry(n).autoregressive]
+        raise ValueError(f"bench_decode: model_name must be an autoregressive learner {decoders}, got {model_name!r}")
     torch.manual_seed(seed)
     layout = ObsLayout.for_task(PCP())
-    model = Comat(layout, ComatConfig()) if model_name == "comat" else Mat(layout, MatConfig())
+    dims = Dims(layout.obs_dim, layout.n_types, layout.n_caps, state_dim=0)  # no state: acting only
+    model = build_modules(model_name, dims, entry.config_class()(), acting_only=True)["policy"]
     model.eval()
     obs = torch.randn(batch, n_robots, layout.obs_dim)
     types = torch.randint(0, layout.n_types, (batch, n_robots))
@@ -122,21 +123,21 @@ def bench_train(
     """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on ``task`` (unicycle);
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
     measure what today's default costs against it in the same run; ``comat_<option>``: one option
-    of :data:`COMAT_VARIANTS` changed; ``<baseline>_20``: that baseline with 20 robot slots;
+    of :data:`COMAT_VARIANTS` changed; ``<learner>_20``: that team-sized learner with 20 robot slots;
     ``overlap``: with ``ppo.overlap`` (PPO learners only)."""
 
     settings = load_preset(preset)
-    label = algo
+    label, algo = algo, _learner_of(algo)
     variants = {"comat_paper": PAPER_FORM, **COMAT_VARIANTS}
-    algo = "comat" if label in variants else label.removesuffix(f"_{WIDE_SLOTS}")
     change = variants.get(label) or ({"max_robots": WIDE_SLOTS} if label != algo else None)
     if change:
         models = dict(settings.get("models") or {})
         models[algo] = {**(models.get(algo) or {}), **change}
         settings = {**settings, "models": models}
+    family = learner_entry(algo).family
     if overlap:
-        if algo == "qmix":
-            raise ValueError("bench_train: overlap is a PPO option; qmix has none")
+        if family != "ppo":
+            raise ValueError(f"bench_train: overlap is a PPO option; {algo} has none")
         settings = {**settings, "ppo": {**(settings.get("ppo") or {}), "overlap": True}}
     config = resolve(settings, algo, task, seed=seed, tier="unicycle", env_workers=env_workers)
     torch.set_num_threads(config.torch_threads)
@@ -166,7 +167,7 @@ def bench_train(
         for _ in range(iterations):
             clock["env"] = 0.0
             t0 = time.perf_counter()
-            if algo == "qmix":
+            if family == "qmix":
                 before = learner.trainer.env_steps
                 learner.trainer.collect()
                 t1 = time.perf_counter()
@@ -217,8 +218,8 @@ def bench_update(
     ``env_workers`` collect the rollouts (not timed; closed before the first update)."""
     setups = {}
     for algo in algos:
-        if algo == "qmix":
-            raise ValueError("bench_update: times the PPO learners' update; qmix has none")
+        if learner_entry(algo).family != "ppo":
+            raise ValueError(f"bench_update: times the PPO learners' update; {algo} has none")
         config = resolve(load_preset(preset), algo, task, seed=seed, tier="unicycle", env_workers=env_workers)
         torch.set_num_threads(config.torch_threads)
         torch.manual_seed(seed)
@@ -303,6 +304,17 @@ def _checks(decode: list[dict], train: list[dict], update: list[dict] = ()) -> d
     return checks
 
 
+def _family(label: str) -> str:
+    """The family of the learner a training row ``label`` times (``comat_paper``, ``mat_20``: COMAT's, MAT's)."""
+    return learner_entry(_learner_of(label)).family
+
+
+def _learner_of(label: str) -> str:
+    """The learner a training row ``label`` times: ``comat_paper`` and :data:`COMAT_VARIANTS` are COMAT,
+    ``<learner>_20`` that learner."""
+    return "comat" if label == "comat_paper" or label in COMAT_VARIANTS else label.removesuffix(f"_{WIDE_SLOTS}")
+
+
 def run_learn_bench(
     algos=("comat", "comat_paper", "mat", "mappo", "qmix"),
     workers=(1, 2),
@@ -322,7 +334,7 @@ def run_learn_bench(
         raise ValueError(f"overlap must be one of {list(OVERLAP_CHOICES)}, got {overlap!r}")
     tasks = task_names() if tasks is None else tuple(tasks)
     decode = []
-    for model in ("comat", "mat"):
+    for model in (n for n in learner_names() if learner_entry(n).autoregressive):
         for batch in batches:
             progress(f"  decode {model} N=8 B={batch} ...")
             decode.append(bench_decode(model, 8, batch))
@@ -331,12 +343,12 @@ def run_learn_bench(
     for task in tasks:
         for w in workers:
             for algo in algos:
-                for way in ways if algo != "qmix" else (False,):  # QMIX has no overlap option
+                for way in ways if _family(algo) == "ppo" else (False,):  # QMIX has no overlap option
                     what = " overlapped" if way else ""
                     progress(f"  train {algo}{what} {task} env_workers={w} ({iterations} iterations) ...")
                     train.append(bench_train(algo, iterations, env_workers=w, task=task, overlap=way))
     update = []
-    ppo = [a for a in algos if a in PPO_LEARNERS]
+    ppo = [a for a in algos if a in learner_names() and _family(a) == "ppo"]
     for task in tasks if update_rounds > 0 and ppo else ():
         progress(f"  update {', '.join(ppo)} {task}, taking turns ({update_rounds} rounds) ...")
         update += bench_update(ppo, task, update_rounds, env_workers=max(workers))

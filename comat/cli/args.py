@@ -38,12 +38,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from comat.config import REFERENCE_TIER
+from comat.learners import learner_names
 from comat.reality.config import REALITY_LEVELS
 from comat.tasks import LADDER, RUNG_ALIASES, task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
-    "ALGOS",
     "DEFAULT_SEED",
     "DEFAULT_TEAMS",
     "REFERENCE_POLICIES",
@@ -71,7 +71,6 @@ __all__ = [
 TASKS = task_names()
 """Task choices, in this order in every command (the registered tasks, :mod:`comat.tasks`)."""
 TIERS = ("wheels", "unicycle")
-ALGOS = ("comat", "mat", "mappo", "qmix", "ippo", "cash")
 REFERENCE_POLICIES = (*LADDER, *RUNG_ALIASES)
 """The reference ladder's rungs (:mod:`comat.envs.heuristics`) and their other names."""
 DEFAULT_SEED = 2_000_003
@@ -294,10 +293,14 @@ def resolve_policy_arg(
     policy: str | None,
     task: str | None,
     references: tuple[str, ...] = REFERENCE_POLICIES,
-    algos: tuple[str, ...] = ALGOS,
+    algos: tuple[str, ...] | None = None,
     need_checkpoint: str | None = None,
+    why: str = "",
 ) -> PolicyArg:
     """Check ``--policy`` against ``--task`` (ValueError naming the flag, expected and got).
+
+    ``algos``: the learners whose policies the command takes (default: every registered one);
+    ``why``: the reason it takes only those, said when another's is given.
 
     ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
     learner's value estimates"); a policy file is then refused with that reason."""
@@ -343,10 +346,11 @@ def resolve_policy_arg(
     noun = "policy file" if kind == "policy" else "checkpoint"
     if task is not None and task != data["task"]:
         raise ValueError(f"--task {task!r} disagrees with the {noun}, which is for task {data['task']!r} ({path})")
+    algos = learner_names() if algos is None else algos
     if data["algo"] not in algos:
         raise ValueError(
-            f"--policy must be a checkpoint or policy file of {'/'.join(algos)} here, got a "
-            f"{data['algo']} {noun} ({path})"
+            f"--policy must be a checkpoint or policy file of {'/'.join(algos)} here{': ' + why if why else ''}, "
+            f"got a {data['algo']} {noun} ({path})"
         )
     tier = (data.get("config") or {}).get("tier")
     return PolicyArg(f"{data['algo']} {kind}", data["task"], path, data["algo"], tier, kind, shipped_name(path))

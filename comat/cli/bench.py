@@ -10,7 +10,7 @@ import argparse
 import time
 
 from comat.bench.safety_bench import DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
-from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES
+from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES, WIDE_SLOTS, learn_rows
 from comat.cli.args import TASKS, TIERS, int_at_least
 from comat.cli.rollout import add_viz_bench_parser
 from comat.config import LOOPS
@@ -161,23 +161,11 @@ def add_bench_parser(sub) -> None:
     b.add_argument(
         "--algos",
         nargs="+",
-        choices=[
-            "comat",
-            "comat_paper",
-            *COMAT_VARIANTS,
-            "mat",
-            "mappo",
-            "qmix",
-            "ippo",
-            "cash",
-            "mat_20",
-            "mappo_20",
-            "qmix_20",
-        ],
+        choices=learn_rows(),
         default=["comat", "comat_paper", "mat", "mappo", "qmix"],
         help="algorithms to train; comat_paper: COMAT in the paper form (eq. 2-3 literally), "
         f"to compare today's default with it in one run; {', '.join(COMAT_VARIANTS)}: COMAT with that "
-        "decision layer or one HEAT block; mat_20, mappo_20, qmix_20: the baseline with 20 "
+        f"decision layer or one HEAT block; <learner>_{WIDE_SLOTS}: a team-sized learner with {WIDE_SLOTS} "
         "robot slots instead of 8 (default: %(default)s)",
     )
     b.add_argument(

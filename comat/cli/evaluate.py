@@ -11,7 +11,6 @@ import os
 import sys
 
 from comat.cli.args import (
-    ALGOS,
     TASKS,
     TIERS,
     add_force,
@@ -24,6 +23,7 @@ from comat.cli.args import (
     add_tier,
 )
 from comat.config import LOOPS
+from comat.learners import learner_names
 from comat.team import COALITION_SETS
 
 __all__ = ["add_evaluate_parsers"]
@@ -304,7 +304,9 @@ def add_evaluate_parsers(sub) -> None:
         "(finished runs are skipped, interrupted ones resume). Settings not given: the recorded "
         "sweep's, else the defaults shown.",
     )
-    p.add_argument("--algos", nargs="+", choices=ALGOS, default=None, help="algorithms (default: all four)")
+    p.add_argument(
+        "--algos", nargs="+", choices=learner_names(), default=None, help="learners (default: comat mat mappo qmix)"
+    )
     p.add_argument("--tasks", nargs="+", choices=TASKS, default=None, help="tasks (default: pcp hmt)")
     p.add_argument(
         "--seeds",

@@ -250,7 +250,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
     missing = [f"--{k}" for k in ("policy", "team", "out") if getattr(args, k) is None]
     if missing:
         raise ValueError(f"comat export needs {', '.join(missing)} (or --check DIR)")
-    pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=("comat",))
+    from comat.learners import learner_entry, learner_names
+
+    shipped = tuple(n for n in learner_names() if learner_entry(n).exports)
+    why = "an export ships a numpy forward pass, which sim2real/runtime.py has for these learners only"
+    pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=shipped, why=why)
     team = parse_team(args.team, pol.task)
     poses = None if args.start_poses is None else load_start_poses(args.start_poses)
     from comat.files import new_outputs

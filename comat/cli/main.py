@@ -30,6 +30,7 @@ from comat.cli.replay import add_replay_parser
 from comat.cli.rollout import add_rollout_parser
 from comat.cli.tasks import add_tasks_parsers
 from comat.cli.train import add_train_parsers
+from comat.learners import plugin_error as learner_plugin_error
 from comat.machine import RunRegistry, set_thread_waiting
 from comat.tasks import plugin_error
 from comat.team import COALITION_SETS, COALITIONS_DIR
@@ -173,7 +174,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``comat`` console script."""
-    broken = plugin_error()  # a bad COMAT_TASKS entry: one line, before --help or any command
+    broken = plugin_error() or learner_plugin_error()  # a bad COMAT_TASKS / COMAT_LEARNERS entry: one line,
+    # before --help or any command
     if broken:
         print(f"comat: error: {broken}", file=sys.stderr)
         return 2

@@ -10,7 +10,8 @@ import argparse
 import sys
 import time
 
-from comat.cli.args import ALGOS, TASKS, TIERS, add_force
+from comat.cli.args import TASKS, TIERS, add_force
+from comat.learners import learner_entry, learner_names
 
 __all__ = [
     "MEASURED_ENV_STEPS_PER_S",
@@ -204,13 +205,13 @@ def add_train_parsers(sub) -> None:
     """Register ``train`` and ``policy`` on the top-level sub-parsers of ``comat``."""
     p = sub.add_parser(
         "train",
-        help="train a learner (COMAT, MAT, MAPPO, QMIX, IPPO, CASH) on any registered task",
+        help=f"train a learner ({', '.join(learner_entry(n).label for n in learner_names())}) on any registered task",
         description="Train a policy on the task's training coalitions (U_train), with periodic "
         "evaluation, CSV + TensorBoard logs, atomic checkpoints and --resume. Settings come from a "
         "preset (train/configs/ in a checkout, comat/data/presets/ when installed; values only); the resolved "
         "config is written to the run folder.",
     )
-    p.add_argument("--algo", choices=ALGOS, help="algorithm (required for a new run)")
+    p.add_argument("--algo", choices=learner_names(), help="learner (required for a new run; comat.learners)")
     p.add_argument("--task", choices=TASKS, help="task (required for a new run)")
     p.add_argument(
         "--preset",

@@ -1,8 +1,9 @@
 """The report's figures (matplotlib, Agg): Fig. 4, Fig. 5 and return / progress against team size.
 
-Every figure uses :data:`ALGO_COLORS` — one colour per algorithm in every figure and every
-report — and says in its caption what a line, band or bar is: the statistic, over what
-(seeds), the interval method and the env-step budget. Evaluation intervals are the report's: the
+Every figure draws a learner in its own colour (:func:`algo_colour`, from its entry in
+:mod:`comat.learners`) — the same in every figure and every report — and says in its caption
+what a line, band or bar is: the statistic, over what (seeds), the interval method and the
+env-step budget. Evaluation intervals are the report's: the
 95 % Student-t interval over per-seed means, each seed's mean first averaging its K episodes per
 coalition, then its coalitions (:mod:`comat.measure.stats`). Progress axes start at 0, and the team-size
 figure writes how many coalitions each point averages. Each is written as PNG (200 dpi)
@@ -21,30 +22,21 @@ from pathlib import Path
 import numpy as np
 
 from comat.files import write_atomic
+from comat.learners import learner_entry, learner_names
 from comat.measure.metrics import mean_ci
 
 __all__ = [
-    "ALGO_COLORS",
-    "ALGO_LABELS",
     "SET_HATCHES",
     "SIZE_SETS",
     "TRAIN_SIZES",
+    "algo_colour",
+    "algo_label",
     "fig4",
     "fig5",
     "fig_team_size",
     "save",
 ]
 
-ALGO_LABELS = {"ippo": "IPPO", "mappo": "MAPPO", "qmix": "QMIX", "mat": "MAT", "cash": "CASH", "comat": "COMAT"}
-ALGO_COLORS = {
-    "comat": "#d62728",
-    "mat": "#1f77b4",
-    "mappo": "#2ca02c",
-    "qmix": "#9467bd",
-    "ippo": "#8c564b",
-    "cash": "#ff7f0e",
-}
-"""Colour of each algorithm, fixed (not by the order runs are given)."""
 SET_HATCHES = {"train": "", "val": "\\\\", "test": "//", "scale": "..", "size": "xx", "capability": "oo"}
 """Composition sets are told apart by hatching, never by colour (colour means algorithm)."""
 SET_LABELS = {
@@ -58,6 +50,19 @@ SET_LABELS = {
 SIZE_SETS = ("train", "test", "scale", "size")
 """Sets pooled in the team-size figure: U_val repeats U_train's draw (it is for model selection)
 and U_cap varies capability at the training sizes, so neither belongs on a size axis."""
+
+
+def algo_label(algo: str) -> str:
+    """How tables and figures name learner ``algo``: its entry's label (a learner not registered
+    here: its name)."""
+    return learner_entry(algo).label if algo in learner_names() else algo
+
+
+def algo_colour(algo: str) -> str:
+    """The colour of learner ``algo`` in every figure: its entry's (colour means learner)."""
+    return learner_entry(algo).colour
+
+
 TRAIN_SIZES = (3, 5, 7)
 """Team sizes of U_train (paper §III-D)."""
 METRIC_AXES = {
@@ -114,7 +119,7 @@ def _budget_text(budgets: Mapping[str, Sequence[int]]) -> str:
     parts = []
     for algo, b in budgets.items():
         lo, hi = min(b), max(b)
-        parts.append(f"{ALGO_LABELS[algo]} {lo:,}" + ("" if lo == hi else f"-{hi:,}"))
+        parts.append(f"{algo_label(algo)} {lo:,}" + ("" if lo == hi else f"-{hi:,}"))
     every = {x for b in budgets.values() for x in b}
     if len(budgets) > 1 and len(every) == 1:
         return f"{every.pop():,} env steps per run, every algorithm (paper: 4,000,000)"
@@ -148,8 +153,8 @@ def fig4(
                 ys.append(np.interp(grid, x, y))
             ys = np.asarray(ys)
             mean = ys.mean(0)
-            color = ALGO_COLORS[algo]
-            ax.plot(grid, mean, color=color, label=f"{ALGO_LABELS[algo]} ({len(runs)} seed{'s' * (len(runs) > 1)})")
+            color = algo_colour(algo)
+            ax.plot(grid, mean, color=color, label=f"{algo_label(algo)} ({len(runs)} seed{'s' * (len(runs) > 1)})")
             if len(runs) > 1:
                 half = np.array([mean_ci(col)[1] for col in ys.T])
                 ax.fill_between(grid, mean - half, mean + half, color=color, alpha=0.2, lw=0)
@@ -231,7 +236,7 @@ def fig5(
                     width,
                     yerr=errs,
                     capsize=2,
-                    color=[ALGO_COLORS[r["algo"]] for r in sel],
+                    color=[algo_colour(r["algo"]) for r in sel],
                     hatch=SET_HATCHES[split],
                     edgecolor="white",
                     alpha=1.0 if split == "train" else 0.75,
@@ -252,7 +257,7 @@ def fig5(
                                 fontsize=6,
                                 color="black",
                             )
-            ax.set_xticks(x, [ALGO_LABELS[r["algo"]] for r in sel])
+            ax.set_xticks(x, [algo_label(r["algo"]) for r in sel])
             ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
             if key == "progress":
                 ax.set_ylim(bottom=0)  # a share: its axis starts at 0, so bar heights compare honestly
@@ -316,7 +321,7 @@ def _count_labels(ax, counts: Mapping[str, Mapping[int, tuple[str, float]]]) -> 
                     xytext=(3, -8 - 6 * k),
                     textcoords="offset points",
                     fontsize=5,
-                    color=ALGO_COLORS[algo],
+                    color=algo_colour(algo),
                 )
 
 
@@ -357,10 +362,10 @@ def fig_team_size(
                     mean.append(m)
                     half.append(0.0 if math.isnan(h) else h)
                 mean, half = np.asarray(mean), np.asarray(half)
-                color = ALGO_COLORS[algo]
+                color = algo_colour(algo)
                 seeds = max(len(v) for v in by_size[(algo, task)].values())
                 ax.plot(
-                    sizes, mean, "o-", color=color, ms=3, label=f"{ALGO_LABELS[algo]} ({seeds} seed{'s' * (seeds > 1)})"
+                    sizes, mean, "o-", color=color, ms=3, label=f"{algo_label(algo)} ({seeds} seed{'s' * (seeds > 1)})"
                 )
                 low, high = mean - half, mean + half
                 if metric == "progress":

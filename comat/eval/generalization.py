@@ -17,7 +17,7 @@ import csv
 import io
 import math
 
-from comat.eval.figures import ALGO_LABELS
+from comat.eval.figures import algo_label
 from comat.eval.runs import ALPHA, COMPARED, PAPER_RETENTION, SET_NAMES, method_text, seed_means
 from comat.measure.metrics import interval_text, mean_ci
 from comat.measure.stats import welch
@@ -98,11 +98,7 @@ def _table(rows: list[dict], head: list[str], cells) -> list[str]:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in rows:
         lines.append(
-            "| "
-            + " | ".join(
-                [row["task"].upper(), ALGO_LABELS.get(row["algo"], row["algo"]), str(row["seeds"]), *cells(row)]
-            )
-            + " |"
+            "| " + " | ".join([row["task"].upper(), algo_label(row["algo"]), str(row["seeds"]), *cells(row)]) + " |"
         )
     return lines
 
@@ -256,7 +252,7 @@ def _comparison_line(task: str, split: str, key: str, mine: dict, row: dict) -> 
         task.upper(),
         SET_NAMES[split],
         _NOUNS[key],
-        ALGO_LABELS.get(row["algo"], row["algo"]),
+        algo_label(row["algo"]),
         _cell(mine, name),
         _cell(row, name),
         diff,

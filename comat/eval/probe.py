@@ -75,7 +75,7 @@ def probe_checkpoint(checkpoint: str | Path, seed: int | None = None, num_envs: 
         learner.load_state_dict(data["trainer"])
         for m in learner.modules.values():
             m.eval()
-        body = _probe_qmix(learner.trainer) if config.algo == "qmix" else _probe_ppo(learner.trainer)
+        body = {"ppo": _probe_ppo, "qmix": _probe_qmix}[learner.family](learner.trainer)
     finally:
         env.close()
     return {

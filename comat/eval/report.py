@@ -48,11 +48,10 @@ from pathlib import Path
 import numpy as np
 
 from comat.eval import figures
-from comat.eval.figures import ALGO_LABELS
+from comat.eval.figures import algo_label
 from comat.eval.generalization import generalization_csv, generalization_md, generalization_rows
 from comat.eval.robustness import robustness_csv, robustness_figure, robustness_rows
 from comat.eval.runs import (
-    ALGO_ORDER,
     ENDPOINTS,
     PAPER_BUDGET,
     REFERENCES,
@@ -67,6 +66,7 @@ from comat.eval.runs import (
     seed_means,
 )
 from comat.files import write_atomic
+from comat.learners import learner_names, not_registered
 from comat.measure.metrics import SHARES, interval_text, mean_ci
 from comat.measure.stats import hierarchical_bootstrap
 from comat.tasks import task_names
@@ -86,20 +86,23 @@ REPORT_FILES = (
     ),
 )
 """Every file ``make_report`` writes (``comat report`` refuses to overwrite them without --force)."""
+_PAPER_COLUMNS = ("mappo", "qmix", "mat", "comat")
 PAPER_TABLE1 = {
-    # Paper Table I ("Detailed metrics for train team compositions"): MAPPO, QMIX, MAT, COMAT.
-    ("pcp", "return"): (45.43, 24.10, 70.12, 82.47),
-    ("pcp", "steps"): (79.00, 79.70, 70.95, 65.61),
-    ("pcp", "finished"): (0.879, 0.856, 0.916, 0.928),
-    ("pcp", "collisions"): (0.00, 0.00, 0.00, 0.00),
-    ("hmt", "return"): (11.70, 11.70, 8.32, 12.41),
-    ("hmt", "steps"): (70.00, 70.60, 72.30, 68.75),
-    ("hmt", "finished"): (0.977, 0.972, 0.911, 0.977),
-    ("hmt", "collisions"): (0.00, 0.00, 1.00, 0.00),
+    key: dict(zip(_PAPER_COLUMNS, values))
+    for key, values in {
+        # Paper Table I ("Detailed metrics for train team compositions"): MAPPO, QMIX, MAT, COMAT.
+        ("pcp", "return"): (45.43, 24.10, 70.12, 82.47),
+        ("pcp", "steps"): (79.00, 79.70, 70.95, 65.61),
+        ("pcp", "finished"): (0.879, 0.856, 0.916, 0.928),
+        ("pcp", "collisions"): (0.00, 0.00, 0.00, 0.00),
+        ("hmt", "return"): (11.70, 11.70, 8.32, 12.41),
+        ("hmt", "steps"): (70.00, 70.60, 72.30, 68.75),
+        ("hmt", "finished"): (0.977, 0.972, 0.911, 0.977),
+        ("hmt", "collisions"): (0.00, 0.00, 1.00, 0.00),
+    }.items()
 }
-"""The paper's Table I, keyed by (task, our metric name); values in :data:`PAPER_ALGOS`' order."""
-PAPER_ALGOS = ("mappo", "qmix", "mat", "comat")
-"""The learners of the paper's Table I (IPPO is not one: its cells show —)."""
+"""The paper's Table I, keyed by (task, our metric name): learner -> value. The paper ran MAPPO,
+QMIX, MAT and COMAT; another learner's cells show —."""
 TABLE_METRICS = (
     ("return", "Mean return"),
     ("steps", "Episode steps"),
@@ -135,7 +138,7 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
     writer = csv.writer(buf)
     writer.writerow(["task", "metric", "algo", "seeds", "mean", "ci95_over_seeds", "paper"])
     lines = [
-        "| Task | Metric | " + " | ".join(f"{ALGO_LABELS[a]} (ours) | {ALGO_LABELS[a]} (paper)" for a in algos) + " |",
+        "| Task | Metric | " + " | ".join(f"{algo_label(a)} (ours) | {algo_label(a)} (paper)" for a in algos) + " |",
         "|---|---|" + "---|---|" * len(algos),
     ]
     for task in tasks:
@@ -161,7 +164,7 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
                 mean, half, n = over_seeds(groups.get((algo, task), []), "train", metric)
                 # Returns are not comparable: the paper's reward scale is not ours (see the caption).
                 paper = None if metric == "return" else PAPER_TABLE1.get((task, metric))
-                paper_v = None if paper is None or algo not in PAPER_ALGOS else paper[PAPER_ALGOS.index(algo)]
+                paper_v = None if paper is None else paper.get(algo)
                 cells += [
                     _fmt(mean, half, metric),
                     "—" if paper_v is None else _fmt(paper_v, math.nan, metric, unit=None),
@@ -169,7 +172,7 @@ def _table1(groups: dict, tasks: list[str], algos: list[str]) -> tuple[str, str]
                 writer.writerow([task, metric, algo, n, mean, half, "" if paper_v is None else paper_v])
             lines.append(f"| {task.upper()} | {label} | " + " | ".join(cells) + " |")
     seeds = {
-        f"{ALGO_LABELS[a]}/{t.upper()}": len(seed_means(groups.get((a, t), []), "train", "return"))
+        f"{algo_label(a)}/{t.upper()}": len(seed_means(groups.get((a, t), []), "train", "return"))
         for t in tasks
         for a in algos
     }
@@ -365,7 +368,9 @@ def make_report(run_folders: list[str | Path], out: str | Path, tier: str | None
     for r in runs:
         groups.setdefault((r["algo"], r["task"]), []).append(r)
     tasks = [t for t in task_names() if any(k[1] == t for k in groups)]
-    algos = [a for a in ALGO_ORDER if any(k[0] == a for k in groups)]
+    algos = [a for a in learner_names() if any(k[0] == a for k in groups)]
+    for stray in sorted({k[0] for k in groups} - set(algos)):
+        print(f"warning: runs of {stray!r} left out of the report: {not_registered(stray)}", file=sys.stderr)
     evaluated = {k: [r for r in v if r["evaluation"]] for k, v in groups.items()}
     sets = _sets_present(runs)
     endpoints = _endpoints_present(runs, sets)

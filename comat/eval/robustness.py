@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from comat.eval.evaluate import evaluate_policies
-from comat.eval.figures import ALGO_LABELS, _plt, clipped_err, empty_figure, save
+from comat.eval.figures import _plt, algo_label, clipped_err, empty_figure, save
 from comat.files import detail_name, new_outputs, write_atomic, write_json_detail
 from comat.measure.metrics import read_results
 from comat.measure.stats import per_seed_means, t_interval
@@ -282,7 +282,7 @@ def robustness_figure(rows: list[dict], stem: Path) -> list[str]:
                     yerr=err,
                     marker="o",
                     capsize=3,
-                    label=f"{ALGO_LABELS.get(algo, algo)} ({seeds} seed{'s' if seeds > 1 else ''})",
+                    label=f"{algo_label(algo)} ({seeds} seed{'s' if seeds > 1 else ''})",
                 )
             ax.set_xlabel(comp)
             if comp == LEVEL_COMPONENT:

@@ -19,7 +19,6 @@ from comat.measure.stats import cell_means
 from comat.team import COALITION_SETS, SET_LABELS
 
 __all__ = [
-    "ALGO_ORDER",
     "ALPHA",
     "COMPARED",
     "ENDPOINTS",
@@ -38,7 +37,6 @@ __all__ = [
     "seed_means",
 ]
 
-ALGO_ORDER = ("ippo", "mappo", "qmix", "mat", "cash", "comat")
 SETS = COALITION_SETS
 """Composition sets in table order (``comat.team.COALITION_SETS``); only those present appear."""
 SET_NAMES = SET_LABELS

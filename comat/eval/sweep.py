@@ -42,8 +42,9 @@ import comat
 import sim2real
 from comat.eval.evaluate import evaluate_policies, write_results
 from comat.files import portable_command, write_atomic
+from comat.learners import learner_names
 from comat.rl.checkpoint import versions
-from comat.rl.config import ALGOS, TASKS, apply_overrides, load_preset, resolve
+from comat.rl.config import TASKS, apply_overrides, load_preset, resolve
 from comat.rl.device import DEVICES, resolve_device
 from comat.rl.policy import ensure_policy
 from comat.rl.runner import train
@@ -109,7 +110,7 @@ def read_record(root: str | Path) -> dict | None:
 
 def _check_grid(algos, tasks, seeds) -> None:
 
-    for name, values, valid in (("algos", algos, ALGOS), ("tasks", tasks, TASKS)):
+    for name, values, valid in (("algos", algos, learner_names()), ("tasks", tasks, TASKS)):
         bad = [v for v in values if v not in valid]
         if bad or not values:
             raise ValueError(f"--{name} must be a non-empty subset of {list(valid)}, got {list(values)!r}")

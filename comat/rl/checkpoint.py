@@ -15,7 +15,7 @@ small enough to commit next to a run's results:
     (the sizes the model is built from), versions (of the code that trained it), written_by (of
     the code that wrote the file), env_steps and updates at which it was taken, parameters, and
     weights: module name -> float32 state dict of the modules deterministic acting needs
-    (``comat.rl.algos.ACTING_MODULES``); no optimizer, normalizer, critic, mixer or buffer.
+    (:attr:`comat.learners.LearnerEntry.acts_with`); no optimizer, normalizer, critic, mixer or buffer.
 
 Both load with ``weights_only=True``. Writes go to a temporary file in the same folder, are
 flushed to disk, then renamed over the target, so a crash leaves either the old file or the new
@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from comat import learners
 from comat._version import __version__
 from comat.models.comat import PAPER_FORM
 from comat.tasks import TASKS, env_id, not_registered
@@ -316,6 +317,10 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
         raise CheckpointError(
             f"{noun} {str(path)!r} was trained on {made_for}, but this comat has {env_id(data['task'])} "
             "(the task's rules changed since): train it again"
+        )
+    if isinstance(data.get("algo"), str) and data["algo"] not in learners.learner_names():  # a plug-in learner's
+        raise CheckpointError(
+            f"{noun} {str(path)!r} holds a {data['algo']!r} policy, but {learners.not_registered(data['algo'])}"
         )
     if kind == POLICY_FORMAT:
         _check_policy(path, data)

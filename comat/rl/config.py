@@ -5,8 +5,7 @@ A preset holds values only, for every algorithm at once::
 
     total_env_steps, seeds, tier, eval_every_steps, eval_episodes_per_team,
     checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
-    models: {comat: {ComatConfig}, mat: {MatConfig}, mappo: {MappoConfig}, qmix: {QmixNetConfig}, ippo: {IppoConfig},
-            cash: {CashConfig}},
+    models: {LEARNER: {its model config}, ...}   (the registered learners: comat.learners)
     reality: off | nominal | stress | PROFILE.yaml | {RealityConfig fields}
     coalitions: train | SET | TEAMS.yaml   (what the run trains on; default train, U_train)
 
@@ -29,12 +28,7 @@ from typing import Any
 
 from comat.config import LOOPS, load
 from comat.envs.base import resolve_coalitions
-from comat.models.cash import CashConfig
-from comat.models.comat import ComatConfig
-from comat.models.ippo import IppoConfig
-from comat.models.mappo import MappoConfig
-from comat.models.mat import MatConfig
-from comat.models.qmix import QmixNetConfig
+from comat.learners import learner_entry, learner_names
 from comat.reality import RealityConfig, resolve_reality
 from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
@@ -44,7 +38,6 @@ from comat.tasks import task_names
 from comat.team import COALITION_SETS
 
 __all__ = [
-    "ALGOS",
     "PRESETS_DIR",
     "TASKS",
     "RunConfig",
@@ -55,20 +48,14 @@ __all__ = [
     "run_reality",
 ]
 
-ALGOS = ("comat", "mat", "mappo", "qmix", "ippo", "cash")
 TASKS = tuple(sorted(task_names()))
 TIERS = ("wheels", "unicycle")
 PRESETS_DIR = Path(__file__).resolve().parents[1] / "data" / "presets"
 """The named presets. They ship inside the package (a wheel has no ``train/``); the checkout's
 ``train/configs`` is a link to this folder, so there is one copy to edit."""
-MODEL_CONFIGS = {
-    "comat": ComatConfig,
-    "mat": MatConfig,
-    "mappo": MappoConfig,
-    "qmix": QmixNetConfig,
-    "ippo": IppoConfig,
-    "cash": CashConfig,
-}
+TRAINER_CONFIGS = {"ppo": PPOConfig, "qmix": QmixConfig}
+"""A learner family (:data:`comat.learners.FAMILIES`) -> its trainer's config, filled by the preset's
+section of that name."""
 _RUN_KEYS = (
     "total_env_steps",
     "eval_every_steps",
@@ -103,7 +90,8 @@ class RunConfig:
     checkpoint_every_steps: int
     """Write the checkpoint every this many env steps (and at the end)."""
     trainer: PPOConfig | QmixConfig
-    model: ComatConfig | MatConfig | MappoConfig | QmixNetConfig | IppoConfig | CashConfig
+    model: Any
+    """The learner's model config (:meth:`comat.learners.LearnerEntry.config_class`)."""
     env_workers: int = 1
     """Processes stepping the environments (:class:`comat.envs.ShardedVectorEnv` when > 1).
     Part of the run's identity: results are exactly reproducible for the same value."""
@@ -157,10 +145,9 @@ class RunConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RunConfig:
         data = dict(data)
-        _check_choice("algo", data.get("algo"), ALGOS)
-        trainer_cls = QmixConfig if data["algo"] == "qmix" else PPOConfig
-        data["trainer"] = load(trainer_cls, data.get("trainer"), prefix="trainer")
-        data["model"] = load(MODEL_CONFIGS[data["algo"]], data.get("model"), prefix="model")
+        entry = learner_entry(data.get("algo"))
+        data["trainer"] = load(TRAINER_CONFIGS[entry.family], data.get("trainer"), prefix="trainer")
+        data["model"] = load(entry.config_class(), data.get("model"), prefix="model")
         data["reality"] = run_reality(data.get("reality"))  # absent (a run from before the layer): off
         return cls(**data)
 
@@ -245,9 +232,9 @@ def _check_preset_keys(data: dict[str, Any], source: str) -> None:
     if unknown:
         raise ValueError(f"unknown key(s) {unknown} in {source}; valid keys: {sorted(_PRESET_KEYS)}")
     models = data.get("models") or {}
-    unknown = sorted(set(models) - set(ALGOS))
+    unknown = sorted(set(models) - set(learner_names()))
     if unknown:
-        raise ValueError(f"unknown algo(s) {unknown} under models in {source}; valid: {list(ALGOS)}")
+        raise ValueError(f"unknown algo(s) {unknown} under models in {source}; valid: {list(learner_names())}")
     by_task = data.get("by_task")
     if by_task is not None:
         if not isinstance(by_task, Mapping) or not set(by_task) <= set(TASKS):
@@ -333,7 +320,7 @@ def resolve(
 ) -> RunConfig:
     """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it
     (``device``: "cpu" or "cuda", as :func:`comat.rl.device.resolve_device` gives)."""
-    _check_choice("algo", algo, ALGOS)
+    entry = learner_entry(algo)
     _check_choice("task", task, TASKS)
     preset = for_task(preset, task)
     tier = tier or preset.get("tier", "unicycle")
@@ -364,7 +351,7 @@ def resolve(
     if device is not None:
         _check_choice("device", device, ("cpu", "cuda"))
         run["device"] = device
-    section = "qmix" if algo == "qmix" else "ppo"
+    section = entry.family
     try:
         return RunConfig.from_dict(
             {

@@ -237,7 +237,7 @@ def _train_registered(
         progress = dict(data["progress"])
     _write_config(out, config, progress["env_steps"] if data is not None else None, tuple(overrides), command)
     logger = RunLogger(out, resume_step=progress["env_steps"] if data is not None else None)
-    if config.algo != "qmix" and not quiet:
+    if learner.family == "ppo" and not quiet:
         per = config.trainer.num_envs * (config.trainer.rollout_steps or env.task.horizon)
         if config.total_env_steps % per:
             print(
