@@ -3,7 +3,8 @@
 # in order, through run.sh; each run kept under results/learnability/runs/NAME is committed (only its own
 # folder) as soon as it finishes, so a session that ends loses at most the run in progress (its
 # checkpoint stays under runs/learnability/ on this machine and is resumed by the next call).
-#   nohup results/learnability/queue.sh > runs/learnability/queue.log 2>&1 &
+#   git worktree add --detach ../wt-learn COMMIT   # the code the runs use, fixed
+#   COMAT_CODE=../wt-learn nohup results/learnability/queue.sh > runs/learnability/queue.log 2>&1 &
 set -uo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$root"

@@ -12,7 +12,9 @@ name="${algo}_${task}_s${seed}"
 run="$root/runs/learnability/$name"
 keep="$root/results/learnability/runs/$name"
 log="$root/runs/learnability/$name.log"
-comat() { OMP_NUM_THREADS=1 "$root/.venv/bin/comat" "$@"; }
+# COMAT_CODE: a checkout (e.g. a git worktree at a fixed commit) whose comat package the runs import
+# instead of this tree's, so edits in progress here never reach a run (each run records its commit).
+comat() { OMP_NUM_THREADS=1 PYTHONPATH="${COMAT_CODE:-}" "$root/.venv/bin/comat" "$@"; }
 cd "$root"
 if [[ -f "$keep/summary.json" ]]; then echo "done: $name"; exit 0; fi
 mkdir -p runs/learnability
