@@ -28,7 +28,7 @@ from typing import Any
 
 from comat.config import LOOPS, load
 from comat.envs.base import resolve_coalitions
-from comat.learners import learner_entry, learner_names
+from comat.learners import FAMILIES, learner_entry, learner_names
 from comat.reality import RealityConfig, resolve_reality
 from comat.reality.config import read_profile
 from comat.rl.ppo import PPOConfig
@@ -67,7 +67,7 @@ _RUN_KEYS = (
 )
 _PRESET_KEYS = (
     *_RUN_KEYS,
-    *("seeds", "tier", "loop", "coalitions", "ppo", "qmix", "models", "reality", "base", "by_task"),
+    *("seeds", "tier", "loop", "coalitions", *FAMILIES, "models", "reality", "base", "by_task"),
 )
 _TASK_KEYS = tuple(k for k in _PRESET_KEYS if k not in ("base", "by_task", "seeds"))
 """What ``by_task: {hmt: {...}}`` may change for one task (the budget, the trainer, the models ...)."""
