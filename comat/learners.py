@@ -6,16 +6,17 @@ and a ``build(dims, config, acting_only)`` function beside them) and one :class:
 that names them by import string, so nothing is imported until a learner is built. Callers ask the
 entry (``learner_entry(algo).family``, ``.team_sized`` ...) and never compare a learner's name.
 
-=====  =====  ======  =========  ==========  ==========  ==============  =======
-name   label  family  acts with  uses state  team-sized  autoregressive  exports
-=====  =====  ======  =========  ==========  ==========  ==============  =======
-ippo   IPPO   ppo     policy     no          no          no              no
-mappo  MAPPO  ppo     policy     yes         yes         no              no
-qmix   QMIX   qmix    agents     no          yes         no              no
-mat    MAT    ppo     policy     no          yes         yes             no
-cash   CASH   ppo     policy     no          no          no              no
-comat  COMAT  ppo     policy     no          no          yes             yes
-=====  =====  ======  =========  ==========  ==========  ==============  =======
+=========  =====================  ======  =========  ==========  ==========  ==============  =======
+name       label                  family  acts with  uses state  team-sized  autoregressive  exports
+=========  =====================  ======  =========  ==========  ==========  ==============  =======
+ippo       IPPO (team advantage)  ppo     policy     no          no          no              no
+mappo      MAPPO                  ppo     policy     yes         yes         no              no
+qmix       QMIX                   qmix    agents     no          yes         no              no
+mat        MAT                    ppo     policy     no          yes         yes             no
+cash-caps  CASH-caps              ppo     policy     no          no          no              no
+cash       CASH                   ppo     policy     no          no          no              no
+comat      COMAT                  ppo     policy     no          no          yes             yes
+=========  =====================  ======  =========  ==========  ==========  ==============  =======
 
 :func:`learner_names` is the order commands and tables list them in (the paper's: baselines from
 the least to the most team-aware, COMAT last); :func:`learner_entry` turns a name into its entry
@@ -193,7 +194,7 @@ def _resolve(target: str, what: str = "") -> Any:
 for _entry in (
     LearnerEntry(
         "ippo",
-        "IPPO",
+        "IPPO (team advantage)",  # one GAE on the team's reward and mean value, not each robot's own
         "#8c564b",
         "ppo",
         "comat.models.ippo:IppoConfig",
@@ -233,13 +234,22 @@ for _entry in (
         keeps="policy (encoder, decoder, value head)",
     ),
     LearnerEntry(
+        "cash-caps",
+        "CASH-caps",
+        "#e7ba52",
+        "ppo",
+        "comat.models.cash_caps:CashCapsConfig",
+        "comat.models.cash_caps:build",
+        keeps="encoder, hypernetwork (no critic)",
+    ),
+    LearnerEntry(
         "cash",
         "CASH",
         "#ff7f0e",
         "ppo",
         "comat.models.cash:CashConfig",
-        "comat.rl.algos:build_cash",
-        keeps="encoder, hypernetwork (no critic)",
+        "comat.models.cash:build",
+        keeps="encoder, weight and bias hypernetworks, output layer (no critic)",
     ),
     LearnerEntry(
         "comat",

@@ -1,12 +1,15 @@
-"""IPPO and CASH (issue 50). IPPO: independent PPO — each robot acts and is valued on its own
-observation, its type's parameters the only thing robots share. CASH: a shared encoder and a
-capability hypernetwork that generates each robot's decoder. Both learn, play any team size,
-resume exactly (tests/test_rl_resume.py) and keep their actors in a policy file
-(tests/test_policy_file.py)."""
+"""IPPO, CASH and CASH-caps (issues 50 and 65). IPPO: independent PPO — each robot acts and is valued
+on its own observation, its type's parameters the only thing robots share. CASH: the authors' code's
+actor, a hidden layer generated per robot from its observation and capabilities (its model's own
+tests: tests/test_cash.py). CASH-caps: comat's first CASH, a shared encoder and a capability
+hypernetwork that generates each robot's output layer; the kept runs of issue 50 load as it. All
+learn, play any team size, resume exactly (tests/test_rl_resume.py) and keep their actors in a
+policy file (tests/test_policy_file.py)."""
 
 from __future__ import annotations
 
 import csv
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,13 +19,18 @@ from test_rl import tiny
 
 from comat.bench.learn_bench import bench_train
 from comat.eval.evaluate import evaluate_policies
-from comat.models.cash import Cash, CashConfig, team_summary
+from comat.eval.runs import evaluation_row, load_run
+from comat.measure.metrics import read_results
+from comat.models.cash_caps import CashCaps, CashCapsConfig, team_summary
 from comat.models.features import ObsLayout
 from comat.models.ippo import Ippo, IppoConfig
 from comat.rl.algos import robot_slots
+from comat.rl.checkpoint import CheckpointError, load_trained
 from comat.rl.config import load_preset, resolve
+from comat.rl.policy import policy_modules
 from comat.rl.runner import train
 from comat.tasks.hmt import HMT
+from comat.team import random_team
 
 
 def _obs(layout: ObsLayout, types: list[int], seed: int = 0) -> torch.Tensor:
@@ -59,11 +67,11 @@ def test_each_robot_acts_and_is_valued_on_its_own_observation_with_its_types_par
 
 
 @pytest.mark.learning
-@pytest.mark.parametrize("algo", ["ippo", "cash"])
+@pytest.mark.parametrize("algo", ["ippo", "cash", "cash-caps"])
 def test_the_new_learners_learn_pcp(algo, tmp_path):
     """The paper's PPO settings, ten updates (25,600 env steps, ~25 s each): the return rises from
     the random start (about −3) past 10 (measured 2026-12-06, first → last update: IPPO −3.1 → 17.5,
-    CASH −2.9 → 23.6)."""
+    CASH-caps (then CASH) −2.9 → 23.6)."""
     config = resolve(
         {**load_preset("paper"), "total_env_steps": 25_600, "eval_episodes_per_team": 0}, algo, "pcp", seed=0
     )
@@ -73,7 +81,7 @@ def test_the_new_learners_learn_pcp(algo, tmp_path):
     assert len(returns) == 10 and returns[0] < 0 and np.mean(returns[-3:]) > 10, returns
 
 
-@pytest.mark.parametrize("algo", ["ippo", "cash"])
+@pytest.mark.parametrize("algo", ["ippo", "cash", "cash-caps"])
 def test_the_new_learners_play_every_team_size_without_slots(algo, tmp_path):
     config = tiny(algo)
     assert robot_slots(config) is None
@@ -85,10 +93,10 @@ def test_the_new_learners_play_every_team_size_without_slots(algo, tmp_path):
     assert row["episodes"] == 20 and max(e["team_size"] for e in row["per_episode"]) == 20
 
 
-def test_cash_generates_each_robots_decoder_from_its_capabilities_and_its_teams():
+def test_cash_caps_generates_each_robots_decoder_from_its_capabilities_and_its_teams():
     layout = ObsLayout.for_task(HMT())
     torch.manual_seed(0)
-    net = Cash(layout, CashConfig(hidden=8, hyper_hidden=8))
+    net = CashCaps(layout, CashCapsConfig(hidden=8, hyper_hidden=8))
     torch.nn.init.normal_(net.hyper[-1].weight)  # away from the small start, so the decoders differ
     obs, mask = _obs(layout, [0, 1, 1, 0]), torch.tensor([[True, True, True, False]])
     caps = layout.capabilities(obs)
@@ -109,9 +117,52 @@ def test_cash_generates_each_robots_decoder_from_its_capabilities_and_its_teams(
     assert torch.allclose(net._logits(wide, wide_mask)[0, :3], logits[0, :3], atol=1e-6)
 
 
-@pytest.mark.parametrize("algo", ["ippo", "cash"])
+@pytest.mark.parametrize("algo", ["ippo", "cash", "cash-caps"])
 def test_bench_learn_has_a_row_for_each(algo, tmp_path):
     preset = tmp_path / "tiny.yaml"
     preset.write_text(yaml.safe_dump({"ppo": {"num_envs": 2, "rollout_steps": 2, "epochs": 1, "minibatches": 1}}))
     row = bench_train(algo, iterations=1, preset=str(preset))
     assert row["algo"] == algo and row["env_steps"] == 4 and row["learn_s"] > 0
+
+
+KEPT = Path(__file__).resolve().parents[1] / "results" / "new_learners" / "runs"
+"""Issue 50's CASH runs, trained and committed as ``cash`` before issue 65 gave the name to the CASH
+of the authors' code: their policies must still act as what they are, ``cash-caps``."""
+
+
+@pytest.mark.parametrize("run", ["cash_pcp_off_s100", "cash_hmt_off_s101"])
+def test_issue_50s_kept_cash_policies_load_as_cash_caps(run):
+    data = load_trained(KEPT / run / "policy.pt")
+    assert data["algo"] == data["config"]["algo"] == "cash-caps" and "version" not in data["config"]["model"]
+    modules, config = policy_modules(data)
+    assert config.algo == "cash-caps" and type(modules["policy"]) is CashCaps
+    with pytest.raises(CheckpointError, match=r"is for algo 'cash-caps', expected 'cash'"):
+        load_trained(KEPT / run / "policy.pt", algo="cash")
+    # a run folder's config.yaml and evaluation rows (reports) say the same
+    loaded = load_run(KEPT / run)
+    assert loaded["algo"] == "cash-caps" and evaluation_row(loaded, "train") is not None
+
+
+def test_a_kept_cash_policy_plays_its_committed_episodes_again():
+    """PCP seed 100's policy, evaluated now as cash-caps, takes the steps and makes the progress its
+    committed evaluation recorded, episode by episode (first episode of each U_train coalition)."""
+    run = KEPT / "cash_pcp_off_s100"
+    result = evaluate_policies(run / "policy.pt", sets=("train",), references=False, progress=lambda m: None)
+    (row,) = result["rows"]
+    committed = [e for e in read_results(run / "evaluation_unicycle.json")["rows"][0]["per_episode"]]
+    committed = [e for e in committed if e["episode_in_coalition"] == 0]
+    assert row["policy"] == "cash-caps" and len(row["per_episode"]) == len(committed) == 20
+    for now, then in zip(row["per_episode"], committed):
+        assert (now["steps"], now["progress"]) == (then["steps"], then["progress"])
+        assert now["return"] == pytest.approx(then["return"], abs=1e-9)
+
+
+@pytest.mark.parametrize("algo", ["cash", "cash-caps"])
+def test_export_refuses_cash_in_one_line(algo, tmp_path):
+    from sim2real.export import export_submission
+
+    train(tiny(algo, steps=6), tmp_path / "run", quiet=True)
+    team = random_team(np.random.default_rng(0), "pcp", "test", 3)
+    with pytest.raises(ValueError, match=f"'{algo}' policy file") as err:
+        export_submission(tmp_path / "run" / "policy.pt", "pcp", team, tmp_path / "sub")
+    assert "\n" not in str(err.value) and not (tmp_path / "sub").exists()

@@ -29,7 +29,8 @@ TINY_MODELS = {
     "mappo": {"hidden": 16},
     "qmix": {"hidden": 16, "mixing_embed": 8, "hypernet_embed": 16},
     "ippo": {"hidden": 16},
-    "cash": {"hidden": 16, "hyper_hidden": 16},
+    "cash": {"hidden": 16, "hyper_hidden": 8},
+    "cash-caps": {"hidden": 16, "hyper_hidden": 16},
 }
 
 
@@ -303,7 +304,8 @@ def test_checkpoints_from_before_the_architecture_options_load_as_they_were(tmp_
 def test_unknown_algo_task_and_preset_keys(tmp_path):
     preset = load_preset("quick")
     with pytest.raises(
-        ValueError, match=r"algo must be one of \['comat', 'mat', 'mappo', 'qmix', 'ippo', 'cash'\], got 'ppo'"
+        ValueError,
+        match=r"algo must be one of \['ippo', 'mappo', 'qmix', 'mat', 'cash-caps', 'cash', 'comat'\], got 'ppo'",
     ):
         resolve(preset, "ppo", "pcp")
     with pytest.raises(ValueError, match="task must be one of"):

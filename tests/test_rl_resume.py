@@ -18,7 +18,8 @@ from comat.rl.runner import train
 
 
 @pytest.mark.parametrize(
-    "algo, steps", [("comat", 12), ("mat", 12), ("mappo", 12), ("qmix", 320), ("ippo", 12), ("cash", 12)]
+    "algo, steps",
+    [("comat", 12), ("mat", 12), ("mappo", 12), ("qmix", 320), ("ippo", 12), ("cash", 12), ("cash-caps", 12)],
 )
 def test_resume_continues_exactly(tmp_path, algo, steps):
     straight = train(tiny(algo, steps=steps), tmp_path / "straight", quiet=True)

@@ -48,7 +48,9 @@ from comat.tasks import TASKS, env_id, not_registered
 
 __all__ = [
     "POLICY_FORMAT",
+    "RENAMED",
     "CheckpointError",
+    "current_name",
     "load_checkpoint",
     "load_policy_file",
     "load_trained",
@@ -78,6 +80,19 @@ EARLIER_RUN_DEFAULTS = {"reality": "off", "loop": "comat", "coalitions": "train"
 """Run-level key -> the value a checkpoint without it was trained with (before the reality layer
 existed, every run trained in the ideal world; before ``loop``, with comat's filter; before
 ``coalitions``, on U_train)."""
+
+
+RENAMED = {"cash": ("version", "cash-caps")}
+"""Learners whose name a new learner took: stored algo -> (the model option every file of the new
+learner records, today's name of the learner that files without it hold). ``cash``: issue 65 made
+``--algo cash`` the CASH of the authors' code (its config records ``version``); files and run
+folders stored before hold comat's first CASH, now ``cash-caps``, and load and evaluate as it."""
+
+
+def current_name(algo: str, model: Any) -> str:
+    """Today's name of the learner stored as ``algo`` with model options ``model`` (see :data:`RENAMED`)."""
+    mark, old = RENAMED.get(algo, (None, None))
+    return old if mark is not None and isinstance(model, dict) and mark not in model else algo
 
 
 def with_earlier_defaults(config: dict) -> dict:
@@ -307,6 +322,10 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
             f"{noun} {str(path)!r} has format_version {data.get('format_version')!r}, "
             f"this comat reads {_VERSIONS[kind]}"
         )
+    if isinstance(data.get("config"), dict):
+        name = current_name(data.get("algo"), data["config"].get("model"))
+        if name != data.get("algo"):  # a learner renamed since (RENAMED): the file's weights are of that one
+            data["algo"], data["config"] = name, {**data["config"], "algo": name}
     for key, want in (("algo", algo), ("task", task)):
         if want is not None and data.get(key) != want:
             raise CheckpointError(f"{noun} {str(path)!r} is for {key} {data.get(key)!r}, expected {want!r}")
