@@ -90,14 +90,6 @@ def build_modules(algo: str, dims: Dims, model_config, acting_only: bool = False
     return modules
 
 
-def build_cash(dims: Dims, config, acting_only: bool = False) -> dict[str, torch.nn.Module]:
-    """CASH's network (learner ``cash``): the encoder and hypernetwork alone where ``acting_only``.
-    It sits here only until comat/models/cash.py declares a ``build`` of its own (issue 65)."""
-    from comat.models.cash import Cash
-
-    return {"policy": Cash(dims.layout, config, critic=not acting_only)}
-
-
 def act_with(
     algo: str,
     modules: dict[str, torch.nn.Module],
