@@ -248,9 +248,9 @@ def policy_weights(
     preset: str = "sweep", algos=None, tasks=None, folder: str | Path | None = None, seed: int = 0
 ) -> list[dict]:
     """What one policy file weighs per learner (default: every registered one) and task with a
-    preset's model config: each
-    model built (seeded, untrained: the size does not depend on the values) for the task's
-    environments, its policy file written to ``folder`` (a temporary one if None) and measured.
+    preset's model config: each model built (seeded, untrained: the size does not depend on the
+    values) for the task's environments, its policy file written to ``folder`` (a temporary one if
+    None) and measured.
 
     Rows: ``algo``, ``task``, ``parameters`` (kept in the policy file), ``learner_parameters``
     (all the learner's modules, critic and mixer included), ``bytes`` (the file)."""
