@@ -53,7 +53,7 @@ def comat_run(tmp_path_factory):
     return run
 
 
-@pytest.mark.parametrize("algo", ["comat", "mat", "mappo", "qmix", "ippo", "cash", "cash-caps"])
+@pytest.mark.parametrize("algo", learner_names())
 def test_the_policy_file_keeps_only_the_acting_weights_and_acts_exactly_as_the_checkpoint(tmp_path, algo):
     config = tiny(algo, steps=20)
     train(config, tmp_path / "run", quiet=True)
