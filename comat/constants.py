@@ -30,13 +30,19 @@ __all__ = [
     "COLLISION_OFFSET_M",
     "CONTROL_DT_S",
     "DEFAULT_PROFILE",
+    "DURATION_MARGIN",
+    "DURATION_STEP_S",
+    "DURATION_WARN_SHARE",
     "GRITSBOT",
     "GTERNAL",
+    "MAX_EXPERIMENT_S",
     "MAX_ROBOTS_HARDWARE",
     "PROFILES",
     "PROJECTION_DISTANCE_M",
     "RPS_COMMIT",
     "SAFETY_DISTANCE_M",
+    "STARTUP_DRIVE_PER_ROBOT_S",
+    "STARTUP_DRIVE_S",
     "RobotProfile",
 ]
 
@@ -63,6 +69,34 @@ COLLISION_DIAMETER_M = 0.135
 
 MAX_ROBOTS_HARDWARE = 20
 """Largest team the Robotarium testbed runs (user guide §2.7)."""
+
+# --- Experiment duration (what a submission declares on the Robotarium's form) -----------------
+MAX_EXPERIMENT_S = 900.0
+"""An experiment "may take up to 15 minutes" (user guide §2.7.10), start-up drive included."""
+STARTUP_DRIVE_S = 60.0
+"""Time allowed for the robots' drive from their chargers to the start poses before the loop starts,
+for up to 4 robots in lanes (a calibration run): V2's start-up (``Robotarium.initialize``, which
+its docstring says is the testbed's own) took 21-29 s for 4 robots in three draws (measured,
+2026-12-06); twice the longest. The legacy simulator has no drive (``robotarium_abc.py`` starts
+at ``initial_conditions``: derived), but the testbed drove legacy-API scripts too in 2025
+(CASH-MARBLER's server logs print V2's "BARRIER DEADLOCK DURING INITIALIZATION"), its length not
+logged: assumed the same, so one duration serves both generations."""
+STARTUP_DRIVE_PER_ROBOT_S = 9.0
+"""Added to STARTUP_DRIVE_S per robot for a policy export, whose start poses lie anywhere in the
+task's spawn area: the bound ``60 + 9 N`` s (78 s for 2 robots, 96 for 4, 132 for 8, 240 for 20)
+is above every V2 start-up drive measured to exported start poses (measured, 2026-12-07: V2
+``b23069e``, PCP and HMT ``size:K`` teams of 2-20 robots, 148 draws of start poses and charger
+places; longest 44 s for 2 robots, 36 for 4, 130 for 8, 125 for 12, 122 for 16, 183 for 20;
+medians 21-92 s). One 12-robot draw never arrived: two robots 2-3 cm from their poses kept
+oscillating for 27,000 iterations (15 minutes); no duration covers that (docs/export.md)."""
+DURATION_MARGIN = 0.15
+"""Share added to horizon + start-up bound in the declared duration (then rounded up to
+DURATION_STEP_S): a run that uses its whole horizon and the whole bound ends at 1 / 1.15 = 87 %
+of it, outside the band ``export --check`` warns in (DURATION_WARN_SHARE)."""
+DURATION_STEP_S = 10
+"""Declared durations are rounded up to a multiple of this many seconds."""
+DURATION_WARN_SHARE = 0.9
+"""``comat export --check`` warns when a run took at least this share of the declared duration."""
 
 
 @dataclass(frozen=True)

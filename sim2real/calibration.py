@@ -23,6 +23,7 @@ from comat.calibration import schedule as schedule_module
 from comat.calibration.experiments import load_log
 from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still
 from comat.calibration.schedule import CONTROL_DT_S, EXPERIMENTS, MAX_ROBOTS
+from comat.constants import STARTUP_DRIVE_S  # the drive to the lanes, in the duration each folder declares
 from sim2real.check import run_rps
 
 __all__ = ["CALIBRATION_FILES", "MEASURES", "check_calibration", "export_calibration", "is_calibration"]
@@ -38,10 +39,6 @@ MEASURES = {
     "gain, reachable wheel speed, wheel gain difference (the circle the robot's centre draws)",
 }
 _TEMPLATE = Path(__file__).parent / "templates" / "calibration_main.py"
-STARTUP_DRIVE_S = 60.0
-"""Time allowed for the robots' drive from their chargers to the lanes before the loop starts, in the
-duration an experiment declares: the V2 simulator's start-up took 21-29 s for 4 robots in three draws
-(measured, 2026-12-06); twice the longest, as a too-short declaration may cut the run."""
 
 
 def export_calibration(out_dir, robots: int = MAX_ROBOTS) -> list[Path]:

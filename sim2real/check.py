@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from comat import constants as C
 from comat.config import SafetyConfig
 from comat.envs import make_env
 from comat.envs.heuristics import heuristic_actions
@@ -30,7 +31,7 @@ from sim2real.export import HEURISTIC_FILES, layout_of, load_config, submission_
 from sim2real.reality_rps import DRIVES
 from sim2real.runtime import ComatRuntime
 
-__all__ = ["CheckError", "check_submission", "mujoco_twin", "run_mujoco", "run_rps"]
+__all__ = ["CheckError", "check_submission", "duration_warning", "mujoco_twin", "run_mujoco", "run_rps", "run_seconds"]
 
 
 class CheckError(RuntimeError):
@@ -54,9 +55,14 @@ def run_rps(
     reality: str | None = None,
     seed: int = 0,
     drive: str = "rps",
+    python: str | None = None,
 ) -> dict:
     """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
     backend); its COMAT_RESULT dict + output.
+
+    ``python``: the interpreter that runs main.py (default comat's own; e.g. a server's Python of
+    :mod:`sim2real.server_pythons`, with its own numpy and rps; not with ``reality``, whose wrapper
+    is comat's).
 
     ``rps_path``: a folder holding an ``rps`` package (e.g. a checkout of the 2026 V2 simulator)
     used instead of the installed one. ``max_steps``: stop after that many env steps.
@@ -68,6 +74,8 @@ def run_rps(
     true-pose record.
     """
     folder = Path(folder)
+    if python is not None and reality is not None:
+        raise ValueError("run_rps: python runs main.py alone; the reality layer needs comat's own interpreter")
     env = {
         **os.environ,
         "COMAT_SHOW_FIGURE": "1" if show_figure else "0",
@@ -90,7 +98,7 @@ def run_rps(
     if (folder / "run_log.py").is_file():
         shutil.rmtree(log_dir, ignore_errors=True)
         env["COMAT_LOG_DIR"] = str(log_dir.resolve())
-    argv = [sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
+    argv = [python or sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
     if reality is not None:
         argv = [
             sys.executable,
@@ -198,6 +206,42 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
             }
 
 
+def run_seconds(config: dict, result: dict) -> float:
+    """How long the run ``result`` (main.py's COMAT_RESULT) would take on the Robotarium (s): its
+    start-up drive (V2's, as simulated; the legacy simulator has none, so the folder's bound
+    ``startup_drive_s`` stands for the testbed's) + its loop: iterations × 0.033 s, or the loop's
+    wall time where that was longer (a loop slower than real time stretches the run; not under the
+    reality layer, whose own cost is in that time)."""
+    if result.get("rps") == "v2":
+        startup = result.get("startup_iterations", 0) * C.CONTROL_DT_S
+    else:
+        startup = float(config.get("startup_drive_s", 0.0))
+    wall = 0.0 if "reality" in result else float(result.get("loop_wall_s", 0.0))  # the layer's own cost aside
+    return startup + max(result.get("iterations", 0) * C.CONTROL_DT_S, wall)
+
+
+def duration_warning(config: dict, result: dict) -> str | None:
+    """A one-line warning when the run ``result`` took at least DURATION_WARN_SHARE (90 %) of the
+    ``duration_s`` its folder's ``config`` declares (None: it did not, or the folder declares none)."""
+    declared = config.get("duration_s")
+    if declared is None:
+        return None
+    took = run_seconds(config, result)
+    if took < C.DURATION_WARN_SHARE * declared:
+        return None
+    drive = ""
+    if result.get("rps") == "v2":
+        startup = result.get("startup_iterations", 0) * C.CONTROL_DT_S
+        drive = f"start-up drive {startup:.0f} s (bound {config.get('startup_drive_s', 0):.0f} s), "
+    return (
+        f"the run took {took:.0f} s of the {declared} s the folder declares ({100 * took / declared:.0f} %, "
+        f"warning from {100 * C.DURATION_WARN_SHARE:.0f} %): "
+        + drive
+        + f"loop {result.get('iterations', 0)} iterations ({result.get('iterations', 0) * C.CONTROL_DT_S:.0f} s, "
+        f"{result.get('loop_wall_s', 0):.0f} s of wall time here); declare more than {declared} s"
+    )
+
+
 def check_submission(
     folder,
     tier: str = "wheels",
@@ -249,10 +293,17 @@ def check_submission(
     for key in keys:
         rps[key] = float(np.mean([r[key] for r in runs]))
     rps["rps_errors"] = {k: max(r["rps_errors"].get(k, 0) for r in runs) for k in runs[0]["rps_errors"]}
+    timing = ("startup_iterations", "iterations", "loop_wall_s")  # folders exported before issue 66: none
     rps["runs"] = [
-        {**{k: r[k] for k in keys}, "rps_errors": r["rps_errors"], **({"reality": r["reality"]} if reality else {})}
+        {
+            **{k: r[k] for k in keys},
+            **{k: r[k] for k in timing if k in r},
+            "rps_errors": r["rps_errors"],
+            **({"reality": r["reality"]} if reality else {}),
+        }
         for r in runs
     ]
+    rps["duration_warnings"] = [w for w in (duration_warning(config, r) for r in runs) if w]
     if reality is not None:
         records = [r["reality"] for r in runs]
         hits = [dict(rec["first_collision"], run=k) for k, rec in enumerate(records) if rec["first_collision"]]

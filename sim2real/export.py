@@ -16,7 +16,8 @@ Folder (flat)          ``main.py`` and ``rps_compat.py`` (``sim2real/templates/`
                        ``submission_config.py`` (``CONFIG = {...}``: policy, task (its module,
                        class and options), team, start poses, the task's layout (PCP: prey),
                        ticks per step, controller constants, the filter and its
-                       settings); the scripted
+                       settings, and what to declare on the Robotarium's form:
+                       ``duration_s`` (:func:`declared_duration_s`) and ``robots``); the scripted
                        policy's folder has no ``runtime.py``, ``comat_schema.py`` and
                        ``weights.npy``
 File types             ``.py`` and ``.npy`` only (the Robotarium accepts .m .jpg .jpeg .png .gif
@@ -31,6 +32,11 @@ Policy                 a COMAT checkpoint or policy file (``checkpoint.pt`` / ``
 Start poses            (3, N) float, default: the MuJoCo env's own spawn (and task layout) for
                        ``seed``; must be >= WALL_MARGIN_M inside the arena, >= MIN_SPACING_M apart
 Team                   TeamSpec or mapping, 1..20 robots (the Robotarium's hardware limit)
+Duration               ``duration_s`` = (horizon ``horizon_s``: the task's steps × ticks per
+                       step × 0.033 s, + the start-up drive's bound ``startup_drive_s``:
+                       STARTUP_DRIVE_S + STARTUP_DRIVE_PER_ROBOT_S × robots) × 1.15, rounded
+                       up to 10 s; ``comat export`` prints ``declare N s and K robots``; more
+                       than 900 s (15 min) is an error
 Atomicity              written into ``<out>.tmp-*`` next to ``out`` and renamed at the end; on any
                        error nothing is left; an existing ``out`` is an error
 =====================  ========================================================================
@@ -42,6 +48,7 @@ episode in MuJoCo, and compares them.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import pprint
 import re
@@ -81,11 +88,14 @@ __all__ = [
     "MIN_SPACING_M",
     "SHIPPED_FILES",
     "WALL_MARGIN_M",
+    "declared_duration_s",
     "export_submission",
     "filter_config",
     "layout_of",
     "load_config",
+    "shipped_code",
     "shipped_task_module",
+    "startup_drive_s",
     "submission_files",
     "task_module_name",
 ]
@@ -130,6 +140,27 @@ def submission_files(policy: str, task_module: str | None = None) -> tuple[str, 
     return files if task_module is None else (*files, f"{task_module}.py")
 
 
+def shipped_code(task: str, policy: str = "comat") -> dict[str, bytes]:
+    """Every ``.py`` file an export of ``task`` for ``policy`` ("comat" or "heuristic") ships but the
+    generated ``submission_config.py``, by name: the bytes :func:`export_submission` writes (verbatim
+    copies; the task's module with its import of ``comat.task_logic`` made local)."""
+    if policy not in ("comat", "heuristic"):
+        raise ValueError(f"policy must be 'comat' or 'heuristic', got {policy!r}")
+    sources = {
+        "main.py": HERE / "templates" / "main.py",
+        "rps_compat.py": HERE / "templates" / "rps_compat.py",
+        "runtime.py": HERE / "runtime.py",
+        "comat_schema.py": Path(comat_schema.__file__),
+        "task_logic.py": Path(task_logic_module.__file__),
+        "deployed_loop.py": Path(deployed_module.__file__),
+        "run_log.py": Path(runlog_module.__file__),
+    }
+    module = task_module_name(task)
+    code = {name: sources[name].read_bytes() for name in submission_files(policy, module) if name in sources}
+    code[f"{module}.py"] = shipped_task_module(type(_task(task))).encode()
+    return code
+
+
 def task_module_name(task: str) -> str:
     """The file name (no ``.py``) a task's logic ships under: ``task_<name>``."""
     return f"task_{task}"
@@ -172,6 +203,19 @@ WALL_MARGIN_M = 0.1
 MAX_ROBOTS = C.MAX_ROBOTS_HARDWARE
 MAX_EPISODE_S = 600.0
 """Longest episode exported (s of Robotarium time): well inside the 15-minute experiment limit."""
+
+
+def startup_drive_s(robots: int) -> float:
+    """Bound on the start-up drive of ``robots`` robots to an export's start poses (s):
+    ``STARTUP_DRIVE_S + STARTUP_DRIVE_PER_ROBOT_S · robots`` (see :mod:`comat.constants`)."""
+    return C.STARTUP_DRIVE_S + C.STARTUP_DRIVE_PER_ROBOT_S * robots
+
+
+def declared_duration_s(horizon_s: float, robots: int) -> int:
+    """The duration to declare for an episode of at most ``horizon_s`` seconds of loop with ``robots``
+    robots: (horizon + start-up drive bound) × (1 + DURATION_MARGIN), rounded up to DURATION_STEP_S."""
+    step = C.DURATION_STEP_S
+    return int(math.ceil((horizon_s + startup_drive_s(robots)) * (1 + C.DURATION_MARGIN) / step - 1e-9) * step)
 
 
 # -- inputs ----------------------------------------------------------------------------------------
@@ -372,6 +416,13 @@ def export_submission(
             f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
             f"with the drive to the start poses)"
         )
+    duration = declared_duration_s(episode_s, team.size)
+    if duration > C.MAX_EXPERIMENT_S:
+        raise ValueError(
+            f"ticks_per_step={ticks}: {team.size} robots and a {episode_s:.0f} s episode would declare "
+            f"{duration} s, expected <= {C.MAX_EXPERIMENT_S:.0f} s (the Robotarium's 15 minutes, start-up drive "
+            "included)"
+        )
     policy = "heuristic" if isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic" else "comat"
     model = None if policy == "heuristic" else _comat_model(checkpoint_or_policy, task)
     want_dim = task_obj.obs_size()
@@ -385,20 +436,18 @@ def export_submission(
         shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
-        for name in ("main.py", "rps_compat.py"):
-            shutil.copyfile(HERE / "templates" / name, tmp / name)
-        shutil.copyfile(Path(task_logic_module.__file__), tmp / "task_logic.py")
-        (tmp / f"{task_module_name(task)}.py").write_text(shipped_task_module(type(task_obj)))
-        shutil.copyfile(Path(deployed_module.__file__), tmp / "deployed_loop.py")
-        shutil.copyfile(Path(runlog_module.__file__), tmp / "run_log.py")
+        for name, code in shipped_code(task, policy).items():
+            (tmp / name).write_bytes(code)
         sha = "heuristic"
         if model is not None:
-            shutil.copyfile(HERE / "runtime.py", tmp / "runtime.py")
-            shutil.copyfile(Path(comat_schema.__file__), tmp / "comat_schema.py")
             export_weights(model, tmp / "weights.npy")
             sha = hashlib.sha256((tmp / "weights.npy").read_bytes()).hexdigest()
         config = {
             **_config(policy, task, team, poses, prey, ticks, seed, filters),
+            "robots": team.size,
+            "horizon_s": round(episode_s, 3),
+            "startup_drive_s": startup_drive_s(team.size),
+            "duration_s": duration,
             "policy_sha256": sha,
             "comat_version": comat_version,
         }

@@ -2,10 +2,7 @@
 its robots' loads, items every team can fetch, the planner's beliefs (scripted, type_only, blind),
 the coordination metric, the observation layout against the spec sheet, the export layout."""
 
-import ast
-import importlib
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,12 +11,11 @@ from pettingzoo.test import parallel_api_test
 import comat.tasks.warehouse as warehouse_module
 from comat.envs import make_env, make_vec_env
 from comat.envs.heuristics import blind_actions, heuristic_actions, type_mean_capabilities, type_only_actions
-from comat.tasks import TASKS, task_entry
+from comat.tasks import task_entry
 from comat.tasks.warehouse import CARRIED, DELIVERED, SHELF, UNKNOWN_LIMIT, Warehouse
 from comat.team import generate_coalitions
 
 STILL = np.zeros((1, 1, 3))
-BUILTIN_GENERICS = {"tuple", "list", "dict", "set", "frozenset", "type"}
 
 
 def _state(items, weights, n):
@@ -247,43 +243,3 @@ def test_layout_round_trips_and_the_task_draws_itself():
     assert marks.bar.width_m.shape == (n,) and "delivered 0/" in marks.status
     assert [a.name for a in marks.areas] == ["delivery", "shelves"]
     assert env.render().shape == (448, 640, 3)
-
-
-def _runtime_nodes(tree):
-    """The nodes of ``tree`` that run when the module is imported or called (annotations excluded:
-    ``from __future__ import annotations`` keeps them strings)."""
-    skip = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.AnnAssign):
-            skip.add(id(node.annotation))
-        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            skip.update(id(a.annotation) for a in [*node.args.args, *node.args.kwonlyargs] if a.annotation)
-            skip.update(id(a.annotation) for a in (node.args.vararg, node.args.kwarg) if a and a.annotation)
-            if node.returns is not None:
-                skip.add(id(node.returns))
-    stack = [tree]
-    while stack:
-        node = stack.pop()
-        if id(node) in skip:
-            continue
-        yield node
-        stack.extend(ast.iter_child_nodes(node))
-
-
-@pytest.mark.parametrize("module", ["comat.task_logic", *(e.logic.__module__ for e in TASKS.values())])
-def test_shipped_modules_run_on_python_3_8(module):
-    """An export ships comat/task_logic.py and the task's module to the Robotarium, whose oldest
-    Python is 3.8: ``tuple[int, int]`` or ``int | None`` evaluated at run time fails there on import."""
-    path = Path(importlib.import_module(module).__file__)
-    tree = ast.parse(path.read_text())
-    bad = [
-        node.lineno
-        for node in _runtime_nodes(tree)
-        if (isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) and node.value.id in BUILTIN_GENERICS)
-        or (
-            isinstance(node, ast.BinOp)
-            and isinstance(node.op, ast.BitOr)
-            and any(isinstance(side, ast.Constant) and side.value is None for side in (node.left, node.right))
-        )
-    ]
-    assert not bad, f"{path.name}: PEP 585/604 expressions run at import or call, lines {bad}"

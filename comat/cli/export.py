@@ -167,9 +167,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
     import sys
     import time
 
+    from comat import constants as C
     from sim2real.calibration import check_calibration, export_calibration, is_calibration
     from sim2real.check import CheckError, check_submission
-    from sim2real.export import export_submission
+    from sim2real.export import export_submission, load_config
 
     if args.calibration:
         folders = export_calibration(args.calibration, args.robots)
@@ -239,6 +240,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
         else:
             _print_checks(args.check, reports, args.tier)
         _print_repeats(args.check, reports, args.repeats)
+        for folder, report in zip(args.check, reports):
+            for warning in report["rps"]["duration_warnings"]:
+                print(f"comat export: warning: {folder}: {warning}", file=sys.stderr)
         bad = sum(
             r["rps"]["rps_errors"].get("boundary", 0) + r["rps"]["rps_errors"].get("collision", 0) for r in reports
         )
@@ -271,7 +275,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
             filter_name=args.filter,
             filter_reality=reality_arg(args.filter_reality, "--filter-reality"),
         )
+    config = load_config(out)
     print(f"wrote {out}: " + ", ".join(sorted(p.name for p in out.iterdir())))
+    print(
+        f"declare {config['duration_s']} s and {config['robots']} robots (episode up to {config['horizon_s']:.0f} s "
+        f"+ start-up drive up to {config['startup_drive_s']:.0f} s, + {100 * C.DURATION_MARGIN:.0f} %, rounded up)"
+    )
     return 0
 
 
