@@ -67,4 +67,4 @@ mjcf: $(STAMP)  ## regenerate the golden MJCF files
 	$(BIN)/comat mjcf --out assets/mjcf
 
 clean:
-	rm -rf $(VENV) $(BM_VENV) .pytest_cache
+	rm -rf $(VENV) $(BM_VENV) .venv-py38 .venv-py310 .pytest_cache
