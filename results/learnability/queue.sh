@@ -12,8 +12,10 @@ mkdir -p runs/learnability
 grep -v '^#' results/learnability/jobs.txt | grep -v '^ *$' | while read -r algo task seed steps; do
   name="${algo}_${task}_s${seed}"
   keep="results/learnability/runs/$name"
-  [[ -f $keep/summary.json ]] && continue
-  results/learnability/run.sh "$algo" "$task" "$seed" "$steps" || { echo "failed: $name"; continue; }
+  if [[ ! -f $keep/summary.json ]]; then
+    results/learnability/run.sh "$algo" "$task" "$seed" "$steps" || { echo "failed: $name"; continue; }
+  fi
+  [[ -z $(git status --porcelain -- "$keep") ]] && continue  # kept and committed (or kept by a run before this queue)
   for try in 1 2 3 4 5; do  # other sessions' helpers commit too: wait out a held index lock
     git add "$keep" && git commit -q -m "results/learnability: $name ($steps env steps) trained and evaluated on all six sets" -- "$keep" && break
     sleep 10
