@@ -90,9 +90,7 @@ def verdicts(task: str, learners: dict[str, dict[str, list[float]]], refs: dict[
         out.append("* COMAT's gap: COMAT is the best learner on U_train")
     cap = {a: mean_ci(v["capability"])[0] for a, v in learners.items() if v["capability"]}
     above = [f"{a} {cap[a]:.1f}" for a in cap if cap[a] > type_only]
-    out.append(
-        f"* moonshot (U_cap above type_only {type_only:.1f}): " + (", ".join(above) if above else "no learner")
-    )
+    out.append(f"* moonshot (U_cap above type_only {type_only:.1f}): " + (", ".join(above) if above else "no learner"))
     return out
 
 
