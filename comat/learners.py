@@ -6,17 +6,17 @@ and a ``build(dims, config, acting_only)`` function beside them) and one :class:
 that names them by import string, so nothing is imported until a learner is built. Callers ask the
 entry (``learner_entry(algo).family``, ``.team_sized`` ...) and never compare a learner's name.
 
-=========  =====================  ======  =========  ==========  ==========  ==============  =======
-name       label                  family  acts with  uses state  team-sized  autoregressive  exports
-=========  =====================  ======  =========  ==========  ==========  ==============  =======
-ippo       IPPO (team advantage)  ppo     policy     no          no          no              no
-mappo      MAPPO                  ppo     policy     yes         yes         no              no
-qmix       QMIX                   qmix    agents     no          yes         no              no
-mat        MAT                    ppo     policy     no          yes         yes             no
-cash-caps  CASH-caps              ppo     policy     no          no          no              no
-cash       CASH                   ppo     policy     no          no          no              no
-comat      COMAT                  ppo     policy     no          no          yes             yes
-=========  =====================  ======  =========  ==========  ==========  ==============  =======
+=========  =====================  ======  =========  ==========  ==========  ==============  =======  =============
+name       label                  family  acts with  uses state  team-sized  autoregressive  exports  outside envs
+=========  =====================  ======  =========  ==========  ==========  ==============  =======  =============
+ippo       IPPO (team advantage)  ppo     policy     no          no          no              no       yes
+mappo      MAPPO                  ppo     policy     yes         yes         no              no       yes
+qmix       QMIX                   qmix    agents     no          yes         no              no       yes
+mat        MAT                    ppo     policy     no          yes         yes             no       yes
+cash-caps  CASH-caps              ppo     policy     no          no          no              no       no
+cash       CASH                   ppo     policy     no          no          no              no       no
+comat      COMAT                  ppo     policy     no          no          yes             yes      no
+=========  =====================  ======  =========  ==========  ==========  ==============  =======  =============
 
 :func:`learner_names` is the order commands and tables list them in (the paper's: baselines from
 the least to the most team-aware, COMAT last); :func:`learner_entry` turns a name into its entry
@@ -100,6 +100,10 @@ class LearnerEntry:
     """``comat export`` ships it: sim2real/runtime.py has its numpy forward pass."""
     keeps: str = ""
     """What its policy file keeps to act, in words (docs/policies.md's table)."""
+    outside_envs: bool = False
+    """It reads a robot's observation as one vector plus the type one-hot, nothing at fixed places in
+    it (no pose, no capabilities), so it trains on an outside PettingZoo env (:mod:`comat.envs.outside`,
+    ``--task outside:MODULE``); a learner that reads poses or capabilities is refused there."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not _NAME.match(self.name):
@@ -120,7 +124,7 @@ class LearnerEntry:
             value = getattr(self, key)
             if not _TARGET.match(value):
                 raise ValueError(f"learner {self.name!r}: {key} must be 'module:attribute', got {value!r}")
-        for key in ("uses_state", "team_sized", "autoregressive", "exports"):
+        for key in ("uses_state", "team_sized", "autoregressive", "exports", "outside_envs"):
             if not isinstance(getattr(self, key), bool):
                 raise TypeError(f"learner {self.name!r}: {key} must be True or False, got {getattr(self, key)!r}")
 
@@ -200,6 +204,7 @@ for _entry in (
         "comat.models.ippo:IppoConfig",
         "comat.models.ippo:build",
         keeps="actors (no critic)",
+        outside_envs=True,
     ),
     LearnerEntry(
         "mappo",
@@ -211,6 +216,7 @@ for _entry in (
         uses_state=True,
         team_sized=True,
         keeps="actors (no critic)",
+        outside_envs=True,
     ),
     LearnerEntry(
         "qmix",
@@ -221,6 +227,7 @@ for _entry in (
         "comat.models.qmix:build",
         team_sized=True,
         keeps="agent network (no mixer)",
+        outside_envs=True,
     ),
     LearnerEntry(
         "mat",
@@ -232,6 +239,7 @@ for _entry in (
         team_sized=True,
         autoregressive=True,
         keeps="policy (encoder, decoder, value head)",
+        outside_envs=True,
     ),
     LearnerEntry(
         "cash-caps",

@@ -201,6 +201,13 @@ def cmd_policy(args: argparse.Namespace) -> int:
     return 0
 
 
+def _task(value: str) -> str:
+    """``--task``: a registered task, or an outside env (``outside:MODULE``, checked when resolved)."""
+    if value in TASKS or value.startswith("outside:"):
+        return value
+    raise argparse.ArgumentTypeError(f"invalid choice: {value!r} (choose from {', '.join(TASKS)} or outside:MODULE)")
+
+
 def add_train_parsers(sub) -> None:
     """Register ``train`` and ``policy`` on the top-level sub-parsers of ``comat``."""
     p = sub.add_parser(
@@ -212,7 +219,13 @@ def add_train_parsers(sub) -> None:
         "config is written to the run folder.",
     )
     p.add_argument("--algo", choices=learner_names(), help="learner (required for a new run; comat.learners)")
-    p.add_argument("--task", choices=TASKS, help="task (required for a new run)")
+    p.add_argument(
+        "--task",
+        type=_task,
+        metavar="{" + ",".join(TASKS) + "} or outside:MODULE",
+        help="task (required for a new run); outside:MODULE trains on an outside PettingZoo env, e.g. "
+        "outside:mpe2.simple_spread_v3 (docs/commands.md)",
+    )
     p.add_argument(
         "--preset",
         default=None,

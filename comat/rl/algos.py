@@ -16,6 +16,7 @@ import torch
 
 from comat.config import SafetyConfig, SimConfig
 from comat.envs import make_vec_env
+from comat.envs.outside import OutsideVectorEnv, is_outside
 from comat.learners import learner_entry
 from comat.models.features import ObsLayout
 from comat.rl.config import RunConfig
@@ -169,7 +170,10 @@ def make_run_env(config: RunConfig, num_envs: int, seed: int, coalitions=None):
     """The run's environments (on ``coalitions``, default the run's own: :attr:`RunConfig.coalitions`),
     training and evaluation alike, at the run's reality layer: each
     episode (every reset and autoreset) draws its layer from its own generator, so a run at
-    ``nominal`` trains under a freshly sampled layer every episode (domain randomization)."""
+    ``nominal`` trains under a freshly sampled layer every episode (domain randomization). An outside
+    task (:mod:`comat.envs.outside`) has its own team and world: an :class:`OutsideVectorEnv`."""
+    if is_outside(config.task):
+        return OutsideVectorEnv(config.task, num_envs, seed=seed, max_robots=robot_slots(config))
     sim = SimConfig(tier=config.tier, threads=config.physics_threads)
     safety = None if config.loop == "comat" else SafetyConfig(loop=config.loop)
     return make_vec_env(

@@ -43,6 +43,7 @@ import torch
 
 from comat import learners
 from comat._version import __version__
+from comat.envs.outside import is_outside
 from comat.models.comat import PAPER_FORM
 from comat.tasks import TASKS, env_id, not_registered
 
@@ -204,6 +205,11 @@ def to_plain(obj: Any) -> Any:
     return obj
 
 
+def _env_id(task: str) -> str:
+    """The env id a file records: a task's current one, an outside task's name."""
+    return task if is_outside(task) else env_id(task)
+
+
 def save_checkpoint(
     path: str | Path, *, algo: str, task: str, config: dict, progress: dict, trainer: dict, env_rngs: list[dict]
 ) -> Path:
@@ -215,7 +221,7 @@ def save_checkpoint(
         "format_version": FORMAT_VERSION,
         "algo": algo,
         "task": task,
-        "env_id": env_id(task),
+        "env_id": _env_id(task),
         "config": config,
         "versions": versions(),
         "progress": progress,
@@ -269,7 +275,7 @@ def save_policy_file(
         "format_version": POLICY_FORMAT_VERSION,
         "algo": algo,
         "task": task,
-        "env_id": env_id(task),
+        "env_id": _env_id(task),
         "config": config,
         "dims": dict(dims),
         "versions": dict(trained_by or now),
@@ -330,7 +336,8 @@ def _read(path: str | Path, formats: tuple[str, ...], algo: str | None, task: st
         if want is not None and data.get(key) != want:
             raise CheckpointError(f"{noun} {str(path)!r} is for {key} {data.get(key)!r}, expected {want!r}")
     made_for = data.get("env_id", f"{data.get('task')}_v0")  # files older than task versions: v0
-    if isinstance(data.get("task"), str) and data["task"] not in TASKS:  # a plug-in task's, read without it
+    # A plug-in task's, read without it (an outside env's name is its env id: comat.envs.outside).
+    if isinstance(data.get("task"), str) and data["task"] not in TASKS and not is_outside(data["task"]):
         raise CheckpointError(f"{noun} {str(path)!r} was trained on {made_for}, but {not_registered(data['task'])}")
     if data.get("task") in TASKS and made_for != env_id(data["task"]):
         raise CheckpointError(

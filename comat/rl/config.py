@@ -28,6 +28,7 @@ from typing import Any
 
 from comat.config import LOOPS, load
 from comat.envs.base import resolve_coalitions
+from comat.envs.outside import is_outside, make_outside_env
 from comat.learners import FAMILIES, learner_entry, learner_names
 from comat.reality import RealityConfig, resolve_reality
 from comat.reality.config import read_profile
@@ -134,7 +135,7 @@ class RunConfig:
 
     @property
     def env_id(self) -> str:
-        return task_env_id(self.task)
+        return self.task if is_outside(self.task) else task_env_id(self.task)
 
     def to_dict(self) -> dict[str, Any]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -174,6 +175,25 @@ def run_coalitions(value: Any, task: str) -> str | list[dict[str, Any]]:
     except (TypeError, ValueError) as err:
         raise ValueError(f"coalitions: {err}") from err
     return [t.to_dict() for t in teams]
+
+
+def _check_outside(preset: dict[str, Any], entry, task: str) -> None:
+    """One-line ValueError where ``task``, an outside env (:mod:`comat.envs.outside`), cannot run as
+    ``preset`` asks: a learner that reads poses or capabilities, an env that does not build, or a
+    setting of comat's own world (coalitions, reality, loop)."""
+    if not entry.outside_envs:
+        raise ValueError(
+            f"algo {entry.name!r} cannot train on outside task {task!r}: it reads robot poses or capabilities at "
+            f"fixed places of comat's observation, which an outside env does not have; learners that can: "
+            f"{[n for n in learner_names() if learner_entry(n).outside_envs]}"
+        )
+    make_outside_env(task).close()  # an unknown env, or one comat cannot drive, said in one line now
+    for key, default in (("coalitions", "train"), ("loop", "comat")):
+        if preset.get(key, default) != default:
+            raise ValueError(f"{key}: outside task {task!r} has its own team and world, got {preset[key]!r}")
+    label = run_reality(preset.get("reality")).label
+    if label != "off":
+        raise ValueError(f"reality: outside task {task!r} has no reality layer (comat's world only), got {label!r}")
 
 
 def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
@@ -321,7 +341,10 @@ def resolve(
     """The run config of ``algo`` on ``task`` from a preset; explicit arguments override it
     (``device``: "cpu" or "cuda", as :func:`comat.rl.device.resolve_device` gives)."""
     entry = learner_entry(algo)
-    _check_choice("task", task, TASKS)
+    if is_outside(task):
+        _check_outside(preset, entry, task)
+    else:
+        _check_choice("task", task, TASKS)
     preset = for_task(preset, task)
     tier = tier or preset.get("tier", "unicycle")
     _check_choice("tier", tier, TIERS)
@@ -348,6 +371,8 @@ def resolve(
         least = 0 if key == "eval_episodes_per_team" else 1
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise ValueError(f"{key} must be an integer >= {least}, got {value!r}")
+    if is_outside(task):  # an outside env steps in the learner's process (comat.envs.outside)
+        run["env_workers"] = 1
     if device is not None:
         _check_choice("device", device, ("cpu", "cuda"))
         run["device"] = device
@@ -364,7 +389,7 @@ def resolve(
                 "model": (preset.get("models") or {}).get(algo),
                 "reality": preset.get("reality"),
                 "loop": preset.get("loop", "comat"),
-                "coalitions": run_coalitions(preset.get("coalitions", "train"), task),
+                "coalitions": "own" if is_outside(task) else run_coalitions(preset.get("coalitions", "train"), task),
             }
         )
     except (TypeError, ValueError) as err:  # name the key as presets and overrides spell it

@@ -31,6 +31,7 @@ from pathlib import Path
 import torch
 
 from comat.envs.base import resolve_coalitions
+from comat.envs.outside import is_outside, play_outside
 from comat.files import portable_command, write_atomic
 from comat.machine import RunRegistry, busy_warning, usable_cpus
 from comat.measure.episodes import run_episodes, summarize
@@ -83,14 +84,20 @@ def _write_config(
 def evaluate(config: RunConfig, modules: dict, episodes_per_team: int | None = None, coalitions=None) -> dict:
     """Mean metrics of the deterministic policy, ``episodes_per_team`` episodes per coalition (of
     ``coalitions``, default the run's training teams), at the run's reality layer (what the run
-    trains under; ``comat eval --reality`` for others)."""
-    coalitions = config.coalitions if coalitions is None else coalitions
-    teams = resolve_coalitions(coalitions, config.task) * (episodes_per_team or config.eval_episodes_per_team)
-    env = make_run_env(config, min(len(teams), 32), config.seed + EVAL_SEED_OFFSET, coalitions)
+    trains under; ``comat eval --reality`` for others). An outside task (:mod:`comat.envs.outside`)
+    plays ``episodes_per_team`` episodes of its one team: its return and steps (no progress)."""
+    seed, act = config.seed + EVAL_SEED_OFFSET, policy_act(config.algo, modules)
+    count = episodes_per_team or config.eval_episodes_per_team
+    if is_outside(config.task):  # one team, its own
+        teams, env = None, make_run_env(config, min(count, 32), seed)
+    else:
+        coalitions = config.coalitions if coalitions is None else coalitions
+        teams = resolve_coalitions(coalitions, config.task) * count
+        env = make_run_env(config, min(len(teams), 32), seed, coalitions)
     for m in modules.values():
         m.eval()
     try:
-        episodes = run_episodes(env, policy_act(config.algo, modules), teams, config.seed + EVAL_SEED_OFFSET)
+        episodes = play_outside(env, act, count, seed) if teams is None else run_episodes(env, act, teams, seed)
     finally:
         env.close()
         for m in modules.values():
