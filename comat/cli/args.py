@@ -304,6 +304,7 @@ def resolve_policy_arg(
 
     ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
     learner's value estimates"); a policy file is then refused with that reason."""
+    from comat.envs.outside import is_outside
     from comat.rl.checkpoint import POLICY_FORMAT, load_checkpoint, load_trained
     from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, shipped_name
 
@@ -344,6 +345,11 @@ def resolve_policy_arg(
         raise
     kind = "policy" if data["format"] == POLICY_FORMAT else "checkpoint"
     noun = "policy file" if kind == "policy" else "checkpoint"
+    if is_outside(data["task"]):  # trained on an env comat did not write
+        raise ValueError(
+            f"--policy {policy!r} is a {noun} for outside task {data['task']!r}; this command runs comat's tasks "
+            "only (an outside run's evaluation is its eval.csv and summary.json: docs/commands.md#train-outside)"
+        )
     if task is not None and task != data["task"]:
         raise ValueError(f"--task {task!r} disagrees with the {noun}, which is for task {data['task']!r} ({path})")
     algos = learner_names() if algos is None else algos
