@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["gae"]
+__all__ = ["gae", "standardize"]
 
 
 def gae(
@@ -39,3 +39,12 @@ def gae(
         running = deltas[t] + carry[t] * running
         advantages[t] = running
     return advantages, advantages + values
+
+
+def standardize(adv: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Advantages with mean 0 and std 1 over a rollout: a team's (T, B) over all its entries, the
+    robots' own (T, B, N) over the real robots' entries (``mask`` (T, B, N); padded slots 0)."""
+    if adv.dim() == mask.dim() - 1:
+        return (adv - adv.mean()) / (adv.std() + 1e-8)
+    real = adv[mask]
+    return (adv - real.mean()) / (real.std() + 1e-8) * mask

@@ -10,17 +10,26 @@ One update:
    ``overlap`` the next rollout is collected in a thread while the update runs (one update of
    policy lag, corrected in step 4).
 2. **Advantages** (eq. 9): joint GAE on V̂ = the mean of the robots' values, shared by the team's
-   robots and normalized over the batch.
+   robots and normalized over the batch. ``advantage: per_robot``: each robot's GAE on its own
+   value; ``normalize_advantage: false``: the raw advantages.
 3. **Critic** (eq. 6): each robot's value regresses (Huber) to r_t + γ·V̄(o'_t) from a *target*
    critic V̄, refreshed (copied, targets recomputed) every ``target_update_epochs`` epochs;
    targets are normalized by a running ValueNorm. ``value_target: gae`` instead regresses each
-   robot's value to its GAE(λ) return computed once per rollout, as MAT's code does.
+   robot's value to its GAE(λ) return computed once per rollout, as MAT's code does;
+   ``value_loss: mse`` squares the error; ``value_norm: false`` learns raw targets.
 4. **Actor** (eq. 7–8): clipped importance ratio per robot times the joint advantage, plus an
-   entropy bonus; one joint loss, one Adam step per minibatch, gradient-norm clipping. A lagged
-   rollout (``overlap``) takes the decoupled form: ratios against the update's starting weights,
-   terms weighted by their probability over the collecting policy's.
+   entropy bonus; one joint loss, one Adam step per minibatch, gradient-norm clipping (``grad_clip:
+   separate``: the critic's gradient and the rest clipped each on its own). A lagged rollout
+   (``overlap``) takes the decoupled form: ratios against the update's starting weights, terms
+   weighted by their probability over the collecting policy's.
 
-Padded robot slots are masked out of every loss and statistic (mask (T, B, N)).
+Padded robot slots are masked out of every loss and statistic (mask (T, B, N)). Each update's
+statistics include the policy entropy of each robot type (``entropy_<type>``).
+
+The options' defaults are the trainer as it was before them (issue 65 added them, every run since
+unchanged bit for bit). BenchMARL's MAPPO (BenchMARL 1.5.2, TorchRL 0.11.1 ``ClipPPOLoss``) is
+``advantage: per_robot, normalize_advantage: false, value_target: gae, value_loss: mse,
+value_norm: false, grad_clip: separate`` (``results/benchmarl/matched/``).
 """
 
 from __future__ import annotations
@@ -37,8 +46,9 @@ import torch.nn.functional as F
 
 from comat.config import check_numbers
 from comat.envs.sharded import ShardedVectorEnv
+from comat.models.features import ObsLayout
 from comat.rl.device import learner_copy, to_cpu
-from comat.rl.gae import gae
+from comat.rl.gae import gae, standardize
 from comat.rl.valuenorm import ValueNorm
 
 __all__ = ["CollectionStopped", "PPOConfig", "PPOTrainer", "Rollout"]
@@ -76,6 +86,24 @@ class PPOConfig:
     """``td``: eq. 6's one-step target r + γ·V̄(o') from the target critic. ``gae``: each
     robot's GAE(λ) return R_t = Â_t + V(o_t) from its own values at collection (MAT's code):
     rewards reach the episode start in one update instead of one step per target refresh."""
+    advantage: str = "joint"
+    """``joint`` (eq. 9): one GAE per team on V̂, the mean of its robots' values, given to each of its
+    robots. ``per_robot``: each robot's GAE on its own value, δ_i = r + γ·V_i(o') − V_i(o) with the
+    team's reward (BenchMARL's and TorchRL's multi-agent PPO; the IPPO of de Witt et al. 2020)."""
+    normalize_advantage: bool = True
+    """Standardize the advantages over the rollout (mean 0, std 1; ``per_robot``: over the real robots'
+    entries). BenchMARL's MAPPO does not (its ``ClipPPOLoss(normalize_advantage=False)``)."""
+    value_loss: str = "huber"
+    """``huber`` (δ = ``huber_delta``) or ``mse``: the squared error, no ½ (TorchRL's ``l2``, the
+    ``loss_critic_type`` of BenchMARL's MAPPO). Either is a mean over the real robots' entries."""
+    value_norm: bool = True
+    """Learn values normalized by a running ValueNorm of the targets (MAPPO's and MAT's code). False:
+    the critic regresses to the raw targets (BenchMARL)."""
+    grad_clip: str = "joint"
+    """``joint``: one gradient-norm clip (``max_grad_norm``) over all parameters. ``separate``: the
+    critic's parameters (those of a submodule named ``critic``) and the rest clipped each on its own,
+    as BenchMARL's separate actor and critic optimizers are; Adam works per parameter, so one Adam
+    over both then takes the same steps as two."""
     overlap: bool = False
     """Collect the next rollout while learning from this one: a thread acts with a copy of the
     policy from before the update while the update runs, so where the machine has cores to spare
@@ -96,16 +124,24 @@ class PPOConfig:
             discount=("gamma",),
             at_least_one=("num_envs", "epochs", "minibatches", "target_update_epochs", "rollout_steps"),
         )
-        if not isinstance(self.overlap, bool):
-            raise TypeError(f"ppo.overlap must be true or false, got {self.overlap!r}")
-        if self.value_target not in VALUE_TARGETS:
-            raise ValueError(f"ppo.value_target must be one of {list(VALUE_TARGETS)}, got {self.value_target!r}")
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise ValueError(f"ppo.lr_schedule must be one of {list(LR_SCHEDULES)}, got {self.lr_schedule!r}")
+        for name in ("overlap", "normalize_advantage", "value_norm"):
+            if not isinstance(getattr(self, name), bool):
+                raise TypeError(f"ppo.{name} must be true or false, got {getattr(self, name)!r}")
+        for name, choices in CHOICES.items():
+            if getattr(self, name) not in choices:
+                raise ValueError(f"ppo.{name} must be one of {list(choices)}, got {getattr(self, name)!r}")
 
 
 VALUE_TARGETS = ("td", "gae")
 LR_SCHEDULES = ("constant", "linear")
+CHOICES = {
+    "value_target": VALUE_TARGETS,
+    "lr_schedule": LR_SCHEDULES,
+    "advantage": ("joint", "per_robot"),
+    "value_loss": ("huber", "mse"),
+    "grad_clip": ("joint", "separate"),
+}
+"""PPOConfig's fields that name one of a few choices (the first of each is its default)."""
 
 
 @dataclass
@@ -135,6 +171,22 @@ class CollectionStopped(RuntimeError):
 def _team_value(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """V̂: mean of the real robots' values, (..., N) -> (...)."""
     return (values * mask).sum(-1) / mask.sum(-1).clamp(min=1)
+
+
+def _clip_groups(learner, grad_clip: str) -> list[list[torch.nn.Parameter]]:
+    """The parameter lists clipped each on its own: all of them, or (``separate``) the critic's and
+    the rest; a ValueError where the model has no submodule named ``critic``."""
+    named = list(learner.named_parameters())
+    if grad_clip == "joint":
+        return [[p for _, p in named]]
+    critic = [p for name, p in named if "critic" in name.split(".")]
+    rest = [p for name, p in named if "critic" not in name.split(".")]
+    if not critic or not rest:
+        raise ValueError(
+            f"ppo.grad_clip=separate needs a model with a submodule named 'critic' and parameters beside it, "
+            f"got {type(learner).__name__} with parameters {[n for n, _ in named][:6]}..."
+        )
+    return [rest, critic]
 
 
 class _Parts:
@@ -188,6 +240,9 @@ class PPOTrainer:
         self.learner = learner_copy(policy, device)  # acting stays on `policy`, on the CPU
         # fused: one kernel for all parameters instead of a loop of small ones (~5 % of an update)
         self.optimizer = torch.optim.Adam(self.learner.parameters(), lr=config.lr, eps=1e-5, fused=True)
+        self.clip_groups = _clip_groups(self.learner, config.grad_clip)
+        self.layout = ObsLayout.for_task(env.task)  # where each robot's type is (its entropy is logged per type)
+        self.type_names = tuple(env.task.types)
         self.target = copy.deepcopy(self.learner).requires_grad_(False)
         self.value_norm = ValueNorm().to(device or "cpu")
         self.generator = torch.Generator().manual_seed(seed)
@@ -212,7 +267,15 @@ class PPOTrainer:
         return torch.as_tensor(self.env.state(), dtype=torch.float32) if self.use_state else None
 
     def _denorm_values(self, values: torch.Tensor) -> torch.Tensor:
-        return self.value_norm.denormalize(values)
+        return self.value_norm.denormalize(values) if self.config.value_norm else values
+
+    def _value_targets(self, raw: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """What the critic regresses to: ``raw`` normalized by the ValueNorm, updated on the real
+        robots' entries first (``value_norm``), or ``raw`` itself."""
+        if not self.config.value_norm:
+            return raw
+        self.value_norm.update(raw[mask])
+        return self.value_norm.normalize(raw)
 
     # -- 1. collect -----------------------------------------------------------------------------
     def _act_send(self, policy, parts: _Parts, p: int, obs, mask, state):
@@ -344,14 +407,43 @@ class PPOTrainer:
     @torch.no_grad()
     def advantages(self, ro: Rollout) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """Step 2 for a rollout: V̂ (T, B), the robots' next values (T, B, N), the GAE returns
-        V̂ + Â (T, B) and the advantages normalized over the batch (T, B), on the learner's device."""
-        cfg = self.config
+        V̂ + Â (T, B) and the advantages as the update uses them (T, B), on the learner's device.
+        With ``advantage: per_robot`` the update gives each robot its own; here the returns and the
+        advantages are then their means over the team's robots (what ``comat probe`` reports)."""
         ro = self._on_device(ro)
-        v_hat = _team_value(self._denorm_values(ro.values), ro.mask.to(torch.float32))
+        v_hat, next_values, returns, adv, _ = self._advantages(ro)
+        if adv.dim() == 3:
+            adv = _team_value(adv, ro.mask.to(torch.float32))
+        return v_hat, next_values, returns, adv
+
+    @torch.no_grad()
+    def _robot_gae(self, ro: Rollout, next_values: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Each robot's GAE on its own values (T, B, N) and its GAE(λ) return, with the team's reward
+        (padded slots: meaningless, masked out by every use)."""
+        v = self._denorm_values(ro.values)
+        rewards, dones = ro.rewards[..., None].expand_as(v), ro.dones[..., None].expand_as(v)
+        return gae(rewards, v, next_values, dones, self.config.gamma, self.config.gae_lambda)
+
+    @torch.no_grad()
+    def _advantages(self, ro: Rollout) -> tuple[torch.Tensor, ...]:
+        """:meth:`advantages` on a rollout on the learner's device, with the advantages as the update
+        uses them ((T, B) for ``joint``, (T, B, N) for ``per_robot``) and, for ``per_robot``, each
+        robot's GAE(λ) return (T, B, N) (else None)."""
+        cfg = self.config
+        mask = ro.mask.to(torch.float32)
         next_values = self._next_values(self.learner, ro)
-        v_next_hat = _team_value(next_values, ro.next_mask.to(torch.float32))
-        adv, returns = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
-        return v_hat, next_values, returns, (adv - adv.mean()) / (adv.std() + 1e-8)
+        if cfg.advantage == "joint":
+            v_hat = _team_value(self._denorm_values(ro.values), mask)
+            v_next_hat = _team_value(next_values, ro.next_mask.to(torch.float32))
+            adv, returns = gae(ro.rewards, v_hat, v_next_hat, ro.dones, cfg.gamma, cfg.gae_lambda)
+            robot_returns = None
+        else:
+            adv, robot_returns = self._robot_gae(ro, next_values)
+            adv = adv * mask
+            v_hat, returns = _team_value(self._denorm_values(ro.values), mask), _team_value(robot_returns, mask)
+        if cfg.normalize_advantage:
+            adv = standardize(adv, ro.mask)
+        return v_hat, next_values, returns, adv, robot_returns
 
     def _on_device(self, ro: Rollout) -> Rollout:
         if self.device is None:
@@ -369,15 +461,18 @@ class PPOTrainer:
         cfg = self.config
         ro = self._on_device(ro)
         T, B, N, D = ro.obs.shape
-        _, next_values, _, adv = self.advantages(ro)
+        _, next_values, _, adv, robot_returns = self._advantages(ro)
         flat = {
             "obs": ro.obs.reshape(T * B, N, D),
             "mask": ro.mask.reshape(T * B, N),
             "state": None if ro.state is None else ro.state.reshape(T * B, -1),
             "actions": ro.actions.reshape(T * B, N),
             "logp": ro.logp.reshape(T * B, N),
-            "adv": adv.reshape(T * B),
+            "adv": adv.reshape(T * B, -1),  # (T·B, 1): the team's; (T·B, N): each robot's
         }
+        # Each robot's type, for the entropy per type: (T·B, N, K) one-hot, padded slots zero.
+        types = F.one_hot(self.layout.types(flat["obs"]), len(self.type_names)) * flat["mask"][..., None]
+        type_entropy = torch.zeros(len(self.type_names), device=types.device)
         stats: dict[str, list[float]] = {
             "policy_loss": [],
             "value_loss": [],
@@ -407,17 +502,8 @@ class PPOTrainer:
         if cfg.value_target == "gae":
             with torch.no_grad():
                 # Per robot: the team reward, the robot's own values; padded slots are masked out.
-                v = self._denorm_values(ro.values)
-                _, raw = gae(
-                    ro.rewards[..., None].expand_as(v),
-                    v,
-                    next_values,
-                    ro.dones[..., None].expand_as(v),
-                    cfg.gamma,
-                    cfg.gae_lambda,
-                )
-                self.value_norm.update(raw[ro.mask])
-                targets = self.value_norm.normalize(raw).reshape(T * B, N)
+                raw = robot_returns if robot_returns is not None else self._robot_gae(ro, next_values)[1]
+                targets = self._value_targets(raw, ro.mask).reshape(T * B, N)
         for epoch in range(cfg.epochs):
             if cfg.value_target == "td" and epoch % cfg.target_update_epochs == 0:
                 # Refresh V̄ and its TD targets r + γ·V̄(o'); update the normalizer on them.
@@ -427,8 +513,7 @@ class PPOTrainer:
                     if epoch:
                         next_values = self._next_values(self.target, ro)
                     raw = ro.rewards[..., None] + cfg.gamma * next_values
-                    self.value_norm.update(raw[ro.mask])
-                    targets = self.value_norm.normalize(raw).reshape(T * B, N)
+                    targets = self._value_targets(raw, ro.mask).reshape(T * B, N)
             order = self.rng.permutation(T * B)
             for idx in np.array_split(order, cfg.minibatches):
                 idx_t = torch.as_tensor(idx, device=self.device)
@@ -440,30 +525,41 @@ class PPOTrainer:
                     flat["obs"][idx_t], m, flat["actions"][idx_t], state
                 )
                 ratio = torch.exp(logp - flat["logp"][idx_t])
-                a = flat["adv"][idx_t][:, None]
+                a = flat["adv"][idx_t]
                 surrogate = torch.min(ratio * a, ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * a)
                 if lag_weight is not None:
                     surrogate = surrogate * lag_weight[idx_t]
                 policy_loss = -(surrogate * mf).sum() / n_real
                 entropy_mean = (entropy * mf).sum() / n_real
-                value_loss = (
-                    F.huber_loss(values, targets[idx_t], reduction="none", delta=cfg.huber_delta) * mf
-                ).sum() / n_real
+                if cfg.value_loss == "huber":
+                    errors = F.huber_loss(values, targets[idx_t], reduction="none", delta=cfg.huber_delta)
+                else:
+                    errors = F.mse_loss(values, targets[idx_t], reduction="none")
+                value_loss = (errors * mf).sum() / n_real
                 loss = policy_loss - cfg.entropy_coef * entropy_mean + cfg.value_coef * value_loss
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()
-                torch.nn.utils.clip_grad_norm_(self.learner.parameters(), cfg.max_grad_norm)
+                for group in self.clip_groups:
+                    torch.nn.utils.clip_grad_norm_(group, cfg.max_grad_norm)
                 self.optimizer.step()
                 with torch.no_grad():
                     log_ratio = (logp - flat["logp"][idx_t]) * mf
                     stats["approx_kl"].append(float(((ratio - 1) * mf - log_ratio).sum() / n_real))
                     stats["clip_frac"].append(float((((ratio - 1).abs() > cfg.clip) * mf).sum() / n_real))
+                    type_entropy += (entropy[..., None] * types[idx_t]).sum((0, 1))
                 stats["policy_loss"].append(policy_loss.item())
                 stats["value_loss"].append(value_loss.item())
                 stats["entropy"].append(entropy_mean.item())
         if self.learner is not self.policy:
             self.policy.load_state_dict(self.learner.state_dict())  # the next rollout acts with these
-        return {k: float(np.mean(v)) for k, v in stats.items()}
+        # Per type: the mean over every robot-step of the type that the update's minibatches scored
+        # (NaN for a type no team of the rollout has).
+        counts = types.sum((0, 1)) * cfg.epochs
+        per_type = (type_entropy / counts).tolist()
+        return {
+            **{k: float(np.mean(v)) for k, v in stats.items()},
+            **{f"entropy_{name}": h for name, h in zip(self.type_names, per_type)},
+        }
 
     # -- checkpoint state -------------------------------------------------------------------------
     def state_dict(self) -> dict:

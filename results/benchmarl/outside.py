@@ -22,7 +22,9 @@ which cannot share a venv with the interop extra's TorchRL 0.14.1)::
 ``curve.csv`` (env steps, mean return of the training episodes that ended in each batch),
 ``run.json`` and ``eval.json``: the actors played deterministically in comat's own PettingZoo env
 (no TorchRL wrapper) on fixed episode seeds, as ``compare.py`` plays comat's MAPPO. ``eval``
-plays a run's checkpoint again.
+plays a run's checkpoint again. ``train --checkpoint-every FRAMES`` keeps a checkpoint every so many
+frames, and ``eval-checkpoints`` plays each of them (``eval_curve.csv``: the deterministic progress
+curve of issue 65's pilot, ``matched/``).
 """
 
 from __future__ import annotations
@@ -108,8 +110,9 @@ class Curve(Callback):
         os.replace(tmp, self.path)
 
 
-def experiment_config(frames: int, horizon: int, out: Path) -> ExperimentConfig:
-    """BenchMARL's experiment settings matched to comat's ``paper`` preset (module docstring)."""
+def experiment_config(frames: int, horizon: int, out: Path, checkpoint_every: int = 0) -> ExperimentConfig:
+    """BenchMARL's experiment settings matched to comat's ``paper`` preset (module docstring);
+    ``checkpoint_every``: keep a checkpoint every so many frames (0: the final one only)."""
     cfg = ExperimentConfig.get_from_yaml()
     batch = 32 * horizon
     cfg.sampling_device = cfg.train_device = cfg.buffer_device = "cpu"
@@ -128,13 +131,15 @@ def experiment_config(frames: int, horizon: int, out: Path) -> ExperimentConfig:
     cfg.create_json = False
     cfg.save_folder = str(out)
     cfg.checkpoint_at_end = True
+    cfg.checkpoint_interval = checkpoint_every
+    if checkpoint_every:
+        cfg.keep_checkpoints_num = None  # all of them
     cfg.exclude_buffer_from_checkpoint = True  # the networks and optimizers only: small enough to commit
     return cfg
 
 
-def train(args) -> None:
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+def build_experiment(args, out: Path) -> tuple[Experiment, dict]:
+    """BenchMARL's MAPPO experiment on the fixed team of ``args`` (not yet run) and the team."""
     team = fixed_team(args.task, args.team)
     horizon = comat_env(args.task, team, args.tier).task.horizon
     task = ComatTask(args.task.upper(), {"task": args.task, "team": team, "tier": args.tier, "horizon": horizon})
@@ -150,16 +155,23 @@ def train(args) -> None:
         model_config=actor,
         critic_model_config=critic,
         seed=args.seed,
-        config=experiment_config(args.frames, horizon, out),
+        config=experiment_config(args.frames, horizon, out, args.checkpoint_every),
         callbacks=[Curve(out / "curve.csv", groups[0])],
     )
     if args.normalize_advantage:  # a diagnostic, not BenchMARL's MAPPO: README.md, "Why HMT differs"
         for loss in experiment.losses.values():
             loss.normalize_advantage = True
+    return experiment, team
+
+
+def train(args) -> None:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    experiment, team = build_experiment(args, out)
     started = time.perf_counter()
     experiment.run()
     wall = time.perf_counter() - started
-    (checkpoint,) = Path(experiment.folder_name, "checkpoints").glob("checkpoint_*.pt")
+    checkpoint = Path(experiment.folder_name, "checkpoints", f"checkpoint_{experiment.total_frames}.pt")
     meta = {
         "task": args.task,
         "team": team,
@@ -212,6 +224,22 @@ def evaluate(args) -> None:
     evaluate_policy(out, experiment.policy, meta, args.episodes)
 
 
+def evaluate_checkpoints(args) -> None:
+    """Play every checkpoint a run kept (``train --checkpoint-every``): ``eval_curve.csv`` with the
+    frames and the mean return, progress and finished share of ``--episodes`` deterministic episodes."""
+    out = Path(args.run)
+    meta = json.loads((out / "run.json").read_text())
+    found = sorted((int(p.stem.rpartition("_")[2]), p) for p in out.glob("*/checkpoints/checkpoint_*.pt"))
+    rows = [("env_steps", "return", "progress", "finished")]
+    for frames, path in found:
+        policy = Experiment.reload_from_file(str(path)).policy
+        episodes = play(benchmarl_actor(policy, meta["team"]), meta["task"], meta["team"], meta["tier"], args.episodes)
+        rows.append((frames, *(float(np.mean([e[k] for e in episodes])) for k in ("return", "progress", "finished"))))
+        print(f"{frames}: " + ", ".join(f"{k} {v:.3f}" for k, v in zip(rows[0][1:], rows[-1][1:])))
+    with open(out / "eval_curve.csv", "w", newline="") as f:
+        csv.writer(f).writerows(rows)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -223,6 +251,7 @@ def main(argv=None) -> None:
     t.add_argument("--tier", default="unicycle")
     t.add_argument("--out", required=True)
     t.add_argument("--episodes", type=int, default=20, help="deterministic evaluation episodes after training")
+    t.add_argument("--checkpoint-every", type=int, default=0, help="keep a checkpoint every so many frames")
     t.add_argument(
         "--normalize-advantage",
         action="store_true",
@@ -231,8 +260,11 @@ def main(argv=None) -> None:
     e = sub.add_parser("eval", help="play a trained run's policy again in comat's env")
     e.add_argument("--run", required=True, help="the run folder that train wrote")
     e.add_argument("--episodes", type=int, default=20)
+    c = sub.add_parser("eval-checkpoints", help="play every checkpoint a run kept: eval_curve.csv")
+    c.add_argument("--run", required=True, help="the run folder that train --checkpoint-every wrote")
+    c.add_argument("--episodes", type=int, default=20)
     args = parser.parse_args(argv)
-    (train if args.command == "train" else evaluate)(args)
+    {"train": train, "eval": evaluate, "eval-checkpoints": evaluate_checkpoints}[args.command](args)
 
 
 if __name__ == "__main__":
