@@ -10,6 +10,7 @@ policy, team, start poses and task layout (PCP: prey) in comat's MuJoCo env, and
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -144,12 +145,24 @@ def run_mujoco(folder, tier: str = "wheels", reality: str | None = None, seed: i
     return mujoco_twin(folder, tier, reality, seed)["metrics"]
 
 
-def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: int = 0, loop: str = "comat") -> dict:
+def mujoco_twin(
+    folder,
+    tier: str = "wheels",
+    reality: str | None = None,
+    seed: int = 0,
+    loop: str = "comat",
+    start_poses: np.ndarray | None = None,
+    max_steps: int | None = None,
+) -> dict:
     """:func:`run_mujoco`'s episode with what it did: ``{"metrics", "poses" (S + 1, N, 3) true poses
     at every env step's start and at the end, "measured" (S + 1, N, 3) the poses its script saw then
     (the true ones at reality off), "actions" (S, N)}`` (a real run's simulated twin, ``comat replay``).
     ``loop``: what turns waypoints into wheel commands (:data:`comat.config.LOOPS`): comat's, or the
-    one the export runs (``shipped_<rps>``, ``robotarium_<rps>``)."""
+    one the export runs (``shipped_<rps>``, ``robotarium_<rps>``). ``start_poses`` (N, 3): where the
+    robots really start (a run's logged first poses; the layer's start error is then off, as those
+    poses hold the real one), instead of the folder's requested poses (which the task logic keeps
+    as its starts, as main.py does). ``max_steps``: stop after that many env steps (a run stopped
+    by ``COMAT_MAX_STEPS``)."""
 
     folder = Path(folder)
     cfg = load_config(folder)
@@ -163,19 +176,24 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
     team = TeamSpec.from_dict(
         {"task": task, "robots": [{"type": t, "capabilities": c} for t, c in zip(cfg["types"], cfg["capabilities"])]}
     )
+    requested = np.array(cfg["start_poses"], dtype=float).T
+    start = requested if start_poses is None else np.array(start_poses, dtype=float).reshape(requested.shape)
+    layer = resolve_reality(reality, "reality")
+    if start_poses is not None:  # the logged poses hold the real start error
+        layer = dataclasses.replace(layer, start_xy_m=0.0, start_theta_rad=0.0)
     env = make_env(
         env_id(task),
         team=team,
         tier=tier,
         ticks_per_step=cfg["ticks_per_step"],
-        reality="off" if reality is None else reality,
+        reality=layer,
         safety=None if loop == "comat" else SafetyConfig(loop=loop),
     )
     env.reset(seed=cfg["seed"])
     core = env.core
-    core.safe.reset(np.array(cfg["start_poses"], dtype=float).T, reality_keys=None if reality is None else [seed])
+    core.safe.reset(start, reality_keys=None if reality is None else [seed])
     core.task.set_layout(core.state, 0, layout_of(cfg))
-    core.task.set_starts(core.state, 0, np.array(cfg["start_poses"], dtype=float).T)
+    core.task.set_starts(core.state, 0, requested)  # main.py keeps the requested poses as its starts
     if cfg.get("policy", "comat") == "heuristic":
 
         def act_fn():
@@ -197,7 +215,7 @@ def mujoco_twin(folder, tier: str = "wheels", reality: str | None = None, seed: 
         # the poses after the step (the episode's last too: the core does not reset by itself)
         poses.append(core.poses()[0, :n].copy())
         measured.append(core.measured_poses()[0, :n].copy())
-        if res.terminated[0] or res.truncated[0]:
+        if res.terminated[0] or res.truncated[0] or (max_steps is not None and len(actions) >= max_steps):
             return {
                 "metrics": core.episode_metrics(0),
                 "poses": np.stack(poses),

@@ -87,3 +87,56 @@ def test_the_divergence_a_known_profile_adds_and_the_twin_at_that_profile_remove
 
     ideal, late = divergence("off"), divergence(str(profile))
     assert late < 1e-4 and ideal > 0.005  # 0.1 mm: the log's float32 poses; the delay alone is centimetres
+
+
+def test_the_twin_starts_where_the_run_logged_its_first_poses(run):
+    """Under a layer with a start error, the twin starts at the logged first poses, not at the requested
+    ones plus its own start error; without them it keeps the requested poses' error."""
+    from sim2real.check import mujoco_twin
+
+    folder, log = run
+    logged = read_run_log(str(log)).poses[0].astype(float) + [0.01, -0.02, 0.1]  # any valid poses
+    twin = mujoco_twin(folder, tier="unicycle", reality="nominal", start_poses=logged, max_steps=1)
+    assert np.allclose(twin["poses"][0], logged, atol=1e-9) and len(twin["actions"]) == 1
+    requested = np.array(read_run_log(str(log)).meta["start_poses"]).T
+    own = mujoco_twin(folder, tier="unicycle", reality="nominal", max_steps=1)["poses"][0]
+    assert np.hypot(*(own[:, :2] - requested[:, :2]).T).max() > 0.005  # nominal's start error, up to 5 cm
+
+
+def test_the_envelope_baseline_and_k_step_tables(run, tmp_path, capsys):
+    """--envelope 20 under nominal (a run of 2 env steps: 20 short twins): the real outcome's
+    percentile among 20 twins per task metric, the sim-to-sim baseline with the real divergence's
+    percentile, and the k-step CSV (every profile, horizon and robot, then all)."""
+    folder = tmp_path / "pcp"
+    shutil.copytree(run[0], folder)
+    log = Path(run_rps(folder, max_steps=2)["run_log"])
+    out = log.parent / "env.rrd"
+    argv = ["replay", str(log), "--export", str(folder), "--out", str(out), "--reality", "nominal"]
+    assert main(argv + ["--profiles", "off", "--envelope", "20", "--draws", "2", "--k-steps", "1", "5"]) == 0
+    printed = capsys.readouterr().out
+    assert "Sim-to-sim baseline: twins that differ only in the layer's seed (0 against 1…19)" in printed
+    assert "th percentile of the twins'" in printed and "Reading the divergence" in printed
+    envelope = (log.parent / "env_envelope.csv").read_text().splitlines()
+    assert envelope[0] == "quantity,real,p5,median,p95,percentile" and len(envelope) == 5
+    assert all(0.0 <= float(row.split(",")[-1]) <= 100.0 for row in envelope[1:])
+    kstep = (log.parent / "env_kstep.csv").read_text().splitlines()
+    n = read_run_log(str(log)).n
+    assert kstep[0] == "profile,k_ticks,k_s,robot,position_error_m,heading_error_rad,score_m"
+    assert len(kstep) == 1 + 2 * 2 * (n + 1) and kstep[1].startswith("nominal,1,0.033,0,")
+    assert "- k = 5: " in printed  # two profiles: ranked by score
+
+
+def test_the_videos_task_state_is_the_runs_own(run, tmp_path):
+    """The frames' task state replays main.py's task logic on the logged poses: after the 6 steps of
+    a run stopped at 6, a 7-step run of the same (deterministic) export reaches the return the 6-step
+    run reported; every frame draws the task's items (PCP's prey)."""
+    from comat.eval.replay_draw import real_steps
+    from sim2real.export import load_config
+
+    copy = tmp_path / "pcp"
+    shutil.copytree(run[0], copy)
+    result = run_rps(copy, max_steps=6)
+    log7 = read_run_log(run_rps(copy, max_steps=7)["run_log"])
+    frames = real_steps(log7, load_config(copy), 7)
+    assert len(frames) == 7 and frames[6]["ret"] == pytest.approx(result["return"], abs=1e-9)
+    assert all(f["marks"].items is not None and len(f["marks"].items.xy) > 0 for f in frames)
