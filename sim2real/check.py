@@ -101,12 +101,14 @@ def run_rps(
         env["COMAT_LOG_DIR"] = str(log_dir.resolve())
     argv = [python or sys.executable, "main.py"] + ([] if show_figure else ["--no-figure"])
     if reality is not None:
+        # main.py runs in the folder: a profile's path must not depend on the cwd
+        profile = str(Path(reality).resolve()) if str(reality).endswith((".yaml", ".yml")) else str(reality)
         argv = [
             sys.executable,
             "-m",
             "sim2real.reality_rps",
             "--reality",
-            str(reality),
+            profile,
             "--seed",
             str(int(seed)),
             "--drive",
