@@ -355,20 +355,21 @@ def replay(
         ]
 
     # the sim-to-sim baseline and the envelope: more twins, differing only in the layer's seed
+    runs = envelope if envelope and log.complete else 2  # a run cut short has no outcome to place
     if layer is None:  # at off the layer's seed changes nothing: every twin is this one
-        twins = [twin] * max(envelope, 1)
+        twins = [twin] * runs
     else:
         twins = [twin] + [
             mujoco_twin(
                 export_dir, tier=tier, reality=layer, seed=seed + j, loop=loop, start_poses=start, max_steps=cap
             )
-            for j in range(1, max(envelope, 2))
+            for j in range(1, runs)
         ]
     real_mean = float(dist.mean())
     baseline = None if layer is None else _baseline(twins, steps, real_mean)
     envelope_rows = _envelope_rows(log, twins) if envelope and log.complete else None
 
-    scores = {_label(p): kstep_errors(log, p, k_steps, tier, draws, seed) for p in dict.fromkeys([reality, *profiles])}
+    scores = {p: kstep_errors(log, p, k_steps, tier, draws, seed) for p in dict.fromkeys([reality, *profiles])}
     kstep_md, kstep_rows = _kstep_section(scores, log.n, tier)
 
     note = (
@@ -407,7 +408,8 @@ def replay(
         else:
             text += (
                 f"\n### Envelope: the real outcome among {envelope} twins (seeds {seed}…{seed + envelope - 1})\n\n"
-                "| quantity | real | twins p5 | median | p95 | real's percentile |\n|---|---|---|---|---|---|\n"
+                + ("At off every twin is the same run (the layer's seed changes nothing).\n\n" if layer is None else "")
+                + "| quantity | real | twins p5 | median | p95 | real's percentile |\n|---|---|---|---|---|---|\n"
             )
             text += "\n".join(
                 "| "
