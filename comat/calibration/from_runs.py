@@ -9,15 +9,17 @@ and steps, so it identifies less, and says so:
   experiments' (:func:`comat.calibration.fit.fit_response`, on increments), fed with each robot's
   forward distance along its own heading (the increment between two fresh poses projected on their
   mean heading) against the forward command the barrier sent, and its heading against the turn
-  command; and the share of repeated poses while a robot drives (a moving robot's pose never
-  repeats by itself: a repeat is a held or frozen measurement);
+  command; the team's pose jitter (:func:`comat.calibration.fit.jitter_posterior`); and the team's
+  holds: the ticks at which every driving robot repeated its pose (a moving robot's pose never
+  repeats by itself; one robot's repeat alone is its own tracking freeze);
 * **not identified** — the top-speed derate (a policy seldom asks for the top speed: the cap is
   held at none), the slew limit, the pose noise (the robots are moving), the dead zone, the wheels'
   gain difference (a task's turns hide the drift), the pose bias, command loss, the disturbance and
   faults.
 
 A robot that drove less than :data:`MIN_TRAVEL_M` tells too little and is left out (its row says
-so); the fits are per robot, as the experiments' are, so the intervals are over robots.
+so); the response fits are per robot, as the experiments' are, so their intervals are over robots;
+the jitter and the holds are the team's, one series of ticks per run (intervals over time blocks).
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from comat import constants as C
-from comat.calibration.fit import fit_response, observed_distance
+from comat.calibration.fit import fit_response, fit_timed, observed_distance
 from comat.runlog import RunLog
 
-__all__ = ["MIN_TRAVEL_M", "RUN_SHAPES", "fit_run"]
+__all__ = ["MIN_TRAVEL_M", "RUN_SHAPES", "fit_run", "fit_run_team"]
 
 MIN_TRAVEL_M = 0.3
 """Least forward distance (m) a robot must drive in a run for its response to be fitted."""
@@ -42,21 +44,34 @@ MOVING_MPS = 0.02
 def fit_run(run: RunLog) -> list[dict]:
     """Per robot of a run's log: ``delay_ticks``, ``tau_s`` (shared by the run's robots), ``tau_own_s``,
     ``gain`` (forward speed), ``turn_gain``, ``repeat_share`` (repeated poses while driving),
-    ``travel_m``, and ``used`` (False: it drove less than :data:`MIN_TRAVEL_M`; its numbers are nan)."""
+    ``travel_m``, ``jitter_share`` (the team's), and ``used`` (False: it drove less than
+    :data:`MIN_TRAVEL_M`; its numbers are nan); see :func:`fit_run_team`."""
+    return fit_run_team(run)[0]
+
+
+def fit_run_team(run: RunLog) -> tuple[list[dict], dict[str, np.ndarray]]:
+    """:func:`fit_run`'s rows and the team's series: ``jitter`` (T,) the posterior of a late pose at
+    each tick that can tell, ``holds`` (H,) 1 where every robot driving at a tick repeated its pose
+    (ticks with no robot driving left out)."""
     poses, sent = run.poses, run.sent.astype(np.float64)
     dist, dth, fresh = observed_distance(poses)
     travel = np.abs(np.diff(dist, axis=0) * fresh[1:]).sum(0)
     used = np.flatnonzero(travel >= MIN_TRAVEL_M)
     unused = {"used": False, "delay_ticks": None, "tau_s": np.nan, "tau_own_s": np.nan, "accel_radps2": np.nan}
-    unused |= {"gain": np.nan, "turn_gain": np.nan, "repeat_share": np.nan}
+    unused |= {"gain": np.nan, "turn_gain": np.nan, "repeat_share": np.nan, "jitter_share": np.nan}
     out = [{**unused, "travel_m": float(travel[i])} for i in range(run.n)]
+    team = {"jitter": np.zeros(0), "holds": np.zeros(0)}
     if used.size == 0:
-        return out
-    forward = fit_response(dist[:, used], fresh[:, used], sent[:, used, 0], RUN_SHAPES)
+        return out, team
+    forward, team["jitter"] = fit_timed(dist[:, used], fresh[:, used], sent[:, used, 0], RUN_SHAPES)
+    share = forward[0]["jitter_share"]
     half = C.GRITSBOT.base_length_m / 2.0
-    turn = fit_response(dth[:, used] * half, fresh[:, used], sent[:, used, 1] * half, RUN_SHAPES)
+    turn = fit_response(dth[:, used] * half, fresh[:, used], sent[:, used, 1] * half, RUN_SHAPES, jitter=share)
     driving = np.zeros_like(fresh)
     driving[1:] = np.abs(sent[:-1, :, 0]) > MOVING_MPS
+    drive = driving[1:, used]  # (K - 1, U)
+    some = drive.any(axis=1)
+    team["holds"] = (~(fresh[1:, used] & drive).any(axis=1))[some].astype(np.float64)
     for j, i in enumerate(used):
         m = driving[1:, i]
         out[i] = {
@@ -69,5 +84,6 @@ def fit_run(run: RunLog) -> list[dict]:
             "gain": forward[j]["gain"],
             "turn_gain": turn[j]["gain"],
             "repeat_share": float(1.0 - fresh[1:, i][m].mean()) if m.any() else np.nan,
+            "jitter_share": share,
         }
-    return out
+    return out, team

@@ -7,30 +7,33 @@ interval that says what kind it is; :func:`profile_fields` turns the rows into t
 :class:`~comat.reality.RealityConfig` fields of a profile, :func:`unidentified_fields` says field by
 field what the rest keeps, and :func:`truth_of` what a fit should find at a known layer.
 
-Which log gives what, when several measure the same wheels: the delay and the lag from ``steps``
-(from ``spin`` without it, from the runs without either), the gain difference from ``spin`` (from
-``steps`` without it), the reachable speed from both, the speed gain from ``steps`` (from the runs
-without it), the turn gain from ``spin`` (from the runs without it), the holds from ``still``
-(from the runs' repeats while driving without it).
+Which log gives what, when several measure the same wheels: the delay, the pose jitter and the lag
+from ``steps`` (from ``spin`` without it, from the runs without either), the gain difference from
+``spin`` (from ``steps`` without it), the derate from ``steps`` (from ``spin`` without it), the speed
+gain from ``steps`` (from the runs without it), the turn gain from ``spin`` (from the runs without
+it), the holds from ``still`` (from the runs' ticks while driving without it).
+
+Each interval is of the kind its parameter's replicates call for (:mod:`comat.calibration.intervals`):
+over robots for what each robot has on its own, over blocks of ticks for what the team shares (the
+holds and the jitter of the one pose message per tick).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from comat.calibration.experiments import load_log
-from comat.calibration.fit import fit_ramp, fit_spin, fit_steps, fit_still, loop_timing
-from comat.calibration.from_runs import MIN_TRAVEL_M, fit_run
-from comat.measure.stats import t_interval
+from comat.calibration.fit import fit_ramp, fit_spin_team, fit_steps_team, fit_still, loop_timing, team_holds
+from comat.calibration.from_runs import MIN_TRAVEL_M, fit_run_team
+from comat.calibration.intervals import derate_interval, spread_interval
+from comat.measure.stats import block_bootstrap_mean, t_interval
 from comat.reality.config import LEVELS
 from comat.runlog import LOG_FILE, read_run_log
 
 __all__ = [
-    "CAP_MARGIN",
     "PROFILE_BASE",
     "fit_logs",
     "is_run_log",
@@ -43,9 +46,9 @@ PROFILE_BASE = "nominal"
 """The level a fitted profile starts from: a field the logs cannot identify (faults, freezes, start
 error, command loss, the wheel disturbance, ...) keeps this level's value rather than becoming the
 ideal world's, and the profile says so field by field (:func:`unidentified_fields`)."""
-CAP_MARGIN = 0.02
-"""How far below the fastest commanded wheel speed (a fraction of the top) a fitted cap must lie to
-count as a derate: two steps of the cap grid, as the pose noise moves the best cap by about one."""
+_MISS = float(LEVELS[PROFILE_BASE]["script_miss_prob"])
+"""The script's missed ticks a profile keeps (not identified): each repeats every pose once, as a
+hold does, so the holds written leave them out (else they would count twice)."""
 ALWAYS_UNIDENTIFIED = {
     "pose_bias_xy_m": "no ground truth on the Robotarium",
     "command_delay_ticks": "the delay is pose + command together: all of it goes to pose_delay_ticks",
@@ -97,60 +100,80 @@ def _t_row(name, values, runs, note="", estimate=None, robots=None, kind="t95") 
     )
 
 
-def _spread_interval(diffs: Sequence[float], draws: int = 2000) -> tuple[float | None, float | None]:
-    """95 % percentile bootstrap over robots of sqrt(6) · SD of the half gain differences (a spread
-    is estimated from all robots at once, so no t-interval over robots exists); None with < 3 robots.
-    The resampling stream is seeded: the same logs give the same interval."""
-    d = np.asarray(diffs, dtype=float)
-    if d.size < 3:
-        return None, None
-    rng = np.random.default_rng(0)
-    samples = d[rng.integers(0, d.size, size=(draws, d.size))]
-    spreads = math.sqrt(6.0) * samples.std(axis=1, ddof=1)
-    return float(np.percentile(spreads, 2.5)), float(np.percentile(spreads, 97.5))
+def _block_row(name, series: list, runs: int, note: str, transform=None) -> dict:
+    """A row for a quantity common to the team: the pooled mean of per-tick ``series`` (one per
+    run) with its 95 % block bootstrap interval over ticks (:func:`block_bootstrap_mean`), each end
+    mapped by the monotone ``transform``; no row value without a tick."""
+    series = [x for x in series if len(x)]
+    if not series:
+        return _row(name, None, note=f"not identified: {note}")
+    b = block_bootstrap_mean(series)
+    f = transform or (lambda v: v)
+    note += f"; blocks of {'/'.join(str(k) for k in b['blocks'])} ticks"
+    return _row(name, f(b["mean"]), f(b["lo"]), f(b["hi"]), "block95", 0, runs, note)
 
 
-def _read(paths: Sequence[str]) -> tuple[dict[str, list[dict]], dict[str, int], list[dict]]:
-    fits = {"steps": fit_steps, "still": fit_still, "ramp": fit_ramp, "spin": fit_spin}
-    per: dict[str, list[dict]] = {e: [] for e in (*fits, "run")}
+def _read(paths: Sequence[str]) -> tuple[dict[str, list[dict]], dict[str, int], list[dict], dict[str, list]]:
+    """Every log fitted: per experiment (and ``run``) the robots' rows, the runs, the loop timings
+    and the team's series (``jitter_<source>``: the posterior of a late pose at the ticks that tell;
+    ``holds_<source>``: 1 where every robot repeated its pose), one entry per log."""
+    per: dict[str, list[dict]] = {e: [] for e in ("steps", "still", "ramp", "spin", "run")}
     runs: dict[str, int] = {e: 0 for e in per}
+    team: dict[str, list] = {k: [] for k in ("jitter_steps", "jitter_spin", "jitter_run", "holds_still", "holds_run")}
     timing = []
     for p in paths:
         if is_run_log(p):
             run = read_run_log(str(p))
-            per["run"] += fit_run(run)
+            rows, series = fit_run_team(run)
+            per["run"] += rows
+            team["jitter_run"].append(series["jitter"])
+            team["holds_run"].append(series["holds"])
             runs["run"] += 1
             timing.append(loop_timing(run.t.astype(np.float64)[:, None, None]))
             continue
         experiment, log = load_log(p)
-        per[experiment] += fits[experiment](log)
+        if experiment in ("steps", "spin"):
+            rows, told = (fit_steps_team if experiment == "steps" else fit_spin_team)(log)
+            team[f"jitter_{experiment}"].append(told)
+        elif experiment == "still":
+            rows = fit_still(log)
+            noisy = np.flatnonzero([np.isfinite(r["repeat_share"]) for r in rows])  # a repeat tells only with noise
+            team["holds_still"].append(team_holds(log[..., 3:], noisy) if noisy.size else np.zeros(0))
+        else:
+            rows = fit_ramp(log)
+        per[experiment] += rows
         runs[experiment] += 1
         timing.append(loop_timing(log))
-    return per, runs, timing
+    return per, runs, timing, team
 
 
-def _derate(moving: list[dict]) -> tuple[float, list[float]]:
-    """The profile's ``top_speed_derate_min`` and the reachable speeds it comes from: the smallest
-    cap seen clearly below the fastest speed each robot was sent (:data:`CAP_MARGIN`); 1 if none."""
-    seen = [
-        r["cap_fraction"] * r["gain"] for r in moving if r["cap_fraction"] * r["gain"] < r["full_fraction"] - CAP_MARGIN
-    ]
-    return (float(min(1.0, min(seen))) if seen else 1.0), seen
+def _derate(rows: list[dict]) -> tuple[float, float, float, int]:
+    """The profile's ``top_speed_derate_min``, its 95 % interval (:func:`derate_interval`) and how
+    many robots' caps were seen (:func:`comat.calibration.fit.reach_test`: binding beyond the
+    phases' scatter). A robot whose cap was not seen holds at least what it reached. With no cap
+    seen the derate is not identified: :data:`PROFILE_BASE`'s value is kept, within the interval."""
+    ok = [r for r in rows if np.isfinite(r["reach_fraction"])]
+    seen = [r for r in ok if r["cap_seen"]]
+    z = 1.96  # an unseen cap is at least what the robot reached, at the lower 97.5 % bound of that
+    above = [r["reach_fraction"] - z * np.nan_to_num(r["reach_se"]) for r in ok if not r["cap_seen"]]
+    estimate, lo, hi = derate_interval([r["reach_fraction"] for r in seen], above, [r["reach_se"] for r in seen])
+    if not seen:
+        estimate = float(min(max(LEVELS[PROFILE_BASE]["top_speed_derate_min"], lo), 1.0))
+    return estimate, lo, hi, len(seen)
 
 
 def fit_logs(paths: Sequence[str]) -> dict:
     """Fit every log (one or many runs of each experiment, and policy runs' logs) and return
     ``{"parameters": [{name, estimate, lo, hi, interval, robots, runs, note}], "per_robot": {...}, "timing": [...]}``;
-    ``interval`` says what [lo, hi] is: ``"t95"`` the 95 % t-interval over robots (``"t95_runs"``: over
-    runs, the loop's tick), ``"bootstrap95"`` a 95 % bootstrap over robots (the wheels' gain spread),
-    ``"range"`` the robots' range (the delay and the derate, whose extremes the profile keeps), None
-    no interval (one robot; lo and hi None). An estimate None: not identified (the note says why)."""
+    ``interval`` names the kind of [lo, hi] (:data:`comat.calibration.intervals.KINDS`, the kind of
+    each parameter :data:`~comat.calibration.intervals.PARAMETER_KINDS`); None: no interval (too few
+    robots or runs; lo and hi None). An estimate None: not identified (the note says why)."""
     if not paths:
         raise ValueError(
             "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, "
             "calib_spin.npy) or a run's comat_run.npy"
         )
-    per, runs, timing = _read(paths)
+    per, runs, timing, team = _read(paths)
     driven = [r for r in per["run"] if r["used"]]
     params = []
     for source in ("steps", "spin", "run"):
@@ -170,6 +193,14 @@ def fit_logs(paths: Sequence[str]) -> dict:
                 len(delays),
                 timed_runs,
                 f"pose + command delay (not separable), from {source}; the profile's minimum and spread",
+            )
+        )
+        params.append(
+            _block_row(
+                "pose_delay_jitter_prob",
+                team[f"jitter_{source}"],
+                timed_runs,
+                f"share of ticks whose pose message is one tick older, from {source} (common to the team)",
             )
         )
         # the estimate is the lag the robots share (one per log); the interval is over each robot's own best lag
@@ -213,64 +244,70 @@ def fit_logs(paths: Sequence[str]) -> dict:
         )
     moving = per["steps"] + per["spin"]
     if moving:
-        n_moving = runs["steps"] + runs["spin"]
-        params.append(
-            _t_row(
-                "top_speed_fraction",
-                [r["cap_fraction"] * r["gain"] for r in moving],
-                n_moving,
-                "reachable / 12.5 rad/s",
+        capped, capped_from = (per["steps"], "steps") if per["steps"] else (per["spin"], "spin")
+        reach = [r["reach_fraction"] for r in capped if np.isfinite(r["reach_fraction"])]
+        if reach:
+            params.append(
+                _row(
+                    "top_speed_fraction",
+                    float(np.mean(reach)),
+                    float(min(reach)),
+                    float(max(reach)),
+                    "range",
+                    len(reach),
+                    runs[capped_from],
+                    f"speed held at the fastest command / 12.5 rad/s, from {capped_from} (a robot whose cap "
+                    "never binds shows its gain times what it was sent)",
+                )
             )
-        )
-        derate, seen = _derate(moving)
-        params.append(
-            _row(
-                "top_speed_derate_min",
-                derate,
-                min(seen) if seen else None,
-                max(seen) if seen else None,
-                "range" if seen else None,
-                len(seen),
-                n_moving,
-                "smallest reachable speed clearly below the fastest sent (1: none seen); interval: the "
-                "robots' reachable speeds that count",
+            derate, lo, hi, seen = _derate(capped)
+            params.append(
+                _row(
+                    "top_speed_derate_min",
+                    derate,
+                    lo,
+                    hi,
+                    "order95",
+                    len(reach),
+                    runs[capped_from],
+                    f"the fleet's smallest cap, from {capped_from}: "
+                    + (
+                        f"{seen} of {len(reach)} robots' caps seen binding"
+                        if seen
+                        else f"no cap seen binding, {PROFILE_BASE}'s kept within the interval"
+                    ),
+                )
             )
-        )
         paired, paired_from = (per["spin"], "spin") if per["spin"] else (per["steps"], "steps")
-        diffs = [r["half_gain_diff"] for r in paired if np.isfinite(r["half_gain_diff"])]
-        spread = math.sqrt(6.0) * float(np.std(diffs, ddof=1)) if len(diffs) > 1 else float("nan")
-        lo, hi = _spread_interval(diffs)
+        ok = [r for r in paired if np.isfinite(r["half_gain_diff"])]
+        spread, lo, hi = spread_interval([r["half_gain_diff"] for r in ok], [r["half_gain_diff_se"] for r in ok])
         params.append(
             _row(
                 "wheel_gain_spread",
                 spread,
                 lo,
                 hi,
-                None if lo is None else "bootstrap95",
-                len(diffs),
+                None if lo is None else "chi2_95",
+                len(ok),
                 runs[paired_from],
-                f"sqrt(6) x SD over robots of the half gain difference (triangular), from {paired_from}",
+                f"sqrt(6) x SD over robots of the half gain difference (triangular), each robot's own error "
+                f"taken out, from {paired_from}",
             )
         )
     if per["still"]:
         still = per["still"]
         params.append(_t_row("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"]))
         params.append(_t_row("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], runs["still"]))
+    holds_from = "still" if per["still"] else "run"
+    if per["still"] or driven:
         params.append(
-            _t_row(
+            _block_row(
                 "pose_hold_prob",
-                [r["repeat_share"] for r in still],
-                runs["still"],
-                "share of repeated poses (nan: the poses never changed, no noise to tell a hold by)",
-            )
-        )
-    elif driven:
-        params.append(
-            _t_row(
-                "pose_hold_prob",
-                [r["repeat_share"] for r in driven],
-                runs["run"],
-                "share of repeated poses while driving, from run (holds and freezes together)",
+                team[f"holds_{holds_from}"],
+                runs[holds_from],
+                f"share of ticks at which every robot's pose repeated, from {holds_from}, less the script's "
+                f"missed ticks the profile keeps ({PROFILE_BASE}'s {_MISS})",
+                lambda share: max(0.0, 1.0 - (1.0 - share) / (1.0 - _MISS)),
             )
         )
     if per["ramp"]:
@@ -321,6 +358,10 @@ def profile_fields(fit: dict) -> dict:
         fields["pose_delay_spread_ticks"] = int(p["hi"] - p["lo"])
         # the fitted delay is pose + command together (not separable): all of it on the pose path
         fields["command_delay_ticks"], fields["command_delay_spread_ticks"] = 0, 0
+        # the jitter fitted beside it (0 where no tick could tell: the delay fitted alone then holds it),
+        # never nominal's on top of a delay that already holds the logs' own
+        jitter = est.get("pose_delay_jitter_prob")
+        fields["pose_delay_jitter_prob"] = float(min(max(jitter["estimate"], 0.0), 1.0)) if jitter else 0.0
     per = fit["per_robot"]
     timed = per["steps"] or per["spin"] or [r for r in per.get("run", []) if r["used"]]
     if timed:
@@ -348,6 +389,7 @@ def truth_of(config) -> dict[str, str]:
     spread = c.pose_delay_spread_ticks + c.command_delay_spread_ticks
     return {
         "pose_delay_ticks": f"{delay}..{delay + spread}" if spread else f"{delay}",
+        "pose_delay_jitter_prob": f"{c.pose_delay_jitter_prob:.4g}",
         "motor_tau_s": f"{c.motor_tau_min_s:.4g}..{c.motor_tau_max_s:.4g}"
         if c.motor_tau_max_s != c.motor_tau_min_s
         else f"{c.motor_tau_min_s:.4g}",

@@ -1,17 +1,17 @@
 """``comat calibrate LOGS... --out PROFILE.yaml``: fit the reality layer to calibration logs.
 
 Reads ``calib_<experiment>.npy`` logs (:mod:`comat.calibration.experiments`; one or many runs) and
-policy runs' ``comat_run.npy`` logs (:mod:`comat.calibration.from_runs`: every run is also a calibration),
-fits each parameter the logs identify (:mod:`comat.calibration.fit`), prints a table (parameter,
-estimate, its interval and what kind it is: the 95 % t-interval over robots, or for the delay the
-robots' range; robots and runs used; with ``--truth``, the known value; a note) and writes a
-profile, with a comment header saying what each field it sets means, that
-``comat train ... reality=PROFILE.yaml`` and ``comat eval --reality PROFILE.yaml`` take: the
-layer at ``nominal`` with the identified fields set (what the logs cannot show keeps nominal's
-value, and ``not_identified`` says so field by field). ``--simulate REALITY`` instead writes the logs of the
-experiments run in comat with the layer at a level, profile or field mapping, and the layer's
-resolved fields as ``truth.yaml`` beside them: the known truth a fit is checked against
-(``--truth``).
+policy runs' ``comat_run.npy`` logs (:mod:`comat.calibration.from_runs`: every run is also a
+calibration), fits each parameter the logs identify (:mod:`comat.calibration.fit`), prints a table
+(parameter, estimate, its interval and what kind it is: over robots for what each robot has on its
+own, over blocks of ticks for what the team shares, :mod:`comat.calibration.intervals`; robots and
+runs used; with ``--truth``, the known value; a note) and writes a profile, with a comment header
+saying what each field it sets means, that ``comat train ... reality=PROFILE.yaml`` and
+``comat eval --reality PROFILE.yaml`` take: the layer at ``nominal`` with the identified fields set
+(what the logs cannot show keeps nominal's value, and ``not_identified`` says so field by field).
+``--simulate REALITY`` instead writes the logs of the experiments run in comat with the layer at a
+level, profile or field mapping, and the layer's resolved fields as ``truth.yaml`` beside them: the
+known truth a fit is checked against (``--truth``).
 """
 
 from __future__ import annotations
@@ -26,18 +26,12 @@ from pathlib import Path
 
 __all__ = ["add_calibrate_parser"]
 
-INTERVAL_KINDS = {
-    "t95": "95 % t, robots",
-    "t95_runs": "95 % t, runs",
-    "bootstrap95": "95 % bootstrap, robots",
-    "range": "robots' range",
-    None: "",
-}
-"""How the table names each kind of interval (:func:`comat.calibration.fit.fit_logs`)."""
-
 
 def _table(parameters: list[dict], truth: dict[str, str] | None) -> str:
-    """The fit as a table with columns sized to their cells: an interval says what kind it is."""
+    """The fit as a table with columns sized to their cells: an interval says what kind it is
+    (:data:`comat.calibration.intervals.KINDS`)."""
+    from comat.calibration.intervals import KINDS
+
     head = ["parameter", "estimate", "interval", "kind", *(["truth"] if truth else []), "robots", "runs", "note"]
     rows = []
     for p in parameters:
@@ -47,7 +41,7 @@ def _table(parameters: list[dict], truth: dict[str, str] | None) -> str:
                 p["name"],
                 _fmt(p["estimate"]),
                 interval,
-                INTERVAL_KINDS[p.get("interval")],
+                KINDS.get(p.get("interval"), ""),
                 *([truth.get(p["name"], "")] if truth else []),
                 str(p["robots"]),
                 str(p["runs"]),
@@ -87,6 +81,24 @@ def _fmt(v) -> str:
     return "nan" if math.isnan(v) else f"{v:.4g}"
 
 
+def _check_profile(value) -> None:
+    """A profile file given (``--simulate``, ``--truth``) that ``comat calibrate`` fitted: its intervals
+    of the present kinds, else a one-line error before anything is written
+    (:func:`comat.calibration.intervals.read_fit`)."""
+    import yaml
+
+    if not (isinstance(value, str) and value.endswith((".yaml", ".yml")) and Path(value).is_file()):
+        return  # a level, a mapping, or a missing file (resolve_reality says so)
+    try:
+        data = yaml.safe_load(Path(value).read_text())
+    except yaml.YAMLError:
+        return  # not YAML: resolve_reality says so in one line
+    if isinstance(data, dict) and "fit" in data:
+        from comat.calibration.intervals import read_fit
+
+        read_fit(value)
+
+
 def _cmd(args: argparse.Namespace) -> int:
     import yaml
 
@@ -101,6 +113,7 @@ def _cmd(args: argparse.Namespace) -> int:
         reality = args.simulate
         if reality.startswith("{"):
             reality = json.loads(reality)
+        _check_profile(reality)
         names = [f"calib_{e}.npy" for e in EXPERIMENTS]
         truth = dataclasses.asdict(resolve_reality(reality))
         with new_outputs(args.out, [*names, "truth.yaml"], force=args.force) as out:
@@ -119,18 +132,21 @@ def _cmd(args: argparse.Namespace) -> int:
         return 0
     from comat.calibration.profile import fit_logs, profile_fields, truth_of, unidentified_fields
     from comat.reality import RealityConfig, resolve_reality
+    from comat.reality.config import PROFILE_FORMAT
 
     if not args.logs:
         raise ValueError(
             "LOGS: give at least one calibration log (calib_steps.npy, calib_still.npy, calib_ramp.npy, "
             "calib_spin.npy) or a run's comat_run.npy"
         )
+    _check_profile(args.truth)
     truth = None if args.truth is None else truth_of(resolve_reality(args.truth))
     fit = fit_logs(args.logs)
     fields = profile_fields(fit)
     config = RealityConfig(**fields)  # the profile is a valid layer before anything is written
     print(_table(fit["parameters"], truth))
     profile = {
+        "format": PROFILE_FORMAT,
         "reality": {k: v for k, v in dataclasses.asdict(config).items() if k in fields},
         "not_identified": unidentified_fields(fields, {p["name"]: p["note"] for p in fit["parameters"]}),
         "fit": [{k: v for k, v in p.items()} for p in fit["parameters"]],

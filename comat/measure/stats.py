@@ -62,7 +62,17 @@ import numpy as np
 
 from comat.measure.metrics import mean_ci
 
-__all__ = ["BOOTSTRAP_REPS", "cell_means", "hierarchical_bootstrap", "iqm", "per_seed_means", "t_interval", "welch"]
+__all__ = [
+    "BOOTSTRAP_REPS",
+    "block_bootstrap_mean",
+    "block_length",
+    "cell_means",
+    "hierarchical_bootstrap",
+    "iqm",
+    "per_seed_means",
+    "t_interval",
+    "welch",
+]
 
 BOOTSTRAP_REPS = 2000
 """Resamples of :func:`hierarchical_bootstrap` in the report."""
@@ -224,3 +234,52 @@ def welch(a: Sequence[float], b: Sequence[float], confidence: float = 0.95) -> d
         "df": float(df),
         "p": float(2 * stats.t.sf(abs(t), df)),
     }
+
+
+def block_length(x: np.ndarray) -> int:
+    """The circular block bootstrap's block length (samples) for the series ``x`` (n,): Politis and
+    White's automatic length from the series' own autocorrelation (with Patton, Politis and White's
+    2009 correction; ``arch.bootstrap.optimal_block_length``), never below n^(1/3), the rate-optimal
+    order, so that a short or nearly independent series still keeps its weak dependence, and never
+    above n / 4."""
+    from arch.bootstrap import optimal_block_length
+
+    n = x.size
+    floor = math.ceil(n ** (1.0 / 3.0))
+    auto = float(optimal_block_length(x)["circular"].iloc[0]) if np.ptp(x) > 0 else 1.0
+    return int(min(max(floor, math.ceil(auto) if math.isfinite(auto) else floor), max(1, n // 4)))
+
+
+def block_bootstrap_mean(series: Sequence, reps: int = BOOTSTRAP_REPS, seed: int = 0, confidence: float = 0.95) -> dict:
+    """Pooled mean of one or more time series (runs) with a circular block bootstrap interval.
+
+    For a quantity common to a team (one process each tick, seen by every robot at once), the ticks
+    of a run, not its robots, are the replicates; ticks are dependent, so whole blocks of them are
+    resampled (:func:`block_length`). Each series (n_k,) is resampled on its own (runs are
+    independent); a resample's statistic is the pooled mean, sum over runs / samples over runs.
+    The percentile interval at ``confidence``; ``arch``'s ``CircularBlockBootstrap`` draws the
+    blocks from ``numpy.random.default_rng(seed)``: the same series give the same interval.
+
+    Returns ``{"mean", "lo", "hi", "n", "blocks"}`` (``blocks``: each series' block length; lo = hi
+    = mean where no series varies: nothing to resample)."""
+    from arch.bootstrap import CircularBlockBootstrap
+
+    xs = [np.asarray(_vector(f"series[{k}]", x), dtype=float) for k, x in enumerate(series)]
+    if not xs:
+        raise ValueError("series must hold at least one non-empty series, got none")
+    if not isinstance(reps, int) or reps < 1:
+        raise ValueError(f"reps must be an integer >= 1, got {reps!r}")
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
+    n = sum(x.size for x in xs)
+    mean = float(sum(x.sum() for x in xs) / n)
+    blocks = [block_length(x) for x in xs]
+    if all(np.ptp(x) == 0 for x in xs):
+        return {"mean": mean, "lo": mean, "hi": mean, "n": n, "blocks": blocks}
+    rngs = np.random.default_rng(seed).spawn(len(xs))
+    sums = np.zeros(reps)
+    for x, b, rng in zip(xs, blocks, rngs):
+        sums += CircularBlockBootstrap(b, x, seed=rng).apply(np.sum, reps)[:, 0]
+    tail = 100 * (1 - confidence) / 2
+    lo, hi = np.percentile(sums / n, [tail, 100 - tail])
+    return {"mean": mean, "lo": float(lo), "hi": float(hi), "n": n, "blocks": blocks}

@@ -36,6 +36,7 @@ from comat.config import load
 __all__ = [
     "LEVELS",
     "MARKS",
+    "PROFILE_FORMAT",
     "REALITY_LEVELS",
     "SOURCES",
     "RealityConfig",
@@ -428,6 +429,13 @@ def levels_markdown() -> str:
     return "\n".join(rows) + "\n"
 
 
+PROFILE_FORMAT = 2
+"""The format ``comat calibrate`` writes a fitted profile in (its ``format`` key). 2: the intervals
+of :mod:`comat.calibration.intervals` (team-wide quantities over blocks of ticks) and the pose jitter
+fitted, not kept at nominal's on top of a fitted delay. A fitted profile of another format is refused
+with the command that regenerates it."""
+
+
 def read_profile(path: str, name: str = "reality") -> dict[str, Any]:
     """The RealityConfig fields a profile file holds (``comat calibrate --out PROFILE.yaml``: a
     mapping with a ``reality`` mapping of fields); one-line errors for a missing or foreign file.
@@ -447,6 +455,14 @@ def read_profile(path: str, name: str = "reality") -> dict[str, Any]:
         raise ValueError(  # noqa: TRY004 (a file of the wrong kind: a value error to the user)
             f"{name}: {path!r} is not a reality profile (a mapping with a 'reality' mapping of fields, "
             "as comat calibrate writes)"
+        )
+    if "fit" in data and data.get("format") != PROFILE_FORMAT:  # fitted by an earlier comat calibrate
+        logs = " ".join(str(x) for x in data.get("logs") or ["LOGS..."])
+        raise ValueError(
+            f"{name}: profile {path!r} was fitted by an earlier comat calibrate (format "
+            f"{data.get('format', 1)!r}, now {PROFILE_FORMAT}: team-wide holds had intervals over robots and "
+            f"nominal's pose jitter sat on top of the fitted delay); regenerate it: comat calibrate {logs} "
+            f"--out {path} --force"
         )
     return dict(data["reality"])
 
