@@ -117,7 +117,8 @@ def curves() -> None:
         ax.set_xlabel("env steps (M)")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("U_train progress % (training-time eval)")
-    axes[-1].legend(fontsize=8)
+    handles = {h.get_label(): h for ax in axes for h in ax.get_lines() if not h.get_label().startswith("_")}
+    fig.legend(handles.values(), handles.keys(), loc="upper right", fontsize=8)
     fig.tight_layout()
     fig.savefig(HERE / "curves.png", dpi=110)
 
