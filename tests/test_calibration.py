@@ -291,14 +291,3 @@ def test_calibration_folders_follow_the_export_rules(tmp_path):
             names = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
             names |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
             assert names <= ALLOWED_IMPORTS | own | set(sys.stdlib_module_names), (path, names)
-
-
-def test_the_gain_spread_has_a_bootstrap_interval_over_robots():
-    """The spread is sqrt(6) x SD of the robots' half gain differences: no t-interval over robots
-    exists, so a seeded percentile bootstrap gives one (the same logs, the same interval)."""
-    from comat.calibration.profile import _spread_interval
-
-    diffs = np.random.default_rng(1).uniform(-0.03, 0.03, 8)
-    lo, hi = _spread_interval(diffs)
-    assert lo < np.sqrt(6) * np.std(diffs, ddof=1) < hi and (lo, hi) == _spread_interval(diffs)
-    assert _spread_interval(diffs[:2]) == (None, None)

@@ -8,7 +8,10 @@
 * :mod:`comat.calibration.from_runs`: the fit of a policy run's log (every run is also a calibration);
 * :mod:`comat.calibration.profile`: every log fitted and combined into the table with intervals and
   the profile (:func:`fit_logs`, :func:`profile_fields`);
-* :mod:`comat.calibration.recovery`: the proof on known truth (simulate at a known layer, fit back, check).
+* :mod:`comat.calibration.intervals`: the kind of interval each parameter gets (over robots, over
+  blocks of ticks for what the team shares, ...) and the check of a profile's intervals on reading;
+* :mod:`comat.calibration.recovery`: the proof on known truth (simulate at a known layer, fit back, check);
+* :mod:`comat.calibration.coverage`: whether the written intervals cover the truth, seed after seed.
 
 A floor above :mod:`comat.control` and :mod:`comat.reality` (the layer it fits) and
 :mod:`comat.measure` (its intervals); ``comat calibrate`` (:mod:`comat.cli.calibrate`) drives it.

@@ -112,8 +112,8 @@ NOMINAL_TOLERANCES: dict[str, str] = {
     "does not, each robot's reachable speed within 0.06 of its own (the mean over its wheels of the "
     "smaller of gain × 95 % and its cap), and the layer's derate_min inside the written interval",
     "wheel_gain_spread": "within 0.035 of √6 × the SD of the four robots' own drawn half differences (what four "
-    "robots can show of the layer's spread; each robot's error below adds to it; the bootstrap interval says how "
-    "far that is from the fleet's)",
+    "robots can show of the layer's spread; each robot's own error, taken out of the estimate, is the row below; "
+    "the chi-square interval says how far that is from the fleet's)",
     "half_gain_diff": "each robot's (g_r − g_l)/2 from spin within 0.025 (the wheels' disturbance alone moves it "
     "by 0.010 RMS in a 33 s spin: 48 robots, 12 seeds)",
     "pose_noise": "x, y and θ within 20 %",

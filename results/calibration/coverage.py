@@ -43,37 +43,35 @@ def _fmt(v) -> str:
     return "—" if v is None else f"{v:.4g}"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", type=int, default=20)
-    args = parser.parse_args()
-    start = time.time()
-    with tempfile.TemporaryDirectory() as tmp:
-        results = [run_seed(seed, Path(tmp)) for seed in range(args.seeds)]
-    wall = time.time() - start
-    n = args.seeds
+def render(results: list[dict], wall_s: float) -> str:
+    """coverage.md: the table per parameter, then each seed's written intervals."""
+    n = len(results)
     need = round(NEEDED / 20 * n)
-    print(f"# Coverage of the written 95 % intervals: {n} seeds of known truth\n")
-    print(
-        "`OMP_NUM_THREADS=1 python results/calibration/coverage.py > results/calibration/coverage.md` "
-        f"({wall / 60:.1f} min on one core of a shared 2-core machine). Truth: `nominal` with every nuisance on "
-        f"and `{json.dumps({k: v for k, v in COVERAGE_TRUTH.items() if k != 'level'})}`; four robots, the four "
-        "experiments per seed, fitted and written by `comat calibrate`, the intervals read back from the profile.\n"
-    )
-    print(f"| parameter | interval | truth | covered | mean estimate | mean width | ≥ {need} of {n} |")
-    print("|---|---|---|---|---|---|---|")
+    truth = json.dumps({k: v for k, v in COVERAGE_TRUTH.items() if k != "level"})
+    lines = [
+        f"# Coverage of the written 95 % intervals: {n} seeds of known truth",
+        "",
+        (
+            "`OMP_NUM_THREADS=1 python results/calibration/coverage.py > results/calibration/coverage.md` "
+            f"({wall_s / 60:.1f} min on one core of a shared 2-core machine). Truth: `nominal` with every nuisance "
+            f"on and `{truth}`; four robots, the four experiments per seed, fitted and written by `comat calibrate`, "
+            "the intervals read back from the profile."
+        ),
+        "",
+        f"| parameter | interval | truth | covered | mean estimate | mean width | ≥ {need} of {n} |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for row in summarize(results):
         kind = KINDS.get(row["kind"], row["kind"] or "none written")
-        truth = row["truth"] if isinstance(row["truth"], str) else _fmt(row["truth"])
+        value = row["truth"] if isinstance(row["truth"], str) else _fmt(row["truth"])
         met = "met" if row["covered"] >= need else "**not met**"
-        print(
-            f"| `{row['name']}` | {kind} | {truth} | {row['covered']} / {row['seeds']} | "
+        lines.append(
+            f"| `{row['name']}` | {kind} | {value} | {row['covered']} / {row['seeds']} | "
             f"{_fmt(row['mean_estimate'])} | {_fmt(row['mean_width'])} | {met} |"
         )
-    print("\nEach seed's written interval (estimate [lo, hi]; **bold**: misses the truth):\n")
+    lines += ["", "Each seed's written interval (estimate [lo, hi]; **bold**: misses the truth):", ""]
     names = list(results[0])
-    print("| seed | " + " | ".join(f"`{k}`" for k in names) + " |")
-    print("|---" * (len(names) + 1) + "|")
+    lines += ["| seed | " + " | ".join(f"`{k}`" for k in names) + " |", "|---" * (len(names) + 1) + "|"]
     for seed, r in enumerate(results):
         cells = []
         for k in names:
@@ -84,7 +82,18 @@ def main() -> None:
                 else f"{_fmt(g['estimate'])} [{_fmt(g['lo'])}, {_fmt(g['hi'])}]"
             )
             cells.append(text if g["covered"] else f"**{text}**")
-        print(f"| {seed} | " + " | ".join(cells) + " |")
+        lines.append(f"| {seed} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seeds", type=int, default=20)
+    args = parser.parse_args(argv)
+    start = time.time()
+    with tempfile.TemporaryDirectory() as tmp:
+        results = [run_seed(seed, Path(tmp)) for seed in range(args.seeds)]
+    print(render(results, time.time() - start), end="")
 
 
 if __name__ == "__main__":
