@@ -31,6 +31,7 @@ EXCEPTIONS = {
     ("--tier", "demo"): "the demo shows the reference physics (wheels)",
     ("--tier", "export"): "--check's MuJoCo side: wheels, the reference next to rps",
     ("--seed", "train"): "the preset's training seed",
+    ("--task", "train"): "a registered task or an outside env, outside:MODULE",
     ("--seed", "probe"): "the run's own seed, to replay its training rollout",
     ("--seed", "demo"): "the demo's teams",
     ("--seed", "coalitions"): "the composition sets' seed (the envs use 0)",
@@ -80,6 +81,11 @@ def test_every_policy_command_speaks_the_grammar():
             if action.dest in ("task", "tasks", "algo") or flag == "--algos":
                 if action.dest == "algo" or flag == "--algos":  # bench learn adds comat_paper after comat
                     assert tuple(c for c in action.choices if c in learner_names()) == learner_names(), (name, flag)
+                elif action.choices is None:  # train --task: a registered task or outside:MODULE, checked by type
+                    assert action.metavar.startswith("{" + ",".join(TASKS) + "}"), (name, flag)
+                    assert action.type("pcp") == "pcp" and action.type("outside:m.e") == "outside:m.e", (name, flag)
+                    with pytest.raises(argparse.ArgumentTypeError, match="choose from"):
+                        action.type("pcpp")
                 else:
                     assert tuple(action.choices) == TASKS, (name, flag)  # one order everywhere
             if action.choices is not None and set(action.choices) == set(TIERS):
