@@ -83,8 +83,8 @@ def main() -> None:
         own_tau[tier] = a["tau_s"]
         print(
             f"| {tier} | {a['delay_ticks']}, {b['delay_ticks']} | {a['tau_s']:.4f}, {b['tau_s']:.4f} | {a['gain']:.3f} | "
-            f"{b['gain']:.3f} | {a['accel_radps2']:.0f} | {a['cap_fraction'] * a['gain'] / a['full_fraction']:.2f}, "
-            f"{b['cap_fraction'] * b['gain'] / b['full_fraction']:.2f} | {max(abs(r['half_gain_diff']) for r in st + sp):.1e} | "
+            f"{b['gain']:.3f} | {a['accel_radps2']:.0f} | {a['reach_fraction'] / a['full_fraction']:.2f}, "
+            f"{b['reach_fraction'] / b['full_fraction']:.2f} | {max(abs(r['half_gain_diff']) for r in st + sp):.1e} | "
             f"{np.median([r['dead_zone_radps'] for r in ra]):.2f} |"
         )
 
