@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import json
 import os
 import sys
@@ -52,16 +53,27 @@ GROUP = "agent"
 class Mpe2Spread(PettingZooClass):
     """BenchMARL's SIMPLE_SPREAD task, its env built from mpe2 (module docstring)."""
 
+    distinct_seeds = False
+    """BenchMARL builds every environment with the run's seed, so its 32 environments start each batch's
+    episodes from one state (README.md, difference 7); True (``--distinct-seeds``, a diagnostic, not
+    BenchMARL's behaviour) seeds the k-th environment built with seed + k."""
+
     def get_env_fun(self, num_envs, continuous_actions, seed, device):
         config = {k: v for k, v in self.config.items() if k != "task"}
         config["continuous_actions"] = continuous_actions
-        return lambda: PettingZooWrapper(
-            make_env_with(config),
-            categorical_actions=True,
-            return_state=self.has_state(),
-            seed=seed,
-            device=device,
-        )
+        built = itertools.count()
+
+        def make():
+            k = next(built) if self.distinct_seeds and seed is not None else 0
+            return PettingZooWrapper(
+                make_env_with(config),
+                categorical_actions=True,
+                return_state=self.has_state(),
+                seed=None if seed is None else seed + k,
+                device=device,
+            )
+
+        return make
 
 
 def make_env_with(config: dict):
@@ -125,8 +137,10 @@ def train(args) -> None:
     actor = MlpConfig(num_cells=[128], activation_class=torch.nn.ReLU, layer_class=torch.nn.Linear)
     critic = MlpConfig(num_cells=[128, 128], activation_class=torch.nn.ReLU, layer_class=torch.nn.Linear)
     torch.set_num_threads(1)
+    spread = task()
+    spread.distinct_seeds = args.distinct_seeds
     experiment = Experiment(
-        task=task(),
+        task=spread,
         algorithm_config=algo,
         model_config=actor,
         critic_model_config=critic,
@@ -144,6 +158,7 @@ def train(args) -> None:
         "frames": experiment.total_frames,
         "wall_s": wall,
         "checkpoint": str(checkpoint.relative_to(out)),
+        "distinct_seeds": bool(args.distinct_seeds),
     }
     (out / "run.json").write_text(json.dumps(meta, indent=1))
     print(f"BenchMARL MAPPO on simple_spread_v3: {experiment.total_frames} env steps in {wall / 60:.1f} min -> {out}")
@@ -187,6 +202,11 @@ def main(argv=None) -> None:
     t.add_argument("--frames", type=int, default=300_000, help="env steps (frames) to train for")
     t.add_argument("--out", required=True)
     t.add_argument("--episodes", type=int, default=EPISODES, help="deterministic evaluation episodes after training")
+    t.add_argument(
+        "--distinct-seeds",
+        action="store_true",
+        help="seed each environment on its own (BenchMARL seeds them all alike; a diagnostic)",
+    )
     e = sub.add_parser("eval", help="play a trained run's actor again")
     e.add_argument("--run", required=True, help="the run folder that train wrote")
     e.add_argument("--episodes", type=int, default=EPISODES)

@@ -28,6 +28,7 @@ LABELS = {
     "collisions": "agent collisions per episode (eval)",
     "auc": "training return, mean over the run",
     "last": "training return, last 10 % of the run",
+    "entropy": "policy entropy, last 10 % of the updates (a diagnostic, not in PLAN.md)",
 }
 
 
@@ -64,6 +65,15 @@ def curve(run: Path, impl: str) -> tuple[np.ndarray, np.ndarray]:
     return np.array([float(r["env_steps"]) for r in rows]), np.array([float(r[column]) for r in rows])
 
 
+def entropy(run: Path, impl: str) -> np.ndarray:
+    """The policy's mean entropy (nats; 5 actions: at most ln 5 = 1.61) per update of one run."""
+    if impl == "comat":
+        with open(run / "progress.csv", newline="") as f:
+            return np.array([float(r["entropy"]) for r in csv.DictReader(f)])
+    (path,) = run.glob("*/*/scalars/train_agent_entropy.csv")  # BenchMARL's csv logger: update, value
+    return np.loadtxt(path, delimiter=",")[:, 1]
+
+
 def seed_values(impl: str) -> dict[int, dict[str, float]]:
     """Per kept seed of ``impl``: the evaluation means, the curve's mean and its last 10 %."""
     out = {}
@@ -76,6 +86,7 @@ def seed_values(impl: str) -> dict[int, dict[str, float]]:
             **mean,
             "auc": float(ret.mean()),
             "last": float(ret[steps >= 0.9 * steps[-1]].mean()),
+            "entropy": float(entropy(path, impl)[-len(ret) // 10 :].mean()),
             "env_steps": float(steps[-1]),
         }
     return out
