@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats as sst
 
-from comat.measure.stats import cell_means, hierarchical_bootstrap, iqm, per_seed_means, t_interval, welch
+from comat.measure.stats import cell_means, hierarchical_bootstrap, holm, iqm, per_seed_means, t_interval, welch
 
 # Synthetic design of the calibration: y[s, c, e] = MU + a_s + b_c + e_sce (the report's case:
 # C coalitions, K episodes each, the seed effect dominant).
@@ -169,3 +169,17 @@ def test_calibration_hierarchical_bootstrap_undercovers_with_few_seeds():
         cover[seeds] = hits / 1000
     assert cover[3] < 0.85 < cover[12] < 0.96, cover
     assert cover[3] < cover[5] < cover[12], cover
+
+
+def test_holm_by_hand_and_against_statsmodels():
+    # sorted 0.005, 0.01, 0.03, 0.04 times 4, 3, 2, 1 = 0.02, 0.03, 0.06, 0.04; running maximum 0.06 for the last
+    assert holm([0.01, 0.04, 0.03, 0.005]) == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    # an undecidable test stays nan and is not in the family: m = 2 here
+    out = holm([0.02, math.nan, 0.6])
+    assert out[0] == pytest.approx(0.04) and math.isnan(out[1]) and out[2] == pytest.approx(0.6)
+    assert holm([0.4, 0.3]) == pytest.approx([0.6, 0.6]) and holm([0.7, 0.9]).tolist() == [1.0, 1.0]  # monotone, capped
+    multitest = pytest.importorskip("statsmodels.stats.multitest")
+    p = np.random.default_rng(3).uniform(0, 0.2, 40) ** 2
+    assert holm(p) == pytest.approx(multitest.multipletests(p, method="holm")[1])
+    with pytest.raises(ValueError, match="p must hold p-values in"):
+        holm([0.1, 1.5])

@@ -75,6 +75,7 @@ __all__ = [
     "block_length",
     "cell_means",
     "hierarchical_bootstrap",
+    "holm",
     "iqm",
     "per_seed_means",
     "t_interval",
@@ -241,6 +242,24 @@ def welch(a: Sequence[float], b: Sequence[float], confidence: float = 0.95) -> d
         "df": float(df),
         "p": float(2 * stats.t.sf(abs(t), df)),
     }
+
+
+def holm(p: Sequence[float]) -> np.ndarray:
+    """Holm's step-down adjustment of the two-sided p-values ``p`` (M,) over the family of its
+    finite entries, in the given order (M,): the i-th smallest becomes the running maximum of
+    ``min(1, (m - i) · p)`` (0-based i, m finite entries), so p_Holm < alpha keeps the family-wise
+    error at alpha. A nan entry (an undecidable test) stays nan and is not counted in m."""
+    x = np.asarray(p, dtype=float)
+    if x.ndim != 1:
+        raise ValueError(f"p must be a 1-D sequence of p-values, got shape {x.shape}")
+    finite = np.isfinite(x)
+    if np.any((x[finite] < 0) | (x[finite] > 1)) or np.any(np.isinf(x)):
+        raise ValueError(f"p must hold p-values in [0, 1] or nan, got {x[~np.isnan(x)].tolist()}")
+    out = np.full(x.shape, math.nan)
+    index = np.flatnonzero(finite)[np.argsort(x[finite], kind="stable")]
+    m = index.size
+    out[index] = np.minimum(1.0, np.maximum.accumulate((m - np.arange(m)) * x[index]))
+    return out
 
 
 def block_length(x: np.ndarray) -> int:
