@@ -111,6 +111,8 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    if args.format == "marl-eval":
+        return _report_marl_eval(args)
     from comat.eval.report import REPORT_FILES, make_report
     from comat.eval.robustness import ROBUSTNESS_FILES
     from comat.eval.runs import SETS
@@ -134,6 +136,22 @@ def _cmd_report(args: argparse.Namespace) -> int:
         print(line)
     for name in result["files"]:
         print(f"wrote {out / name}")
+    return 0
+
+
+def _report_marl_eval(args: argparse.Namespace) -> int:
+    from comat.eval.marl_eval import marl_eval_name, write_marl_eval
+    from comat.files import new_outputs
+
+    with new_outputs(args.out, [marl_eval_name(args.absolute_set)], force=args.force) as out:
+        path, data = write_marl_eval(args.runs, out, args.tier, args.absolute_set)
+    for env, tasks in data.items():
+        for task, algos in tasks.items():
+            for algo, runs in algos.items():
+                steps = len(next(iter(runs.values()))) - 1
+                print(f"  {env} {task} {algo}: {len(runs)} seed(s), {steps} step(s) + absolute_metrics")
+    print(f"absolute_metrics: the final evaluation on {args.absolute_set}, one value per episode")
+    print(f"wrote {path} (marl-eval's raw JSON: marl_eval.utils.data_processing_utils.data_process_pipeline reads it)")
     return 0
 
 
@@ -284,12 +302,28 @@ def add_evaluate_parsers(sub) -> None:
         "Welch tests of COMAT against each baseline), aggregates.csv (also the hierarchical bootstrap "
         "over seeds then coalitions, descriptive), Fig. 4 (training return "
         "vs env steps), Fig. 5 (train vs unseen) and return/progress vs team size, as PNG and PDF. "
-        "Runs need `comat eval` first.",
+        "Runs need `comat eval` first. --format marl-eval writes marl_eval_<set>.json instead: the raw JSON "
+        "that marl-eval reads and BenchMARL writes (env comat_<tier> / task / algorithm / seed_S / step_i, "
+        "absolute_metrics from the final evaluation on --absolute-set; comat.eval.marl_eval).",
     )
     p.add_argument("runs", nargs="+", help="run folders (each with config.yaml, progress.csv, evaluation_<tier>.json)")
     p.add_argument("--out", default="results", help="output folder, created if missing (default: %(default)s)")
     p.add_argument(
         "--tier", choices=TIERS, default=None, help="which evaluation to read (default: each run's training tier)"
+    )
+    p.add_argument(
+        "--format",
+        choices=("paper", "marl-eval"),
+        default="paper",
+        help="paper: the tables and figures above; marl-eval: marl_eval_<set>.json for marl-eval and BenchMARL's "
+        "plots (default: %(default)s)",
+    )
+    p.add_argument(
+        "--absolute-set",
+        choices=COALITION_SETS,
+        default="train",
+        help="--format marl-eval: the composition set whose final evaluation gives absolute_metrics "
+        "(default: %(default)s, the training distribution, as marl-eval's tasks are)",
     )
     add_force(p)
     p.set_defaults(func=_cmd_report)
