@@ -72,8 +72,9 @@ def _tiny_rollout(obs_dim: int) -> Rollout:
     )
 
 
-def _hand_gae(ro: Rollout) -> tuple[np.ndarray, np.ndarray]:
-    """Each robot's advantage and GAE(λ) return by the textbook recursion, one robot at a time."""
+def _hand_gae(ro: Rollout, cut_is_terminal: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Each robot's advantage and GAE(λ) return by the textbook recursion, one robot at a time;
+    ``cut_is_terminal``: no bootstrap where the episode was truncated either."""
     T, B, N = ro.values.shape
     adv = np.zeros((T, B, N))
     for b in range(B):
@@ -82,7 +83,8 @@ def _hand_gae(ro: Rollout) -> tuple[np.ndarray, np.ndarray]:
                 continue
             running = 0.0
             for t in reversed(range(T)):
-                bootstrap = 0.0 if ro.terminated[t, b] else float(ro.next_obs[t, b, i, 0])
+                ended = ro.dones[t, b] if cut_is_terminal else ro.terminated[t, b]
+                bootstrap = 0.0 if ended else float(ro.next_obs[t, b, i, 0])
                 delta = float(ro.rewards[t, b]) + GAMMA * bootstrap - float(ro.values[t, b, i])
                 running = delta + (0.0 if ro.dones[t, b] else GAMMA * LAM * running)
                 adv[t, b, i] = running
@@ -107,6 +109,20 @@ def test_per_robot_gae_equals_a_hand_computation():
     # The joint advantage of the same rollout is another number: one GAE on the team's mean value.
     joint, _ = _stub_trainer(normalize_advantage=False, value_norm=False)
     assert not np.allclose(joint._advantages(ro)[3].numpy(), hand_adv[..., 0], atol=1e-3)
+
+
+def test_time_limit_terminal_ends_the_truncated_episode_without_its_final_value():
+    """``time_limit: terminal``: the truncated step (team 0, t = 1) takes no value of its final
+    observation; the default bootstraps it. Both against the hand recursion."""
+    for time_limit, cut_is_terminal in (("terminal", True), ("bootstrap", False)):
+        trainer, ro = _stub_trainer(
+            advantage="per_robot", normalize_advantage=False, value_norm=False, time_limit=time_limit
+        )
+        adv = trainer._advantages(ro)[3]
+        np.testing.assert_allclose(adv.numpy(), _hand_gae(ro, cut_is_terminal)[0], atol=1e-6)
+    assert not np.allclose(_hand_gae(ro, True)[0][1, 0], _hand_gae(ro, False)[0][1, 0], atol=1e-3)
+    with pytest.raises(ValueError, match=r"ppo.time_limit must be one of \['bootstrap', 'terminal'\], got 'cut'"):
+        PPOConfig(time_limit="cut")
 
 
 def test_normalize_advantage_off_leaves_the_raw_advantages_and_on_standardizes_the_real_robots():

@@ -104,6 +104,14 @@ class PPOConfig:
     critic's parameters (those of a submodule named ``critic``) and the rest clipped each on its own,
     as BenchMARL's separate actor and critic optimizers are; Adam works per parameter, so one Adam
     over both then takes the same steps as two."""
+    time_limit: str = "bootstrap"
+    """What the horizon's cut means to the critic. ``bootstrap``: a truncated episode's last target
+    is r + γ·V(final observation), as if the episode went on. ``terminal``: the horizon ends the
+    episode, the last target is r alone. Every comat task has a fixed horizon and puts the steps
+    left in its observation (the time limit is part of the task), so the final observation (0 steps
+    left) is a state no training sample ever holds and its value an extrapolation; Pardo et al.
+    2018 ("Time limits in reinforcement learning") treat such a cut as terminal. QMIX's
+    ``horizon_terminal`` is the same choice."""
     overlap: bool = False
     """Collect the next rollout while learning from this one: a thread acts with a copy of the
     policy from before the update while the update runs, so where the machine has cores to spare
@@ -140,6 +148,7 @@ CHOICES = {
     "advantage": ("joint", "per_robot"),
     "value_loss": ("huber", "mse"),
     "grad_clip": ("joint", "separate"),
+    "time_limit": ("bootstrap", "terminal"),
 }
 """PPOConfig's fields that name one of a few choices (the first of each is its default)."""
 
@@ -398,11 +407,13 @@ class PPOTrainer:
 
     # -- 2-4. update ----------------------------------------------------------------------------
     def _next_values(self, net, ro: Rollout) -> torch.Tensor:
-        """Per-robot values (T, B, N) of the next states under ``net`` (0 after termination)."""
+        """Per-robot values (T, B, N) of the next states under ``net`` (0 after termination, and
+        after the horizon's cut with ``time_limit: terminal``)."""
         T, B, N, D = ro.next_obs.shape
         state = None if ro.next_state is None else ro.next_state.reshape(T * B, -1)
         v = net.values(ro.next_obs.reshape(T * B, N, D), ro.next_mask.reshape(T * B, N), state).reshape(T, B, N)
-        return self._denorm_values(v) * (~ro.terminated)[..., None]
+        ended = ro.dones if self.config.time_limit == "terminal" else ro.terminated
+        return self._denorm_values(v) * (~ended)[..., None]
 
     @torch.no_grad()
     def advantages(self, ro: Rollout) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
