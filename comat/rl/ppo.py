@@ -107,11 +107,12 @@ class PPOConfig:
     time_limit: str = "bootstrap"
     """What the horizon's cut means to the critic. ``bootstrap``: a truncated episode's last target
     is r + γ·V(final observation), as if the episode went on. ``terminal``: the horizon ends the
-    episode, the last target is r alone. Every comat task has a fixed horizon and puts the steps
-    left in its observation (the time limit is part of the task), so the final observation (0 steps
-    left) is a state no training sample ever holds and its value an extrapolation; Pardo et al.
-    2018 ("Time limits in reinforcement learning") treat such a cut as terminal. QMIX's
-    ``horizon_terminal`` is the same choice."""
+    episode, the last target is r alone. Where a task puts the steps left in its observation
+    (navigation, warehouse) the time limit is part of the task: the final observation (0 steps
+    left) is a state no training sample holds, its value an extrapolation, and Pardo et al. 2018
+    ("Time limits in reinforcement learning") treat the cut as terminal; where the observation has
+    no clock, bootstrapping is the consistent choice. QMIX's ``horizon_terminal`` is the same
+    choice."""
     overlap: bool = False
     """Collect the next rollout while learning from this one: a thread acts with a copy of the
     policy from before the update while the update runs, so where the machine has cores to spare
