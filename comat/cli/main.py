@@ -7,6 +7,7 @@ Commands, by the module that declares and runs them:
 * :mod:`comat.cli.rollout`: ``rollout`` (Rerun recordings and videos);
 * :mod:`comat.cli.export`: ``export`` (Robotarium submissions, ``--check``);
 * :mod:`comat.cli.replay`: ``replay`` (a run's log beside its simulated twin);
+* :mod:`comat.cli.campaign`: ``campaign`` (a hardware campaign's folders, and ``--analyze`` what comes back);
 * :mod:`comat.cli.calibrate`: ``calibrate`` (fit the reality layer to calibration logs);
 * :mod:`comat.cli.bench`: ``bench`` (sim, env, learn, soak, fidelity, safety, viz);
 * :mod:`comat.cli.tasks`: ``tasks`` (the registered tasks), ``validity`` (the reference ladder and the families);
@@ -24,6 +25,7 @@ import sys
 from comat.cli.args import TIERS, VersionAction
 from comat.cli.bench import add_bench_parser
 from comat.cli.calibrate import add_calibrate_parser
+from comat.cli.campaign import add_campaign_parser
 from comat.cli.evaluate import add_evaluate_parsers
 from comat.cli.export import add_export_parser
 from comat.cli.replay import add_replay_parser
@@ -168,6 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_bench_parser(sub)
 
     add_replay_parser(sub)
+    add_campaign_parser(sub)
     add_calibrate_parser(sub)
     return parser
 

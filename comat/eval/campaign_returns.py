@@ -1,0 +1,465 @@
+"""What a hardware campaign brings back, read: ``comat campaign --analyze RETURNED --manifest M --out OUT``.
+
+The Robotarium returns, per experiment, the script's stdout as ``log.txt``, the data files the run
+wrote (``comat_run.npy`` and ``comat_run.meta.npy``, :mod:`comat.runlog`), the scripts and a video.
+``RETURNED`` holds one subfolder per folder of the campaign's manifest
+(:mod:`comat.eval.campaign`), named as that folder, with what its experiment returned.
+
+=====================  ========================================================================
+Checked first          (:func:`check_returned`; a one-line CampaignError, nothing written):
+                       ``RETURNED`` is a folder; it holds a subfolder for every manifest folder
+                       (an experiment that never ran gets an empty one) and nothing else; a
+                       subfolder holds only what an experiment returns (``log.txt``, the two
+                       log files, the folder's own scripts, a video or image): anything else
+                       is a foreign file; a readable log is the run of its manifest folder
+                       (the same policy sha256, seed, team, start poses and layout)
+Per run                its failures (:func:`run_failures`): missing files, an unreadable log,
+                       a crash (a traceback in ``log.txt`` and no result), a timeout (a log
+                       without result: interrupted), a run within 10 % of its declared time,
+                       collisions (the Robotarium's test on the logged poses: centres offset
+                       0.025 m forward closer than 0.135 m; and rps's own count), boundary
+                       errors, freezes (a robot sent >= 0.02 m/s for 1 s that moved < 5 mm);
+                       its replay beside its twin (:func:`comat.eval.replay.replay`, layer seed
+                       = the run's index): ``OUT/runs/<folder>/replay.rrd`` and its tables
+Per team size          the paired sim/real table: for progress, return, steps and finished the
+                       mean over the runs that finished their log (a result), real and twin,
+                       and their paired difference, each with a 95 % t-interval over runs
+                       (runs are the replicated unit: robots in one run are not independent);
+                       the divergence; runs with each failure
+Written (OUT)          ``campaign.md`` (tables, failure list, per-run table), ``sizes.csv``,
+                       ``runs.csv``, ``failures.csv``, ``runs/<folder>/`` (the replay's files);
+                       into ``.OUT.tmp-*`` beside OUT, renamed at the end; an existing OUT is
+                       an error
+=====================  ========================================================================
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from comat import constants as C
+from comat.eval.campaign import RETURNED_LOG, CampaignError, read_manifest
+from comat.eval.replay import ReplayError, check_options, check_twin, replay
+from comat.files import write_atomic
+from comat.measure.stats import t_interval
+from comat.runlog import LOG_FILE, META_FILE, RunLog, RunLogError, read_run_log
+from sim2real.check import duration_warning
+
+__all__ = [
+    "FREEZE_MIN_MOVE_M",
+    "FREEZE_SPEED_MPS",
+    "FREEZE_WINDOW_S",
+    "QUANTITIES",
+    "RETURNED_MEDIA",
+    "analyze_campaign",
+    "check_returned",
+    "log_collisions",
+    "log_freezes",
+    "run_failures",
+]
+
+RETURNED_MEDIA = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".gif", ".png", ".jpg", ".jpeg")
+"""Files a returned experiment may hold besides its log and scripts: the video the Robotarium
+records, a saved figure."""
+RETURNED_DATA = (RETURNED_LOG, LOG_FILE, META_FILE)
+"""What every returned experiment should hold (a missing one is a failure of that run)."""
+LEFTOVER = f"{META_FILE}.tmp.npy"
+"""The metadata's temporary file (:class:`comat.runlog.RunLogWriter`), left by a run stopped mid-save."""
+QUANTITIES = ("progress", "return", "steps", "finished")
+"""Task metrics of the paired table (the log's result against the twin's)."""
+FREEZE_WINDOW_S = 1.0
+"""A robot is frozen where it was sent at least FREEZE_SPEED_MPS for this long and did not move."""
+FREEZE_SPEED_MPS = 0.02
+FREEZE_MIN_MOVE_M = 0.005
+"""Less than this over the window counts as not moving (a quarter of the slowest command's 0.02 m)."""
+COLLISION_DISTANCE_M = 0.135
+"""The Robotarium's collision test: offset centres (COLLISION_OFFSET_M ahead) closer than this."""
+_CHUNK_ROWS = 2048
+"""Log rows whose (rows, N, N) robot distances are held at once."""
+
+
+def check_returned(returned: Path, manifest: dict, manifest_dir: Path) -> list[dict]:
+    """The returned folder against the manifest, before anything runs (module docstring: Checked
+    first). Returns per manifest folder ``{"entry", "path", "export", "log" (RunLog or None),
+    "log_error" (str or None), "stdout" (str or None), "missing" [file names]}``."""
+    if not returned.is_dir():
+        why = "a file" if returned.exists() else "no such folder"
+        raise CampaignError(
+            f"--analyze must be the folder holding each experiment's download, got {str(returned)!r} ({why})"
+        )
+    names = [e["folder"] for e in manifest["folders"]]
+    present = sorted(p.name for p in returned.iterdir() if not p.name.startswith("."))
+    foreign = [n for n in present if n not in names or not (returned / n).is_dir()]
+    if foreign:
+        raise CampaignError(
+            f"--analyze {str(returned)!r}: expected only the manifest's folders ({names[0]} …), got foreign {foreign}"
+        )
+    absent = [n for n in names if n not in present]
+    if absent:
+        raise CampaignError(
+            f"--analyze {str(returned)!r}: expected a folder per manifest folder (an empty one for an experiment "
+            f"that never ran), got none for {absent}"
+        )
+    runs = []
+    for entry in manifest["folders"]:
+        path, export = returned / entry["folder"], manifest_dir / entry["folder"]
+        allowed = {*RETURNED_DATA, LEFTOVER, *(p.name for p in export.iterdir())}
+        files = sorted(p.name for p in path.iterdir() if not p.name.startswith("."))
+        odd = [f for f in files if f not in allowed and not f.lower().endswith(RETURNED_MEDIA)]
+        if odd:
+            raise CampaignError(
+                f"--analyze {str(path)!r}: expected what an experiment returns ({', '.join(RETURNED_DATA)}, its "
+                f"scripts, a video), got foreign {odd}"
+            )
+        run = {"entry": entry, "path": path, "export": export, "log": None, "log_error": None, "stdout": None}
+        run["missing"] = [f for f in RETURNED_DATA if f not in files]
+        if RETURNED_LOG in files:
+            run["stdout"] = (path / RETURNED_LOG).read_text(errors="replace")
+        if LOG_FILE in files and META_FILE in files:
+            try:
+                run["log"] = read_run_log(str(path))
+            except RunLogError as err:
+                run["log_error"] = str(err)
+        if run["log"] is not None:
+            _check_log_is_entry(run["log"], entry, export, path)
+        runs.append(run)
+    return runs
+
+
+def _check_log_is_entry(log: RunLog, entry: dict, export: Path, path: Path) -> None:
+    """A readable log must be its manifest folder's run (CampaignError: the manifest does not match)."""
+    if log.meta.get("seed") != entry["seed"]:
+        raise CampaignError(
+            f"--manifest does not match {str(path)!r}: its folder {entry['folder']} has seed {entry['seed']}, "
+            f"the log there seed {log.meta.get('seed')!r}"
+        )
+    try:
+        check_twin(log, export)
+    except (ReplayError, ValueError) as err:
+        raise CampaignError(f"--manifest does not match {str(path)!r}: {err}") from None
+
+
+def _result_line(stdout: str | None) -> dict | None:
+    """The last ``COMAT_RESULT {json}`` line of a run's stdout (None: there is none)."""
+    lines = [ln for ln in (stdout or "").splitlines() if ln.startswith("COMAT_RESULT ")]
+    if not lines:
+        return None
+    try:
+        return json.loads(lines[-1][len("COMAT_RESULT ") :])
+    except json.JSONDecodeError:
+        return None
+
+
+def log_collisions(poses: np.ndarray) -> dict:
+    """The Robotarium's collision test on logged poses (K, N, 3): ``{"pair_iterations", "first"
+    (iteration, robot i, robot j) or None, "closest_m"}`` (offset centres; robots vectorized, rows
+    in chunks)."""
+    k, n = poses.shape[:2]
+    out = {"pair_iterations": 0, "first": None, "closest_m": None}
+    if n < 2 or k == 0:
+        return out
+    upper = np.triu(np.ones((n, n), dtype=bool), 1)
+    closest = np.inf
+    for start in range(0, k, _CHUNK_ROWS):  # a loop over row chunks, not over robot pairs
+        p = poses[start : start + _CHUNK_ROWS].astype(float)
+        c = p[..., :2] + C.COLLISION_OFFSET_M * np.stack([np.cos(p[..., 2]), np.sin(p[..., 2])], axis=-1)
+        d = np.linalg.norm(c[:, :, None] - c[:, None], axis=-1)[:, upper]  # (rows, pairs)
+        closest = min(closest, float(d.min()))
+        hit = d < COLLISION_DISTANCE_M
+        out["pair_iterations"] += int(hit.sum())
+        if out["first"] is None and hit.any():
+            row, pair = np.argwhere(hit)[0]
+            i, j = np.argwhere(upper)[pair]
+            out["first"] = (int(start + row), int(i), int(j))
+    out["closest_m"] = closest
+    return out
+
+
+def log_freezes(log: RunLog) -> list[dict]:
+    """Robots sent at least FREEZE_SPEED_MPS for FREEZE_WINDOW_S whose logged position moved less
+    than FREEZE_MIN_MOVE_M over it: per such robot ``{"robot", "first_iteration", "frozen_s"}``
+    (the iterations inside any frozen window)."""
+    w = round(FREEZE_WINDOW_S / C.CONTROL_DT_S)
+    if len(log.t) < w:
+        return []
+    speed = np.abs(log.sent[..., 0])  # (K, N) forward speed as sent
+    sent = np.lib.stride_tricks.sliding_window_view(speed, w, axis=0).min(axis=-1) >= FREEZE_SPEED_MPS
+    xy = log.poses[..., :2].astype(float)
+    moved = np.linalg.norm(xy[w - 1 :] - xy[: len(xy) - w + 1], axis=-1)
+    frozen = sent & (moved < FREEZE_MIN_MOVE_M)  # (K - w + 1, N): windows starting at each row
+    edges = np.zeros((len(log.t) + 1, log.n), dtype=np.int64)
+    edges[: len(frozen)] += frozen
+    edges[w : w + len(frozen)] -= frozen
+    covered = np.cumsum(edges, axis=0)[:-1] > 0  # (K, N) rows inside a frozen window
+    return [
+        {
+            "robot": int(i),
+            "first_iteration": int(np.flatnonzero(frozen[:, i])[0]),
+            "frozen_s": float(covered[:, i].sum() * C.CONTROL_DT_S),
+        }
+        for i in np.flatnonzero(frozen.any(axis=0))
+    ]
+
+
+def run_failures(run: dict) -> list[dict]:
+    """What went wrong in one returned run: ``[{"kind", "detail"}]`` (module docstring: Per run)."""
+    entry, log, stdout = run["entry"], run["log"], run["stdout"]
+    fails = []
+    if run["missing"]:
+        fails.append({"kind": "missing files", "detail": f"not returned: {', '.join(run['missing'])}"})
+    if run["log_error"]:
+        fails.append({"kind": "unreadable log", "detail": run["log_error"]})
+    result = (log.meta.get("result") if log is not None else None) or _result_line(stdout)
+    if stdout is not None and result is None:
+        trace = [ln.strip() for ln in stdout.splitlines() if ln.strip()]
+        if any(ln.startswith("Traceback") for ln in trace):
+            fails.append({"kind": "crash", "detail": f"log.txt ends: {trace[-1][:200]}"})
+    if log is not None and not log.complete:
+        fails.append(
+            {
+                "kind": "timeout",
+                "detail": f"the log stops at iteration {len(log.t)} ({float(log.t[-1]):.0f} s of loop, step "
+                f"{int(log.step[-1])}) with no result: interrupted (declared {entry['duration_s']} s) or crashed",
+            }
+        )
+    if result is not None:
+        warning = duration_warning({"duration_s": entry["duration_s"], **_startup(entry)}, result)
+        if warning:
+            fails.append({"kind": "near timeout", "detail": warning})
+        boundary = int((result.get("rps_errors") or {}).get("boundary", 0) or 0)
+        if boundary:
+            fails.append({"kind": "boundary", "detail": f"rps reported {boundary} boundary errors"})
+    rps_collisions = int(((result or {}).get("rps_errors") or {}).get("collision", 0) or 0)
+    hits = log_collisions(log.poses) if log is not None else {"pair_iterations": 0, "first": None}
+    if hits["pair_iterations"] or rps_collisions:
+        where = ""
+        if hits["first"] is not None:
+            it, i, j = hits["first"]
+            where = f"; first robots {i} and {j} at iteration {it} ({float(log.t[it]):.1f} s), closest "
+            where += f"{hits['closest_m']:.3f} m"
+        fails.append(
+            {
+                "kind": "collision",
+                "detail": f"{hits['pair_iterations']} pair-iterations in the logged poses (offset centres < "
+                f"{COLLISION_DISTANCE_M} m){where}; rps reported {rps_collisions}",
+            }
+        )
+    for f in log_freezes(log) if log is not None else []:
+        fails.append(
+            {
+                "kind": "freeze",
+                "detail": f"robot {f['robot']} sent >= {FREEZE_SPEED_MPS} m/s but moved < "
+                f"{1000 * FREEZE_MIN_MOVE_M:.0f} mm per {FREEZE_WINDOW_S:g} s from iteration {f['first_iteration']}, "
+                f"{f['frozen_s']:.1f} s in all",
+            }
+        )
+    return fails
+
+
+def _startup(entry: dict) -> dict:
+    return {"startup_drive_s": entry.get("startup_drive_s", 0.0)}
+
+
+def _interval(values: list[float]) -> dict:
+    if not values:
+        return {"mean": None, "lo": None, "hi": None, "n": 0}
+    ci = t_interval(values)
+    return {k: (None if not np.isfinite(ci[k]) else float(ci[k])) for k in ("mean", "lo", "hi")} | {"n": len(values)}
+
+
+def _fmt(ci: dict, digits: int = 3) -> str:
+    if ci["mean"] is None:
+        return "–"
+    if ci["lo"] is None:
+        return f"{ci['mean']:.{digits}g} (one run)"
+    return f"{ci['mean']:.{digits}g} [{ci['lo']:.{digits}g}, {ci['hi']:.{digits}g}]"
+
+
+def size_rows(runs: list[dict]) -> list[dict]:
+    """The paired table: per team size and quantity, real, twin and real − twin over the runs with a
+    result (t-intervals over runs), and the divergence (over every replayed run)."""
+    rows = []
+    for size in sorted({r["entry"]["size"] for r in runs}):
+        mine = [r for r in runs if r["entry"]["size"] == size]
+        paired = [r for r in mine if r.get("real") is not None]
+        for q in QUANTITIES:
+            real = [float(r["real"][q]) for r in paired]
+            twin = [float(r["twin"][q]) for r in paired]
+            rows.append(
+                {
+                    "size": size,
+                    "quantity": q,
+                    "runs": len(mine),
+                    "real": _interval(real),
+                    "twin": _interval(twin),
+                    "gap": _interval([a - b for a, b in zip(real, twin)]),
+                }
+            )
+        div = [r["divergence_m"] for r in mine if r.get("divergence_m") is not None]
+        none = {"mean": None, "lo": None, "hi": None, "n": 0}
+        rows.append(
+            {
+                "size": size,
+                "quantity": "divergence mean (m)",
+                "runs": len(mine),
+                "real": none,
+                "twin": none,
+                "gap": _interval(div),
+            }
+        )
+    return rows
+
+
+def _csv(rows: list[dict], fields: list[str]) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
+def analyze_campaign(
+    returned: str | Path,
+    manifest_path: str | Path,
+    out: str | Path,
+    reality: str = "off",
+    tier: str = "unicycle",
+    k_steps: tuple[int, ...] = (1, 5, 30),
+    draws: int = 8,
+) -> dict:
+    """Read a campaign's returned folder against its manifest and write the analysis in ``out``
+    (module docstring). ``reality``, ``tier``, ``k_steps``, ``draws``: each run's twin and plant
+    score (:func:`comat.eval.replay.replay`). Returns ``{"sizes": rows, "runs": [...], "failures":
+    [...], "markdown": campaign.md's text, "out": Path}``."""
+    returned, manifest_path, out = Path(returned), Path(manifest_path), Path(out)
+    check_options(reality, (), k_steps, draws, 0)
+    manifest = read_manifest(manifest_path)
+    if out.exists():
+        raise CampaignError(f"--out {str(out)!r} already exists; choose a new folder")
+    runs = check_returned(returned, manifest, manifest_path.parent)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        failures = []
+        for run in runs:
+            entry = run["entry"]
+            for f in run_failures(run):
+                failures.append({"folder": entry["folder"], "size": entry["size"], "run": entry["run"], **f})
+            run["real"] = run["twin"] = run["divergence_m"] = None
+            if run["log"] is None:
+                continue
+            folder = tmp / "runs" / entry["folder"]
+            folder.mkdir(parents=True)
+            rep = replay(
+                str(run["path"]),
+                str(run["export"]),
+                str(folder / "replay.rrd"),
+                tier=tier,
+                reality=reality,
+                seed=entry["run"],
+                k_steps=k_steps,
+                draws=draws,
+            )
+            by_name = {r["quantity"]: r for r in rep["rows"]}
+            run["divergence_m"] = by_name["position divergence mean (m)"]["gap"]
+            if run["log"].complete:
+                run["real"] = {q: by_name[q]["real"] for q in QUANTITIES}
+                run["twin"] = {q: by_name[q]["twin"] for q in QUANTITIES}
+        rows = size_rows(runs)
+        text = _markdown(manifest, rows, runs, failures, reality, tier)
+        write_atomic(tmp / "campaign.md", text)
+        write_atomic(tmp / "sizes.csv", _csv([_flat(r) for r in rows], list(_flat(rows[0]))))
+        run_rows = [_run_row(r, failures) for r in runs]
+        write_atomic(tmp / "runs.csv", _csv(run_rows, list(run_rows[0])))
+        write_atomic(tmp / "failures.csv", _csv(failures, ["folder", "size", "run", "kind", "detail"]))
+        tmp.chmod(0o755)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return {"sizes": rows, "runs": runs, "failures": failures, "markdown": text, "out": out}
+
+
+def _flat(row: dict) -> dict:
+    flat = {"size": row["size"], "quantity": row["quantity"], "runs": row["runs"], "paired": row["gap"]["n"]}
+    for side in ("real", "twin", "gap"):
+        flat |= {f"{side}_{k}": row[side][k] for k in ("mean", "lo", "hi")}
+    return flat
+
+
+def _run_row(run: dict, failures: list[dict]) -> dict:
+    e = run["entry"]
+    row = {"folder": e["folder"], "size": e["size"], "run": e["run"], "team": e["team"], "seed": e["seed"]}
+    row["log"] = "none" if run["log"] is None else "complete" if run["log"].complete else "cut short"
+    for side in ("real", "twin"):
+        row |= {f"{side}_{q}": (run[side] or {}).get(q) for q in QUANTITIES}
+    row["divergence_m"] = run["divergence_m"]
+    row["failures"] = "; ".join(f["kind"] for f in failures if f["folder"] == e["folder"])
+    return row
+
+
+def _markdown(manifest: dict, rows: list[dict], runs: list[dict], failures: list[dict], reality: str, tier: str) -> str:
+    md = [
+        f"# Campaign analysis: {manifest['policy']} on {manifest['task']}",
+        "",
+        (
+            f"{len(runs)} experiments (sizes {manifest['sizes']} × {manifest['runs']} runs), policy sha256 "
+            f"`{manifest['policy_sha256'][:12]}`, comat {manifest['comat_version']} at `{manifest['comat_commit']}`. "
+            f"Each run's twin: the same team, policy and task in MuJoCo ({tier} tier, reality {reality}, layer "
+            "seed = the run's index), from the poses the run logged first (`comat replay`)."
+        ),
+        "",
+        "## Paired sim/real table per team size",
+        "",
+        (
+            "Means over the runs whose log holds a result, with 95 % t-intervals over runs (runs are the "
+            "replicated unit; one run gives no interval). real − twin is the paired difference, run by run. The "
+            "divergence is the mean distance between the real and the twin's poses at each env step's start, over "
+            "every replayed run."
+        ),
+        "",
+        "| robots | quantity | runs (paired) | real | twin | real − twin |",
+        "|---|---|---|---|---|---|",
+    ]
+    md += [
+        f"| {r['size']} | {r['quantity']} | {r['runs']} ({r['gap']['n']}) | {_fmt(r['real'])} | {_fmt(r['twin'])} | "
+        f"{_fmt(r['gap'])} |"
+        for r in rows
+    ]
+    md += ["", "## Failures", ""]
+    if failures:
+        md += ["| folder | robots | run | kind | detail |", "|---|---|---|---|---|"]
+        md += [f"| {f['folder']} | {f['size']} | {f['run']} | {f['kind']} | {f['detail']} |" for f in failures]
+        kinds = sorted({f["kind"] for f in failures})
+        md += ["", "Runs with each kind, per team size:", ""]
+        md += ["| robots | " + " | ".join(kinds) + " |", "|---|" + "---|" * len(kinds)]
+        for size in manifest["sizes"]:
+            counts = [len({f["folder"] for f in failures if f["size"] == size and f["kind"] == k}) for k in kinds]
+            md.append(f"| {size} | " + " | ".join(str(c) for c in counts) + " |")
+    else:
+        md.append(
+            "None: every experiment returned its files, finished its log, and no robot collided, left the "
+            "arena or froze."
+        )
+    md += [
+        "",
+        "## Runs",
+        "",
+        "| folder | team | log | progress real / twin | divergence (m) | replay |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in runs:
+        e = r["entry"]
+        log = "none" if r["log"] is None else "complete" if r["log"].complete else "cut short"
+        prog = "–" if r["real"] is None else f"{r['real']['progress']:.3g} / {r['twin']['progress']:.3g}"
+        div = "–" if r["divergence_m"] is None else f"{r['divergence_m']:.3g}"
+        rrd = "–" if r["log"] is None else f"runs/{e['folder']}/replay.rrd"
+        md.append(f"| {e['folder']} | {e['team']} | {log} | {prog} | {div} | {rrd} |")
+    return "\n".join(md) + "\n"
