@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import json
 import os
 import sys
@@ -53,16 +54,28 @@ from torchrl.envs.libs.pettingzoo import PettingZooWrapper
 class ComatTask(PettingZooClass):
     """A comat task with one fixed team, as a BenchMARL task (discrete actions, global state)."""
 
+    distinct_seeds = False
+    """BenchMARL builds every environment with the run's seed, so its 32 environments start each
+    batch's episodes from one state (outside_env/README.md, difference 7). True (``--distinct-seeds``;
+    the matched arm's setting, not BenchMARL's behaviour) seeds the k-th environment built with
+    seed + k, as comat's vector env seeds each of its environments on its own."""
+
     def get_env_fun(self, num_envs, continuous_actions, seed, device):
         cfg = dict(self.config)
-        return lambda: PettingZooWrapper(
-            comat_env(cfg["task"], cfg["team"], cfg["tier"]),
-            group_map=type_groups(cfg["team"]),
-            categorical_actions=True,
-            return_state=True,
-            seed=seed,
-            device=device,
-        )
+        built = itertools.count()
+
+        def make():
+            k = next(built) if self.distinct_seeds and seed is not None else 0
+            return PettingZooWrapper(
+                comat_env(cfg["task"], cfg["team"], cfg["tier"]),
+                group_map=type_groups(cfg["team"]),
+                categorical_actions=True,
+                return_state=True,
+                seed=None if seed is None else seed + k,
+                device=device,
+            )
+
+        return make
 
     def get_env_transforms(self, env):
         return [DoubleToFloat()]  # comat's observations and state are float64; BenchMARL's networks float32
@@ -143,6 +156,7 @@ def build_experiment(args, out: Path) -> tuple[Experiment, dict]:
     team = fixed_team(args.task, args.team)
     horizon = comat_env(args.task, team, args.tier).task.horizon
     task = ComatTask(args.task.upper(), {"task": args.task, "team": team, "tier": args.tier, "horizon": horizon})
+    task.distinct_seeds = bool(getattr(args, "distinct_seeds", False))
     algo = MappoConfig.get_from_yaml()
     algo.clip_epsilon, algo.entropy_coef, algo.critic_coef, algo.lmbda = 0.2, 0.01, 1.0, 0.95
     actor = MlpConfig(num_cells=[128], activation_class=torch.nn.ReLU, layer_class=torch.nn.Linear)
@@ -181,6 +195,7 @@ def train(args) -> None:
         "wall_s": wall,
         "checkpoint": str(checkpoint.relative_to(out)),
         "normalize_advantage": bool(args.normalize_advantage),
+        "distinct_seeds": bool(args.distinct_seeds),
     }
     (out / "run.json").write_text(json.dumps(meta, indent=1))
     print(f"BenchMARL MAPPO on {args.task}: {experiment.total_frames} env steps in {wall / 60:.1f} min -> {out}")
@@ -256,6 +271,11 @@ def main(argv=None) -> None:
         "--normalize-advantage",
         action="store_true",
         help="standardize each group's advantages per minibatch (BenchMARL's MAPPO does not; a diagnostic)",
+    )
+    t.add_argument(
+        "--distinct-seeds",
+        action="store_true",
+        help="seed each environment on its own (BenchMARL seeds them all alike; the matched arm's setting)",
     )
     e = sub.add_parser("eval", help="play a trained run's policy again in comat's env")
     e.add_argument("--run", required=True, help="the run folder that train wrote")

@@ -48,7 +48,7 @@ elif [[ $arm == benchmarl ]]; then
   if [[ ! -f $run/eval.json ]]; then
     rm -rf "$run"  # BenchMARL's own restore is not used: an interrupted run starts again
     .venv-benchmarl/bin/python "$code/results/benchmarl/outside.py" train --task hmt --team "$teamfile" \
-      --seed "$seed" --frames "$steps" --out "$run" --checkpoint-every "$curve_every" >> "$log" 2>&1
+      --seed "$seed" --frames "$steps" --out "$run" --checkpoint-every "$curve_every" --distinct-seeds >> "$log" 2>&1
     if [[ $curve_every != 0 ]]; then
       .venv-benchmarl/bin/python "$code/results/benchmarl/outside.py" eval-checkpoints --run "$run" >> "$log" 2>&1
     fi
