@@ -1,0 +1,124 @@
+"""Where navigation_v1's goals are lost (issue 65's diagnosis): for a policy and the reference ladder, and
+for two rules a robot can follow from its own observation alone, what became of every goal and robot at
+the end of U_val episodes (deterministic, 40 environments × ``--rounds`` episodes, episode seed 2,000,003;
+the designed-on seed, fine for a diagnosis, not for a verdict). A markdown table on stdout.
+
+    .venv/bin/python results/learnability/navigation.py [RUN_OR_CHECKPOINT ...] > navigation.md
+
+Columns: progress %; each lost goal (open at the end) as *chased* (a free robot ended within 0.3 m of it:
+it went for it and did not claim it in time or did not stop on it) or *abandoned* (no free robot near it);
+per free robot at the end (it claimed nothing): *doubled* (it ended within 0.3 m of a goal a teammate
+claimed: two robots went for one goal), *wandering* (neither near an open nor a claimed goal); the
+per-step share of goals stranded (the task's coordination metric, lower is better); the share of a
+robot's first 3 steps it chose ``stay`` (hesitation costs: goals lie at 0.9–1.0 of a robot's reach).
+
+Own-observation rules (what a robot could do alone, no team plan): ``nearest`` drives to the nearest open
+goal of its view (observation 10–12), ``farthest`` to the farthest one it can still reach (16–18); both
+stop there (the task's own drive). They bound what uncoordinated robots reach.
+
+Descriptive: one policy per row; episodes are not independent seeds.
+"""
+
+import sys
+
+import numpy as np
+
+import comat
+from comat.envs.heuristics import reference_policy
+
+TASK, SPLIT, SEED, ENVS = "navigation_v1", "val", 2_000_003, 40
+NEAR_M = 0.3
+
+
+def own_view_rule(column: int):
+    """A policy that drives each free robot to the goal at observation ``column`` (offset x, y)."""
+
+    def act(core):
+        obs, mask = core.observe(), core.mask
+        target = obs[..., 0:2] + obs[..., column : column + 2]
+        has = (np.abs(obs[..., column : column + 3]).sum(-1) > 0) & (obs[..., 7] < 0.5)
+        return core.task.drive(core.state, core.poses(), core.caps, mask, target, has)
+
+    return act
+
+
+def play(act, learned: bool, rounds: int) -> dict:
+    """Run ``rounds`` × ENVS U_val episodes; ``act(obs, mask)`` for a learned policy, else ``act(core)``.
+    Steps the task core directly (no auto-reset), so each episode's end state can be read."""
+    stats = {k: [] for k in ("progress", "chased", "abandoned", "doubled", "wandering", "stranded", "hesitate")}
+    for r in range(rounds):
+        vec = comat.make_vec_env(TASK, ENVS, seed=SEED + r, coalitions=SPLIT, tier="unicycle")
+        vec.reset()
+        core = vec.core
+        mask = core.mask.copy()
+        live = np.ones(ENVS, dtype=bool)
+        stranded, steps, stays, first = np.zeros(ENVS), np.zeros(ENVS), np.zeros(ENVS), np.zeros(ENVS)
+        end = {}
+        for t in range(core.task.horizon):
+            actions = act(core.observe(), core.mask) if learned else act(core)
+            actions = np.where(core.mask, actions, 0).astype(np.int64)
+            if t < 3:
+                stays += ((actions == 0) & mask).sum(1)
+                first += mask.sum(1)
+            stranded += np.where(
+                live, core.task.coordination(core.state, core.poses(), core.type_ids, core.caps, mask), 0
+            )
+            steps += live
+            res = core.step(actions)
+            ended = (res.terminated | res.truncated) & live
+            for b in np.flatnonzero(ended):
+                end[b] = (
+                    core.state["claimed"][b].copy(),
+                    core.state["done_robot"][b].copy(),
+                    core.poses()[b, :, :2].copy(),
+                )
+            live &= ~ended
+            if not live.any():
+                break
+        goals, active = core.state["goals"], core.state["active"]
+        claimed = np.stack([end[b][0] for b in range(ENVS)])
+        done = np.stack([end[b][1] for b in range(ENVS)])
+        centres = np.stack([end[b][2] for b in range(ENVS)])
+        stats["progress"].append(((claimed & active).sum(1) / active.sum(1)).mean())
+        d = np.linalg.norm(centres[:, :, None] - goals[:, None], axis=-1)  # (B, N, K)
+        free = mask & ~done
+        open_ = active & ~claimed
+        near = d < NEAR_M
+        lost = open_.sum()
+        chased = (open_ & (near & free[..., None]).any(1)).sum()
+        stats["chased"].append(chased / max(lost, 1))
+        stats["abandoned"].append((lost - chased) / max(lost, 1))
+        doubled = free & (near & (claimed & active)[:, None]).any(2)
+        wandering = free & ~(near & active[:, None]).any(2)
+        n_free = max(free.sum(), 1)
+        stats["doubled"].append(doubled.sum() / n_free)
+        stats["wandering"].append(wandering.sum() / n_free)
+        stats["stranded"].append((stranded / steps).mean())
+        stats["hesitate"].append((stays / first).mean())
+    return {k: float(np.mean(v)) for k, v in stats.items()}
+
+
+def main(folders: list[str], rounds: int = 2) -> None:
+    rows = []
+    for folder in folders:
+        policy = comat.load_policy(folder, deterministic=True)
+        rows.append((folder.rstrip("/").split("/")[-1], play(policy.act, True, rounds)))
+    for name in ("heuristic", "type_only", "blind"):
+        rows.append(
+            (name, play(lambda core, n=name: reference_policy(n, core, 0, SPLIT)(None, core.mask, None), False, rounds))
+        )
+    rows.append(("own view: nearest", play(own_view_rule(10), False, rounds)))
+    rows.append(("own view: farthest", play(own_view_rule(16), False, rounds)))
+    print(
+        "| policy | progress | lost goals chased | lost goals abandoned | free robots doubled | free robots wandering | stranded per step | stay in first 3 steps |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for name, s in rows:
+        print(
+            f"| {name} | {100 * s['progress']:.1f} | {100 * s['chased']:.0f} % | {100 * s['abandoned']:.0f} % | "
+            f"{100 * s['doubled']:.0f} % | {100 * s['wandering']:.0f} % | {s['stranded']:.3f} | {100 * s['hesitate']:.0f} % |"
+        )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
