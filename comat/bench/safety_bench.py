@@ -9,9 +9,16 @@ level. Per scenario: episodes, those that really started inside the loop's safe 
 (the start error can move a requested safe start out of it), MuJoCo robot–robot contacts,
 Robotarium-style collisions (pair-ticks), boundary exits, wall contacts, actuator errors (each
 for safe starts and for all episodes), the closest true projected points, recovery and fallback
-ticks, interventions, and the median distance left to the goals (liveness). The check: zero
+ticks, interventions, and the median distance left to the goals. The check: zero
 contacts and zero Robotarium collisions over the safe-start episodes of every safe-start
 scenario, per loop and level.
+
+Liveness beside safety (:mod:`comat.bench.liveness`), in every scenario whose goals can all be
+held at once — the swaps, ``ring20`` and the dense crossings of
+:data:`~comat.bench.scenarios.CROSSINGS` (antipodal swaps of 16 and 20, lanes, a doorway): the
+share of robots at their goal within 1× and 2× the time the same episodes need at ``off`` (so
+``off`` runs first, and a level's live scenarios run at least 2 × that time), team freezes and
+recovery ticks.
 """
 
 from __future__ import annotations
@@ -21,13 +28,14 @@ import time
 
 import numpy as np
 
+from comat.bench.liveness import arrival_lists, row_liveness
 from comat.bench.scenarios import FAULTS, SCENARIOS, make_scenario, run_scenario
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams
 from comat.files import write_atomic
 from comat.reality.config import RealityConfig
 
-__all__ = ["DEFAULT_LOOPS", "SCENARIO_NAMES", "loops_table", "run_safety_bench"]
+__all__ = ["CROSSING_NAMES", "DEFAULT_LOOPS", "SCENARIO_NAMES", "liveness_table", "loops_table", "run_safety_bench"]
 
 SCENARIO_NAMES = (
     "head_on",
@@ -51,13 +59,19 @@ SCENARIO_NAMES = (
 )
 """The battery's scenarios (those of comat.bench.scenarios, named here so that the command line
 is built without importing the simulator; a test keeps the two equal)."""
+CROSSING_NAMES = ("antipodal16", "antipodal20", "lanes12", "pinch12")
+"""The dense crossings (:data:`comat.bench.scenarios.CROSSINGS`), run after the battery's own."""
 DEFAULT_LOOPS = ("comat", "robotarium_v2", "shipped_v2")
 """comat's filter, the export's main.py with the Robotarium's V2 barrier, and with comat's shipped filter."""
 
 
-def _row(name: str, tier: str, level: str, episodes: int, seed: int, loop: str = "comat") -> dict:
-
+def _row(
+    name: str, tier: str, level: str, episodes: int, seed: int, loop: str = "comat", ticks: int | None = None
+) -> dict:
+    """One scenario at one level through one loop (``ticks``: at least this many, for liveness)."""
     scn = make_scenario(name, episodes, seed=seed)
+    if ticks is not None and ticks > scn.ticks:
+        scn.ticks = ticks
     t0 = time.perf_counter()
     r = run_scenario(scn, SimConfig(tier=tier), SafetyConfig(loop=loop), reality=level, seed=seed)
     s = r.safe_start
@@ -99,6 +113,12 @@ def _row(name: str, tier: str, level: str, episodes: int, seed: int, loop: str =
         "interventions": int(r.interventions.sum()),
         "team_ticks": int(s.size * scn.ticks),
         "median_goal_error_m": float(np.median(r.goal_error)),
+        "ticks": scn.ticks,
+        "live": scn.live,
+        "arrival": arrival_lists(r.arrival, r.movers, scn.team_sizes) if scn.live else None,
+        "freezes": int(r.freezes.sum()) if scn.live else None,
+        "freeze_episodes": int((r.freezes > 0).sum()) if scn.live else None,
+        "frozen_team_ticks": int(r.frozen_ticks.sum()) if scn.live else None,
         "seconds": round(time.perf_counter() - t0, 1),
     }
 
@@ -116,11 +136,13 @@ def run_safety_bench(
 
     ``out`` is rewritten after every row, so an interrupted run keeps what it measured."""
 
-    names = scenarios or SCENARIO_NAMES
+    names = scenarios or SCENARIO_NAMES + CROSSING_NAMES
+    levels = tuple(sorted(levels, key=lambda lv: lv != "off"))  # off first: the liveness reference
     rows: list[dict] = []
     print(
         f"{'level':8s} {'tier':9s} {'scenario':18s} {'loop':18s} {'safe':>7s} {'hit':>4s} {'contacts':>9s} "
-        f"{'rob.coll':>9s} {'exits':>6s} {'min d (m)':>9s} {'recov':>6s} {'brake':>6s} {'goal (m)':>8s}"
+        f"{'rob.coll':>9s} {'exits':>6s} {'min d (m)':>9s} {'recov':>6s} {'brake':>6s} {'goal (m)':>8s} "
+        f"{'live 1x':>7s} {'2x':>5s} {'frz':>4s}"
     )
     filters = {lv: _filter_settings(lv) for lv in levels}
 
@@ -144,6 +166,23 @@ def run_safety_bench(
                     "scenarios_hit": hit,
                     "pass": bad == 0,
                 }
+        targets = {}
+        for loop in loops:
+            live = [r for r in rows if r["loop"] == loop and r.get("liveness")]
+            for r in live:
+                off = _off_row(rows, r["scenario"], r["tier"], loop)
+                r["liveness"]["ratio_2x"] = (
+                    r["liveness"]["2x"] / off["liveness"]["2x"] if off and off["liveness"]["2x"] > 0 else None
+                )
+            nominal = [r for r in live if r["reality"] == "nominal"]
+            stress = [r for r in live if r["reality"] == "stress"]
+            suffix = "" if loop == "comat" else f"_{loop}"
+            if nominal:
+                low = [r["scenario"] for r in nominal if (r["liveness"]["ratio_2x"] or 0.0) < 0.9]
+                targets["live_nominal_2x_at_least_90pct_of_off" + suffix] = {"below": low, "met": not low}
+            if stress:
+                frozen = [r["scenario"] for r in stress if r["freezes"]]
+                targets["no_team_freezes_stress" + suffix] = {"frozen": frozen, "met": not frozen}
         return {
             "levels": list(levels),
             "tiers": list(tiers),
@@ -153,22 +192,37 @@ def run_safety_bench(
             "filter": filters,
             "rows": rows,
             "checks": checks,
+            "liveness_targets": targets,
         }
 
     for level in levels:
         for tier in tiers:
             for name in names:
                 for loop in loops:
-                    row = _row(name, tier, level, episodes, seed, loop)
+                    off = _off_row(rows, name, tier, loop)
+                    ticks = None
+                    if off is not None and off["live"] and level != "off":
+                        ticks = 2 * max(_t_off(off)) + 1
+                    row = _row(name, tier, level, episodes, seed, loop, ticks)
+                    off = row if level == "off" else off
+                    if row["live"] and off is not None:
+                        row["liveness"] = row_liveness(row["arrival"], off["arrival"], off["ticks"], row["ticks"])
                     rows.append(row)
                     d = row["min_point_distance_m"]["safe_starts"]
+                    lv = row.get("liveness")
+                    live = (
+                        f"{lv['1x']:>7.2f} {lv['2x']:>5.2f} {row['freezes']:>4d}"
+                        if lv
+                        else f"{'—':>7s} {'—':>5s} {'—':>4s}"
+                    )
                     print(
                         f"{level:8s} {tier:9s} {name:18s} {loop:18s} {row['safe_starts']:>3d}/{episodes:<3d} "
                         f"{row['episodes_hit']:>4d} "
                         f"{row['robot_contacts']['safe_starts']:>4d}|{row['robot_contacts']['all']:<4d} "
                         f"{row['robotarium_collisions']['safe_starts']:>4d}|{row['robotarium_collisions']['all']:<4d} "
                         f"{row['boundary_exits']['all']:>6d} {d if d is not None else float('nan'):>9.4f} "
-                        f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} {row['median_goal_error_m']:>8.3f}",
+                        f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} {row['median_goal_error_m']:>8.3f} "
+                        + live,
                         flush=True,
                     )
                     write_atomic(out, json.dumps(result(), indent=1) + "\n")
@@ -179,6 +233,9 @@ def run_safety_bench(
         print(
             f"{name}: {'pass' if c['pass'] else 'FAIL'} ({c['contacts_plus_collisions']} contacts + collisions{where})"
         )
+    for name, t in final["liveness_targets"].items():
+        miss = t.get("below") or t.get("frozen")
+        print(f"{name}: {'met' if t['met'] else 'NOT met'}" + (f" ({', '.join(miss)})" if miss else ""))
     print(f"wrote {out}")
     return final
 
@@ -204,6 +261,49 @@ def loops_table(result: dict, level: str, tier: str = "unicycle") -> str:
                 f"{hit} / {r['safe_starts']}, {'—' if d is None else f'{d:.3f}'}, {r['median_goal_error_m']:.2f}"
             )
         lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _off_row(rows: list[dict], name: str, tier: str, loop: str) -> dict | None:
+    return next(
+        (
+            r
+            for r in rows
+            if r["reality"] == "off" and r["scenario"] == name and r["tier"] == tier and r["loop"] == loop
+        ),
+        None,
+    )
+
+
+def _t_off(off: dict) -> list[int]:
+    """Per episode of an ``off`` row, the tick its last arriving mover arrived (its horizon if none)."""
+    return [max((t for t in ep if t is not None and t >= 0), default=off["ticks"]) for ep in off["arrival"]]
+
+
+def liveness_table(result: dict, loop: str = "comat", tier: str = "unicycle") -> str:
+    """Markdown: a row per live scenario, per level the share of movers at their goal within 1× / 2×
+    the ``off`` time, team freezes (episodes with one / onsets) and recovery ticks."""
+    rows = [r for r in result["rows"] if r["loop"] == loop and r["tier"] == tier and r.get("liveness")]
+    levels = [lv for lv in result["levels"] if any(r["reality"] == lv for r in rows)]
+    head = "| scenario | off time (median s) | " + " | ".join(
+        f"{lv}: at goal 1× / 2×, freezes (episodes / onsets), recoveries" for lv in levels
+    )
+    lines = [head + " |", "|---|---|" + "---|" * len(levels)]
+    for name in dict.fromkeys(r["scenario"] for r in rows):
+        cells, t_off = [], ""
+        for lv in levels:
+            r = next((x for x in rows if x["scenario"] == name and x["reality"] == lv), None)
+            if r is None:
+                cells.append("")
+                continue
+            x = r["liveness"]
+            t_off = f"{x['t_off_median_s']:.1f}"
+            cap = f" ({x['capped']} capped)" if x["capped"] else ""
+            cells.append(
+                f"{100 * x['1x']:.0f} % / {100 * x['2x']:.0f} %{cap}, {r['freeze_episodes']} / {r['freezes']}, "
+                f"{r['recovery_ticks']}"
+            )
+        lines.append(f"| `{name}` | {t_off} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 

@@ -18,12 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from comat import constants as C
+from comat.bench.liveness import LivenessTracker, live_goals
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, go_to_goal
 from comat.reality import RealityConfig, resolve_reality
 from comat.sim.kinematics import si_to_uni
 
 __all__ = [
+    "CROSSINGS",
     "FAULTS",
     "SCENARIOS",
     "UNSAFE_STARTS",
@@ -50,6 +52,12 @@ class Scenario:
     """Full-speed random directions instead of go-to-goal (``goals`` unused)."""
     reality: dict = dataclasses.field(default_factory=dict)
     """Reality fields set on top of the level the scenario runs at (:data:`FAULTS`)."""
+
+    @property
+    def live(self) -> bool:
+        """Every team's goals can be held at once, so liveness is measured
+        (:func:`comat.bench.liveness.live_goals`; never for bang-bang)."""
+        return not self.bangbang and live_goals(self.goals, self.team_sizes)
 
 
 def _spread(rng: np.random.Generator, n: int, spacing: float, margin: float = 0.25) -> np.ndarray:
@@ -121,19 +129,60 @@ def _walls(rng, episodes):
     return (4,) * episodes, poses, goals, 150
 
 
-def _ring20(rng, episodes):
-    """20 robots equally spaced along an ellipse filling the arena (semi-axes 1.38 × 0.8 m,
-    ≈ 0.35 m apart), each driven through the centre to the opposite point."""
-    a, b = 1.38, 0.8
+def _ellipse(n: int, a: float, b: float, ticks: int):
+    """n robots equally spaced along an ellipse (semi-axes a × b m), each driven through the
+    centre to the opposite point (an antipodal swap)."""
     t = np.linspace(0, 2 * np.pi, 4001)
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(a * np.cos(t)), np.diff(b * np.sin(t))))])
+
+    def make(rng, episodes):
+        poses, goals = [], []
+        for _ in range(episodes):
+            at = np.interp((rng.uniform(0, 1) + np.arange(n) / n) % 1.0 * arc[-1], arc, t)
+            pts = np.stack([a * np.cos(at), b * np.sin(at)], 1) + rng.uniform(-0.01, 0.01, (n, 2))
+            poses.append(np.column_stack([pts, np.arctan2(-pts[:, 1], -pts[:, 0]) + rng.uniform(-0.3, 0.3, n)]))
+            goals.append(-pts)
+        return (n,) * episodes, poses, goals, ticks
+
+    return make
+
+
+_ring20 = _ellipse(20, 1.38, 0.8, 500)
+"""20 robots along an ellipse filling the arena (semi-axes 1.38 × 0.8 m, ≈ 0.35 m apart)."""
+
+
+def _lanes(rng, episodes):
+    """12 robots in 6 horizontal lanes 0.33 m apart, one at each end of every lane (x = ±1.15 m),
+    each driven to the other end: six head-on pairs side by side."""
+    poses, goals = [], []
+    y = (np.arange(6) - 2.5) * 0.33
+    for _ in range(episodes):
+        ys = np.concatenate([y, y]) + rng.uniform(-0.005, 0.005, 12)
+        xs = np.repeat([-1.15, 1.15], 6) + rng.uniform(-0.03, 0.03, 12)
+        heading = np.where(xs < 0, 0.0, np.pi) + rng.uniform(-0.3, 0.3, 12)
+        poses.append(np.column_stack([xs, ys, heading]))
+        goals.append(np.column_stack([-xs, ys]))
+    return (12,) * episodes, poses, goals, 1200
+
+
+def _pinch(rng, episodes):
+    """A doorway: 4 robots parked across the arena's middle (goal = start) at y = ±0.35 and ±0.72 m
+    leave one gap of 0.7 m between points (about 0.26 m free at ``nominal``'s safety distance, 0.1 m
+    at ``stress``'s); the arena's edge closes the wall's ends (0.18 m from the outer robots' points
+    to ``off``'s boundary margin, under the safety distance). 4 robots on each side (x = ±1.1 m,
+    0.4 m apart) are driven through the gap to their mirror points on the other side."""
     poses, goals = [], []
     for _ in range(episodes):
-        at = np.interp((rng.uniform(0, 1) + np.arange(20) / 20) % 1.0 * arc[-1], arc, t)
-        pts = np.stack([a * np.cos(at), b * np.sin(at)], 1) + rng.uniform(-0.01, 0.01, (20, 2))
-        poses.append(np.column_stack([pts, np.arctan2(-pts[:, 1], -pts[:, 0]) + rng.uniform(-0.3, 0.3, 20)]))
-        goals.append(-pts)
-    return (20,) * episodes, poses, goals, 500
+        wall = np.column_stack([rng.uniform(-0.05, 0.05, 4), [-0.72, -0.35, 0.35, 0.72]])
+        side_y = np.array([-0.6, -0.2, 0.2, 0.6])
+        left = np.column_stack([-1.1 + rng.uniform(-0.03, 0.03, 4), side_y + rng.uniform(-0.015, 0.015, 4)])
+        right = np.column_stack([1.1 + rng.uniform(-0.03, 0.03, 4), side_y + rng.uniform(-0.015, 0.015, 4)])
+        start = np.vstack([wall, left, right])
+        goal = np.vstack([wall, left * [-1, 1], right * [-1, 1]])
+        heading = np.concatenate([np.full(4, np.pi / 2), np.zeros(4), np.full(4, np.pi)])
+        poses.append(np.column_stack([start, heading + rng.uniform(-0.3, 0.3, 12)]))
+        goals.append(goal)
+    return (12,) * episodes, poses, goals, 1200
 
 
 def _packed(rng, episodes):
@@ -185,6 +234,16 @@ SCENARIOS: dict[str, Callable] = {
     "corner": _corner,
 }
 """Scenarios that start inside the safe set (every pair and wall margin respected)."""
+CROSSINGS: dict[str, Callable] = {
+    "antipodal16": _ellipse(16, 1.3, 0.75, 1800),
+    "antipodal20": _ellipse(20, 1.4, 0.8, 1800),
+    "lanes12": _lanes,
+    "pinch12": _pinch,
+}
+"""Dense crossings for liveness (issue 66), safe starts whose goals can all be held at once:
+antipodal swaps of 16 (ellipse 1.3 × 0.75 m, ≈ 0.41 m apart) and 20 robots (1.4 × 0.8 m,
+≈ 0.35 m), six head-on pairs in lanes, and a doorway; horizons of 36–60 s, at least twice the
+time the same teams need at ``off`` (:mod:`comat.bench.liveness`)."""
 UNSAFE_STARTS: dict[str, Callable] = {"inside": _inside}
 """Scenarios that start outside it: the filter must recover, not keep a promise it cannot."""
 
@@ -220,7 +279,7 @@ def make_scenario(name: str, episodes: int, seed: int) -> Scenario:
     """Draw ``episodes`` random episodes of scenario ``name`` (one of :data:`SCENARIOS`,
     :data:`UNSAFE_STARTS` or :data:`FAULTS`: a fault scenario draws its base scenario's episodes
     and carries its reality fields in :attr:`Scenario.reality`)."""
-    makers = {**SCENARIOS, **UNSAFE_STARTS}
+    makers = {**SCENARIOS, **CROSSINGS, **UNSAFE_STARTS}
     if name in FAULTS:
         base, fields = FAULTS[name]
         return dataclasses.replace(make_scenario(base, episodes, seed), name=name, reality=dict(fields))
@@ -256,6 +315,14 @@ class ScenarioResult:
     first_collision: list = dataclasses.field(default_factory=list)
     """Per episode, its first Robotarium collision on true poses: None or (tick, robot i, robot j),
     robots numbered within the team."""
+    arrival: np.ndarray | None = None
+    """(R,) first tick each robot's true point was at its goal, −1 never (:mod:`comat.bench.liveness`)."""
+    movers: np.ndarray | None = None
+    """(R,) robots that started away from their goals."""
+    freezes: np.ndarray | None = None
+    """(B,) team-freeze onsets (:mod:`comat.bench.liveness`)."""
+    frozen_ticks: np.ndarray | None = None
+    """(B,) ticks each team spent frozen."""
 
 
 def _bangbang(rng: np.random.Generator, n: int):
@@ -325,6 +392,7 @@ def run_scenario(
     d_proj = teams.safety_config.projection_distance_m
     bang = _bangbang(np.random.default_rng(seed), lay.n_robots) if scn.bangbang else None
     first: list = [None] * lay.n_teams
+    live = LivenessTracker(scn.goals, lay.robot_team, lay.n_teams, teams.points)
     for tick in range(scn.ticks):
         nominal = bang() if bang is not None else go_to_goal(teams.measured_points, scn.goals)
         if filtered and teams.deployed is not None:
@@ -337,6 +405,7 @@ def run_scenario(
         d = np.linalg.norm(p[lay.pair_i] - p[lay.pair_j], axis=1)
         np.minimum.at(min_d, lay.pair_team, d)
         q = teams.points
+        live.update(q)
         np.minimum.at(min_p, lay.pair_team, np.linalg.norm(q[lay.pair_i] - q[lay.pair_j], axis=1))
         true = teams.poses
         c = true[:, :2] + C.COLLISION_OFFSET_M * np.column_stack([np.cos(true[:, 2]), np.sin(true[:, 2])])
@@ -362,4 +431,8 @@ def run_scenario(
         goal_error=np.bincount(lay.robot_team, weights=err) / np.array(lay.team_sizes),
         goal_error_robot=err,
         first_collision=first,
+        arrival=live.arrival,
+        movers=live.movers,
+        freezes=live.freezes,
+        frozen_ticks=live.frozen_ticks,
     )

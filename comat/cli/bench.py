@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from comat.bench.safety_bench import DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
+from comat.bench.safety_bench import CROSSING_NAMES, DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
 from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES, WIDE_SLOTS, learn_rows
 from comat.cli.args import TASKS, TIERS, int_at_least
 from comat.cli.rollout import add_viz_bench_parser
@@ -106,6 +106,7 @@ def _cmd_safety(args: argparse.Namespace) -> int:
 
 
 def add_bench_parser(sub) -> None:
+    # long: every benchmark's options, one add_argument each, read top to bottom as the --help pages
     """``comat bench`` and its benchmarks on the top-level sub-parsers."""
     p = sub.add_parser("bench", help="benchmarks (JSON + table)", description="Performance and fidelity benchmarks.")
     bsub = p.add_subparsers(dest="what", required=True, metavar="WHAT")
@@ -280,7 +281,9 @@ def _add_safety_bench_parser(bsub) -> None:
         help="tiers (default: %(default)s)",
     )
     b.add_argument("--episodes", type=int, default=50, help="episodes per scenario (default: %(default)s)")
-    b.add_argument("--scenarios", nargs="+", choices=SCENARIO_NAMES, default=None, help="scenarios (default: all)")
+    b.add_argument(
+        "--scenarios", nargs="+", choices=SCENARIO_NAMES + CROSSING_NAMES, default=None, help="scenarios (default: all)"
+    )
     b.add_argument(
         "--loops",
         nargs="+",
