@@ -17,6 +17,7 @@ from comat.cli import main
 from comat.eval.report import PAPER_TABLE1, REPORT_FILES, make_report
 from comat.eval.runs import SET_NAMES, SETS
 from comat.measure.metrics import summarize_ci
+from comat.measure.stats import holm
 
 
 def _episode(ret, steps=80.0, completion=0.5, success=0.0, collisions=0.0, rc=0.0, be=0.0, ae=0.0):
@@ -282,12 +283,12 @@ def test_generalization_compares_with_welch_tests(tmp_path):
     mappo = line("U_scale", "progress", "MAPPO")
     assert (
         f"| 20.5 ± 1.2 | 5.5 ± 1.2 | +15.0 [{100 * (0.15 - half):+.1f}, {100 * (0.15 + half):+.1f}] | "
-        f"{ref.statistic:.2f} | 4.0 | < 0.001 | COMAT higher (p < 0.05) |"
+        f"{ref.statistic:.2f} | 4.0 | < 0.001 | < 0.001 | COMAT higher (p < 0.05) |"
     ) in mappo
     qmix = line("U_scale", "progress", "QMIX")
     q = sst.ttest_ind(a, np.array(progress["qmix"]) / 4, equal_var=False)
-    assert qmix.endswith(f"| {q.pvalue:.3f} | not separated (p ≥ 0.05) |"), qmix
-    assert line("U_scale", "progress", "MAT").endswith("| — | — | — | not evaluated on U_scale |")
+    assert f"| {q.pvalue:.3f} | " in qmix and qmix.endswith(" | not separated (p ≥ 0.05) |"), qmix
+    assert line("U_scale", "progress", "MAT").endswith("| — | — | — | — | not evaluated on U_scale |")
     assert line("U_test", "progress", "MAT").endswith("| not decidable (needs 2+ seeds each) |")
     # finished share: COMAT 1, 1, 1 against MAPPO 0.5, 0.5, 0.5: no spread, no test (not p = 0)
     no_spread = "| not decidable (no spread over seeds on either side) |"
@@ -295,9 +296,22 @@ def test_generalization_compares_with_welch_tests(tmp_path):
     t = 0.5 / math.sqrt(np.var(finished["qmix"], ddof=1) / 3)  # COMAT has no spread: df = 2, QMIX's alone
     p = 2 * sst.t.sf(t, 2)
     qmix = line("U_train", "finished share", "QMIX")
-    assert qmix.endswith(f"| {t:.2f} | 2.0 | {p:.3f} | not separated (p ≥ 0.05) |"), qmix
+    assert f"| {t:.2f} | 2.0 | {p:.3f} | " in qmix and qmix.endswith(" | not separated (p ≥ 0.05) |"), qmix
     assert "* HMT: COMAT alone, no baseline in these runs: nothing to compare." in md
-    assert "The test decides" in md and "p-values here are not adjusted for multiplicity" in md
+    assert "The test decides" in md and "That verdict's p is not adjusted for multiplicity" in md
+    # Holm p: every decidable test's exact p (the csv's) adjusted over the table's family, in the table's order
+    gen = {(r["task"], r["algo"]): r for r in _csv(out / "generalization.csv")}
+    nouns = {"progress": "progress", "finished share": "finished", "progress AUC": "progress_auc"}
+    keys = {name: split for split, name in SET_NAMES.items()} | nouns
+    tested = [ln.split(" | ") for ln in md.splitlines() if ln.startswith("| PCP | U_") and ln.count(" | ") == 11]
+    exact = [float(gen[("pcp", c[3].lower())][f"{keys[c[1]]}_{keys[c[2]]}_welch_p"]) for c in tested]
+    family = [(c, p) for c, p in zip(tested, exact) if not math.isnan(p)]
+    assert len(family) == 9 and f"Holm p adjusts it over the {len(family)} tests of this table" in md
+    expected = holm([p for _, p in family])
+    assert [c[10] for c, _ in family] == ["< 0.001" if h < 0.001 else f"{h:.3f}" for h in expected]
+    assert any(c[9] != c[10] for c, _ in family)  # adjusted, not copied
+    n_kept, n_sep = sum(h < 0.05 for h in expected), sum(p < 0.05 for _, p in family)
+    assert f"{n_kept} of the {n_sep} 'higher / lower' verdicts keep p < 0.05 after it" in md
     # the csv carries the same test on the baseline's row (COMAT − it); COMAT's own row has none
     gen = {(r["task"], r["algo"]): r for r in _csv(out / "generalization.csv")}
     row = gen[("pcp", "mappo")]

@@ -8,7 +8,9 @@ baseline's row, COMAT − this algorithm on :data:`comat.eval.report.COMPARED` w
 over per-seed means (:func:`comat.measure.stats.welch`): ``<set>_<key>_comat_diff`` with
 ``_comat_diff_lo`` / ``_comat_diff_hi`` (95 %, Welch–Satterthwaite df), ``_welch_t``,
 ``_welch_df``, ``_welch_p``. The test decides a comparison (p < :data:`comat.eval.report.ALPHA`);
-two overlapping intervals are not a test and no verdict rests on them.
+two overlapping intervals are not a test and no verdict rests on them. The .md table adds each p
+Holm-adjusted over the table's decidable tests (:func:`comat.measure.stats.holm`), and its caption
+counts the verdicts that keep p < ALPHA after it.
 """
 
 from __future__ import annotations
@@ -17,10 +19,12 @@ import csv
 import io
 import math
 
+import numpy as np
+
 from comat.eval.figures import algo_label
 from comat.eval.runs import ALPHA, COMPARED, PAPER_RETENTION, SET_NAMES, method_text, seed_means
 from comat.measure.metrics import interval_text, mean_ci
-from comat.measure.stats import welch
+from comat.measure.stats import holm, welch
 
 __all__ = ["generalization_csv", "generalization_md", "generalization_rows"]
 
@@ -205,7 +209,7 @@ def _verdict(row: dict, mine: dict, split: str, key: str) -> str:
 def _comparisons(rows: list[dict], tasks: list[str], algos: list[str], sets: list[str], keys: list[str]) -> list[str]:
     by = {(r["task"], r["algo"]): r for r in rows}
     lines = ["### COMAT against each baseline: Welch's t-test over per-seed means", ""]
-    table, tests = [], 0
+    compared = []
     for task in tasks:
         mine = by.get((task, "comat"))
         others = [by[(task, a)] for a in algos if a != "comat" and by[(task, a)]["seeds"]]
@@ -215,34 +219,36 @@ def _comparisons(rows: list[dict], tasks: list[str], algos: list[str], sets: lis
         if not others:
             lines.append(f"* {task.upper()}: COMAT alone, no baseline in these runs: nothing to compare.")
             continue
-        for split in sets:
-            for key in keys:
-                for row in others:
-                    tests += not math.isnan(row[f"{split}_{key}_welch_p"])
-                    table.append(_comparison_line(task, split, key, mine, row))
-    if table:
+        compared += [(task, split, key, mine, row) for split in sets for key in keys for row in others]
+    p = np.array([row[f"{split}_{key}_welch_p"] for _, split, key, _, row in compared])
+    adjusted = holm(p)  # over this table's decidable tests: the family a reader scans
+    tests, separated, kept = int(np.isfinite(p).sum()), int((p < ALPHA).sum()), int((adjusted < ALPHA).sum())
+    if compared:
         lines += [
             (
                 "| Task | Set | Endpoint | Baseline | COMAT (%) | Baseline (%) | COMAT − baseline, points [95 %] "
-                "| t | df | p | Welch verdict |"
+                "| t | df | p | Holm p | Welch verdict (unadjusted p) |"
             ),
-            "|" + "---|" * 11,
-            *table,
+            "|" + "---|" * 12,
+            *(_comparison_line(*c, h) for c, h in zip(compared, adjusted)),
             "",
             (
                 "COMAT − baseline: difference of the means over seeds, in percentage points, with its 95 % "
                 "interval (Welch–Satterthwaite df); t and two-sided p of Welch's t-test over the per-seed means "
                 "(each seed's coalitions, each its episodes averaged first). The test decides: 'COMAT higher / "
                 f"lower' where p < {ALPHA:g}, 'not separated' otherwise; overlapping intervals are not used as a "
-                f"test. The {tests} p-values here are not adjusted for multiplicity: read any one of them as a "
-                "single test only where it was chosen before the results (e.g. HMT U_scale progress, COMAT − MAT)."
+                f"test. That verdict's p is not adjusted for multiplicity; Holm p adjusts it over the {tests} tests "
+                f"of this table (Holm's step-down, family-wise error {ALPHA:g}): {kept} of the {separated} "
+                f"'higher / lower' verdicts keep p < {ALPHA:g} after it. Read an unadjusted p as a single test only "
+                "where it was chosen before the results (e.g. HMT U_scale progress, COMAT − MAT)."
             ),
         ]
     return lines
 
 
-def _comparison_line(task: str, split: str, key: str, mine: dict, row: dict) -> str:
-    """One line of the Welch table: COMAT's and the baseline's cells, the difference, the test."""
+def _comparison_line(task: str, split: str, key: str, mine: dict, row: dict, p_holm: float) -> str:
+    """One line of the Welch table: COMAT's and the baseline's cells, the difference, the test
+    with its Holm-adjusted p (``p_holm``, nan where there is no test)."""
     name = f"{split}_{key}"
     d, lo, hi = (row[f"{name}_{k}"] for k in ("comat_diff", "comat_diff_lo", "comat_diff_hi"))
     t, df, p = (row[f"{name}_{k}"] for k in ("welch_t", "welch_df", "welch_p"))
@@ -259,6 +265,7 @@ def _comparison_line(task: str, split: str, key: str, mine: dict, row: dict) -> 
         "—" if math.isnan(t) else f"{t:.2f}",
         "—" if math.isnan(df) else f"{df:.1f}",
         _p(p),
+        _p(p_holm),
         _verdict(row, mine, split, key),
     ]
     return "| " + " | ".join(cells) + " |"
