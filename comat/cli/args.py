@@ -49,6 +49,7 @@ __all__ = [
     "REFERENCE_POLICIES",
     "TASKS",
     "TIERS",
+    "CommandParser",
     "PolicyArg",
     "VersionAction",
     "add_force",
@@ -93,6 +94,15 @@ def int_at_least(minimum: int):
         return value
 
     return parse
+
+
+class CommandParser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose usage errors take one line, what was wrong and where the help is,
+    not argparse's 7-9-line usage block before it (a typo in ``--algo`` should not bury its own error).
+    Subcommands' parsers are of the same class (argparse's ``parser_class`` default)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
 
 
 class _Deprecated(argparse.Action):

@@ -49,17 +49,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     else:
         refs = () if args.no_references else REFERENCES
     if args.reality_sweep:
-        from comat.eval.robustness import eval_sweep_command
-
-        return eval_sweep_command(
-            args,
-            pol,
-            named,
-            tier,
-            out,
-            refs if pol.checkpoint is None else (() if args.no_references else ("heuristic",)),
-            reality,
-        )
+        refs = refs if pol.checkpoint is None else (() if args.no_references else ("heuristic",))
+        return _eval_reality_sweep(args, pol, named, tier, out, refs, reality)
     with new_outputs(out, result_files(stem), force=args.force):
         print(
             f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} "
@@ -82,6 +73,40 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         )
         print_table(result)
         paths = write_results(result, out, stem)
+    for path in paths:
+        print(f"wrote {path}")
+    return 0
+
+
+def _eval_reality_sweep(args: argparse.Namespace, pol, named, tier: str, out, refs: tuple, base: str) -> int:
+    """``comat eval --reality-sweep``: run, print, write ``evaluation_<tier>_sweep_<component>``."""
+    from comat.eval.robustness import print_sweep, run_reality_sweep, sweep_files, sweep_values, write_sweep
+    from comat.files import new_outputs
+
+    component = args.reality_sweep
+    values = sweep_values(component, args.sweep_values, base)  # every value checked before the first episode
+    stem = f"evaluation_{tier}_sweep_{component}"
+    with new_outputs(out, sweep_files(stem), force=args.force):
+        print(
+            f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, "
+            f"{args.episodes} episode(s) per coalition, {tier} tier, {component} at {values} (others at {base})",
+            file=sys.stderr,
+        )
+        sweep = run_reality_sweep(
+            pol.checkpoint,
+            pol.task,
+            named,
+            args.episodes,
+            tier,
+            args.seed,
+            component,
+            values,
+            base,
+            refs,
+            progress=lambda m: print(m, file=sys.stderr),
+        )
+        print_sweep(sweep)
+        paths = write_sweep(sweep, out, stem)
     for path in paths:
         print(f"wrote {path}")
     return 0
@@ -339,9 +364,19 @@ def add_evaluate_parsers(sub) -> None:
         "sweep's, else the defaults shown.",
     )
     p.add_argument(
-        "--algos", nargs="+", choices=learner_names(), default=None, help="learners (default: comat mat mappo qmix)"
+        "--algos",
+        nargs="+",
+        choices=learner_names(),
+        default=None,
+        help=f"learners, any of the {len(learner_names())} registered (default: comat mat mappo qmix: the paper's)",
     )
-    p.add_argument("--tasks", nargs="+", choices=TASKS, default=None, help="tasks (default: pcp hmt)")
+    p.add_argument(
+        "--tasks",
+        nargs="+",
+        choices=TASKS,
+        default=None,
+        help=f"tasks (default: every registered one, {' '.join(TASKS)})",
+    )
     p.add_argument(
         "--seeds",
         type=int,

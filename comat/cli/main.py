@@ -22,7 +22,7 @@ import argparse
 import os
 import sys
 
-from comat.cli.args import TIERS, VersionAction
+from comat.cli.args import TIERS, CommandParser, VersionAction
 from comat.cli.bench import add_bench_parser
 from comat.cli.calibrate import add_calibrate_parser
 from comat.cli.campaign import add_campaign_parser
@@ -102,7 +102,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="comat",
         description="MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium.",
     )

@@ -33,7 +33,7 @@ import numpy as np
 
 from comat.eval.evaluate import evaluate_policies
 from comat.eval.figures import _plt, algo_label, clipped_err, empty_figure, save
-from comat.files import detail_name, new_outputs, write_atomic, write_json_detail
+from comat.files import detail_name, write_atomic, write_json_detail
 from comat.measure.metrics import read_results
 from comat.measure.stats import per_seed_means, t_interval
 from comat.reality.config import LEVELS, RealityConfig
@@ -92,9 +92,10 @@ ROBUSTNESS_ENDPOINTS = (
 _NUMERIC = sorted(k for k, v in LEVELS["off"].items() if not isinstance(v, bool))
 
 
-def sweep_values(component: str, values: Sequence[float] | None) -> list:
-    """The values a sweep of ``component`` runs at: ``values`` or :data:`SWEEP_VALUES`; one-line
-    errors for an unknown component, fewer than three values, or a value the config refuses."""
+def sweep_values(component: str, values: Sequence[float] | None, base: str = "off") -> list:
+    """The values a sweep of ``component`` runs at (the others at level ``base``): ``values`` or
+    :data:`SWEEP_VALUES`; one-line errors for an unknown component, fewer than three values, or a
+    value the config refuses, all before the first episode."""
     if component not in _NUMERIC:
         raise ValueError(
             f"--reality-sweep must be one of the reality layer's numeric fields {_NUMERIC}, got {component!r}"
@@ -112,6 +113,8 @@ def sweep_values(component: str, values: Sequence[float] | None) -> list:
         if any(float(v) != int(v) for v in values):
             raise ValueError(f"--sweep-values of {component} must be whole ticks, got {values}")
         values = [int(v) for v in values]
+    for value in values:
+        _config(component, value, base)
     return values
 
 
@@ -142,7 +145,7 @@ def run_reality_sweep(
 ) -> dict:
     """Evaluate at each value of ``component`` (module docstring); returns the sweep file's dict."""
 
-    values = sweep_values(component, values)
+    values = sweep_values(component, values, base)
     configs = [_config(component, v, base) for v in values]
     points = []
     for value, cfg in zip(values, configs):
@@ -365,38 +368,3 @@ def print_sweep(sweep: dict, out=print) -> None:
                 f"{point['value']!s:>24} {row['policy']:<10} {row['set']:<11} {100 * m['progress']['mean']:>8.1f}% "
                 f"{100 * m['finished']['mean']:>8.1f}% {m['steps']['mean']:>7.1f} {m['collisions']['mean']:>9.2f}"
             )
-
-
-def eval_sweep_command(args, pol, named, tier: str, out: Path, refs: tuple, base: str) -> int:
-    """``comat eval --reality-sweep``: run, print, write ``evaluation_<tier>_sweep_<component>``."""
-    import sys
-
-    values = sweep_values(args.reality_sweep, args.sweep_values)
-    for v in values:
-        _config(args.reality_sweep, v, base)  # every value checked before the first episode
-    stem = f"evaluation_{tier}_sweep_{args.reality_sweep}"
-    with new_outputs(out, sweep_files(stem), force=args.force):
-        print(
-            f"comat eval: {pol.checkpoint or pol.name} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, "
-            f"{args.episodes} episode(s) per coalition, {tier} tier, {args.reality_sweep} at {values} (others at "
-            f"{base})",
-            file=sys.stderr,
-        )
-        sweep = run_reality_sweep(
-            pol.checkpoint,
-            pol.task,
-            named,
-            args.episodes,
-            tier,
-            args.seed,
-            args.reality_sweep,
-            values,
-            base,
-            refs,
-            progress=lambda m: print(m, file=sys.stderr),
-        )
-        print_sweep(sweep)
-        paths = write_sweep(sweep, out, stem)
-    for path in paths:
-        print(f"wrote {path}")
-    return 0

@@ -1,0 +1,7 @@
+"""``python -m comat``: the ``comat`` command."""
+
+import sys
+
+from comat.cli import main
+
+sys.exit(main())
