@@ -42,11 +42,12 @@ docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warni
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[docs]"
 	$(BIN)/mkdocs build --strict
 
-lint: $(STAMP)  ## ruff (lint + format check) and the import-layering contracts of pyproject.toml (import-linter)
+lint: $(STAMP)  ## ruff (lint + format check), the import-layering contracts of pyproject.toml (import-linter) and the budgets of tools/budgets.toml
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[lint]"
 	$(BIN)/ruff check comat sim2real tests benchmarks results
 	$(BIN)/ruff format --check comat sim2real tests benchmarks results
 	$(BIN)/lint-imports
+	$(BIN)/python tools/budgets.py
 
 test-cluster: $(STAMP)  ## Ray clusters: kill -9 of a sweep, two nodes on loopback, ray job submit (about 7 minutes)
 	$(BIN)/python -m pytest -q -m cluster

@@ -58,6 +58,7 @@ def run_rps(
     drive: str = "rps",
     python: str | None = None,
 ) -> dict:
+    # long: one subprocess run of main.py: its environment, argv, and the result read back from its output
     """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
     backend); its COMAT_RESULT dict + output.
 
@@ -271,6 +272,7 @@ def check_submission(
     reality: str | None = None,
     drive: str = "rps",
 ) -> dict:
+    # long: checks, the rps runs and their merged result, then the MuJoCo twin and the gap
     """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
     see :func:`run_rps`).
 

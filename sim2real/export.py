@@ -381,6 +381,7 @@ def export_submission(
     filter_name: str = "comat",
     filter_reality: Any = "nominal",
 ) -> Path:
+    # long: checks every input before the folder is written, then writes it atomically in one try
     """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
 
     Args:

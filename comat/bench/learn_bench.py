@@ -120,6 +120,7 @@ def bench_train(
     task: str = "pcp",
     overlap: bool = False,
 ) -> dict:
+    # long: one timed training, collect and update timers around the loop in one try that closes the env
     """Env-steps/s of ``iterations`` timed training iterations of ``algo`` on ``task`` (unicycle);
     ``comat_paper``: COMAT with the paper-form encoder and decision layer (``PAPER_FORM``), to
     measure what today's default costs against it in the same run; ``comat_<option>``: one option
@@ -326,6 +327,7 @@ def run_learn_bench(
     overlap: str = "off",
     update_rounds: int = 5,
 ) -> dict:
+    # long: the three parts of the bench and their tables, printed in the order they ran
     """The three parts, a table on ``progress`` and JSON at ``out``; ``overlap``: ``off``, ``on`` (the
     PPO learners with ``ppo.overlap`` only) or ``both`` (each PPO learner both ways, in one run);
     ``update_rounds``: timed rounds of the update part (for the PPO learners among ``algos`` by their

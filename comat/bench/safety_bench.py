@@ -132,6 +132,7 @@ def run_safety_bench(
     scenarios: tuple[str, ...] | None = None,
     loops: tuple[str, ...] = ("comat",),
 ) -> dict:
+    # long: the battery's loop and the result() it rebuilds from the shared rows after each scenario
     """Run the battery, print a table row per scenario and loop, write ``out`` (JSON) and return it.
 
     ``out`` is rewritten after every row, so an interrupted run keeps what it measured."""

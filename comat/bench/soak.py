@@ -101,6 +101,7 @@ def run_soak(
     progress=print,
     sets=("train", "test"),
 ) -> dict:
+    # long: one soak: checks, the episode loop with its memory samples, then the table
     """At least ``episodes`` episodes (a multiple of 20 coalitions × 2 policies × len(sets) × tasks);
     resident memory is sampled after every batch and compared over the first and the last thousand
     episodes (tenth of a shorter run)."""

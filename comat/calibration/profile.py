@@ -175,150 +175,12 @@ def fit_logs(paths: Sequence[str]) -> dict:
         )
     per, runs, timing, team = _read(paths)
     driven = [r for r in per["run"] if r["used"]]
-    params = []
-    for source in ("steps", "spin", "run"):
-        timed = driven if source == "run" else per[source]
-        if timed:
-            break
-    timed_runs = runs[source] if timed else 0
-    if timed:
-        delays = [r["delay_ticks"] for r in timed]
-        params.append(
-            _row(
-                "pose_delay_ticks",
-                int(min(delays)),
-                int(min(delays)),
-                int(max(delays)),
-                "range",
-                len(delays),
-                timed_runs,
-                f"pose + command delay (not separable), from {source}; the profile's minimum and spread",
-            )
-        )
-        params.append(
-            _block_row(
-                "pose_delay_jitter_prob",
-                team[f"jitter_{source}"],
-                timed_runs,
-                f"share of ticks whose pose message is one tick older, from {source} (common to the team)",
-            )
-        )
-        # the estimate is the lag the robots share (one per log); the interval is over each robot's own best lag
-        params.append(
-            _t_row(
-                "motor_tau_s",
-                [r["tau_own_s"] for r in timed],
-                timed_runs,
-                f"shared lag, from {source}; interval over the robots' own",
-                float(np.mean([r["tau_s"] for r in timed])),
-            )
-        )
-    gains, gains_from = (per["steps"], "steps") if per["steps"] else (driven, "run")
-    if gains:
-        params.append(
-            _t_row(
-                "speed_gain",
-                [r["gain"] for r in gains],
-                runs[gains_from],
-                f"forward speed gain (the wheels' mean), from {gains_from}: the profile's wheel_gain_mean",
-            )
-        )
-    turns = [r["gain"] for r in per["spin"]] or [r["turn_gain"] for r in driven]
-    if turns:
-        params.append(
-            _t_row(
-                "turn_gain",
-                turns,
-                runs["spin"] or runs["run"],
-                "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)",
-            )
-        )
-    if per["spin"]:
-        params.append(
-            _t_row(
-                "tracked_ahead_m",
-                [r["tracked_ahead_m"] for r in per["spin"]],
-                runs["spin"],
-                "tracked point ahead of the wheel axle (reported, not in the layer)",
-            )
-        )
+    source, params = _timing_rows(per, runs, team, driven)
+    params += _gain_rows(per, runs, driven)
     moving = per["steps"] + per["spin"]
     if moving:
-        capped, capped_from = (per["steps"], "steps") if per["steps"] else (per["spin"], "spin")
-        reach = [r["reach_fraction"] for r in capped if np.isfinite(r["reach_fraction"])]
-        if reach:
-            params.append(
-                _row(
-                    "top_speed_fraction",
-                    float(np.mean(reach)),
-                    float(min(reach)),
-                    float(max(reach)),
-                    "range",
-                    len(reach),
-                    runs[capped_from],
-                    f"speed held at the fastest command / 12.5 rad/s, from {capped_from} (a robot whose cap "
-                    "never binds shows its gain times what it was sent)",
-                )
-            )
-            derate, lo, hi, seen = _derate(capped)
-            params.append(
-                _row(
-                    "top_speed_derate_min",
-                    derate,
-                    lo,
-                    hi,
-                    "order95",
-                    len(reach),
-                    runs[capped_from],
-                    f"the fleet's smallest cap, from {capped_from}: "
-                    + (
-                        f"{seen} of {len(reach)} robots' caps seen binding"
-                        if seen
-                        else f"no cap seen binding, {PROFILE_BASE}'s kept within the interval"
-                    ),
-                )
-            )
-        paired, paired_from = (per["spin"], "spin") if per["spin"] else (per["steps"], "steps")
-        ok = [r for r in paired if np.isfinite(r["half_gain_diff"])]
-        spread, lo, hi = spread_interval([r["half_gain_diff"] for r in ok], [r["half_gain_diff_se"] for r in ok])
-        params.append(
-            _row(
-                "wheel_gain_spread",
-                spread,
-                lo,
-                hi,
-                None if lo is None else "chi2_95",
-                len(ok),
-                runs[paired_from],
-                f"sqrt(6) x SD over robots of the half gain difference (triangular), each robot's own error "
-                f"taken out, from {paired_from}",
-            )
-        )
-    if per["still"]:
-        still = per["still"]
-        params.append(_t_row("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"]))
-        params.append(_t_row("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], runs["still"]))
-    holds_from = "still" if per["still"] else "run"
-    if per["still"] or driven:
-        params.append(
-            _block_row(
-                "pose_hold_prob",
-                team[f"holds_{holds_from}"],
-                runs[holds_from],
-                f"share of ticks at which every robot's pose repeated, from {holds_from}, less the script's "
-                f"missed ticks the profile keeps ({PROFILE_BASE}'s {_MISS})",
-                lambda share: max(0.0, 1.0 - (1.0 - share) / (1.0 - _MISS)),
-            )
-        )
-    if per["ramp"]:
-        params.append(
-            _t_row(
-                "motor_dead_zone_radps",
-                [r["dead_zone_radps"] for r in per["ramp"]],
-                runs["ramp"],
-                "wheel speed below which a robot does not move (0.05 rad/s grid)",
-            )
-        )
+        params += _cap_rows(per, runs)
+    params += _rest_rows(per, runs, team, driven)
     params.append(
         _t_row(
             "loop_tick_s",
@@ -330,6 +192,178 @@ def fit_logs(paths: Sequence[str]) -> dict:
             kind="t95_runs",
         )
     )
+    skipped = sum(not r["used"] for r in per["run"])
+    if skipped and source == "run":
+        params[0]["note"] += f"; {skipped} robot(s) that drove less than {MIN_TRAVEL_M} m left out"
+    for name, why in _unidentified(per, moving).items():
+        params.append(_row(name, None, note=f"not identified: {why}"))
+    return {"parameters": params, "per_robot": per, "timing": timing}
+
+
+def _timing_rows(per: dict, runs: dict, team: dict, driven: list[dict]) -> tuple[str, list[dict]]:
+    """The delay, its jitter and the motor lag, from the first of steps, spin and the policy runs'
+    driven robots that has logs; ``(that source, rows)`` (no rows where none has)."""
+    for source in ("steps", "spin", "run"):
+        timed = driven if source == "run" else per[source]
+        if timed:
+            break
+    if not timed:
+        return source, []
+    delays = [r["delay_ticks"] for r in timed]
+    return source, [
+        _row(
+            "pose_delay_ticks",
+            int(min(delays)),
+            int(min(delays)),
+            int(max(delays)),
+            "range",
+            len(delays),
+            runs[source],
+            f"pose + command delay (not separable), from {source}; the profile's minimum and spread",
+        ),
+        _block_row(
+            "pose_delay_jitter_prob",
+            team[f"jitter_{source}"],
+            runs[source],
+            f"share of ticks whose pose message is one tick older, from {source} (common to the team)",
+        ),
+        # the estimate is the lag the robots share (one per log); the interval is over each robot's own best lag
+        _t_row(
+            "motor_tau_s",
+            [r["tau_own_s"] for r in timed],
+            runs[source],
+            f"shared lag, from {source}; interval over the robots' own",
+            float(np.mean([r["tau_s"] for r in timed])),
+        ),
+    ]
+
+
+def _gain_rows(per: dict, runs: dict, driven: list[dict]) -> list[dict]:
+    """The speed and turn gains and the tracked point: from the steps and spin logs, else the runs."""
+    rows = []
+    gains, gains_from = (per["steps"], "steps") if per["steps"] else (driven, "run")
+    if gains:
+        rows.append(
+            _t_row(
+                "speed_gain",
+                [r["gain"] for r in gains],
+                runs[gains_from],
+                f"forward speed gain (the wheels' mean), from {gains_from}: the profile's wheel_gain_mean",
+            )
+        )
+    turns = [r["gain"] for r in per["spin"]] or [r["turn_gain"] for r in driven]
+    if turns:
+        rows.append(
+            _t_row(
+                "turn_gain",
+                turns,
+                runs["spin"] or runs["run"],
+                "turn rate / commanded; the layer's equals the speed gain (a difference: the wheelbase, not modelled)",
+            )
+        )
+    if per["spin"]:
+        rows.append(
+            _t_row(
+                "tracked_ahead_m",
+                [r["tracked_ahead_m"] for r in per["spin"]],
+                runs["spin"],
+                "tracked point ahead of the wheel axle (reported, not in the layer)",
+            )
+        )
+    return rows
+
+
+def _cap_rows(per: dict, runs: dict) -> list[dict]:
+    """The top speed reached, the fleet's smallest cap and the wheels' gain spread: from the logs
+    that drive fast or turn (steps, spin)."""
+    rows = []
+    capped, capped_from = (per["steps"], "steps") if per["steps"] else (per["spin"], "spin")
+    reach = [r["reach_fraction"] for r in capped if np.isfinite(r["reach_fraction"])]
+    if reach:
+        rows.append(
+            _row(
+                "top_speed_fraction",
+                float(np.mean(reach)),
+                float(min(reach)),
+                float(max(reach)),
+                "range",
+                len(reach),
+                runs[capped_from],
+                f"speed held at the fastest command / 12.5 rad/s, from {capped_from} (a robot whose cap "
+                "never binds shows its gain times what it was sent)",
+            )
+        )
+        derate, lo, hi, seen = _derate(capped)
+        rows.append(
+            _row(
+                "top_speed_derate_min",
+                derate,
+                lo,
+                hi,
+                "order95",
+                len(reach),
+                runs[capped_from],
+                f"the fleet's smallest cap, from {capped_from}: "
+                + (
+                    f"{seen} of {len(reach)} robots' caps seen binding"
+                    if seen
+                    else f"no cap seen binding, {PROFILE_BASE}'s kept within the interval"
+                ),
+            )
+        )
+    paired, paired_from = (per["spin"], "spin") if per["spin"] else (per["steps"], "steps")
+    ok = [r for r in paired if np.isfinite(r["half_gain_diff"])]
+    spread, lo, hi = spread_interval([r["half_gain_diff"] for r in ok], [r["half_gain_diff_se"] for r in ok])
+    rows.append(
+        _row(
+            "wheel_gain_spread",
+            spread,
+            lo,
+            hi,
+            None if lo is None else "chi2_95",
+            len(ok),
+            runs[paired_from],
+            f"sqrt(6) x SD over robots of the half gain difference (triangular), each robot's own error "
+            f"taken out, from {paired_from}",
+        )
+    )
+    return rows
+
+
+def _rest_rows(per: dict, runs: dict, team: dict, driven: list[dict]) -> list[dict]:
+    """What shows at rest or barely moving: the pose noise (still), the held ticks (still, else the
+    runs) and the motors' dead zone (ramp)."""
+    rows = []
+    if per["still"]:
+        still = per["still"]
+        rows.append(_t_row("pose_noise_xy_m", [r["noise_xy_m"] for r in still], runs["still"]))
+        rows.append(_t_row("pose_noise_theta_rad", [r["noise_theta_rad"] for r in still], runs["still"]))
+    holds_from = "still" if per["still"] else "run"
+    if per["still"] or driven:
+        rows.append(
+            _block_row(
+                "pose_hold_prob",
+                team[f"holds_{holds_from}"],
+                runs[holds_from],
+                f"share of ticks at which every robot's pose repeated, from {holds_from}, less the script's "
+                f"missed ticks the profile keeps ({PROFILE_BASE}'s {_MISS})",
+                lambda share: max(0.0, 1.0 - (1.0 - share) / (1.0 - _MISS)),
+            )
+        )
+    if per["ramp"]:
+        rows.append(
+            _t_row(
+                "motor_dead_zone_radps",
+                [r["dead_zone_radps"] for r in per["ramp"]],
+                runs["ramp"],
+                "wheel speed below which a robot does not move (0.05 rad/s grid)",
+            )
+        )
+    return rows
+
+
+def _unidentified(per: dict, moving: list[dict]) -> dict[str, str]:
+    """Parameter -> why these logs cannot identify it."""
     unknown = dict(ALWAYS_UNIDENTIFIED)
     if not per["ramp"]:
         unknown["motor_dead_zone_radps"] = "needs a ramp log"
@@ -338,12 +372,7 @@ def fit_logs(paths: Sequence[str]) -> dict:
         unknown["wheel_gain_spread"] = "needs a spin or steps log (a task's turns hide the drift)"
     if not per["still"]:
         unknown["pose_noise_xy_m"] = unknown["pose_noise_theta_rad"] = "needs a still log"
-    skipped = sum(not r["used"] for r in per["run"])
-    if skipped and source == "run":
-        params[0]["note"] += f"; {skipped} robot(s) that drove less than {MIN_TRAVEL_M} m left out"
-    for name, why in unknown.items():
-        params.append(_row(name, None, note=f"not identified: {why}"))
-    return {"parameters": params, "per_robot": per, "timing": timing}
+    return unknown
 
 
 def profile_fields(fit: dict) -> dict:

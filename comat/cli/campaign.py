@@ -122,6 +122,7 @@ def _cmd(args: argparse.Namespace) -> int:
 
 
 def add_campaign_parser(subparsers) -> argparse.ArgumentParser:
+    # long: the campaign command's options, one add_argument each, read as its --help page
     """``comat campaign`` on the top-level sub-parsers."""
     p = subparsers.add_parser(
         "campaign",

@@ -249,6 +249,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def add_evaluate_parsers(sub) -> None:
+    # long: four commands' options (eval, probe, report, sweep), read top to bottom as --help
     """``comat eval``, ``probe``, ``report`` and ``sweep`` on the top-level sub-parsers."""
     p = sub.add_parser(
         "eval",

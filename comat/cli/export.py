@@ -164,6 +164,7 @@ def load_start_poses(path: str):
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    # long: the command's three modes (--calibration, --check, an export) with their lazy imports and printed lines
     import sys
     import time
 
@@ -285,6 +286,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def add_export_parser(subparsers) -> argparse.ArgumentParser:
+    # long: the export command's options, one add_argument each, read top to bottom as its --help page
     """Add the ``export`` command to ``subparsers`` (of ``comat``'s parser)."""
     p = subparsers.add_parser(
         "export",

@@ -67,6 +67,7 @@ def overlap_note(config, cpus: int) -> str | None:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    # long: the train command: resume or new run, the CPU notes, then train and its printed summary
     from pathlib import Path
 
     from comat.machine import usable_cpus
@@ -209,6 +210,7 @@ def _task(value: str) -> str:
 
 
 def add_train_parsers(sub) -> None:
+    # long: the train and policy commands' options, one add_argument each, read as their --help pages
     """Register ``train`` and ``policy`` on the top-level sub-parsers of ``comat``."""
     p = sub.add_parser(
         "train",

@@ -148,6 +148,7 @@ def make_campaign(
     filter_name: str = "comat",
     filter_reality: str = "nominal",
 ) -> dict:
+    # long: writes every folder of the campaign and its manifest inside one atomic temporary folder
     """Write the campaign's folders and manifest in ``out`` (module docstring); returns the manifest.
 
     Args:

@@ -88,6 +88,7 @@ def evaluate_policies(
     reality="off",
     safety=None,
 ) -> dict:
+    # long: checks its arguments, then one loop over (set, policy) rows and the document they make
     """Rows of (policy, set) results; see the module docstring.
 
     Args:

@@ -207,6 +207,7 @@ def fig5(
     stem: Path,
     k_text: str = "1",
 ) -> list[str]:
+    # long: one matplotlib figure, panel by panel, with its labels
     """Return and progress per composition set, bars per algorithm; progress retention labels.
 
     ``rows``: the generalization rows of :mod:`comat.eval.generalization` (``<set>_return``,

@@ -314,6 +314,7 @@ def replay(
     draws: int = DRAWS,
     envelope: int = 0,
 ) -> dict:
+    # long: the replay report: twin, envelope, k-step scores, files, in the report's order
     """Lay the run logged at ``log_path`` beside its twin from the export folder ``export`` and score
     the plant of ``reality`` and of each of ``profiles`` on it (module docstring); writes ``out``
     (``.rrd``) and the tables beside it (:func:`output_names`), with ``video`` (``.mp4``/``.gif``)

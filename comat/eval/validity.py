@@ -206,6 +206,7 @@ def _cell(d: dict) -> str:
 
 
 def validity_markdown(data: dict) -> str:
+    # long: the validity page's Markdown, written top to bottom as it reads
     """The validity page: the families, then per task the ladder on every set with the paired gaps."""
     tasks = data["tasks"]
     seeds = sorted({s["seed"] for s in tasks.values()})

@@ -197,6 +197,7 @@ def comat_decode_args(arrays: Mapping[str, np.ndarray], config: Mapping) -> tupl
 
 @_jit
 def comat_decode(mats, vecs, rep, obs, mask, noise, deterministic, heads, n_types, shared_hidden):
+    # long: a numba kernel: the autoregressive decode as one compiled loop nest (a call out per robot costs)
     """COMAT (``Comat.decode_step`` for m = 0..N−1) from its parameters, as stored by torch.
 
     ``mats``, ``vecs``: :data:`COMAT_DECODE_MATS`, :data:`COMAT_DECODE_VECS` in acting form
@@ -367,6 +368,7 @@ def comat_encode_args(arrays: Mapping[str, np.ndarray], config: Mapping) -> tupl
 
 @_jit
 def comat_encode(node_ws, mats, vecs, obs, mask, heads, n_types, root, obs_embed, reference, world, node_ffn):
+    # long: a numba kernel: one compiled loop nest walking the schema's offsets (a call out per robot costs)
     """COMAT's HEAT encoder and critic (``Comat.encode``, every ``ComatConfig`` option): rep
     (B, N, E) and values (B, N) from obs (B, N, D) and mask (B, N). The arrays come in the
     schema's order (:func:`comat_encode_args`), which the offsets below walk:

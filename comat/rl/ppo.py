@@ -468,6 +468,7 @@ class PPOTrainer:
         )
 
     def update(self, ro: Rollout, lagged: bool = False) -> dict[str, float]:
+        # long: PPO's epoch loop reads like cleanrl's: losses, clipping and stats in one place, as the paper writes them
         """Steps 2-4 on ``ro``; ``lagged``: ``ro`` was collected by the weights one update older than
         the learner's (``overlap``), which the policy loss then corrects for (below)."""
         cfg = self.config

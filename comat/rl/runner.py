@@ -137,6 +137,7 @@ def train(
     on_update=None,
     record: Recorder | None = None,
 ) -> dict:
+    # long: checks a run folder's every state (new, resumed, finished, policy-only) before the loop starts
     """Train (or, with ``resume``, continue) the run in folder ``out``; returns a summary with
     the final evaluation on the training coalitions (None if evaluation is off). A finished run
     (or a finished one resumed) writes ``out/policy.pt`` (:func:`comat.rl.policy.save_policy`).
@@ -229,6 +230,7 @@ def _train_registered(
     on_update,
     record: Recorder | None,
 ) -> dict:
+    # long: the training loop: eval, checkpoint and logging share the loop's progress counters
     """The training loop of :func:`train`, once the run is checked and registered."""
     torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)

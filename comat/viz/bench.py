@@ -60,6 +60,7 @@ def run_viz_bench(
     out: str | Path | None = "benchmarks/results/viz.json",
     quiet: bool = False,
 ) -> dict:
+    # long: times each task with and without recording inside one temporary folder, then the table
     """Time rollouts with and without recording; write JSON to ``out`` (None: don't) and print a table.
 
     Returns the result document (``{"settings": …, "machine": …, "results": [one per task]}``).

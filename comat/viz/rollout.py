@@ -239,6 +239,7 @@ def record_episodes(
     fps: int = 10,
     reality: Any = "off",
 ) -> RolloutResult:
+    # long: checks its options, then one loop whose writer, temp file and timers close in one try
     """Run and record episodes of ``task`` (a registered task's name: ``comat tasks``) to the ``.rrd`` file ``path``.
 
     Args:

@@ -103,6 +103,7 @@ def _action_names() -> rr.AnnotationContext:
 
 
 def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None:
+    # long: one Rerun entity after another (arena, zones, robots, rings, bar, legend), in drawing order
     """Arena, walls, task zones, prey positions and the robots' constant attributes of env b."""
     team = core.teams[b]
     task = core.task

@@ -308,6 +308,7 @@ def make_task():
 
 # -- episode -------------------------------------------------------------------------------------
 def main(argv):
+    # long: the shipped Robotarium script's loop: one function a reviewer reads in the exported folder
     show = "--no-figure" not in argv and os.environ.get("COMAT_SHOW_FIGURE", "1") not in ("0", "false", "no")
     max_steps = int(os.environ.get("COMAT_MAX_STEPS", "0") or 0)
     task = make_task()
