@@ -27,7 +27,7 @@ __all__ = ["add_campaign_parser"]
 
 def _make(args: argparse.Namespace) -> int:
     from comat.cli.args import reality_arg, resolve_policy_arg
-    from comat.eval.campaign import declarations, make_campaign, parse_sets, parse_sizes
+    from comat.eval.campaign import declarations, make_campaign, parse_sets, parse_sizes, plan_teams
     from comat.learners import learner_entry, learner_names
 
     missing = [f"--{k}" for k in ("policy", "sizes", "runs", "out") if getattr(args, k) is None]
@@ -37,6 +37,7 @@ def _make(args: argparse.Namespace) -> int:
     shipped = tuple(n for n in learner_names() if learner_entry(n).exports)
     why = "an export ships a numpy forward pass, which sim2real/runtime.py has for these learners only"
     pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=shipped, why=why)
+    plan_teams(pol.task, sizes, args.runs, sets, args.seed)  # a size no set has: one line, before the announcement
     print(
         f"comat campaign: {pol.label} on {pol.task}, sizes {sizes} × {args.runs} runs, teams from {sets}, "
         f"seed {args.seed} ...",
@@ -73,14 +74,14 @@ def _analyze(args: argparse.Namespace) -> int:
     if args.manifest is None or args.out is None:
         raise ValueError("comat campaign --analyze RETURNED needs --manifest DIR/manifest.json and --out OUT")
     reality = reality_arg(args.reality)
-    print(
-        f"comat campaign: reading {args.analyze} against {args.manifest}; each run beside its twin "
-        f"({args.tier or 'unicycle'} tier, reality {reality}) ...",
-        file=sys.stderr,
-        flush=True,
-    )
     result = analyze_campaign(
-        args.analyze, args.manifest, args.out, reality=reality, tier=args.tier or "unicycle", draws=args.draws
+        args.analyze,
+        args.manifest,
+        args.out,
+        reality=reality,
+        tier=args.tier or "unicycle",
+        draws=args.draws,
+        progress=lambda line: print(f"comat campaign: {line}", file=sys.stderr, flush=True),
     )
     print(result["markdown"])
     print(f"wrote {result['out']}: campaign.md, sizes.csv, runs.csv, failures.csv, runs/<folder>/replay.rrd")

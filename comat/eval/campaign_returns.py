@@ -40,6 +40,7 @@ import io
 import json
 import shutil
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -333,10 +334,12 @@ def analyze_campaign(
     tier: str = "unicycle",
     k_steps: tuple[int, ...] = (1, 5, 30),
     draws: int = 8,
+    progress: Callable[[str], None] | None = None,
 ) -> dict:
     """Read a campaign's returned folder against its manifest and write the analysis in ``out``
     (module docstring). ``reality``, ``tier``, ``k_steps``, ``draws``: each run's twin and plant
-    score (:func:`comat.eval.replay.replay`). Returns ``{"sizes": rows, "runs": [...], "failures":
+    score (:func:`comat.eval.replay.replay`); ``progress``: told a line per run once every check has
+    passed (the command prints it). Returns ``{"sizes": rows, "runs": [...], "failures":
     [...], "markdown": campaign.md's text, "out": Path}``."""
     returned, manifest_path, out = Path(returned), Path(manifest_path), Path(out)
     check_options(reality, (), k_steps, draws, 0)
@@ -348,8 +351,11 @@ def analyze_campaign(
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
         failures = []
-        for run in runs:
+        for k, run in enumerate(runs, 1):
             entry = run["entry"]
+            if progress is not None:
+                what = "beside its twin" if run["log"] is not None else "no log to replay"
+                progress(f"[{k}/{len(runs)}] {entry['folder']}: {what}")
             for f in run_failures(run):
                 failures.append({"folder": entry["folder"], "size": entry["size"], "run": entry["run"], **f})
             run["real"] = run["twin"] = run["divergence_m"] = None

@@ -1,0 +1,212 @@
+"""comat campaign: a small campaign (PCP, the scripted policy, 2 sizes x 2 runs) written, run under rps
+inside the ``nominal`` reality layer standing in for the Robotarium (``--stand-in``), returned, and
+analyzed; planted failures found; bad inputs refused in one line with nothing written."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from comat.cli import main
+from comat.eval.campaign import folder_name, make_campaign, plan_teams, read_manifest
+from comat.eval.campaign_returns import log_collisions, log_freezes, run_failures
+from comat.runlog import LOG_FILE, RunLog, read_run_log
+
+SIZES, RUNS, STEPS = (2, 4), 2, 8
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """The campaign folder and what its four experiments returned (8 env steps each, nominal layer)."""
+    root = tmp_path_factory.mktemp("campaign")
+    camp, returned = root / "camp", root / "returned"
+    sizes = ",".join(str(s) for s in SIZES)
+    argv = ["campaign", "--policy", "heuristic", "--task", "pcp", "--sizes", sizes, "--runs", str(RUNS)]
+    assert main([*argv, "--out", str(camp)]) == 0
+    stand_in = ["campaign", "--stand-in", str(camp / "manifest.json"), "--out", str(returned)]
+    assert main([*stand_in, "--reality", "nominal", "--max-steps", str(STEPS)]) == 0
+    return camp, returned
+
+
+def _names():
+    return [folder_name("pcp", s, r) for s in SIZES for r in range(RUNS)]
+
+
+def test_the_campaign_has_a_folder_per_size_and_run_and_says_what_to_declare(campaign, capsys):
+    camp, _ = campaign
+    manifest = read_manifest(camp / "manifest.json")
+    assert [e["folder"] for e in manifest["folders"]] == _names()
+    assert sorted(p.name for p in camp.iterdir()) == sorted([*_names(), "manifest.json", "manifest.md"])
+    for e in manifest["folders"]:
+        config = (camp / e["folder"] / "submission_config.py").read_text()
+        assert f"'duration_s': {e['duration_s']}" in config and f"'seed': {e['seed']}" in config
+        assert len(e["types"]) == e["robots"] == e["size"] and e["team"].split(":")[0] in ("test", "scale")
+    # runs at one size play different teams and start differently
+    for size in SIZES:
+        mine = [e for e in manifest["folders"] if e["size"] == size]
+        assert len({e["team"] for e in mine}) == RUNS and len({e["seed"] for e in mine}) == RUNS
+    assert manifest["policy_sha256"] == "heuristic" and manifest["comat_commit"]
+    assert "| pcp_n04_r01 | 4 |" in (camp / "manifest.md").read_text()
+
+
+def test_the_same_seed_writes_the_same_manifest(campaign, tmp_path):
+    camp, _ = campaign
+    first = json.loads((camp / "manifest.json").read_text())
+    again = make_campaign("heuristic", "pcp", SIZES, RUNS, tmp_path / "again", seed=first["seed"])
+    assert again == first
+    for name in _names():
+        a, b = camp / name / "submission_config.py", tmp_path / "again" / name / "submission_config.py"
+        assert a.read_bytes() == b.read_bytes()
+    other = plan_teams("pcp", SIZES, RUNS, ("test", "scale"), first["seed"] + 1)
+    assert [p["team"] for p in other] != [e["team"] for e in first["folders"]]  # the seed draws the teams
+
+
+def test_stand_in_returns_what_the_robotarium_returns(campaign):
+    _, returned = campaign
+    assert sorted(p.name for p in returned.iterdir()) == _names()
+    for name in _names():
+        assert sorted(p.name for p in (returned / name).iterdir()) == ["comat_run.meta.npy", "comat_run.npy", "log.txt"]
+        assert "COMAT_RESULT " in (returned / name / "log.txt").read_text()
+        assert read_run_log(str(returned / name)).meta["result"]["steps"] == STEPS
+
+
+def _plant(returned: Path, tmp_path: Path) -> Path:
+    """A copy of the returned folder with a collision planted in pcp_n02_r00's log (robot 1 drawn 5 cm
+    ahead of robot 0 for 30 iterations) and pcp_n04_r00's comat_run.npy lost."""
+    bad = shutil.copytree(returned, tmp_path / "returned")
+    log = bad / "pcp_n02_r00" / LOG_FILE
+    data = np.load(log)
+    n = 2
+    rows = slice(100, 130)
+    for col in range(3):  # x, y, theta of robot 1 = robot 0's, then 5 cm ahead
+        data[rows, 3 + col * n + 1] = data[rows, 3 + col * n]
+    data[rows, 3 + 0 * n + 1] += 0.05
+    np.save(log, data)
+    (bad / "pcp_n04_r00" / LOG_FILE).unlink()
+    return bad
+
+
+def test_analyze_writes_the_paired_table_and_finds_the_planted_failures(campaign, tmp_path, capsys):
+    camp, returned = campaign
+    bad, out = _plant(returned, tmp_path), tmp_path / "analysis"
+    argv = ["campaign", "--analyze", str(bad), "--manifest", str(camp / "manifest.json"), "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "## Paired sim/real table per team size" in printed
+    sizes = list(csv_rows(out / "sizes.csv"))
+    assert {int(r["size"]) for r in sizes} == set(SIZES)
+    progress = {int(r["size"]): r for r in sizes if r["quantity"] == "progress"}
+    assert progress[2]["paired"] == "2" and progress[4]["paired"] == "1"  # the run without its log is not paired
+    assert progress[2]["gap_lo"] != "" and progress[4]["gap_lo"] == ""  # one run gives no interval
+    steps = {int(r["size"]): r for r in sizes if r["quantity"] == "steps"}
+    assert float(steps[2]["real_mean"]) == STEPS == float(steps[2]["twin_mean"])  # the twin stops where the run did
+    failures = [(r["folder"], r["kind"]) for r in csv_rows(out / "failures.csv")]
+    assert failures == [("pcp_n02_r00", "collision"), ("pcp_n04_r00", "missing files")]  # and no false alarm
+    detail = next(r["detail"] for r in csv_rows(out / "failures.csv") if r["kind"] == "collision")
+    assert detail.startswith("30 pair-iterations") and "robots 0 and 1 at iteration 100" in detail
+    runs = {r["folder"]: r for r in csv_rows(out / "runs.csv")}
+    assert runs["pcp_n04_r00"]["log"] == "none" and runs["pcp_n02_r01"]["log"] == "complete"
+    rerun = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    for name in _names():
+        rrd = out / "runs" / name / "replay.rrd"
+        assert rrd.is_file() == (name != "pcp_n04_r00")
+    verify = subprocess.run([rerun, "rrd", "verify", str(out / "runs" / "pcp_n02_r01" / "replay.rrd")], check=False)
+    assert verify.returncode == 0
+    assert not list(tmp_path.glob(".analysis.tmp-*"))
+
+
+def csv_rows(path: Path):
+    import csv
+
+    with path.open() as fh:
+        yield from csv.DictReader(fh)
+
+
+def test_freezes_timeouts_and_crashes_are_read_from_a_run(campaign):
+    camp, returned = campaign
+    log = read_run_log(str(returned / "pcp_n04_r01"))
+    assert log_freezes(log) == [] and log_collisions(log.poses)["pair_iterations"] == 0
+    data = log.data.copy()
+    n, rows = log.n, slice(40, 100)
+    for col in range(3):  # robot 2 stays where it was at iteration 40 while sent 0.1 m/s
+        data[rows, 3 + col * n + 2] = data[40, 3 + col * n + 2]
+    data[rows, 3 + 5 * n + 2] = 0.1
+    frozen = log_freezes(RunLog(log.meta, data))
+    # a window is frozen where its two ends lie < 5 mm apart: it may start a little before the stop
+    assert [f["robot"] for f in frozen] == [2] and 35 <= frozen[0]["first_iteration"] <= 40
+    assert 60 * 0.033 - 1e-9 <= frozen[0]["frozen_s"] <= 65 * 0.033
+    entry = read_manifest(camp / "manifest.json")["folders"][3]
+    cut = RunLog({k: v for k, v in log.meta.items() if k != "result"}, log.data[:150])
+    run = {
+        "entry": entry,
+        "log": cut,
+        "log_error": None,
+        "missing": [],
+        "stdout": "Traceback (most recent call last):\n",
+    }
+    run["stdout"] += "  File main.py\nKeyboardInterrupt\n"
+    kinds = {f["kind"]: f["detail"] for f in run_failures(run)}
+    assert set(kinds) == {"crash", "timeout"}
+    assert kinds["crash"].endswith("KeyboardInterrupt") and "stops at iteration 150" in kinds["timeout"]
+
+
+def _refused(argv, capsys, out: Path, *needles):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("comat campaign: error:") and "\n" not in err, err
+    for needle in needles:
+        assert needle in err, err
+    assert not out.exists() and not list(out.parent.glob(f".{out.name}.tmp-*"))  # nothing written
+
+
+@pytest.mark.parametrize(
+    "damage, needles",
+    [
+        ("foreign file", ["foreign ['notes.docx']", "pcp_n02_r01"]),
+        ("foreign folder", ["foreign ['pcp_n08_r00']"]),
+        ("absent folder", ["got none for ['pcp_n04_r01']"]),
+        ("swapped runs", ["--manifest does not match", "pcp_n02_r00", "seed"]),
+        ("wrong-kind profile", ["--reality.pose_delay_ticks must be int or NoneType, got [2, 3]"]),
+        ("foreign manifest", ["--manifest", "expected format 'comat-campaign', got 'comat-run-log'"]),
+    ],
+)
+def test_bad_inputs_are_one_line_exit_2_and_write_nothing(campaign, tmp_path, capsys, damage, needles):
+    camp, returned = campaign
+    bad = shutil.copytree(returned, tmp_path / "returned")
+    manifest, extra = camp / "manifest.json", []
+    if damage == "foreign file":
+        (bad / "pcp_n02_r01" / "notes.docx").write_text("x")
+    elif damage == "foreign folder":
+        (bad / "pcp_n08_r00").mkdir()
+    elif damage == "absent folder":
+        shutil.rmtree(bad / "pcp_n04_r01")
+    elif damage == "swapped runs":
+        (bad / "pcp_n02_r00").rename(bad / "swap")
+        (bad / "pcp_n02_r01").rename(bad / "pcp_n02_r00")
+        (bad / "swap").rename(bad / "pcp_n02_r01")
+    elif damage == "wrong-kind profile":
+        profile = tmp_path / "bad.yaml"
+        profile.write_text(yaml.safe_dump({"reality": {"level": "nominal", "pose_delay_ticks": [2, 3]}}))
+        extra = ["--reality", str(profile)]
+    elif damage == "foreign manifest":
+        manifest = tmp_path / "manifest.json"
+        manifest.write_text(json.dumps({"format": "comat-run-log", "version": 1}))
+    out = tmp_path / "analysis"
+    argv = ["campaign", "--analyze", str(bad), "--manifest", str(manifest), "--out", str(out), *extra]
+    _refused(argv, capsys, out, *needles)
+
+
+def test_a_size_no_set_has_and_bad_arguments_are_refused(tmp_path, capsys):
+    out = tmp_path / "camp"
+    argv = ["campaign", "--policy", "heuristic", "--task", "pcp", "--runs", "2", "--out", str(out)]
+    _refused([*argv, "--sizes", "3,4"], capsys, out, "--sizes: task 'pcp' has no team of 3 robots in U_test, U_scale")
+    _refused([*argv, "--sizes", "4,four"], capsys, out, "--sizes must be robot counts")
+    _refused([*argv, "--sizes", "4", "--sets", "U_test,U_nope"], capsys, out, "--sets must be distinct")
+    _refused(["campaign", "--policy", "heuristic", "--task", "pcp", "--sizes", "4", "--out", str(out)], capsys, out)
+    assert main(["campaign", "--policy", "heuristic", "--task", "pcp", "--sizes", "4", "--runs", "1"]) == 2
+    assert "needs --out" in capsys.readouterr().err
