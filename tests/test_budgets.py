@@ -68,6 +68,20 @@ def test_a_3_mb_result_file_fails(code_copy, tmp_path):
     assert _run(tree).returncode == 0
 
 
+def test_a_run_checkpoint_under_results_fails(code_copy, tmp_path):
+    """A kept run keeps its policy.pt; its checkpoint.pt (optimizer, critic, buffers) fails, whatever its size."""
+    tree = tmp_path / "t"
+    shutil.copytree(code_copy / "tools", tree / "tools")
+    run = tree / "results" / "study" / "runs" / "comat_pcp_s0"
+    run.mkdir(parents=True)
+    (run / "policy.pt").write_bytes(b"\0" * 1000)
+    assert _run(tree).returncode == 0
+    (run / "checkpoint.pt").write_bytes(b"\0" * 1000)
+    done = _run(tree)
+    assert done.returncode == 1
+    assert "FAIL results/study/runs/comat_pcp_s0/checkpoint.pt is a run's checkpoint" in done.stdout
+
+
 def test_results_over_100_mb_fail(code_copy, tmp_path):
     """51 files of 1.99 MB each (sparse: no disk used): each under the file budget, together over 100 MB."""
     tree = tmp_path / "t"

@@ -10,6 +10,7 @@ The budgets (numbers in ``tools/budgets.toml``, reasons in docs/contributing.md,
 =================  ==========================================================================
 results            the files under ``results/`` git tracks or would add weigh <= ``results_mb``
 large files        no such file anywhere weighs > ``file_mb`` unless ``[large_files]`` names it
+checkpoints        no comat ``checkpoint.pt`` under ``results/``: a kept run keeps its ``policy.pt``
 long functions     no function in ``comat/`` or ``sim2real/`` over ``function_lines`` lines
                    without a ``# long: <reason>`` comment on its def line or before its body
 duplicates         the ``duplicates`` tool lists <= ``duplicate_pairs`` pairs in ``comat/``
@@ -45,6 +46,8 @@ CODE_DIRS = ("comat", "sim2real")
 """Where the function-length budget holds."""
 LONG_MARK = re.compile(r"#\s*long:\s*\S")
 """The comment that lets a function be longer than the budget: ``# long: <reason>``."""
+CHECKPOINT_FILE = "checkpoint.pt"
+"""A comat run's checkpoint: never kept under results/ (its ``policy.pt`` is what acting needs)."""
 DUPLICATES_SECONDS = 120
 """How long the duplicates tool may take over comat/ (it takes about 2 s on 2 shared cores)."""
 
@@ -99,6 +102,12 @@ def check_sizes(root: Path, budgets: dict) -> list[str]:
             problems.append(
                 f"{name} weighs {size / MB:.1f} MB, over the {budgets['file_mb']} MB a file may weigh "
                 "(shrink it, or name it with a reason under [large_files] in tools/budgets.toml)"
+            )
+    for name in sizes:
+        if name.startswith("results/") and name.rsplit("/", 1)[-1] == CHECKPOINT_FILE:
+            problems.append(
+                f"{name} is a run's checkpoint (optimizer, critic, buffers: 4 to 26 times its policy): keep the run's "
+                "policy.pt instead (`comat policy RUN` makes it)"
             )
     for name in allowed:
         if name not in sizes:
