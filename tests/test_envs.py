@@ -242,15 +242,13 @@ def test_bad_actions():
 
 
 def _pixel(xy):
-    """(row, col) of arena point xy in a frame (comat.envs.render: arena axes under a 48 px header)."""
-    from comat import constants as C
-    from comat.envs.render import FRAME_SIZE
+    """(row, col) of arena point xy in a frame (comat.envs.render.arena_axes: the arena's axes and view)."""
+    from comat.envs.render import FRAME_SIZE, arena_axes
 
     h, w = FRAME_SIZE
-    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
-    pad = (X1 - X0) * 0.0625 / 2
-    col = (xy[0] - X0 + pad) / (X1 - X0 + 2 * pad) * w
-    row = 48 + (Y1 + pad / 1.6 - xy[1]) / (Y1 - Y0 + 2 * pad / 1.6) * (h - 48)
+    (left, bottom, width, height), (x0, x1, y0, y1) = arena_axes()
+    col = (left + (xy[0] - x0) / (x1 - x0) * width) * w
+    row = (1 - bottom - (xy[1] - y0) / (y1 - y0) * height) * h
     return int(row), int(col)
 
 

@@ -38,14 +38,20 @@ __all__ = [
     "TYPE_COLORS",
     "EpisodeFrames",
     "FrameState",
+    "arena_axes",
     "draw_frame",
 ]
 
 FRAME_SIZE = (448, 640)
-"""(H, W) of a frame in pixels: both multiples of 16 (what H.264 encoders want), the arena's
-3.2 × 2 m at 190 px/m below a 48 px header."""
+"""(H, W) of a frame in pixels: both multiples of 16 (what H.264 encoders want): a 48 px header,
+the arena's 3.2 × 2 m (with its walls and a thin margin) at 169 px/m, and a 40 px legend strip
+below it (:func:`arena_axes`)."""
 _DPI = 100
 _HEADER_PX = 48
+_LEGEND_PX = 40
+"""The strip under the arena that holds the legend, so that it hides no part of the arena."""
+_VIEW_PAD_M = 0.1
+"""Margin around the arena in the view (m), in x; y's is the same over 1.6 (room for the walls)."""
 
 TYPE_COLORS: dict[str, tuple[int, int, int]] = {k: v for e in TASKS.values() for k, v in e.logic.type_colors.items()}
 """Robot colour by type (RGB) of the tasks registered when this module loaded; frames and
@@ -128,16 +134,28 @@ def _figure():
     return fig
 
 
+def arena_axes() -> tuple[tuple[float, float, float, float], tuple[float, float, float, float]]:
+    """Where the arena sits in a frame: the axes' (left, bottom, width, height) as fractions of the
+    frame, and the view's (x0, x1, y0, y1) in m. The view keeps the arena's 3.2 × 2 m aspect (one
+    scale in x and y) in the height left between the header and the legend strip, centred in x."""
+    h, w = FRAME_SIZE
+    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
+    view = (X0 - _VIEW_PAD_M, X1 + _VIEW_PAD_M, Y0 - _VIEW_PAD_M / 1.6, Y1 + _VIEW_PAD_M / 1.6)
+    height_px = h - _HEADER_PX - _LEGEND_PX
+    width_px = height_px * (view[1] - view[0]) / (view[3] - view[2])
+    box = ((1 - width_px / w) / 2, _LEGEND_PX / h, width_px / w, height_px / h)
+    return box, view
+
+
 def draw_frame(state: FrameState, fig=None) -> np.ndarray:
     """The (H, W, 3) uint8 picture of ``state`` (:data:`FRAME_SIZE`); ``fig``: a figure to reuse."""
     fig = fig or _figure()
     fig.clear()
     h = FRAME_SIZE[0]
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0 - _HEADER_PX / h))
-    X0, X1, Y0, Y1 = C.ARENA_BOUNDS_M
-    pad = (X1 - X0) * 0.0625 / 2  # the axes' 1.6 aspect holds the arena plus its walls
-    ax.set_xlim(X0 - pad, X1 + pad)
-    ax.set_ylim(Y0 - pad / 1.6, Y1 + pad / 1.6)
+    box, (x0, x1, y0, y1) = arena_axes()
+    ax = fig.add_axes(box)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
     ax.set_aspect("auto")
     ax.set_axis_off()
     _draw_arena(ax)
@@ -151,15 +169,15 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
         now, mean = state.coordination
         text = f"{state.coordination_name} {now:.2f} (episode {mean:.2f})"
         fig.text(0.99, 1 - 6 / h, text, ha="right", va="top", fontsize=8, family="monospace")
-    _draw_legend(ax, state)
+    _draw_legend(fig, state)
     fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     assert rgba.shape[:2] == FRAME_SIZE, rgba.shape  # fixed figure size and dpi
     return np.ascontiguousarray(rgba[..., :3])
 
 
-def _draw_legend(ax, s: FrameState) -> None:
-    """What the marks mean, in a strip along the arena's bottom wall: the robot types present, then
+def _draw_legend(fig, s: FrameState) -> None:
+    """What the marks mean, in the strip under the arena (never over it): the robot types present, then
     the task's marks (item states, capability rings, the bar, any other entry of its legend, e.g. the
     kinds of its areas), the filter's ring and, under the reality layer, the measured-pose ghost."""
     from matplotlib.lines import Line2D
@@ -189,16 +207,18 @@ def _draw_legend(ax, s: FrameState) -> None:
     items.append(dot("red", "red ring: filter changed the command", size=9, fill=False))
     if s.measured is not None:
         items.append(Line2D([], [], color="#404040", ls="--", label="dashed: measured pose"))
-    ax.legend(
+    rows = -(-len(items) // 5)  # as few rows as five columns allow: three fit the strip at this size
+    fig.legend(
         handles=items,
         loc="lower center",
-        ncol=min(len(items), 4),
-        fontsize=6.5,
-        framealpha=0.85,
+        bbox_to_anchor=(0.5, 0.0),
+        ncol=-(-len(items) // rows),
+        fontsize=6.5 if rows < 3 else 5.5,
+        frameon=False,
         handletextpad=0.3,
         columnspacing=0.9,
-        borderpad=0.3,
-        labelspacing=0.25,
+        borderpad=0.2,
+        labelspacing=0.2,
     )
 
 
