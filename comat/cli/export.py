@@ -351,9 +351,10 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--tier",
         choices=TIERS,
-        default="wheels",
-        help="MuJoCo tier of --check's comparison (default: %(default)s: the reference next to the "
-        "Robotarium's own simulator)",
+        default="unicycle",
+        help="MuJoCo tier of --check's comparison (default: %(default)s, as comat replay's twin: the presets' "
+        "training tier, and the exact unicycle arc the Robotarium simulator integrates; wheels adds the motor "
+        "response, tyre creep and the layer's floor friction, mass and centre-of-mass components)",
     )
     p.add_argument(
         "--rps",

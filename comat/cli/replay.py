@@ -88,7 +88,12 @@ def add_replay_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("log", metavar="LOG", help="the run's log: its folder, or its comat_run.npy")
     p.add_argument("--export", required=True, metavar="DIR", help="the exported folder the run came from")
-    p.add_argument("--tier", choices=TIERS, default="unicycle", help="the twin's dynamics tier (default: %(default)s)")
+    p.add_argument(
+        "--tier",
+        choices=TIERS,
+        default="unicycle",
+        help="the twin's dynamics tier (default: %(default)s, as comat export --check: the presets' training tier)",
+    )
     add_reality(p)
     p.add_argument(
         "--seed",
