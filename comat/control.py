@@ -84,6 +84,26 @@ def waypoint_controller(
     return limit_to_wheels(dxi, poses, projection_distance, cos_sin=(c, s))
 
 
+def _resolve_subset(solve, A: np.ndarray, b: np.ndarray, u: np.ndarray, u_nom: np.ndarray, broken, tol: float):
+    """Re-solve only the robots that appear in the ``broken`` rows of ``A u <= b`` (u (2N,) a
+    team's command, stacked per robot), the others fixed at ``u``: min ‖v − v̂‖² over those robots
+    under every row that involves them (a row with fixed robots in it bounds the free ones by what
+    the fixed ones do). Returns the team's command (2N,) if the sub-problem is solved and the
+    result meets every row within ``tol``, else None."""
+    cols = np.flatnonzero(np.abs(A[broken]).sum(axis=0) > 0)
+    free = np.zeros(u.size, dtype=bool)
+    free[np.concatenate([2 * (cols // 2), 2 * (cols // 2) + 1])] = True
+    involved = np.abs(A[:, free]).sum(axis=1) > 0
+    A_free = A[involved][:, free]
+    b_free = b[involved] - A[involved][:, ~free] @ u[~free]
+    x, _ = solve(u_nom[free], A_free, b_free)
+    if x is None:
+        return None
+    out = u.copy()
+    out[free] = x
+    return out if np.all(A @ out <= b + tol) else None
+
+
 class CompiledRobotWatch(RobotWatch):
     """:class:`RobotWatch` with its judgement compiled (``comat.safety.kernels.watch_judgement``,
     the same bits); the deployed script keeps the numpy original. That judgement took 0.37 of the
@@ -199,6 +219,9 @@ class SafeTeams:
         self.fallbacks = np.zeros(len(sizes), np.int64)
         self.recoveries = np.zeros(len(sizes), np.int64)
         """Per team: ticks the filter changed a command, braked, recovered from outside the safe set."""
+        self.subset_solves = 0
+        """Team-ticks a robot on probation was handled by re-solving only the robots whose rows the
+        fast answer broke (:meth:`_watch_teams`)."""
         self.tie_break = DeadlockTieBreak(sum(sizes))
         """Per robot: the deadlock tie-break (keep right after 1 s held still)."""
         self.tick_observers: list[Callable[[np.ndarray, np.ndarray, TickEvents, SafetyInfo], None]] = []
@@ -372,19 +395,42 @@ class SafeTeams:
         return events, info
 
     def _watch_teams(self, dxi: np.ndarray, safe: np.ndarray, info: SafetyInfo) -> None:
-        """Teams with a robot on probation (:class:`RobotWatch`) take the portable filter's answer,
-        which treats that robot as an obstacle, in place of the fast filter's (``safe`` (R, 2))."""
+        """Teams with a robot on probation (:class:`RobotWatch`) must meet the portable filter's
+        rows, which treat that robot as an obstacle (``safe`` (R, 2), the fast filter's answer,
+        is changed in place where it does not). Cheapest first (issue 66: a false alarm must not
+        cost a whole team its fast path):
+
+        1. the fast answer meets every row: kept (no QP);
+        2. else only the robots in the rows it breaks are re-solved, the rest of the team kept at
+           its fast answer (their rows with the re-solved robots become bounds on those alone);
+           taken if the result meets every row of the team;
+        3. else the whole team through the portable filter (its softened problem, its brake).
+
+        Every command returned meets the same rows, so the promise is the portable filter's."""
         watch, lay = self.watch, self.world.layout
         watch.observe(self.reality.measured)
         if not watch.probation.any():
             return
         poses, extra = watch.obstacles()
+        tol = self.filter_config.feasibility_tol
+        portable = self._portable
         for b in np.unique(lay.robot_team[watch.probation]):
             rows = slice(lay.offsets[b], lay.offsets[b + 1])
-            failures, recoveries = self._portable.failures, self._portable.recoveries
-            safe[rows] = self._portable(poses[rows], dxi[rows], watch.probation[rows], extra[rows])
-            info.fallback[b] |= self._portable.failures > failures
-            info.recovery[b] |= self._portable.recoveries > recoveries
+            A, bound = portable.problem(poses[rows], watch.probation[rows], extra[rows])
+            u = safe[rows].ravel()
+            broken = A @ u > bound + tol
+            if not broken.any():
+                continue
+            sub = _resolve_subset(portable.solve, A, bound, u, dxi[rows].ravel(), broken, tol)
+            if sub is not None:
+                safe[rows] = sub.reshape(-1, 2)
+                info.intervention[b] = np.linalg.norm(safe[rows] - dxi[rows])
+                self.subset_solves += 1
+                continue
+            failures, recoveries = portable.failures, portable.recoveries
+            safe[rows] = portable(poses[rows], dxi[rows], watch.probation[rows], extra[rows])
+            info.fallback[b] |= portable.failures > failures
+            info.recovery[b] |= portable.recoveries > recoveries
             info.intervention[b] = np.linalg.norm(safe[rows] - dxi[rows])
 
     def tick_deployed(self, dxi: np.ndarray) -> tuple[TickEvents, DeployedInfo]:

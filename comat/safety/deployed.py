@@ -484,9 +484,51 @@ class PortableBarrier:
         self.recoveries = 0
 
     def __call__(
-        self, poses: np.ndarray, u_nom: np.ndarray, probation: np.ndarray | None = None, extra: np.ndarray | None = None
+        self,
+        poses: np.ndarray,
+        u_nom: np.ndarray,
+        probation: np.ndarray | None = None,
+        extra: np.ndarray | None = None,
+        candidate: np.ndarray | None = None,
+        tol: float = 0.0,
     ) -> np.ndarray:
-        """Filtered point velocities (N, 2) for poses (N, 3) and nominal ones (N, 2)."""
+        """Filtered point velocities (N, 2) for poses (N, 3) and nominal ones (N, 2).
+
+        ``candidate`` (N, 2), e.g. the answer of a filter that trusted every robot: returned as it
+        is when it meets every row (within ``tol``), so no QP is solved. It is then a command this
+        problem admits — safe by the same rows — and, where the problem's set lies inside the
+        candidate's own problem's (the split pair rows imply the cooperative ones), its optimum."""
+        n = poses.shape[0]
+        A, b = self.problem(poses, probation, extra)
+        u0 = u_nom.ravel().astype(float)
+        if np.all(A @ u0 <= b):  # the nominal command meets every row: it is the optimum
+            return u_nom.reshape(n, 2).astype(float)
+        if candidate is not None and np.all(A @ candidate.ravel() <= b + tol):
+            return candidate.reshape(n, 2).astype(float)
+        u, _ = self.solve(u0, A, b)
+        if u is None:  # outside the safe set: relax the pair and wall rows (the last 4n rows are the wheels')
+            soft = A.shape[0] - 4 * n
+            m = A.shape[0]
+            relaxed = np.hstack([A, np.vstack([-np.eye(soft), np.zeros((m - soft, soft))])])
+            positive = np.hstack([np.zeros((soft, 2 * n)), -np.eye(soft)])
+            z, _ = self.solve(
+                np.concatenate([u0, np.zeros(soft)]),
+                np.vstack([relaxed, positive]),
+                np.concatenate([b, np.zeros(soft)]),
+                np.concatenate([np.ones(2 * n), np.full(soft, SLACK_WEIGHT)]),
+            )
+            if z is None:
+                self.failures += 1
+                return np.zeros((n, 2))
+            self.recoveries += 1
+            u = z[: 2 * n]
+        return u.reshape(n, 2)
+
+    def problem(
+        self, poses: np.ndarray, probation: np.ndarray | None = None, extra: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The rows ``A u <= b`` (u stacked per robot: x0, y0, x1, ...) for poses (N, 3): pair rows,
+        wall rows, then the 4N wheel rows last."""
         s, n = self.s, poses.shape[0]
         probation = np.zeros(n, dtype=bool) if probation is None else probation
         extra = np.zeros(n) if extra is None else extra
@@ -535,27 +577,7 @@ class PortableBarrier:
                 wheel[row, 2 * rr], wheel[row, 2 * rr + 1] = sign * a, sign * b
         rows.append(wheel)
         bounds.append(np.full(4 * n, v_w))
-        A, b, u0 = np.vstack(rows), np.concatenate(bounds), u_nom.ravel().astype(float)
-        if np.all(A @ u0 <= b):  # the nominal command meets every row: it is the optimum
-            return u_nom.reshape(n, 2).astype(float)
-        u, _ = self.solve(u0, A, b)
-        if u is None:  # outside the safe set: relax the pair and wall rows (the last 4n rows are the wheels')
-            soft = A.shape[0] - 4 * n
-            m = A.shape[0]
-            relaxed = np.hstack([A, np.vstack([-np.eye(soft), np.zeros((m - soft, soft))])])
-            positive = np.hstack([np.zeros((soft, 2 * n)), -np.eye(soft)])
-            z, _ = self.solve(
-                np.concatenate([u0, np.zeros(soft)]),
-                np.vstack([relaxed, positive]),
-                np.concatenate([b, np.zeros(soft)]),
-                np.concatenate([np.ones(2 * n), np.full(soft, SLACK_WEIGHT)]),
-            )
-            if z is None:
-                self.failures += 1
-                return np.zeros((n, 2))
-            self.recoveries += 1
-            u = z[: 2 * n]
-        return u.reshape(n, 2)
+        return np.vstack(rows), np.concatenate(bounds)
 
 
 class ShippedFilter:
