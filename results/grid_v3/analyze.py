@@ -7,7 +7,8 @@ Run folders are ``<algo>_<task>_<trained reality>_s<seed>[_1000k]`` with ``evalu
 (reality off) and ``evaluation_unicycle_nominal.json``. A seed's value on a set is the mean over its
 coalitions of each coalition's episode mean; everything over seeds is a Student-t or Welch
 statement over those per-seed values. Cells a plan names that have no runs yet are listed, not
-skipped silently.
+skipped silently. The last section, the verdict in numbers, is worded by ``grid_v3_sentences.py``
+from the numbers computed here (``FACTS``); the by-team-size section (issue 68) is descriptive.
 """
 
 from __future__ import annotations
@@ -16,14 +17,17 @@ import math
 import re
 import sys
 from collections import defaultdict
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parents[1]))
+sys.path[:0] = [str(HERE.parents[1]), str(HERE)]
+from grid_v3_sentences import verdict_text
+
 from comat.measure.metrics import read_results
-from comat.measure.stats import per_seed_means, t_interval, welch
+from comat.measure.stats import holm, per_seed_means, t_interval, welch
 
 NAME = re.compile(
     r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
@@ -39,10 +43,13 @@ SETS = {
 }
 SESOI = 10.0
 """Smallest effect of interest, progress points."""
+LEVEL = SESOI / 5
+"""A per-team-size difference within ±LEVEL points is called level (descriptive, not a test)."""
 ALPHA = 0.05
 LEVELS = {"off": "evaluation_unicycle.json", "nominal": "evaluation_unicycle_nominal.json"}
 FACTS: dict = {"adjusted_gap": {}}
-"""The numbers the generated verdict (:func:`verdict_text`) quotes, filled as the sections are made."""
+"""The numbers the generated verdict (``grid_v3_sentences.verdict_text``) quotes, filled as the
+sections are made; a secondary test is there with both readings (:func:`readings`)."""
 
 
 def seed_value(row: dict, key: str) -> float:
@@ -72,7 +79,7 @@ def load(folder: Path) -> dict:
         for level, file in LEVELS.items():
             if not (run / file).is_file():
                 continue
-            data = read_results(run / file)
+            data = _evaluation(run / file)
             for row in data["rows"]:
                 if row["policy"] != m["algo"]:
                     continue
@@ -80,6 +87,12 @@ def load(folder: Path) -> dict:
                     cell = (m["algo"], m["task"], m["trained"], int(m["k"] or 300), level, row["set"], key)
                     table[cell][int(m["seed"])] = seed_value(row, key)
     return table
+
+
+@cache
+def _evaluation(path: Path) -> dict:
+    """An evaluation file with its per-episode detail, read once per run (load and by_size share it)."""
+    return read_results(path)
 
 
 def hedges_g(a: np.ndarray, b: np.ndarray) -> float:
@@ -108,14 +121,14 @@ def verdict(c: dict, p_adjusted: float) -> str:
     return "inconclusive"
 
 
-def holm(ps: list[float]) -> list[float]:
-    """Holm-adjusted p-values, in the given order."""
-    order = sorted(range(len(ps)), key=lambda i: ps[i])
-    out, running = [math.nan] * len(ps), 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (len(ps) - rank) * ps[i]))
-        out[i] = running
-    return out
+def readings(c: dict, p_holm: float, key: str = "progress") -> dict:
+    """A secondary test read both ways: by the plan's rule on its unadjusted p (``plan``) and on its
+    Holm-adjusted p (``after_holm``). Progress has the plan's three verdicts; the timing endpoints
+    (AUC, steps to 90 %) have no smallest effect, only separated or not."""
+    if key == "progress":
+        return {"c": c, "holm": p_holm, "plan": verdict(c, c["p"]), "after_holm": verdict(c, p_holm)}
+    plan, after = (("p < 0.05" if p < ALPHA else "not separated") for p in (c["p"], p_holm))
+    return {"c": c, "holm": p_holm, "plan": plan, "after_holm": after}
 
 
 def _fmt(c: dict, unit: str = "") -> str:
@@ -186,9 +199,10 @@ def secondary(table: dict) -> list[str]:
     adjusted = holm([c["p"] if not math.isnan(c["p"]) else 1.0 for *_, c in found])
     for (task, s, key, other, c), p in zip(found, adjusted):
         unit = " steps" if key == "time_to_90" else ""
-        v = verdict(c, c["p"]) if key == "progress" else ("p < 0.05" if c["p"] < ALPHA else "not separated")
-        lines.append(f"| {task.upper()} | {SETS[s]} | {key} | {other.upper()} | {_fmt(c, unit)} | {p:.3f} | {v} |")
-    FACTS["secondary_holm"] = {(t, s, k, o): (c, p) for (t, s, k, o, c), p in zip(found, adjusted)}
+        r = FACTS.setdefault("secondary", {})[(task, s, key, other)] = readings(c, p, key)
+        lines.append(
+            f"| {task.upper()} | {SETS[s]} | {key} | {other.upper()} | {_fmt(c, unit)} | {p:.3f} | {r['plan']} |"
+        )
     return lines + [""]
 
 
@@ -227,7 +241,7 @@ def reality(table: dict) -> list[str]:
     }
     gap_tests = {k: c for k, c in gap_tests.items() if c is not None}
     gap_holm = dict(zip(gap_tests, holm([c["p"] if not math.isnan(c["p"]) else 1.0 for c in gap_tests.values()])))
-    FACTS["gap_tests"] = {k: (c, gap_holm[k]) for k, c in gap_tests.items()}
+    FACTS["gap_tests"] = {k: readings(c, gap_holm[k]) for k, c in gap_tests.items()}
     for task in ("hmt", "pcp"):
         for s, name in SETS.items():
             c = gap_tests.get((task, s))
@@ -239,6 +253,7 @@ def reality(table: dict) -> list[str]:
                     table.get((algo, task, "off", 300, "nominal", s, "progress"), {}),
                 )
                 if c is not None:
+                    FACTS.setdefault("recover", {})[(task, s, algo)] = c
                     lines.append(f"| {task.upper()} | {name} | {algo.upper()}: trained nominal − off | {_fmt(c)} | |")
     return lines + [""] + adjusted_gap(table)
 
@@ -407,86 +422,61 @@ def exploratory(table: dict) -> list[str]:
     return lines + [""]
 
 
-def _p(p: float) -> str:
-    return f"{p:.3f}" if p >= 0.001 else "< 0.001"
+PRIMARY_SETS = ("size", "scale")
+FIGURE_SETS = ("train", "test", "scale", "size")
+"""The sets ``fig6_team_size.png`` pools (comat.eval.figures.SIZE_SETS)."""
 
 
-def verdict_text() -> list[str]:
-    """The verdict's numbers as sentences, for results/README.md and grid_v3/README.md to quote
-    (a test keeps results/README.md's block equal to this): generated, not typed."""
-    F = FACTS
-    out = ["## The verdict in numbers (generated by `analyze.py`; quoted in `results/README.md`)", ""]
-    if "primary" in F:
-        (cs, ps), (cc, pc) = F["primary"]["size"], F["primary"]["scale"]
-        sd = {k: (c["a"].std(ddof=1), c["b"].std(ddof=1)) for k, (c, _) in F["primary"].items()}
-        out.append(
-            f"* **Primary (planned; 300 k, `off`).** HMT progress, COMAT − MAT: U_size {cs['diff']:+.1f} "
-            f"[95 %: {cs['lo']:+.1f}, {cs['hi']:+.1f}] ({cs['a'].mean():.1f} % vs {cs['b'].mean():.1f} %, "
-            f"{cs['a'].size} vs {cs['b'].size} seeds, p = {_p(cs['p'])}, Holm {_p(ps)}); U_scale {cc['diff']:+.1f} "
-            f"[{cc['lo']:+.1f}, {cc['hi']:+.1f}] ({cc['a'].mean():.1f} % vs {cc['b'].mean():.1f} %, p = {_p(cc['p'])}, "
-            f"Holm {_p(pc)}). Both 90 % intervals lie inside ±{SESOI:g}: no difference of {SESOI:g} points or more; "
-            f"the point estimates favour MAT. Seed SDs: COMAT {sd['size'][0]:.2f} (U_size) and {sd['scale'][0]:.2f} "
-            f"(U_scale), MAT {sd['size'][1]:.2f} and {sd['scale'][1]:.2f}; the 95 % intervals' half-widths are "
-            f"{(cs['hi'] - cs['lo']) / 2:.1f} and {(cc['hi'] - cc['lo']) / 2:.1f} points."
-        )
-    sec = F.get("secondary_holm", {})
-    if ("pcp", "capability", "progress", "mat") in sec:
-        (c, p), (ch, _) = sec[("pcp", "capability", "progress", "mat")], sec[("hmt", "capability", "progress", "mat")]
-        out.append(
-            f"* **Secondary — capability (planned, 300 k, `off`).** HMT U_cap {ch['diff']:+.1f} [{ch['lo']:+.1f}, "
-            f"{ch['hi']:+.1f}] (p = {_p(ch['p'])}); PCP U_cap {c['diff']:+.1f} [{c['lo']:+.1f}, {c['hi']:+.1f}], "
-            f"p = {_p(c['p'])} unadjusted, Holm over the {len(sec)} secondary tests {_p(p)}: no detectable difference "
-            f"once adjusted, and both 90 % intervals lie inside ±{SESOI:g}."
-        )
-    gaps, adj = F.get("gap_tests", {}), F["adjusted_gap"]
-    if ("hmt", "size") in gaps and ("hmt", "scale") in gaps:
-        (gs, hs), (gc, hc) = gaps[("hmt", "size")], gaps[("hmt", "scale")]
-        a_s, a_c = adj[("hmt", "size")], adj[("hmt", "scale")]
-        at = F.get("at_1m", {})
-        gap_1m = ""
-        if ("off", "scale", "progress") in at and ("nominal", "scale", "progress") in at:
-            off1, nom1 = at[("off", "scale", "progress")], at[("nominal", "scale", "progress")]
-            gap_1m = (
-                f" At 1 M (exploratory, 3 seeds) the U_scale gaps are {nom1['a'].mean() - off1['a'].mean():+.1f} "
-                f"(COMAT) and {nom1['b'].mean() - off1['b'].mean():+.1f} (MAT)."
-            )
-        out.append(
-            f"* **Secondary — the reality gap (planned, 300 k).** COMAT's gap − MAT's on HMT: U_size "
-            f"{gs['diff']:+.1f} (p = {_p(gs['p'])}, Holm over the {len(gaps)} gap tests {_p(hs)}), U_scale "
-            f"{gc['diff']:+.1f} (p = {_p(gc['p'])}, Holm {_p(hc)}): not detectable once adjusted. Weaker policies lose "
-            f"more at `nominal` (r = {a_s['r']:+.2f} and {a_c['r']:+.2f} between a seed's `off` progress and its "
-            f"gap); at equal `off` competence COMAT's extra gap is {a_s['b']:+.1f} [{a_s['lo']:+.1f}, {a_s['hi']:+.1f}] "
-            f"(p = {_p(a_s['p'])}) and {a_c['b']:+.1f} [{a_c['lo']:+.1f}, {a_c['hi']:+.1f}] (p = {_p(a_c['p'])}) "
-            f"(exploratory).{gap_1m}"
-        )
-    budget_all, at = F.get("budget_all", {}), F.get("at_1m", {})
-    if ("mat", "capability", "progress") in budget_all and ("off", "capability", "finished") in at:
-        mb, mt = budget_all[("mat", "capability", "progress")], budget_all[("mat", "test", "progress")]
-        cb, ct = budget_all[("comat", "capability", "progress")], budget_all[("comat", "test", "progress")]
-        ft, fc = at[("off", "train", "finished")], at[("off", "capability", "finished")]
-        sz, sc = at[("off", "size", "progress")], at[("off", "scale", "progress")]
-        out.append(
-            f"* **Exploratory — 1 M env steps (HMT, 3 seeds, one final checkpoint each).** MAT falls on U_cap from "
-            f"{mb[0]:.1f} to {mb[1]:.1f} % progress (per seed {', '.join(f'{x:+.0f}' for x in mb[2])} points) and on "
-            f"U_test from {mt[0]:.1f} to {mt[1]:.1f}, while COMAT holds ({cb[1]:.1f} and {ct[1]:.1f}); COMAT − MAT "
-            f"finished share at 1 M: U_train {ft['diff']:+.1f} points (p = {_p(ft['p'])}), U_cap {fc['diff']:+.1f} "
-            f"(p = {_p(fc['p'])}), unadjusted. On the primary sets at 1 M: U_size {sz['a'].mean():.1f} vs "
-            f"{sz['b'].mean():.1f} % (COMAT ahead by {sz['diff']:.1f}), U_scale {sc['a'].mean():.1f} vs "
-            f"{sc['b'].mean():.1f}. The only result that points the paper's way; MAT's periodic evaluations swing "
-            f"by several points late in training, so one final checkpoint per seed is a noisy read."
-        )
-    lv = F.get("at_level", {})
-    keys = [("nominal", "hmt", "size", "progress", "mat"), ("nominal", "hmt", "scale", "progress", "mat")]
-    keys += [("off", "hmt", "scale", "finished", "mappo")]
-    if all(k in lv for k in keys):
-        ns, nc, mf = (lv[k] for k in keys)
-        out.append(
-            f"* **Exploratory — what the plan did not test (300 k, unadjusted).** At `nominal` COMAT is below MAT on "
-            f"HMT U_size ({ns['diff']:+.1f}, p = {_p(ns['p'])}) and U_scale ({nc['diff']:+.1f}, p = {_p(nc['p'])}); "
-            f"MAPPO with 20 slots finishes more large HMT teams than COMAT (U_scale finished share "
-            f"{mf['diff']:+.1f} points at `off`, p = {_p(mf['p'])})."
-        )
-    return out + [""]
+def size_cells(folder: Path, algo: str, sets: tuple[str, ...]) -> tuple[dict, dict]:
+    """HMT progress by team size, trained and evaluated at `off`, 300 k: ({size: {seed: %}},
+    {size: coalitions}): a seed's value at a size is the mean over its coalitions of that size in
+    ``sets`` of each coalition's episode mean (the figure's per-seed point)."""
+    values: dict[int, dict[int, float]] = defaultdict(dict)
+    counts: dict[int, int] = {}
+    for run in sorted(p for p in folder.iterdir() if p.is_dir()):
+        m = NAME.match(run.name)
+        file = run / LEVELS["off"]
+        if not m or (m["algo"], m["task"], m["trained"], m["k"]) != (algo, "hmt", "off", None) or not file.is_file():
+            continue
+        if not (run / "summary.json").is_file():
+            continue
+        cells: dict[int, dict[tuple, list[float]]] = defaultdict(lambda: defaultdict(list))
+        for row in _evaluation(file)["rows"]:
+            if row["policy"] == algo and row["set"] in sets:
+                for e in row["per_episode"]:
+                    cells[int(e["team_size"])][(row["set"], e["coalition"])].append(float(e["progress"]))
+        for n, coalitions in cells.items():
+            values[n][int(m["seed"])] = 100 * float(np.mean([np.mean(v) for v in coalitions.values()]))
+            counts[n] = len(coalitions)
+    return values, counts
+
+
+def by_team_size(folder: Path) -> list[str]:
+    """COMAT − MAT per team size on the primary sets (descriptive: one unadjusted Welch test per
+    size, read as a profile, not as findings), beside the figure's pooling."""
+    prim, counts = size_cells(folder, "comat", PRIMARY_SETS)
+    mat, _ = size_cells(folder, "mat", PRIMARY_SETS)
+    fig = {a: size_cells(folder, a, FIGURE_SETS)[0] for a in ("comat", "mat")}
+    lines = [
+        "## By team size (descriptive; HMT progress, COMAT − MAT, 300 k, trained and evaluated at `off`)",
+        "",
+        (
+            "Per seed: the mean over its coalitions of that size (each its 5 episodes' mean) on U_size and U_scale "
+            "pooled, the primary sets; Welch over seeds, unadjusted, one test per size. The last column pools "
+            "U_train and U_test too, as `fig6_team_size.png` does."
+        ),
+        "",
+        "| robots | coalitions | " + HEAD.removeprefix("| ") + " fig. 6's sets: A − B [95 %] |",
+        "|" + "---|" * 12,
+    ]
+    for n in sorted(set(prim) & set(mat)):
+        c, f = compare(prim[n], mat[n]), compare(fig["comat"].get(n, {}), fig["mat"].get(n, {}))
+        if c is None:
+            continue
+        FACTS.setdefault("by_size", {})[n] = (c, f)
+        pooled = "—" if f is None else f"{f['diff']:+.1f} [{f['lo']:+.1f}, {f['hi']:+.1f}]"
+        lines.append(f"| {n} | {counts[n]} | {_fmt(c)} | {pooled} |")
+    return [*lines, ""]
 
 
 def missing(folder: Path) -> list[str]:
@@ -520,10 +510,11 @@ def main(folder: Path = HERE / "runs") -> None:
         secondary(table),
         reality(table),
         budget(table),
+        by_team_size(folder),
         exploratory(table),
     ):
         print("\n".join(part))
-    print("\n".join(verdict_text()))
+    print("\n".join(verdict_text(FACTS, SESOI, LEVEL)))
 
 
 if __name__ == "__main__":
