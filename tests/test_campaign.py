@@ -127,29 +127,35 @@ def csv_rows(path: Path):
         yield from csv.DictReader(fh)
 
 
+def _hold(data: np.ndarray, n: int, robots, rows: slice, column: int, speed: float) -> np.ndarray:
+    """Robots ``robots`` kept at their pose of the first row of ``rows`` while the command column
+    ``column`` (5: v as sent, 3: v before the filter) reads ``speed``."""
+    data = data.copy()
+    for i in robots:
+        for col in range(3):
+            data[rows, 3 + col * n + i] = data[rows.start, 3 + col * n + i]
+        data[rows, 3 + column * n + i] = speed
+    return data
+
+
 def test_freezes_timeouts_and_crashes_are_read_from_a_run(campaign):
     camp, returned = campaign
     log = read_run_log(str(returned / "pcp_n04_r01"))
-    assert log_freezes(log) == [] and log_collisions(log.poses)["pair_iterations"] == 0
-    data = log.data.copy()
-    n, rows = log.n, slice(40, 100)
-    for col in range(3):  # robot 2 stays where it was at iteration 40 while sent 0.1 m/s
-        data[rows, 3 + col * n + 2] = data[40, 3 + col * n + 2]
-    data[rows, 3 + 5 * n + 2] = 0.1
-    frozen = log_freezes(RunLog(log.meta, data))
-    # a window is frozen where its two ends lie < 5 mm apart: it may start a little before the stop
-    assert [f["robot"] for f in frozen] == [2] and 35 <= frozen[0]["first_iteration"] <= 40
-    assert 60 * 0.033 - 1e-9 <= frozen[0]["frozen_s"] <= 65 * 0.033
+    assert log_freezes(log) == {"robots": [], "team": None} and log_collisions(log.poses)["pair_iterations"] == 0
+    n, rows = log.n, slice(40, 160)  # 120 iterations: 4 s, a 3-s window fits 30 times
+    # robot 2 sent 0.1 m/s (0.3 m per 3 s) stays where it was: stuck
+    stuck = log_freezes(RunLog(log.meta, _hold(log.data, n, [2], rows, 5, 0.1)))
+    assert [f["robot"] for f in stuck["robots"]] == [2] and 30 <= stuck["robots"][0]["first_iteration"] <= 40
+    assert 119 * 0.033 <= stuck["robots"][0]["seconds"] <= 130 * 0.033 and stuck["team"] is None
+    # every robot asks for 0.1 m/s before the filter, none is sent anything and none moves: the team is held
+    held = _hold(_hold(log.data, n, range(n), rows, 3, 0.1), n, range(n), rows, 5, 0.0)
+    team = log_freezes(RunLog(log.meta, held))
+    assert team["robots"] == [] and team["team"]["robots"] == [0, 1, 2, 3]
+    assert 30 <= team["team"]["first_iteration"] <= 40 and team["team"]["seconds"] >= 119 * 0.033
     entry = read_manifest(camp / "manifest.json")["folders"][3]
     cut = RunLog({k: v for k, v in log.meta.items() if k != "result"}, log.data[:150])
-    run = {
-        "entry": entry,
-        "log": cut,
-        "log_error": None,
-        "missing": [],
-        "stdout": "Traceback (most recent call last):\n",
-    }
-    run["stdout"] += "  File main.py\nKeyboardInterrupt\n"
+    stdout = "Traceback (most recent call last):\n  File main.py\nKeyboardInterrupt\n"
+    run = {"entry": entry, "log": cut, "log_error": None, "missing": [], "stdout": stdout}
     kinds = {f["kind"]: f["detail"] for f in run_failures(run)}
     assert set(kinds) == {"crash", "timeout"}
     assert kinds["crash"].endswith("KeyboardInterrupt") and "stops at iteration 150" in kinds["timeout"]

@@ -18,7 +18,9 @@ Per run                its failures (:func:`run_failures`): missing files, an un
                        without result: interrupted), a run within 10 % of its declared time,
                        collisions (the Robotarium's test on the logged poses: centres offset
                        0.025 m forward closer than 0.135 m; and rps's own count), boundary
-                       errors, freezes (a robot sent >= 0.02 m/s for 1 s that moved < 5 mm);
+                       errors, freezes (:func:`log_freezes`: a robot sent 0.15 m of motion
+                       in 3 s that moved < 2 cm; a team whose robots that wanted to move all
+                       stood still for 3 s);
                        its replay beside its twin (:func:`comat.eval.replay.replay`, layer seed
                        = the run's index): ``OUT/runs/<folder>/replay.rrd`` and its tables
 Per team size          the paired sim/real table: for progress, return, steps and finished the
@@ -54,8 +56,8 @@ from comat.runlog import LOG_FILE, META_FILE, RunLog, RunLogError, read_run_log
 from sim2real.check import duration_warning
 
 __all__ = [
-    "FREEZE_MIN_MOVE_M",
-    "FREEZE_SPEED_MPS",
+    "FREEZE_INTENT_M",
+    "FREEZE_MOVE_M",
     "FREEZE_WINDOW_S",
     "QUANTITIES",
     "RETURNED_MEDIA",
@@ -75,11 +77,14 @@ LEFTOVER = f"{META_FILE}.tmp.npy"
 """The metadata's temporary file (:class:`comat.runlog.RunLogWriter`), left by a run stopped mid-save."""
 QUANTITIES = ("progress", "return", "steps", "finished")
 """Task metrics of the paired table (the log's result against the twin's)."""
-FREEZE_WINDOW_S = 1.0
-"""A robot is frozen where it was sent at least FREEZE_SPEED_MPS for this long and did not move."""
-FREEZE_SPEED_MPS = 0.02
-FREEZE_MIN_MOVE_M = 0.005
-"""Less than this over the window counts as not moving (a quarter of the slowest command's 0.02 m)."""
+FREEZE_WINDOW_S = 3.0
+"""Freezes are judged over every window this long (the safety battery's team freeze: 91 ticks)."""
+FREEZE_MOVE_M = 0.02
+"""A robot whose logged position moved less than this over a window stood still (as the battery)."""
+FREEZE_INTENT_M = 0.15
+"""Commands worth this much motion over a window (0.05 m/s on average, above ``nominal``'s dead
+zone of 0.03 m/s) mean the robot was meant to move: measured on 10 stand-in runs under ``nominal``
+(PCP, 2-8 robots), commands sent over 3 s outran the logged motion by at most 0.11 m, at a reversal."""
 COLLISION_DISTANCE_M = 0.135
 """The Robotarium's collision test: offset centres (COLLISION_OFFSET_M ahead) closer than this."""
 _CHUNK_ROWS = 2048
@@ -183,30 +188,57 @@ def log_collisions(poses: np.ndarray) -> dict:
     return out
 
 
-def log_freezes(log: RunLog) -> list[dict]:
-    """Robots sent at least FREEZE_SPEED_MPS for FREEZE_WINDOW_S whose logged position moved less
-    than FREEZE_MIN_MOVE_M over it: per such robot ``{"robot", "first_iteration", "frozen_s"}``
-    (the iterations inside any frozen window)."""
+def _window_sums(x: np.ndarray, w: int) -> np.ndarray:
+    """Sums of ``w`` consecutive rows of ``x`` (K, ...): (K - w + 1, ...), row k summing rows k … k + w - 1."""
+    c = np.concatenate([np.zeros((1, *x.shape[1:])), np.cumsum(x, axis=0)])
+    return c[w:] - c[:-w]
+
+
+def _covered(windows: np.ndarray, w: int, rows: int) -> np.ndarray:
+    """(rows, ...) True where a row lies inside a window (K - w + 1, ...) that is True."""
+    edges = np.zeros((rows + 1, *windows.shape[1:]), dtype=np.int64)
+    edges[: len(windows)] += windows
+    edges[w : w + len(windows)] -= windows
+    return np.cumsum(edges, axis=0)[:-1] > 0
+
+
+def log_freezes(log: RunLog) -> dict:
+    """Freezes in a run's log, over every window of FREEZE_WINDOW_S (module docstring):
+
+    * ``"robots"``: per robot sent commands that would move it at least FREEZE_INTENT_M (the sent
+      speeds integrated along its logged heading) over a window in which its logged position moved
+      less than FREEZE_MOVE_M: stuck, or not tracked; ``{"robot", "first_iteration", "seconds"}``;
+    * ``"team"``: windows in which at least one robot wanted to move (its commands before the
+      filter worth FREEZE_INTENT_M) and every such robot moved less than FREEZE_MOVE_M (the filter
+      held them: a deadlock, the bench's team freeze); ``{"first_iteration", "robots", "seconds"}``
+      or None.
+    """
     w = round(FREEZE_WINDOW_S / C.CONTROL_DT_S)
-    if len(log.t) < w:
-        return []
-    speed = np.abs(log.sent[..., 0])  # (K, N) forward speed as sent
-    sent = np.lib.stride_tricks.sliding_window_view(speed, w, axis=0).min(axis=-1) >= FREEZE_SPEED_MPS
+    rows = len(log.t)
+    if rows < w:
+        return {"robots": [], "team": None}
+    heading = log.poses[..., 2].astype(float)
+    ahead = np.stack([np.cos(heading), np.sin(heading)], axis=-1) * C.CONTROL_DT_S  # (K, N, 2)
+    sent = np.linalg.norm(_window_sums(log.sent[..., :1] * ahead, w), axis=-1)  # (K - w + 1, N) m
+    wanted = np.linalg.norm(_window_sums(log.nominal[..., :1] * ahead, w), axis=-1)
     xy = log.poses[..., :2].astype(float)
-    moved = np.linalg.norm(xy[w - 1 :] - xy[: len(xy) - w + 1], axis=-1)
-    frozen = sent & (moved < FREEZE_MIN_MOVE_M)  # (K - w + 1, N): windows starting at each row
-    edges = np.zeros((len(log.t) + 1, log.n), dtype=np.int64)
-    edges[: len(frozen)] += frozen
-    edges[w : w + len(frozen)] -= frozen
-    covered = np.cumsum(edges, axis=0)[:-1] > 0  # (K, N) rows inside a frozen window
-    return [
-        {
-            "robot": int(i),
-            "first_iteration": int(np.flatnonzero(frozen[:, i])[0]),
-            "frozen_s": float(covered[:, i].sum() * C.CONTROL_DT_S),
-        }
-        for i in np.flatnonzero(frozen.any(axis=0))
+    still = np.linalg.norm(xy[w - 1 :] - xy[: rows - w + 1], axis=-1) < FREEZE_MOVE_M
+    stuck = (sent >= FREEZE_INTENT_M) & still
+    robot_s = _covered(stuck, w, rows).sum(axis=0) * C.CONTROL_DT_S
+    robots = [
+        {"robot": int(i), "first_iteration": int(np.flatnonzero(stuck[:, i])[0]), "seconds": float(robot_s[i])}
+        for i in np.flatnonzero(stuck.any(axis=0))
     ]
+    movers = wanted >= FREEZE_INTENT_M
+    team = movers.any(axis=1) & (still | ~movers).all(axis=1)  # (K - w + 1,)
+    if not team.any():
+        return {"robots": robots, "team": None}
+    k = int(np.flatnonzero(team)[0])
+    seconds = float(_covered(team, w, rows).sum() * C.CONTROL_DT_S)
+    return {
+        "robots": robots,
+        "team": {"first_iteration": k, "robots": np.flatnonzero(movers[k]).tolist(), "seconds": seconds},
+    }
 
 
 def run_failures(run: dict) -> list[dict]:
@@ -252,13 +284,24 @@ def run_failures(run: dict) -> list[dict]:
                 f"{COLLISION_DISTANCE_M} m){where}; rps reported {rps_collisions}",
             }
         )
-    for f in log_freezes(log) if log is not None else []:
+    frozen = log_freezes(log) if log is not None else {"robots": [], "team": None}
+    for f in frozen["robots"]:
         fails.append(
             {
-                "kind": "freeze",
-                "detail": f"robot {f['robot']} sent >= {FREEZE_SPEED_MPS} m/s but moved < "
-                f"{1000 * FREEZE_MIN_MOVE_M:.0f} mm per {FREEZE_WINDOW_S:g} s from iteration {f['first_iteration']}, "
-                f"{f['frozen_s']:.1f} s in all",
+                "kind": "freeze (robot)",
+                "detail": f"robot {f['robot']} was sent >= {FREEZE_INTENT_M} m of motion per {FREEZE_WINDOW_S:g} s but "
+                f"moved < {FREEZE_MOVE_M} m, from iteration {f['first_iteration']} ({f['seconds']:.1f} s in all): "
+                "stuck, or not tracked",
+            }
+        )
+    if frozen["team"] is not None:
+        f = frozen["team"]
+        fails.append(
+            {
+                "kind": "freeze (team)",
+                "detail": f"every robot that wanted to move ({f['robots']}) moved < {FREEZE_MOVE_M} m per "
+                f"{FREEZE_WINDOW_S:g} s from iteration {f['first_iteration']} ({f['seconds']:.1f} s in all): held "
+                "still (a deadlock)",
             }
         )
     return fails
