@@ -89,6 +89,13 @@ def save(fig, stem: Path) -> list[str]:
     return names
 
 
+def save_captioned(fig, stem: Path, caption: str) -> list[str]:
+    """:func:`save` with ``caption`` in small type under the panels (what the marks, bars and bands are)."""
+    fig.text(0.01, -0.01, caption, fontsize=7, ha="left", va="top", wrap=True)
+    fig.tight_layout()
+    return save(fig, stem)
+
+
 def clipped_err(values, halves, top: float = 100.0) -> np.ndarray:
     """(2, n) lower and upper error-bar lengths of ``values ± halves`` cut to [0, top]: a share's
     interval stays inside its range, as the tables print it (nan: no bar)."""
@@ -177,18 +184,12 @@ def fig4(
                 fontsize=8,
                 color="grey",
             )
-    fig.text(
-        0.01,
-        -0.01,
+    return save_captioned(
+        fig,
+        stem,
         "Line: mean over seeds of each run's training episode return, smoothed by a trailing mean "
         "over 5 % of the run. Band: 95 % Student-t interval over seeds (none with one seed).",
-        fontsize=7,
-        ha="left",
-        va="top",
-        wrap=True,
     )
-    fig.tight_layout()
-    return save(fig, stem)
 
 
 def _method(k_text: str) -> str:
@@ -281,19 +282,13 @@ def fig5(
             )
     counts = {r.get(f"{s}_progress_seeds", r["seeds"]) for r in rows if r["seeds"] for s in sets} - {0}
     seeds = f"{counts.pop()} seeds per bar" if len(counts) == 1 else "seeds per bar: generalization.md"
-    fig.text(
-        0.01,
-        -0.01,
+    return save_captioned(
+        fig,
+        stem,
         f"Bars: mean over seeds ({seeds}) of each seed's mean over the set's coalitions. Error bars: "
         f"{_method(k_text)}. Labels on the progress bars: progress retention = progress on the set / progress on "
         "U_train.",
-        fontsize=7,
-        ha="left",
-        va="top",
-        wrap=True,
     )
-    fig.tight_layout()
-    return save(fig, stem)
 
 
 def _count_labels(ax, counts: Mapping[str, Mapping[int, tuple[str, float]]]) -> None:
@@ -390,17 +385,11 @@ def fig_team_size(
                 if ax.get_legend_handles_labels()[0]:
                     ax.legend(fontsize=7)
     names = ", ".join(SET_LABELS[s].split(" ")[0] for s in sets) or "none"
-    fig.text(
-        0.01,
-        -0.01,
+    return save_captioned(
+        fig,
+        stem,
         "Points: mean over seeds of each seed's mean over its coalitions with that many robots "
         f"(each coalition its episodes' mean; sets pooled: {names}, where evaluated; U_val and U_cap left out). "
         f"Band: {_method(k_text)}. Numbers along the bottom (or, where algorithms differ, next to each point): "
         "coalitions of that size per seed.",
-        fontsize=7,
-        ha="left",
-        va="top",
-        wrap=True,
     )
-    fig.tight_layout()
-    return save(fig, stem)
