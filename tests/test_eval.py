@@ -131,14 +131,15 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     print_table(result, out=lines.append)
     head = lines[0].split()
     assert head[head.index("finished") + 1 : head.index("finished") + 4] == ["AUC", "t90", "coord."]
-    footer = lines[2:]
-    assert footer[0] == "progress (pcp) = fraction of the active prey captured"
-    assert footer[2].startswith("coord. = sensed prey waiting: share of the team's prey sensed but not yet captured")
-    assert "reality layer off (comat eval --reality)" in footer
+    footer = lines[lines.index("") + 1 :]  # the notes, after the tables and a blank line
+    notes = "\n".join(footer).replace("\n  ", " ").splitlines()  # each note on one line again
+    assert footer[0] == "progress (pcp) = fraction of the active prey captured" and max(map(len, footer)) <= 120
+    assert notes[2].startswith("coord. = sensed prey waiting: share of the team's prey sensed but not yet captured")
+    assert "reality layer off (comat eval --reality)" in notes
     assert any(
-        "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first" in x for x in footer
+        "t-interval over the coalitions' means (each coalition's 2 episode(s) averaged first" in x for x in notes
     )
-    assert footer[-2].startswith(f"start states: drawn from seed {result['seed']}")
+    assert notes[-1].startswith(f"start states: drawn from seed {result['seed']}")
     json_path, detail_path, csv_path = write_results(result, tmp_path)
     assert read_results(json_path) == result  # the summary with its per-episode detail put back
     assert detail_path.name == "eval.episodes.json.gz" and '"per_episode":' not in json_path.read_text()
@@ -149,6 +150,43 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     old_lines = table_lines(old)
     cells = re.split(r" {2,}", old_lines[2])
     assert cells[re.split(r" {2,}", old_lines[0]).index("coord.")] == "n/a"
+
+
+def test_eval_table_fits_a_terminal_and_names_the_privileged_rows():
+    """Issue 67's newcomer: the table was ~190 characters wide, its footer one long paragraph, and
+    the heuristic beat COMAT with no word that it reads the task's full state."""
+    from comat.eval.evaluate import print_table
+    from comat.measure.metrics import REPORTED
+
+    metrics = {m: {"mean": 0.97, "ci95": 0.05, "n": 20} for m in REPORTED}
+    metrics |= {m: {"mean": 0.0, "ci95": 0.0, "n": 20} for m in ("collisions", "violations", "fallbacks", "recoveries")}
+    metrics |= {
+        "return": {"mean": 32.77, "ci95": 1.93, "n": 20},
+        "interventions": {"mean": 244.5, "ci95": 101.62, "n": 20},
+    }
+    rows = [
+        {"policy": p, "set": "capability", "episodes": 100, "metrics": metrics}
+        for p in ("comat", "heuristic", "random")
+    ]
+    lines = []
+    print_table(
+        {"task": "pcp", "rows": rows, "episodes_per_coalition": 5, "reality": "off", "seed": 7}, out=lines.append
+    )
+    text = "\n".join(lines).splitlines()
+    assert max(map(len, text)) <= 140
+    heads = [line.split() for line in text if line.startswith("policy ")]
+    assert heads == [["policy", "set", "n", "return", "steps", "progress", "finished", "AUC", "t90", "coord."],
+                     ["policy", "set", "n", "interv."]]  # fmt: skip
+    assert "0 in every row: collisions, violations, fallbacks, recoveries (the JSON and CSV hold every column)" in text
+    assert any(line.startswith("heuristic: the scripted planner, reading the task's full state") for line in text)
+    # every column zero in some row but not all stays; a run without the scripted rows has no such note
+    rows[0]["metrics"] = {**metrics, "collisions": {"mean": 0.1, "ci95": 0.2, "n": 20}}
+    lines = []
+    print_table({"task": "pcp", "rows": [rows[0], rows[2]]}, out=lines.append)
+    text = "\n".join(lines)
+    heads = [line.split() for line in text.splitlines() if line.startswith("policy ")]
+    assert heads[1] == ["policy", "set", "n", "collisions", "interv."]
+    assert "0 in every row: violations, fallbacks, recoveries" in text and "privileged" not in text
 
 
 # -- comat eval -------------------------------------------------------------------------------------

@@ -26,6 +26,7 @@ from __future__ import annotations
 import csv
 import io
 import re
+import textwrap
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -213,16 +214,27 @@ TABLE_GAP = "  "
 """What separates two columns of :func:`table_lines`."""
 
 
-def table_lines(result: dict) -> list[str]:
-    """The rows as a fixed-width table (:func:`print_table`): each column as wide as its widest
-    cell (header included), columns two spaces apart, so none ever touch (an interval written
-    ``mean [low, high]`` is wider than ``mean ± half``)."""
-    heads = ["policy", "set", "n", *(TABLE_NAMES[m] for m in REPORTED)]
-    left = (True, True, False, *(False for _ in REPORTED))
+OUTCOMES = REPORTED[: REPORTED.index("coordination") + 1]
+"""The task's metrics: the table :func:`print_table` shows first."""
+SAFETY_METRICS = REPORTED[len(OUTCOMES) :]
+"""Collisions, violations and the filter's work: the second table, without the columns that are 0 in every row."""
+FOOTER_WIDTH = 120
+"""Characters per line of the notes under :func:`print_table`'s tables."""
+PRIVILEGED = ("heuristic", "type_only", "blind")
+"""Reference rungs that read the full task state (:mod:`comat.envs.heuristics`): their rows are
+privileged references, which :func:`print_table` says."""
+
+
+def table_lines(result: dict, metrics: tuple[str, ...] = REPORTED) -> list[str]:
+    """The rows as a fixed-width table of ``metrics`` (:func:`print_table`): each column as wide as
+    its widest cell (header included), columns two spaces apart, so none ever touch (an interval
+    written ``mean [low, high]`` is wider than ``mean ± half``)."""
+    heads = ["policy", "set", "n", *(TABLE_NAMES[m] for m in metrics)]
+    left = (True, True, False, *(False for _ in metrics))
     rows = []
     for r in result["rows"]:
         cells = [str(r["policy"]), str(r["set"]), str(r["episodes"])]
-        for m in REPORTED:
+        for m in metrics:
             v = r["metrics"].get(m)
             cells.append("n/a" if v is None else interval_text(v["mean"], v["ci95"], share=m in SHARES, unit=None))
         rows.append(cells)
@@ -270,39 +282,58 @@ def task_legend(task: str | None) -> list[str]:
     ]
 
 
+def _always_zero(result: dict, metric: str) -> bool:
+    values = [r["metrics"].get(metric) for r in result["rows"]]
+    return bool(values) and all(v is not None and v["mean"] == 0 and v["ci95"] == 0 for v in values)
+
+
 def print_table(result: dict, out=print) -> None:
-    """The rows as a fixed-width table (:func:`table_lines`), ``mean ± 95 % CI`` (over coalitions);
-    "n/a" for a metric a row lacks (a file written before the metric existed, or a task without a
-    coordination metric). Under it, a few short lines: what the columns mean for the task at hand
-    (:func:`task_legend`), the interval, the reality layer and the start states."""
-    lines = table_lines(result)
-    out("\n".join(lines[:2]))
-    for text in lines[2:]:
-        out(text)
+    """The rows as two fixed-width tables (:func:`table_lines`) of ``mean ± 95 % CI`` (over
+    coalitions), each under ~130 characters: the task's metrics (:data:`OUTCOMES`), then collisions,
+    violations and the filter's work (:data:`SAFETY_METRICS`) less the columns that are 0 in every
+    row, which one line names. "n/a" for a metric a row lacks (a file written before the metric
+    existed, or a task without a coordination metric). Under them, a few short lines: what the
+    columns mean for the task at hand (:func:`task_legend`), that the scripted rungs read the task's
+    full state, the interval, the reality layer and the start states."""
+    zero = [m for m in SAFETY_METRICS if _always_zero(result, m)]
+    shown = tuple(m for m in SAFETY_METRICS if m not in zero)
+    for i, metrics in enumerate((OUTCOMES, shown) if shown else (OUTCOMES,)):
+        lines = table_lines(result, metrics)
+        out(("\n" if i else "") + "\n".join(lines[:2]))
+        for text in lines[2:]:
+            out(text)
     k = result.get("episodes_per_coalition", 1)
-    for text in task_legend(result.get("task")):
-        out(text)
-    out(
+    notes = list(task_legend(result.get("task")))
+    if zero:
+        notes.append(f"0 in every row: {', '.join(TABLE_NAMES[m] for m in zero)} (the JSON and CSV hold every column)")
+    scripted = [p for p in dict.fromkeys(r["policy"] for r in result["rows"]) if p in PRIVILEGED]
+    if scripted:
+        notes.append(
+            f"{', '.join(scripted)}: the scripted planner, reading the task's full state: privileged references, "
+            "not rivals on equal terms"
+        )
+    notes.append(
         "AUC = mean progress over the horizon's env steps (the last value held after an early finish); "
         "t90 = env steps to 90 % progress (the horizon if never)"
     )
     # Old result files predate the layer (their episodes were all in the ideal world).
     if "reality" in result:
-        out(f"reality layer {result['reality']} (comat eval --reality)")
-    out(
+        notes.append(f"reality layer {result['reality']} (comat eval --reality)")
+    notes.append(
         f"n = episodes ({k} per coalition); ± = 95 % t-interval over the coalitions' means (each coalition's {k} "
-        "episode(s) averaged first)"
-    )
-    out(
-        "  [low, high]: a share's interval cut to [0, 1]; none with one coalition; one policy: seed-to-seed spread "
-        "is not in it"
+        "episode(s) averaged first); [low, high]: a share's interval cut to [0, 1]; none with one coalition; "
+        "one policy: seed-to-seed spread is not in it"
     )
     if "seed" in result:
-        out(
+        notes.append(
             f"start states: drawn from seed {result['seed']} (comat eval --seed), the same teams and starts for every "
-            "policy here;"
+            "policy here; training's evaluations draw theirs from the run's seed + 1,000,003: other starts, other "
+            "numbers"
         )
-        out("  training's evaluations draw theirs from the run's seed + 1,000,003: other starts, other numbers")
+    out("")
+    for note in notes:  # each note a line, wrapped to the tables' width
+        for text in textwrap.wrap(note, FOOTER_WIDTH, subsequent_indent="  "):
+            out(text)
 
 
 def result_files(stem: str) -> list[str]:
