@@ -28,19 +28,14 @@ from grid_v3_sentences import verdict_text
 
 from comat.measure.metrics import read_results
 from comat.measure.stats import holm, per_seed_means, t_interval, welch
+from comat.team import SET_LABELS
 
 NAME = re.compile(
     r"^(?P<algo>comat|mat|mappo|qmix)_(?P<task>hmt|pcp)_(?P<trained>off|nominal)_s(?P<seed>\d+)"
     r"(?:_(?P<k>\d+)k)?$"
 )
-SETS = {
-    "train": "U_train",
-    "val": "U_val",
-    "test": "U_test",
-    "scale": "U_scale",
-    "size": "U_size",
-    "capability": "U_cap",
-}
+SETS = SET_LABELS
+"""Set key -> report name, in the order every table lists them."""
 SESOI = 10.0
 """Smallest effect of interest, progress points."""
 LEVEL = SESOI / 5
