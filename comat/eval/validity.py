@@ -206,8 +206,15 @@ def _cell(d: dict) -> str:
 
 
 def validity_markdown(data: dict) -> str:
-    # long: the validity page's Markdown, written top to bottom as it reads
     """The validity page: the families, then per task the ladder on every set with the paired gaps."""
+    lines = _families_section(data)
+    for name, s in data["tasks"].items():
+        lines += _ladder_section(name, s)
+    return "\n".join(lines)
+
+
+def _families_section(data: dict) -> list[str]:
+    """The page's opening: how it was made, the two families' rules, and each task's verdicts."""
     tasks = data["tasks"]
     seeds = sorted({s["seed"] for s in tasks.values()})
     episodes = sorted({s["episodes"] for s in tasks.values()})
@@ -256,48 +263,48 @@ def validity_markdown(data: dict) -> str:
         )
     cap = sum(s["families"]["capability"][0] for s in tasks.values())
     size = sum(s["families"]["size"][0] for s in tasks.values())
-    lines += ["", f"{len(tasks)} tasks: {cap} in the capability family, {size} in the size family.", ""]
-    for name, s in tasks.items():
-        played = f" (played at `{s['source_commit']}`)" if s.get("source_commit") else ""
-        lines += [
-            f"## {name}",
-            "",
-            f"{s.get('env_id') or name}{played}; meant for: {', '.join(s.get('meant_for', ())) or 'not stated'}.",
-            "",
-            (
-                "| set | scripted % | type_only % | blind % | constant % | random % | scripted − type_only | "
-                "scripted − blind |"
-            ),
-            "|---|---:|---:|---:|---:|---:|---:|---:|",
-        ]
-        for split, e in s["sets"].items():
-            rungs = " | ".join(f"{e[p]:.1f}" if p in e else "—" for p in LADDER)
-            gaps = " | ".join(
-                _cell(e[k]) if k in e else "—" for k in ("scripted_minus_type_only", "scripted_minus_blind")
-            )
-            lines.append(f"| {SET_LABELS[split]} | {rungs} | {gaps} |")
-        same = [e["scripted_minus_type_only"] for e in s["sets"].values() if "scripted_minus_type_only" in e]
-        if same and all(g["low"] == g["high"] == 0 for g in same):
-            note = (
-                "type_only plays exactly as scripted on every set: the scripted planner reads no capability, so "
-                "this ladder cannot show what capabilities decide here (the task may still reward them)."
-            )
-        else:
-            note = ""
-        cap = s["sets"].get("capability", {})
-        if "blind" in cap and "type_only" in cap and cap["blind"] > cap["type_only"]:
-            gap = cap["scripted_minus_blind"]
-            note += (
-                f"On U_cap type_only ({cap['type_only']:.1f} %) is below blind ({cap['blind']:.1f} %): believing each "
-                "type's mean capabilities misleads more than believing nothing, so the capability gap is measured "
-                "against a rung that uses the type badly; over blind, the better rung that does not know "
-                f"capabilities, the scripted plan gains {_cell(gap)} points there."
-            )
-        pooled = s.get("size_pooled")
-        if pooled:
-            lines.append(
-                f"| U_size ∪ U_scale | {pooled['heuristic']:.1f} | — | {pooled['blind']:.1f} | — | — | — | "
-                f"{_cell(pooled['scripted_minus_blind'])} |"
-            )
-        lines += ["", note, ""] if note else [""]
-    return "\n".join(lines)
+    return lines + ["", f"{len(tasks)} tasks: {cap} in the capability family, {size} in the size family.", ""]
+
+
+def _ladder_section(name: str, s: dict) -> list[str]:
+    """One task's section: the ladder on every set with the paired gaps, and what the ladder cannot show."""
+    played = f" (played at `{s['source_commit']}`)" if s.get("source_commit") else ""
+    lines = [
+        f"## {name}",
+        "",
+        f"{s.get('env_id') or name}{played}; meant for: {', '.join(s.get('meant_for', ())) or 'not stated'}.",
+        "",
+        (
+            "| set | scripted % | type_only % | blind % | constant % | random % | scripted − type_only | "
+            "scripted − blind |"
+        ),
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for split, e in s["sets"].items():
+        rungs = " | ".join(f"{e[p]:.1f}" if p in e else "—" for p in LADDER)
+        gaps = " | ".join(_cell(e[k]) if k in e else "—" for k in ("scripted_minus_type_only", "scripted_minus_blind"))
+        lines.append(f"| {SET_LABELS[split]} | {rungs} | {gaps} |")
+    same = [e["scripted_minus_type_only"] for e in s["sets"].values() if "scripted_minus_type_only" in e]
+    if same and all(g["low"] == g["high"] == 0 for g in same):
+        note = (
+            "type_only plays exactly as scripted on every set: the scripted planner reads no capability, so "
+            "this ladder cannot show what capabilities decide here (the task may still reward them)."
+        )
+    else:
+        note = ""
+    cap = s["sets"].get("capability", {})
+    if "blind" in cap and "type_only" in cap and cap["blind"] > cap["type_only"]:
+        gap = cap["scripted_minus_blind"]
+        note += (
+            f"On U_cap type_only ({cap['type_only']:.1f} %) is below blind ({cap['blind']:.1f} %): believing each "
+            "type's mean capabilities misleads more than believing nothing, so the capability gap is measured "
+            "against a rung that uses the type badly; over blind, the better rung that does not know "
+            f"capabilities, the scripted plan gains {_cell(gap)} points there."
+        )
+    pooled = s.get("size_pooled")
+    if pooled:
+        lines.append(
+            f"| U_size ∪ U_scale | {pooled['heuristic']:.1f} | — | {pooled['blind']:.1f} | — | — | — | "
+            f"{_cell(pooled['scripted_minus_blind'])} |"
+        )
+    return lines + (["", note, ""] if note else [""])
