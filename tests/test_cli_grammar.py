@@ -27,6 +27,7 @@ SHARED = {
 # Where a flag of that name deliberately differs, and why (each one stated in its --help).
 EXCEPTIONS = {
     ("--policy", "export"): "required: an export names what it ships",
+    ("--policy", "campaign"): "required: a campaign names what it ships, as export",
     ("--policy", "probe"): "required, a checkpoint only: it probes a learner",
     ("--tier", "demo"): "the demo shows the reference physics (wheels)",
     ("--tier", "export"): "--check's MuJoCo side: unicycle, as replay's twin (no checkpoint to take a tier from)",
