@@ -67,53 +67,17 @@ def overlap_note(config, cpus: int) -> str | None:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    # long: the train command: resume or new run, the CPU notes, then train and its printed summary
     from pathlib import Path
 
     from comat.machine import usable_cpus
-    from comat.rl.checkpoint import load_checkpoint
-    from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
-    from comat.rl.device import resolve_device
-    from comat.rl.runner import saved_config, train
+    from comat.rl.config import RunConfig
+    from comat.rl.runner import train
 
     if args.resume and args.overrides:
         raise ValueError(
             f"--resume continues a run with its own settings; overrides {args.overrides} are for a new run"
         )
-    if args.resume:
-        if args.out is None:
-            raise ValueError("--resume needs --out, the folder of the run to continue")
-        ckpt = Path(args.out) / "checkpoint.pt"
-        config = None if ckpt.exists() else saved_config(args.out)  # stopped before its first checkpoint
-        if config is None:
-            data = load_checkpoint(ckpt, algo=args.algo, task=args.task)
-            config = RunConfig.from_dict(data["config"])
-        device = None if args.device is None else resolve_device(args.device)
-        for name, given in (
-            ("seed", args.seed),
-            ("tier", args.tier),
-            ("env_workers", args.env_workers),
-            ("device", device),
-        ):
-            if given is not None and given != getattr(config, name):
-                raise ValueError(f"--{name} {given!r} does not match the run being resumed ({getattr(config, name)!r})")
-        if args.steps is not None:
-            config = RunConfig.from_dict({**config.to_dict(), "total_env_steps": args.steps})
-    else:
-        if args.algo is None or args.task is None:
-            raise ValueError("--algo and --task are required for a new run")
-        config = resolve(
-            apply_overrides(load_preset(args.preset or "paper"), args.overrides),
-            args.algo,
-            args.task,
-            args.seed,
-            args.tier,
-            args.steps,
-            args.env_workers,
-            resolve_device(args.device or "auto"),
-        )
-        if args.preset is None and args.steps is None:
-            print(paper_budget_note(config), file=sys.stderr)
+    config = _resumed_config(args) if args.resume else _new_config(args)
     # A new folder per run by default, named so it cannot be taken for a kept or shipped policy
     # (results/policies/comat_pcp_s0, pretrained:comat-pcp).
     out = Path(args.out or f"runs/train-{config.algo}-{config.task}-seed{config.seed}-{time.strftime('%Y%m%d-%H%M%S')}")
@@ -162,6 +126,60 @@ def cmd_train(args: argparse.Namespace) -> int:
     print(f"done: {summary['env_steps']:,} env steps in {summary['wall_s'] / 60:.1f} min{result}; run folder {out}")
     print_policy_file(out / "policy.pt")
     return 0
+
+
+def _resumed_config(args: argparse.Namespace):
+    """The config of the run in ``--out`` to continue (its checkpoint's, or its saved config.yaml when
+    it stopped before the first checkpoint), with ``--steps`` applied; flags that would change the run
+    are refused."""
+    from pathlib import Path
+
+    from comat.rl.checkpoint import load_checkpoint
+    from comat.rl.config import RunConfig
+    from comat.rl.device import resolve_device
+    from comat.rl.runner import saved_config
+
+    if args.out is None:
+        raise ValueError("--resume needs --out, the folder of the run to continue")
+    ckpt = Path(args.out) / "checkpoint.pt"
+    config = None if ckpt.exists() else saved_config(args.out)  # stopped before its first checkpoint
+    if config is None:
+        data = load_checkpoint(ckpt, algo=args.algo, task=args.task)
+        config = RunConfig.from_dict(data["config"])
+    device = None if args.device is None else resolve_device(args.device)
+    for name, given in (
+        ("seed", args.seed),
+        ("tier", args.tier),
+        ("env_workers", args.env_workers),
+        ("device", device),
+    ):
+        if given is not None and given != getattr(config, name):
+            raise ValueError(f"--{name} {given!r} does not match the run being resumed ({getattr(config, name)!r})")
+    if args.steps is not None:
+        config = RunConfig.from_dict({**config.to_dict(), "total_env_steps": args.steps})
+    return config
+
+
+def _new_config(args: argparse.Namespace):
+    """A new run's config: the preset (default ``paper``, whose budget is noted) with the overrides and flags."""
+    from comat.rl.config import apply_overrides, load_preset, resolve
+    from comat.rl.device import resolve_device
+
+    if args.algo is None or args.task is None:
+        raise ValueError("--algo and --task are required for a new run")
+    config = resolve(
+        apply_overrides(load_preset(args.preset or "paper"), args.overrides),
+        args.algo,
+        args.task,
+        args.seed,
+        args.tier,
+        args.steps,
+        args.env_workers,
+        resolve_device(args.device or "auto"),
+    )
+    if args.preset is None and args.steps is None:
+        print(paper_budget_note(config), file=sys.stderr)
+    return config
 
 
 def print_policy_file(path) -> None:
