@@ -15,8 +15,10 @@ folder (:func:`relative_path`)."""
 from __future__ import annotations
 
 import contextlib
+import csv
 import gzip
 import hashlib
+import io
 import json
 import os
 import shutil
@@ -27,6 +29,7 @@ from typing import Any
 __all__ = [
     "DETAIL_KEY",
     "DETAIL_SUFFIX",
+    "csv_text",
     "detail_name",
     "encode_json_detail",
     "new_outputs",
@@ -42,6 +45,16 @@ DETAIL_KEY = "per_episode"
 """The key whose values a result document keeps in its detail file."""
 DETAIL_SUFFIX = ".episodes.json.gz"
 """``evaluation_unicycle.json``'s detail file: ``evaluation_unicycle.episodes.json.gz``."""
+
+
+def csv_text(rows: Iterable[dict], fields: list[str]) -> str:
+    """``rows`` as CSV text: a header of ``fields``, then a line per row (``\n`` line ends; a
+    missing field is empty)."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buf.getvalue()
 
 
 def write_atomic(path: str | Path, data: str | bytes) -> None:

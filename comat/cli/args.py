@@ -252,6 +252,25 @@ def reality_arg(value: str, name: str = "--reality") -> str:
     return value
 
 
+def add_filter(p: argparse.ArgumentParser) -> None:
+    """``--filter`` and ``--filter-reality``: the loop an exported ``main.py`` filters its commands with
+    (``comat export``, ``comat campaign``)."""
+    p.add_argument(
+        "--filter",
+        default="comat",
+        metavar="{comat,robotarium}",
+        help="what main.py filters its commands with: comat's filter (shipped in deployed_loop.py; robust "
+        "to late and noisy poses, robots that stop are obstacles: clean in the safety battery at nominal "
+        "with faults, docs/safety.md) or the installed rps's own barrier (default: %(default)s)",
+    )
+    p.add_argument(
+        "--filter-reality",
+        default="nominal",
+        metavar="LEVEL|PROFILE",
+        help="the reality level or calibrated profile comat's filter is made robust to (default: %(default)s)",
+    )
+
+
 def add_force(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace output files that already exist (default: refuse)")
 

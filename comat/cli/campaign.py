@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from comat.cli.args import TIERS, add_policy, add_reality, add_seed, add_task
+from comat.cli.args import TIERS, add_filter, add_policy, add_reality, add_seed, add_task
 
 __all__ = ["add_campaign_parser"]
 
@@ -154,18 +154,7 @@ def add_campaign_parser(subparsers) -> argparse.ArgumentParser:
         help="the folder to create: the campaign (its folders and manifest), --analyze's tables, or --stand-in's "
         "returned folder (refused if it exists; nothing is left if the command fails)",
     )
-    p.add_argument(
-        "--filter",
-        default="comat",
-        metavar="{comat,robotarium}",
-        help="what each main.py filters its commands with (as comat export; default: %(default)s)",
-    )
-    p.add_argument(
-        "--filter-reality",
-        default="nominal",
-        metavar="LEVEL|PROFILE",
-        help="the reality level or calibrated profile comat's filter is made robust to (default: %(default)s)",
-    )
+    add_filter(p)
     p.add_argument(
         "--analyze",
         default=None,

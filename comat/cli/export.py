@@ -295,7 +295,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
         "Robotarium submission (main.py, runtime.py, task_logic.py, submission_config.py, "
         "weights.npy), or --check an exported folder: run it under rps and in MuJoCo and compare.",
     )
-    from comat.cli.args import TIERS, add_policy, add_seed, add_task, add_team
+    from comat.cli.args import TIERS, add_filter, add_policy, add_seed, add_task, add_team
 
     add_policy(p, required=True, references=("heuristic",))  # no default: an export names what it ships
     add_task(p)
@@ -311,20 +311,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
         "a text file of 3 rows x, y, θ (m, m, rad); checked: inside the arena by 0.1 m, centres >= 0.4 m "
         "apart (what the Robotarium's start-up drive can reach)",
     )
-    p.add_argument(
-        "--filter",
-        default="comat",
-        metavar="{comat,robotarium}",
-        help="what main.py filters its commands with: comat's filter (shipped in deployed_loop.py; robust "
-        "to late and noisy poses, robots that stop are obstacles: clean in the safety battery at nominal "
-        "with faults, docs/safety.md) or the installed rps's own barrier (default: %(default)s)",
-    )
-    p.add_argument(
-        "--filter-reality",
-        default="nominal",
-        metavar="LEVEL|PROFILE",
-        help="the reality level or calibrated profile comat's filter is made robust to (default: %(default)s)",
-    )
+    add_filter(p)
     p.add_argument(
         "--timeout",
         type=float,

@@ -37,8 +37,6 @@ Written (OUT)          ``campaign.md`` (tables, failure list, per-run table), ``
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import shutil
 import tempfile
@@ -50,7 +48,7 @@ import numpy as np
 from comat import constants as C
 from comat.eval.campaign import RETURNED_LOG, CampaignError, read_manifest
 from comat.eval.replay import ReplayError, check_options, check_twin, replay
-from comat.files import write_atomic
+from comat.files import csv_text, write_atomic
 from comat.measure.stats import t_interval
 from comat.runlog import LOG_FILE, META_FILE, RunLog, RunLogError, read_run_log
 from sim2real.check import duration_warning
@@ -361,14 +359,6 @@ def size_rows(runs: list[dict]) -> list[dict]:
     return rows
 
 
-def _csv(rows: list[dict], fields: list[str]) -> str:
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    return buf.getvalue()
-
-
 def analyze_campaign(
     returned: str | Path,
     manifest_path: str | Path,
@@ -424,10 +414,10 @@ def analyze_campaign(
         rows = size_rows(runs)
         text = _markdown(manifest, rows, runs, failures, reality, tier)
         write_atomic(tmp / "campaign.md", text)
-        write_atomic(tmp / "sizes.csv", _csv([_flat(r) for r in rows], list(_flat(rows[0]))))
+        write_atomic(tmp / "sizes.csv", csv_text([_flat(r) for r in rows], list(_flat(rows[0]))))
         run_rows = [_run_row(r, failures) for r in runs]
-        write_atomic(tmp / "runs.csv", _csv(run_rows, list(run_rows[0])))
-        write_atomic(tmp / "failures.csv", _csv(failures, ["folder", "size", "run", "kind", "detail"]))
+        write_atomic(tmp / "runs.csv", csv_text(run_rows, list(run_rows[0])))
+        write_atomic(tmp / "failures.csv", csv_text(failures, ["folder", "size", "run", "kind", "detail"]))
         tmp.chmod(0o755)
         tmp.rename(out)
     except BaseException:

@@ -33,9 +33,7 @@ team, start poses and prey are the log's (else one line says which differs).
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -45,7 +43,7 @@ from comat import constants as C
 from comat.eval.plant import DRAWS, KSTEP_TICKS, PlantError, check_horizons, kstep_errors, open_loop
 from comat.eval.replay_draw import record
 from comat.eval.replay_draw import video as draw_video
-from comat.files import write_atomic
+from comat.files import csv_text, write_atomic
 from comat.reality import resolve_reality
 from comat.runlog import RunLog, read_run_log
 from sim2real.check import mujoco_twin
@@ -226,14 +224,6 @@ def _envelope_rows(log: RunLog, twins: list[dict]) -> list[dict]:
 
 def _cell(v) -> str:
     return "" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v)
-
-
-def _csv(rows: list[dict], fields: list[str]) -> str:
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    return buf.getvalue()
 
 
 def _label(profile: str) -> str:
@@ -426,12 +416,12 @@ def replay(
     files = [out_path.with_name(name) for name in names]
     record(files[0], real, twin_poses, dist, heading, text, list(config["types"]), played)
     write_atomic(files[1], text)
-    write_atomic(files[2], _csv(rows, ["quantity", "real", "twin", "gap"]))
+    write_atomic(files[2], csv_text(rows, ["quantity", "real", "twin", "gap"]))
     kstep_fields = ["profile", "k_ticks", "k_s", "robot", "position_error_m", "heading_error_rad", "score_m"]
-    write_atomic(files[3], _csv(kstep_rows, kstep_fields))
+    write_atomic(files[3], csv_text(kstep_rows, kstep_fields))
     if envelope:
         fields = ["quantity", "real", "p5", "median", "p95", "percentile"]
-        write_atomic(files[4], _csv(envelope_rows or [], fields))
+        write_atomic(files[4], csv_text(envelope_rows or [], fields))
     if video is not None:
         title = f"real (filled) · twin at {_label(reality)} (purple)"
         files.append(draw_video(Path(video), log, config, real, twin_poses, dist, fps, title))
