@@ -60,7 +60,6 @@ def run_viz_bench(
     out: str | Path | None = "benchmarks/results/viz.json",
     quiet: bool = False,
 ) -> dict:
-    # long: times each task with and without recording inside one temporary folder, then the table
     """Time rollouts with and without recording; write JSON to ``out`` (None: don't) and print a table.
 
     Returns the result document (``{"settings": …, "machine": …, "results": [one per task]}``).
@@ -88,57 +87,7 @@ def run_viz_bench(
     results = []
     with tempfile.TemporaryDirectory(prefix="comat-viz-bench-") as tmp:
         for task in tasks:
-            _timed(None, task, policy, kwargs)
-            _timed(Path(tmp) / f"{task}_warmup.rrd", task, policy, kwargs)
-            runs: dict[str, list[dict[str, float]]] = {"plain": [], "recorded": []}
-            last = None
-            for r in range(repeats):
-                base, wall, cpu = _timed(None, task, policy, kwargs)
-                runs["plain"].append({"wall_s": wall, "cpu_s": cpu})
-                last, wall, cpu = _timed(Path(tmp) / f"{task}_{r}.rrd", task, policy, kwargs)
-                runs["recorded"].append(
-                    {
-                        "wall_s": wall,
-                        "cpu_s": cpu,
-                        "recorder_cpu_s": last.recorder_cpu_s,
-                        "background_cpu_s": last.background_cpu_s,
-                    }
-                )
-                if last.episodes != base.episodes:  # recording must not change what happens
-                    raise RuntimeError(f"{task}: the recorded rollout differs from the plain one")
-            row = {"task": task}
-            for clock in ("wall", "cpu"):
-                plain = [t[f"{clock}_s"] for t in runs["plain"]]
-                recorded = [t[f"{clock}_s"] for t in runs["recorded"]]
-                # Paired ratios (each recorded run against the plain run just before it) cancel
-                # slow drifts of the machine's load; their median discards the odd disturbed pair.
-                ratio = statistics.median(q / p for p, q in zip(plain, recorded))
-                row.update(
-                    {
-                        f"plain_{clock}_s": statistics.median(plain),
-                        f"recorded_{clock}_s": statistics.median(recorded),
-                        f"overhead_{clock}": ratio - 1.0,
-                        f"overhead_{clock}_min": min(recorded) / min(plain) - 1.0,
-                    }
-                )
-            recorder_cpu = statistics.median(t["recorder_cpu_s"] for t in runs["recorded"])
-            background_cpu = statistics.median(t["background_cpu_s"] for t in runs["recorded"])
-            row.update(
-                {
-                    "recorder_cpu_s": recorder_cpu,
-                    "background_cpu_s": background_cpu,
-                    "attributed_overhead_cpu": (recorder_cpu + background_cpu) / row["plain_cpu_s"],
-                    "bytes": last.bytes,
-                    "robot_steps": last.robot_steps,
-                    "bytes_per_robot_step": last.bytes_per_robot_step,
-                    "payload_bytes_per_robot_step": _payload_bytes(last.path) / max(last.robot_steps, 1),
-                    "steps": last.steps,
-                    "episodes": len(last.episodes),
-                    "team_sizes": [int(e["team_size"]) for e in last.episodes],
-                    "runs": runs,
-                }
-            )
-            results.append(row)
+            results.append(_task_row(task, policy, kwargs, repeats, Path(tmp)))
     doc = {"benchmark": "viz", "settings": settings, "machine": machine, "results": results}
     if out_path is not None:
         out_path.write_text(json.dumps(doc, indent=2) + "\n")
@@ -147,6 +96,62 @@ def run_viz_bench(
         if out_path is not None:
             print(f"wrote {out_path}")
     return doc
+
+
+def _task_row(task: str, policy: str, kwargs: dict, repeats: int, tmp: Path) -> dict:
+    """One task's row: after a warm-up of each, ``repeats`` pairs of a plain and a recorded rollout
+    (recordings in ``tmp``), their medians, paired overheads and what the recording weighs."""
+    _timed(None, task, policy, kwargs)
+    _timed(tmp / f"{task}_warmup.rrd", task, policy, kwargs)
+    runs: dict[str, list[dict[str, float]]] = {"plain": [], "recorded": []}
+    last = None
+    for r in range(repeats):
+        base, wall, cpu = _timed(None, task, policy, kwargs)
+        runs["plain"].append({"wall_s": wall, "cpu_s": cpu})
+        last, wall, cpu = _timed(tmp / f"{task}_{r}.rrd", task, policy, kwargs)
+        runs["recorded"].append(
+            {
+                "wall_s": wall,
+                "cpu_s": cpu,
+                "recorder_cpu_s": last.recorder_cpu_s,
+                "background_cpu_s": last.background_cpu_s,
+            }
+        )
+        if last.episodes != base.episodes:  # recording must not change what happens
+            raise RuntimeError(f"{task}: the recorded rollout differs from the plain one")
+    row = {"task": task}
+    for clock in ("wall", "cpu"):
+        plain = [t[f"{clock}_s"] for t in runs["plain"]]
+        recorded = [t[f"{clock}_s"] for t in runs["recorded"]]
+        # Paired ratios (each recorded run against the plain run just before it) cancel
+        # slow drifts of the machine's load; their median discards the odd disturbed pair.
+        ratio = statistics.median(q / p for p, q in zip(plain, recorded))
+        row.update(
+            {
+                f"plain_{clock}_s": statistics.median(plain),
+                f"recorded_{clock}_s": statistics.median(recorded),
+                f"overhead_{clock}": ratio - 1.0,
+                f"overhead_{clock}_min": min(recorded) / min(plain) - 1.0,
+            }
+        )
+    recorder_cpu = statistics.median(t["recorder_cpu_s"] for t in runs["recorded"])
+    background_cpu = statistics.median(t["background_cpu_s"] for t in runs["recorded"])
+    row.update(
+        {
+            "recorder_cpu_s": recorder_cpu,
+            "background_cpu_s": background_cpu,
+            "attributed_overhead_cpu": (recorder_cpu + background_cpu) / row["plain_cpu_s"],
+            "bytes": last.bytes,
+            "robot_steps": last.robot_steps,
+            "bytes_per_robot_step": last.bytes_per_robot_step,
+            "payload_bytes_per_robot_step": _payload_bytes(last.path) / max(last.robot_steps, 1),
+            "steps": last.steps,
+            "episodes": len(last.episodes),
+            "team_sizes": [int(e["team_size"]) for e in last.episodes],
+            "runs": runs,
+        }
+    )
+    return row
 
 
 def format_table(results: list[dict]) -> str:
