@@ -370,6 +370,29 @@ def _config(
     }
 
 
+def _robotarium_timing(task_obj, ticks_per_step: int | None, robots: int) -> tuple[int, float, int]:
+    """``(ticks per step, episode seconds, declared seconds)`` on the Robotarium for ``robots`` robots;
+    ValueError where the episode or the whole experiment would not fit the Robotarium's limits."""
+    ticks = task_obj.ticks_per_step if ticks_per_step is None else ticks_per_step
+    if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
+        raise ValueError(f"ticks_per_step must be a positive integer, got {ticks!r}")
+    episode_s = task_obj.horizon * ticks * C.CONTROL_DT_S
+    if episode_s > MAX_EPISODE_S:
+        raise ValueError(
+            f"ticks_per_step={ticks}: a {task_obj.horizon}-step episode would take {episode_s:.0f} s on "
+            f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
+            f"with the drive to the start poses)"
+        )
+    duration = declared_duration_s(episode_s, robots)
+    if duration > C.MAX_EXPERIMENT_S:
+        raise ValueError(
+            f"ticks_per_step={ticks}: {robots} robots and a {episode_s:.0f} s episode would declare "
+            f"{duration} s, expected <= {C.MAX_EXPERIMENT_S:.0f} s (the Robotarium's 15 minutes, start-up drive "
+            "included)"
+        )
+    return ticks, episode_s, duration
+
+
 def export_submission(
     checkpoint_or_policy,
     task: str,
@@ -381,7 +404,6 @@ def export_submission(
     filter_name: str = "comat",
     filter_reality: Any = "nominal",
 ) -> Path:
-    # long: checks every input before the folder is written, then writes it atomically in one try
     """Write a flat Robotarium submission folder ``out_dir`` (see the module docstring).
 
     Args:
@@ -407,23 +429,7 @@ def export_submission(
     out = Path(out_dir)
     if out.exists():
         raise FileExistsError(f"out_dir {str(out)!r} already exists; choose a new folder")
-    ticks = task_obj.ticks_per_step if ticks_per_step is None else ticks_per_step
-    if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
-        raise ValueError(f"ticks_per_step must be a positive integer, got {ticks!r}")
-    episode_s = task_obj.horizon * ticks * C.CONTROL_DT_S
-    if episode_s > MAX_EPISODE_S:
-        raise ValueError(
-            f"ticks_per_step={ticks}: a {task_obj.horizon}-step episode would take {episode_s:.0f} s on "
-            f"the Robotarium, expected <= {MAX_EPISODE_S:.0f} s (experiments may take up to 15 min, "
-            f"with the drive to the start poses)"
-        )
-    duration = declared_duration_s(episode_s, team.size)
-    if duration > C.MAX_EXPERIMENT_S:
-        raise ValueError(
-            f"ticks_per_step={ticks}: {team.size} robots and a {episode_s:.0f} s episode would declare "
-            f"{duration} s, expected <= {C.MAX_EXPERIMENT_S:.0f} s (the Robotarium's 15 minutes, start-up drive "
-            "included)"
-        )
+    ticks, episode_s, duration = _robotarium_timing(task_obj, ticks_per_step, team.size)
     policy = "heuristic" if isinstance(checkpoint_or_policy, str) and checkpoint_or_policy == "heuristic" else "comat"
     model = None if policy == "heuristic" else _comat_model(checkpoint_or_policy, task)
     want_dim = task_obj.obs_size()
