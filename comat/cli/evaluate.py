@@ -34,7 +34,6 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
     from comat.cli.args import parse_teams, reality_arg, resolve_policy_arg
     from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, result_files, write_results
-    from comat.files import new_outputs
 
     reality = reality_arg(args.reality)
     pol = resolve_policy_arg(args.policy, args.task)
@@ -48,68 +47,58 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         refs = (pol.name,) if args.no_references else REFERENCES
     else:
         refs = () if args.no_references else REFERENCES
+    # what every evaluation plays: the policy, its task, the named sets, episodes per coalition, tier, seed
+    played = (pol.checkpoint, pol.task, named, args.episodes, tier, args.seed)
+    what = f"{pol.label} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, {args.episodes} episode(s) per "
+    what += f"coalition, {tier} tier"
     if args.reality_sweep:
         refs = refs if pol.checkpoint is None else (() if args.no_references else ("heuristic",))
-        return _eval_reality_sweep(args, pol, named, tier, out, refs, reality)
-    with new_outputs(out, result_files(stem), force=args.force):
-        print(
-            f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} "
-            f"coalitions, {args.episodes} episode(s) per coalition, {tier} tier, reality {reality}, loop {args.loop}",
-            file=sys.stderr,
-        )
-        from comat.config import SafetyConfig
+        return _eval_reality_sweep(args, played, what, out, refs, reality)
+    from comat.config import SafetyConfig
 
-        result = evaluate_policies(
-            pol.checkpoint,
-            pol.task,
-            named,
-            args.episodes,
-            tier,
-            args.seed,
-            references=refs,
-            progress=lambda m: print(m, file=sys.stderr),
-            reality=reality,
-            safety=None if args.loop == "comat" else SafetyConfig(loop=args.loop),
-        )
-        print_table(result)
-        paths = write_results(result, out, stem)
+    safety = None if args.loop == "comat" else SafetyConfig(loop=args.loop)
+    return _write_evaluation(
+        args,
+        out,
+        result_files(stem),
+        f"{what}, reality {reality}, loop {args.loop}",
+        lambda progress: evaluate_policies(*played, references=refs, progress=progress, reality=reality, safety=safety),
+        print_table,
+        lambda result: write_results(result, out, stem),
+    )
+
+
+def _write_evaluation(args: argparse.Namespace, out, names: list[str], what: str, run, show, write) -> int:
+    """One evaluation into ``out`` (:func:`comat.files.new_outputs` of ``names``): says ``what`` plays
+    on stderr, ``run(progress)``s it, ``show``s the result, ``write``s its files and names them."""
+    from comat.files import new_outputs
+
+    with new_outputs(out, names, force=args.force):
+        print(f"comat eval: {what}", file=sys.stderr)
+        result = run(lambda m: print(m, file=sys.stderr))
+        show(result)
+        paths = write(result)
     for path in paths:
         print(f"wrote {path}")
     return 0
 
 
-def _eval_reality_sweep(args: argparse.Namespace, pol, named, tier: str, out, refs: tuple, base: str) -> int:
+def _eval_reality_sweep(args: argparse.Namespace, played: tuple, what: str, out, refs: tuple, base: str) -> int:
     """``comat eval --reality-sweep``: run, print, write ``evaluation_<tier>_sweep_<component>``."""
     from comat.eval.robustness import print_sweep, run_reality_sweep, sweep_files, sweep_values, write_sweep
-    from comat.files import new_outputs
 
     component = args.reality_sweep
     values = sweep_values(component, args.sweep_values, base)  # every value checked before the first episode
-    stem = f"evaluation_{tier}_sweep_{component}"
-    with new_outputs(out, sweep_files(stem), force=args.force):
-        print(
-            f"comat eval: {pol.label} on {pol.task}, {', '.join(n for n, _ in named)} coalitions, "
-            f"{args.episodes} episode(s) per coalition, {tier} tier, {component} at {values} (others at {base})",
-            file=sys.stderr,
-        )
-        sweep = run_reality_sweep(
-            pol.checkpoint,
-            pol.task,
-            named,
-            args.episodes,
-            tier,
-            args.seed,
-            component,
-            values,
-            base,
-            refs,
-            progress=lambda m: print(m, file=sys.stderr),
-        )
-        print_sweep(sweep)
-        paths = write_sweep(sweep, out, stem)
-    for path in paths:
-        print(f"wrote {path}")
-    return 0
+    stem = f"evaluation_{played[4]}_sweep_{component}"
+    return _write_evaluation(
+        args,
+        out,
+        sweep_files(stem),
+        f"{what}, {component} at {values} (others at {base})",
+        lambda progress: run_reality_sweep(*played, component, values, base, refs, progress=progress),
+        print_sweep,
+        lambda sweep: write_sweep(sweep, out, stem),
+    )
 
 
 def _cmd_probe(args: argparse.Namespace) -> int:
