@@ -228,8 +228,12 @@ def _task(value: str) -> str:
 
 
 def add_train_parsers(sub) -> None:
-    # long: the train and policy commands' options, one add_argument each, read as their --help pages
     """Register ``train`` and ``policy`` on the top-level sub-parsers of ``comat``."""
+    _add_train_parser(sub)
+    _add_policy_parser(sub)
+
+
+def _add_train_parser(sub) -> None:
     p = sub.add_parser(
         "train",
         help=f"train a learner ({', '.join(learner_entry(n).label for n in learner_names())}) on any registered task",
@@ -292,6 +296,8 @@ def add_train_parsers(sub) -> None:
     )
     p.set_defaults(func=cmd_train)
 
+
+def _add_policy_parser(sub) -> None:
     p = sub.add_parser(
         "policy",
         help="write a run's policy file (weights and config to act) from its checkpoint",
