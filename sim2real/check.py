@@ -263,31 +263,9 @@ def duration_warning(config: dict, result: dict) -> str | None:
     )
 
 
-def check_submission(
-    folder,
-    tier: str = "wheels",
-    timeout_s: float = 1800.0,
-    rps_path=None,
-    repeats: int = 1,
-    reality: str | None = None,
-    drive: str = "rps",
-) -> dict:
-    # long: checks, the rps runs and their merged result, then the MuJoCo twin and the gap
-    """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
-    see :func:`run_rps`).
-
-    ``repeats`` runs main.py under rps that many times: V2 drives the robots from randomly placed
-    chargers to the start poses first, so one V2 run is one random sample (the legacy simulator
-    starts at the poses and repeats itself). ``rps`` then holds the means of return, steps,
-    progress and finished, the worst error counts, and ``runs`` (each run's figures).
-
-    ``reality`` (a level or profile): every run has the reality layer around ``get_poses`` and
-    ``set_velocities`` (run k seeded k; ``drive``: see :func:`run_rps`), and ``rps["reality"]``
-    sums their true-pose records (closest offset centres, collision pair-iterations, the first
-    collision, MuJoCo contacts); the MuJoCo side is comat's own loop at the same level."""
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
-    folder = Path(folder)
+def _submission_config(folder: Path) -> dict:
+    """The settings of the exported folder ``folder``; FileNotFoundError naming the files it lacks
+    among those an export of its vintage ships (older exports lack some by design)."""
     missing = [
         f for f in HEURISTIC_FILES if f not in ("deployed_loop.py", "run_log.py") and not (folder / f).is_file()
     ]  # every folder's
@@ -304,7 +282,54 @@ def check_submission(
         missing = [f for f in wanted if not (folder / f).is_file()]
     if missing:
         raise FileNotFoundError(f"{str(folder)!r} is not an exported submission: missing {missing}")
+    return config
 
+
+def _reality_totals(records: list[dict], reality: str, drive: str) -> dict:
+    """The runs' true-pose records under the reality layer, summed: collisions, the first of them,
+    the closest offset centres, MuJoCo contacts (None with ``drive`` rps) and boundary iterations."""
+    hits = [dict(rec["first_collision"], run=k) for k, rec in enumerate(records) if rec["first_collision"]]
+    closest = [
+        rec["min_offset_centre_distance_m"] for rec in records if rec["min_offset_centre_distance_m"] is not None
+    ]
+    return {
+        "level": reality,
+        "drive": drive,
+        "runs": len(records),
+        "collision_pair_iterations": sum(rec["collision_pair_iterations"] for rec in records),
+        "runs_with_collisions": len(hits),
+        "first_collision": hits[0] if hits else None,
+        "min_offset_centre_distance_m": min(closest) if closest else None,
+        "mujoco_contact_ticks": None if drive == "rps" else sum(rec["mujoco_contact_ticks"] for rec in records),
+        "boundary_iterations": sum(rec["boundary_iterations"] for rec in records),
+    }
+
+
+def check_submission(
+    folder,
+    tier: str = "wheels",
+    timeout_s: float = 1800.0,
+    rps_path=None,
+    repeats: int = 1,
+    reality: str | None = None,
+    drive: str = "rps",
+) -> dict:
+    """{"rps": ..., "mujoco": ..., "gap": {progress_points, return}} for an exported folder (``rps_path``:
+    see :func:`run_rps`).
+
+    ``repeats`` runs main.py under rps that many times: V2 drives the robots from randomly placed
+    chargers to the start poses first, so one V2 run is one random sample (the legacy simulator
+    starts at the poses and repeats itself). ``rps`` then holds the means of return, steps,
+    progress and finished, the worst error counts, and ``runs`` (each run's figures).
+
+    ``reality`` (a level or profile): every run has the reality layer around ``get_poses`` and
+    ``set_velocities`` (run k seeded k; ``drive``: see :func:`run_rps`), and ``rps["reality"]``
+    sums their true-pose records (closest offset centres, collision pair-iterations, the first
+    collision, MuJoCo contacts); the MuJoCo side is comat's own loop at the same level."""
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"--repeats must be an integer >= 1, got {repeats!r}")
+    folder = Path(folder)
+    config = _submission_config(folder)
     if drive not in DRIVES:
         raise ValueError(f"--drive must be one of {list(DRIVES)}, got {drive!r}")
     if reality is not None:
@@ -327,22 +352,7 @@ def check_submission(
     ]
     rps["duration_warnings"] = [w for w in (duration_warning(config, r) for r in runs) if w]
     if reality is not None:
-        records = [r["reality"] for r in runs]
-        hits = [dict(rec["first_collision"], run=k) for k, rec in enumerate(records) if rec["first_collision"]]
-        closest = [
-            rec["min_offset_centre_distance_m"] for rec in records if rec["min_offset_centre_distance_m"] is not None
-        ]
-        rps["reality"] = {
-            "level": reality,
-            "drive": drive,
-            "runs": len(runs),
-            "collision_pair_iterations": sum(rec["collision_pair_iterations"] for rec in records),
-            "runs_with_collisions": len(hits),
-            "first_collision": hits[0] if hits else None,
-            "min_offset_centre_distance_m": min(closest) if closest else None,
-            "mujoco_contact_ticks": None if drive == "rps" else sum(rec["mujoco_contact_ticks"] for rec in records),
-            "boundary_iterations": sum(rec["boundary_iterations"] for rec in records),
-        }
+        rps["reality"] = _reality_totals([r["reality"] for r in runs], reality, drive)
     mj = run_mujoco(folder, tier, reality)
     gap = {"progress_points": 100.0 * (rps["progress"] - mj["progress"]), "return": rps["return"] - mj["return"]}
     return {"rps": rps, "mujoco": mj, "gap": gap}
