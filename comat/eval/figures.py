@@ -199,6 +199,25 @@ def _method(k_text: str) -> str:
     )
 
 
+def _retention_labels(ax, rows: list[dict], split: str, heights: list[float], xs) -> None:
+    """Above each bar at ``xs`` (``heights`` tall), its row's progress retention on ``split``
+    (progress there / on U_train), where the row has one."""
+    for i, r in enumerate(rows):
+        ret = r.get(f"{split}_retention", math.nan)
+        if not math.isnan(ret):
+            top = max(0.0, heights[i]) if not math.isnan(heights[i]) else 0.0
+            ax.annotate(
+                f"{100 * ret:.0f}%",
+                (xs[i], top),
+                xytext=(0, 2),
+                textcoords="offset points",
+                ha="center",
+                va="bottom",
+                fontsize=6,
+                color="black",
+            )
+
+
 def fig5(
     rows: list[dict],
     tasks: list[str],
@@ -208,7 +227,6 @@ def fig5(
     stem: Path,
     k_text: str = "1",
 ) -> list[str]:
-    # long: one matplotlib figure, panel by panel, with its labels
     """Return and progress per composition set, bars per algorithm; progress retention labels.
 
     ``rows``: the generalization rows of :mod:`comat.eval.generalization` (``<set>_return``,
@@ -245,20 +263,7 @@ def fig5(
                     label=SET_LABELS[split],
                 )
                 if key == "progress" and split != "train":
-                    for i, r in enumerate(sel):
-                        ret = r.get(f"{split}_retention", math.nan)
-                        if not math.isnan(ret):
-                            top = max(0.0, vals[i]) if not math.isnan(vals[i]) else 0.0
-                            ax.annotate(
-                                f"{100 * ret:.0f}%",
-                                (x[i] + (k - (len(sets) - 1) / 2) * width, top),
-                                xytext=(0, 2),
-                                textcoords="offset points",
-                                ha="center",
-                                va="bottom",
-                                fontsize=6,
-                                color="black",
-                            )
+                    _retention_labels(ax, sel, split, vals, x + (k - (len(sets) - 1) / 2) * width)
             ax.set_xticks(x, [algo_label(r["algo"]) for r in sel])
             ax.set_ylabel(METRIC_AXES[metric], fontsize=8)
             if key == "progress":
