@@ -102,8 +102,43 @@ def _action_names() -> rr.AnnotationContext:
     )
 
 
+def _log_capability_marks(rec: rr.RecordingStream, w: str, marks, names, caps: np.ndarray) -> None:
+    """The task's capability marks (:meth:`~comat.task_logic.TaskLogic.marks`): each ring's outlines
+    and the bar of every robot's capabilities (``names``; ``caps`` (N, C) of the team), static."""
+    for ring in marks.rings:
+        members = np.flatnonzero(ring.members)
+        rec.log(  # outlines, not discs: a filled disc hides the robots in the web viewer
+            f"{w}/capabilities/{ring.name}",
+            rr.LineStrips2D.from_fields(
+                radii=[0.004],
+                colors=[(*ring.color, 170)],
+                labels=[f"robot_{i}: {ring.name} {ring.radius_m[i]:.2f} m" for i in members],
+                show_labels=False,
+            ),
+            static=True,
+        )
+    if marks.bar is not None:
+        half = np.column_stack([marks.bar.width_m / 2, np.full(len(caps), 0.014)])
+        rec.log(
+            f"{w}/capabilities/{marks.bar.name}",
+            rr.Boxes2D.from_fields(
+                half_sizes=half,
+                colors=[(80, 80, 80)],
+                labels=[
+                    f"robot_{i}: {' '.join(f'{n} {c:g}' for n, c in zip(names, caps[i]))}" for i in range(len(caps))
+                ],
+                show_labels=False,
+            ),
+            static=True,
+        )
+        rec.log(
+            f"{w}/capabilities/{marks.bar.fill_name}",
+            rr.LineStrips2D.from_fields(radii=[0.011], colors=[BAR_FILL]),
+            static=True,
+        )
+
+
 def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None:
-    # long: one Rerun entity after another (arena, zones, robots, rings, bar, legend), in drawing order
     """Arena, walls, task zones, prey positions and the robots' constant attributes of env b."""
     team = core.teams[b]
     task = core.task
@@ -155,39 +190,7 @@ def log_static_scene(rec: rr.RecordingStream, prefix: str, core, b: int) -> None
     )
     rec.log(f"{w}/robots/heading", rr.Arrows2D.from_fields(colors=colors, radii=[0.008]), static=True)
     rec.log(f"{w}/trails", rr.LineStrips2D.from_fields(colors=colors // 2 + 100, radii=[0.005]), static=True)
-    names = TASK_TYPES[team.task].capabilities
-    caps = core.caps[b, : team.size]
-    for ring in marks.rings:
-        members = np.flatnonzero(ring.members)
-        rec.log(  # outlines, not discs: a filled disc hides the robots in the web viewer
-            f"{w}/capabilities/{ring.name}",
-            rr.LineStrips2D.from_fields(
-                radii=[0.004],
-                colors=[(*ring.color, 170)],
-                labels=[f"robot_{i}: {ring.name} {ring.radius_m[i]:.2f} m" for i in members],
-                show_labels=False,
-            ),
-            static=True,
-        )
-    if marks.bar is not None:
-        half = np.column_stack([marks.bar.width_m / 2, np.full(team.size, 0.014)])
-        rec.log(
-            f"{w}/capabilities/{marks.bar.name}",
-            rr.Boxes2D.from_fields(
-                half_sizes=half,
-                colors=[(80, 80, 80)],
-                labels=[
-                    f"robot_{i}: {' '.join(f'{n} {c:g}' for n, c in zip(names, caps[i]))}" for i in range(team.size)
-                ],
-                show_labels=False,
-            ),
-            static=True,
-        )
-        rec.log(
-            f"{w}/capabilities/{marks.bar.fill_name}",
-            rr.LineStrips2D.from_fields(radii=[0.011], colors=[BAR_FILL]),
-            static=True,
-        )
+    _log_capability_marks(rec, w, marks, TASK_TYPES[team.task].capabilities, core.caps[b, : team.size])
     rec.log(f"{w}/actions", _action_names(), rr.Arrows2D.from_fields(radii=[0.006]), static=True)
     rec.log(
         f"{w}/safety/nominal",
