@@ -19,8 +19,8 @@ Per run                its failures (:func:`run_failures`): missing files, an un
                        collisions (the Robotarium's test on the logged poses: centres offset
                        0.025 m forward closer than 0.135 m; and rps's own count), boundary
                        errors, freezes (:func:`log_freezes`: a robot sent 0.15 m of motion
-                       in 3 s that moved < 2 cm; a team whose robots that wanted to move all
-                       stood still for 3 s);
+                       in 3 s that stayed within 2 cm; a team whose robots that wanted to
+                       move all moved < 2 cm in 3 s);
                        its replay beside its twin (:func:`comat.eval.replay.replay`, layer seed
                        = the run's index): ``OUT/runs/<folder>/replay.rrd`` and its tables
 Per team size          the paired sim/real table: for progress, return, steps and finished the
@@ -204,8 +204,9 @@ def log_freezes(log: RunLog) -> dict:
     """Freezes in a run's log, over every window of FREEZE_WINDOW_S (module docstring):
 
     * ``"robots"``: per robot sent commands that would move it at least FREEZE_INTENT_M (the sent
-      speeds integrated along its logged heading) over a window in which its logged position moved
-      less than FREEZE_MOVE_M: stuck, or not tracked; ``{"robot", "first_iteration", "seconds"}``;
+      speeds integrated along its logged heading) over a window in which its logged position stayed
+      inside a box of diagonal FREEZE_MOVE_M (not a robot reversing in place, whose net motion is
+      small too): stuck, or not tracked; ``{"robot", "first_iteration", "seconds"}``;
     * ``"team"``: windows in which at least one robot wanted to move (its commands before the
       filter worth FREEZE_INTENT_M) and every such robot moved less than FREEZE_MOVE_M (the filter
       held them: a deadlock, the bench's team freeze); ``{"first_iteration", "robots", "seconds"}``
@@ -220,8 +221,10 @@ def log_freezes(log: RunLog) -> dict:
     sent = np.linalg.norm(_window_sums(log.sent[..., :1] * ahead, w), axis=-1)  # (K - w + 1, N) m
     wanted = np.linalg.norm(_window_sums(log.nominal[..., :1] * ahead, w), axis=-1)
     xy = log.poses[..., :2].astype(float)
-    still = np.linalg.norm(xy[w - 1 :] - xy[: rows - w + 1], axis=-1) < FREEZE_MOVE_M
-    stuck = (sent >= FREEZE_INTENT_M) & still
+    still = np.linalg.norm(xy[w - 1 :] - xy[: rows - w + 1], axis=-1) < FREEZE_MOVE_M  # net motion
+    view = np.lib.stride_tricks.sliding_window_view(xy, w, axis=0)  # (K - w + 1, N, 2, w), no copy
+    boxed = np.linalg.norm(view.max(axis=-1) - view.min(axis=-1), axis=-1) < FREEZE_MOVE_M
+    stuck = (sent >= FREEZE_INTENT_M) & boxed
     robot_s = _covered(stuck, w, rows).sum(axis=0) * C.CONTROL_DT_S
     robots = [
         {"robot": int(i), "first_iteration": int(np.flatnonzero(stuck[:, i])[0]), "seconds": float(robot_s[i])}
@@ -287,9 +290,9 @@ def run_failures(run: dict) -> list[dict]:
         fails.append(
             {
                 "kind": "freeze (robot)",
-                "detail": f"robot {f['robot']} was sent >= {FREEZE_INTENT_M} m of motion per {FREEZE_WINDOW_S:g} s but "
-                f"moved < {FREEZE_MOVE_M} m, from iteration {f['first_iteration']} ({f['seconds']:.1f} s in all): "
-                "stuck, or not tracked",
+                "detail": f"robot {f['robot']} was sent >= {FREEZE_INTENT_M} m of motion per {FREEZE_WINDOW_S:g} s "
+                f"but stayed within {FREEZE_MOVE_M} m, from iteration {f['first_iteration']} ({f['seconds']:.1f} s "
+                "in all): stuck, or not tracked",
             }
         )
     if frozen["team"] is not None:
