@@ -31,6 +31,8 @@ from comat.safety.deployed import (
     PortableBarrier,
     RobotWatch,
     ShippedFilter,
+    cvxopt_qp,
+    keep_right,
     robotarium_loop,
     uni_to_si,
 )
@@ -82,6 +84,18 @@ def waypoint_controller(
         points = projected_points(poses, projection_distance)
     dxi = go_to_goal(points, goals, gain, max_speed)
     return limit_to_wheels(dxi, poses, projection_distance, cos_sin=(c, s))
+
+
+def _portable_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray, weights: np.ndarray | None = None):
+    """:func:`~comat.safety.qp.dense_qp` (OSQP), and where it stops without an answer that is not
+    a proof of infeasibility (the iteration limit on a softened problem, weights 1 and 1e4, in
+    the crowds of ``stress``), the export's interior-point :func:`~comat.safety.deployed.cvxopt_qp`:
+    without it such a team braked (antipodal16 at ``stress``: 63 team-ticks in 4 × 900, each
+    solved optimally by cvxopt)."""
+    x, status = dense_qp(vhat, A, b, weights)
+    if x is None and status != "primal infeasible":
+        return cvxopt_qp(vhat, A, b, weights)
+    return x, status
 
 
 def _resolve_subset(solve, A: np.ndarray, b: np.ndarray, u: np.ndarray, u_nom: np.ndarray, broken, tol: float):
@@ -176,6 +190,7 @@ class SafeTeams:
         reality: the reality layer's settings (None or a config that ``is_off``: the ideal world,
             bit for bit).
         reality_seed: keys of episodes reset without ``reality_keys`` (see :meth:`reset`).
+        filter_reality: the reality the filter is made for, if not the world's (``reality``).
     """
 
     def __init__(
@@ -186,6 +201,7 @@ class SafeTeams:
         batched: bool = True,
         reality: RealityConfig | None = None,
         reality_seed: int = 0,
+        filter_reality: RealityConfig | None = None,
     ) -> None:
         sizes = tuple(team_sizes)
         self.sim_config = sim or SimConfig()
@@ -202,15 +218,21 @@ class SafeTeams:
         self.filter_config = self.safety_config
         """The filter's settings: ``safety`` made robust to the reality layer's bounds
         (:func:`comat.reality.margin.robust_safety`; ``safety`` itself without a layer)."""
+        self.design_reality = filter_reality if filter_reality is not None else reality
+        """The reality the filter is made for (margins, gain, the watch's lag): ``filter_reality``,
+        else the world's own (a mismatch battery builds it for one level and runs another)."""
         if reality is not None and not reality.is_off:
             self.reality = RealityLayer(reality, self.world.profile, self.world.layout, reality_seed)
-            self.filter_config = robust_safety(self.safety_config, reality, self.world.profile)
+            self.filter_config = robust_safety(self.safety_config, self.design_reality, self.world.profile)
         self.filter = SafetyFilter(sizes, self.filter_config, self.world.profile, self._qp_cache)
         self.watch: RobotWatch | None = self._new_watch()
         """What the script tells of each robot under a reality layer (comat's robust filter only):
         a team with a robot on probation (one that does not respond) is filtered by
         :class:`~comat.safety.deployed.PortableBarrier`, which treats it as an obstacle."""
-        self._portable = PortableBarrier(portable_settings(self.filter_config, self.world.profile), dense_qp)
+        self.keep_right = self.reality is not None and self.safety_config.robust
+        """Turn nominal commands right near robots ahead (:func:`~comat.safety.deployed.keep_right`)
+        under a reality layer; without one (``off``) the loop is as before, bit for bit."""
+        self._portable = PortableBarrier(portable_settings(self.filter_config, self.world.profile), _portable_qp)
         self.deployed: list[DeployedLoop] | None = self._deployed_loops(sizes)
         """Per team, the exported script's loop (``safety.loop`` not ``"comat"``; else None):
         :meth:`tick_deployed` runs it."""
@@ -234,7 +256,7 @@ class SafeTeams:
         return (CompiledRobotWatch if kernels.enabled() else RobotWatch)(
             self.world.layout.n_robots,
             self.safety_config.projection_distance_m,
-            response_lag_ticks(self.reality.config, self.world.profile),
+            response_lag_ticks(self.design_reality, self.world.profile),
         )
 
     def _deployed_loops(self, sizes: Sequence[int]) -> list[DeployedLoop] | None:
@@ -246,10 +268,14 @@ class SafeTeams:
         d = self.safety_config.projection_distance_m
         if kind == "robotarium":
             return [robotarium_loop(generation, projection=d) for _ in sizes]
-        reality = RealityConfig() if self.reality is None else self.reality.config
+        reality = RealityConfig() if self.reality is None else self.design_reality
         lag = response_lag_ticks(reality, self.world.profile)
         settings = portable_settings(self.filter_config, self.world.profile)
-        return [robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, settings, lag)) for n in sizes]
+        right = self.keep_right
+        return [
+            robotarium_loop(generation, projection=d, barrier=ShippedFilter(n, settings, lag, keep_right=right))
+            for n in sizes
+        ]
 
     @property
     def poses(self) -> np.ndarray:
@@ -374,6 +400,11 @@ class SafeTeams:
         poses, cos_sin = self.filter_poses()  # read-only here; our own arrays skip the public checks
         nominal = dxi
         dxi = self.tie_break.steer(nominal)
+        if self.keep_right:
+            lay, c, s = self.world.layout, cos_sin[0], cos_sin[1]
+            d = self.safety_config.projection_distance_m
+            points = np.column_stack([poses[:, 0] + d * c, poses[:, 1] + d * s])
+            dxi = keep_right(points, dxi, lay.pair_i, lay.pair_j)
         safe, info = self.filter._filter(poses, dxi, cos_sin)
         if self.watch is not None:
             self._watch_teams(dxi, safe, info)

@@ -16,6 +16,7 @@ from comat.bench.liveness import (
 )
 from comat.bench.safety_bench import CROSSING_NAMES, liveness_table, run_safety_bench
 from comat.bench.scenarios import CROSSINGS, make_scenario
+from comat.config import SafetyConfig
 from comat.control import SafeTeams
 from comat.reality import RealityConfig
 
@@ -99,3 +100,96 @@ def test_battery_reports_liveness_beside_safety(tmp_path):
     assert "live_nominal_2x_at_least_90pct_of_off" in res["liveness_targets"]
     assert json.loads(out.read_text())["rows"][0]["arrival"] == off["arrival"]
     assert "`swap4`" in liveness_table(res)
+
+
+def test_keep_right_turns_only_the_nominal_and_only_clockwise():
+    from comat.safety.deployed import KEEP_RIGHT_ANGLE_RAD, KEEP_RIGHT_REACH_M, keep_right
+
+    rng = np.random.default_rng(3)
+    i, j = np.triu_indices(2, 1)
+    alone = keep_right(np.array([[0.0, 0.0], [KEEP_RIGHT_REACH_M + 0.01, 0.0]]), np.array([[0.2, 0.0], [0.2, 0]]), i, j)
+    np.testing.assert_array_equal(alone, [[0.2, 0.0], [0.2, 0.0]])  # out of reach: unchanged
+    head_on = keep_right(np.array([[0.0, 0.0], [0.3, 0.0]]), np.array([[0.2, 0.0], [-0.2, 0.0]]), i, j)
+    turn = (1 - 0.3 / KEEP_RIGHT_REACH_M) * KEEP_RIGHT_ANGLE_RAD
+    np.testing.assert_allclose(head_on[0], 0.2 * np.array([np.cos(turn), -np.sin(turn)]))  # to its right
+    np.testing.assert_allclose(head_on[1], -head_on[0])  # both keep right: they pass
+    for _ in range(20):  # a crowd: speeds kept, turns clockwise and at most the largest angle
+        n = 12
+        p, u = rng.uniform(-1, 1, (n, 2)), rng.uniform(-0.2, 0.2, (n, 2))
+        a, b = np.triu_indices(n, 1)
+        out = keep_right(p, u, a, b)
+        np.testing.assert_allclose(np.hypot(*out.T), np.hypot(*u.T))
+        cross = u[:, 0] * out[:, 1] - u[:, 1] * out[:, 0]
+        assert (cross <= 1e-15).all()
+        cos = (u * out).sum(1) / np.maximum(np.hypot(*u.T) ** 2, 1e-30)
+        assert (cos >= np.cos(KEEP_RIGHT_ANGLE_RAD) - 1e-12).all()
+
+
+def test_the_shipped_filter_with_keep_right_still_meets_every_barrier_row():
+    """The rule changes the nominal only: what the shipped filter sends meets the portable
+    barrier's rows (the same proof), on crowded random teams with robots on probation."""
+    from comat.safety.deployed import PortableBarrier, ShippedFilter, si_to_uni, uni_to_si
+
+    settings = SafeTeams((1,), reality=RealityConfig(level="nominal"))._portable.s
+    rng = np.random.default_rng(0)
+    checked = 0
+    for _ in range(30):
+        n = 8
+        pts = []
+        while len(pts) < n:
+            q = rng.uniform([-1.3, -0.75], [1.3, 0.75])
+            if all(np.hypot(*(q - r)) > 0.26 for r in pts):
+                pts.append(q)
+        x = np.column_stack([pts, rng.uniform(-np.pi, np.pi, n)]).T
+        f = ShippedFilter(n, settings, lag=4)
+        f.watch.unresponsive[rng.integers(n)] = True  # a false alarm: an obstacle to the others
+        nominal = rng.uniform(-0.15, 0.15, (2, n))
+        out = f.command(x, nominal)
+        u = uni_to_si(out, x, f.projection).T
+        assert f.watch.probation.sum() == 1
+        A, b = PortableBarrier(settings).problem(x.T, f.watch.probation, np.zeros(n))
+        assert np.all(A @ u.ravel() <= b + 1e-6)
+        checked += not np.allclose(si_to_uni(nominal, x, f.projection), out)
+    assert checked > 5  # the barrier was active in many of them
+
+
+def test_a_filter_built_for_one_reality_runs_in_another():
+    from comat.reality.margin import response_lag_ticks
+
+    nominal, stress = RealityConfig(level="nominal"), RealityConfig(level="stress")
+    built = SafeTeams((3,), reality=stress, filter_reality=nominal)
+    matched = SafeTeams((3,), reality=nominal)
+    assert built.filter_config == matched.filter_config  # margins and gain of nominal's filter
+    assert built.reality.config == stress  # in stress's world
+    assert (
+        built.watch.lag
+        == response_lag_ticks(nominal, built.world.profile)
+        < response_lag_ticks(stress, built.world.profile)
+    )
+    shipped = SafeTeams((3,), safety=SafetyConfig(loop="shipped_v2"), reality=stress, filter_reality=nominal)
+    assert shipped.deployed[0].barrier.watch.lag == built.watch.lag
+
+
+def test_the_wrong_way_robot_executes_its_speed_negated():
+    from comat.bench.scenarios import _drive_wrong_way
+
+    teams = SafeTeams((2, 2), reality=RealityConfig(level="nominal", command_loss_prob=0.0))
+    seen = []
+    teams.reality.actuate = lambda dxu: seen.append(dxu.copy()) or dxu
+    _drive_wrong_way(teams, 1)
+    cmd = np.full((4, 2), 0.1)
+    teams.reality.actuate(cmd)
+    teams.reality.actuate(cmd)
+    np.testing.assert_array_equal(seen[0], cmd)
+    np.testing.assert_array_equal(seen[1][:, 0], [-0.1, 0.1, -0.1, 0.1])  # each team's first robot
+    np.testing.assert_array_equal(seen[1][:, 1], 0.1)
+
+
+def test_mismatch_battery_reports_every_case(tmp_path):
+    from comat.bench.safety_bench import MISMATCHES, mismatch_table, run_mismatch
+
+    res = run_mismatch(1, 0, str(tmp_path / "m.json"), scenarios=("swap4",))
+    cases = [r["case"] for r in res["rows"]]
+    assert cases == ["off", *MISMATCHES]
+    assert all(r["liveness"]["2x"] >= 0 for r in res["rows"])
+    assert mismatch_table(res).count("`swap4`") == len(MISMATCHES)

@@ -33,9 +33,19 @@ from comat.bench.scenarios import FAULTS, SCENARIOS, make_scenario, run_scenario
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams
 from comat.files import write_atomic
-from comat.reality.config import RealityConfig
+from comat.reality.config import RealityConfig, resolve_reality
 
-__all__ = ["CROSSING_NAMES", "DEFAULT_LOOPS", "SCENARIO_NAMES", "liveness_table", "loops_table", "run_safety_bench"]
+__all__ = [
+    "CROSSING_NAMES",
+    "DEFAULT_LOOPS",
+    "MISMATCHES",
+    "SCENARIO_NAMES",
+    "liveness_table",
+    "loops_table",
+    "mismatch_table",
+    "run_mismatch",
+    "run_safety_bench",
+]
 
 SCENARIO_NAMES = (
     "head_on",
@@ -62,18 +72,53 @@ is built without importing the simulator; a test keeps the two equal)."""
 CROSSING_NAMES = ("antipodal16", "antipodal20", "lanes12", "pinch12")
 """The dense crossings (:data:`comat.bench.scenarios.CROSSINGS`), run after the battery's own."""
 DEFAULT_LOOPS = ("comat", "robotarium_v2", "shipped_v2")
+SLOW_2X = {
+    "pose_delay_ticks": 3,
+    "pose_delay_spread_ticks": 2,
+    "command_delay_ticks": 2,
+    "command_delay_spread_ticks": 1,
+    "motor_tau_min_s": 0.15,
+    "motor_tau_max_s": 0.25,
+}
+"""A plant about twice as slow as ``nominal`` (the 2026-12b review's probe): pose delay 3 + Bin(2),
+command delay 2–3 ticks, motor lag τ 0.15–0.25 s."""
+MISMATCHES = {
+    "nominal_in_stress": ("nominal", {"level": "stress"}, None),
+    "nominal_in_slow2x": ("nominal", {"level": "nominal", **SLOW_2X}, None),
+    "nominal_wrong_way": ("nominal", {"level": "nominal"}, 30),
+    "nominal_speed25": (
+        "nominal",
+        {"level": "nominal", "fault_prob": 1.0, "fault_speed_fraction": 0.25, "fault_start_min_s": 0.5,
+         "fault_start_max_s": 4.0},
+        None,
+    ),
+    "stress_in_nominal": ("stress", {"level": "nominal"}, None),
+}  # fmt: skip
+""""Built for X, run in Y": name → (the level the filter is made for, the world's reality fields,
+the tick from which each team's first robot drives the wrong way or None). The 25 %-speed robot
+is one per team (``fault_prob`` 1), from 0.5–4 s on; ``stress_in_nominal`` shows what caution costs."""
+MISMATCH_SCENARIOS = ("swap4", "converge16", "bangbang16", "antipodal16", "lanes12")
 """comat's filter, the export's main.py with the Robotarium's V2 barrier, and with comat's shipped filter."""
 
 
 def _row(
-    name: str, tier: str, level: str, episodes: int, seed: int, loop: str = "comat", ticks: int | None = None
+    name: str,
+    tier: str,
+    level,
+    episodes: int,
+    seed: int,
+    loop: str = "comat",
+    ticks: int | None = None,
+    **mismatch,
 ) -> dict:
-    """One scenario at one level through one loop (``ticks``: at least this many, for liveness)."""
+    """One scenario at one level (a name or a config) through one loop (``ticks``: at least this
+    many, for liveness; ``mismatch``: :func:`run_scenario`'s ``filter_reality``, ``wrong_way_tick``)."""
     scn = make_scenario(name, episodes, seed=seed)
     if ticks is not None and ticks > scn.ticks:
         scn.ticks = ticks
     t0 = time.perf_counter()
-    r = run_scenario(scn, SimConfig(tier=tier), SafetyConfig(loop=loop), reality=level, seed=seed)
+    r = run_scenario(scn, SimConfig(tier=tier), SafetyConfig(loop=loop), reality=level, seed=seed, **mismatch)
+    level = level if isinstance(level, str) else level.level + "+fields"
     s = r.safe_start
 
     def both(x: np.ndarray) -> dict:
@@ -90,6 +135,7 @@ def _row(
         "safe_start_scenario": name in SCENARIOS or name in FAULTS,
         "safe_starts": int(s.sum()),
         "episodes_hit": int(((r.robot_contacts + r.robotarium_collisions)[s] > 0).sum()),
+        "per_episode_hits": (r.robot_contacts + r.robotarium_collisions).astype(int).tolist(),
         "first_collision": next(
             (
                 {"episode": b, "tick": c[0], "robots": [c[1], c[2]]}
@@ -262,6 +308,73 @@ def loops_table(result: dict, level: str, tier: str = "unicycle") -> str:
                 f"{hit} / {r['safe_starts']}, {'—' if d is None else f'{d:.3f}'}, {r['median_goal_error_m']:.2f}"
             )
         lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def run_mismatch(
+    episodes: int,
+    seed: int,
+    out: str,
+    scenarios: tuple[str, ...] = MISMATCH_SCENARIOS,
+    loops: tuple[str, ...] = ("comat",),
+    tier: str = "unicycle",
+) -> dict:
+    """The mismatch battery (:data:`MISMATCHES`): each scenario at ``off`` (the liveness reference),
+    then in each mismatch; collisions (episodes with a MuJoCo contact or a Robotarium collision, over
+    all episodes: the world's start error, not the filter, decides which started in its safe set),
+    the closest true points, recoveries, fallbacks and liveness. Writes ``out`` after every row."""
+    rows: list[dict] = []
+
+    def result() -> dict:
+        return {"mismatches": {k: [v[0], v[1], v[2]] for k, v in MISMATCHES.items()}, "rows": rows,
+                "episodes": episodes, "seed": seed, "tier": tier, "loops": list(loops)}  # fmt: skip
+
+    print(f"{'case':18s} {'scenario':12s} {'loop':10s} {'hit':>4s} {'min d (m)':>9s} {'recov':>6s} {'brake':>6s} "
+          f"{'live 1x':>7s} {'2x':>5s} {'frz':>4s}")  # fmt: skip
+    for name in scenarios:
+        for loop in loops:
+            off = _row(name, tier, "off", episodes, seed, loop)
+            off["case"] = "off"
+            if off["live"]:
+                off["liveness"] = row_liveness(off["arrival"], off["arrival"], off["ticks"], off["ticks"])
+            rows.append(off)
+            for case, (design, world, wrong) in MISMATCHES.items():
+                ticks = 2 * max(_t_off(off)) + 1 if off["live"] else None
+                row = _row(name, tier, resolve_reality(world), episodes, seed, loop, ticks,
+                           filter_reality=design, wrong_way_tick=wrong)  # fmt: skip
+                row["case"] = case
+                if row["live"]:
+                    row["liveness"] = row_liveness(row["arrival"], off["arrival"], off["ticks"], row["ticks"])
+                rows.append(row)
+                lv = row.get("liveness")
+                hit = int(((np.array(row["per_episode_hits"])) > 0).sum())
+                live = f"{lv['1x']:>7.2f} {lv['2x']:>5.2f} {row['freezes']:>4d}" if lv else f"{'—':>7s} {'—':>5s}"
+                print(f"{case:18s} {name:12s} {loop:10s} {hit:>4d} {row['min_point_distance_m']['all']:>9.4f} "
+                      f"{row['recovery_ticks']:>6d} {row['fallback_ticks']:>6d} " + live, flush=True)  # fmt: skip
+                write_atomic(out, json.dumps(result(), indent=1) + "\n")
+    final = result()
+    write_atomic(out, json.dumps(final, indent=1) + "\n")
+    print(f"wrote {out}")
+    return final
+
+
+def mismatch_table(result: dict, loop: str = "comat") -> str:
+    """Markdown: a row per mismatch case and scenario: episodes with a contact or collision (all
+    episodes), closest true points, recovery / brake ticks, at goal within 1× / 2× the ``off`` time."""
+    lines = [
+        "| case | scenario | hit / episodes | closest (m) | recoveries / brakes | at goal 1× / 2× off time | freezes |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        if r["loop"] != loop or r["case"] == "off":
+            continue
+        lv = r.get("liveness")
+        live = f"{100 * lv['1x']:.0f} % / {100 * lv['2x']:.0f} %" if lv else "—"
+        hit = int((np.array(r["per_episode_hits"]) > 0).sum())
+        lines.append(
+            f"| {r['case']} | `{r['scenario']}` | {hit} / {r['episodes']} | {r['min_point_distance_m']['all']:.3f} | "
+            f"{r['recovery_ticks']} / {r['fallback_ticks']} | {live} | {r['freezes'] if lv else '—'} |"
+        )
     return "\n".join(lines) + "\n"
 
 

@@ -343,6 +343,24 @@ def _bangbang(rng: np.random.Generator, n: int):
     return step
 
 
+def _drive_wrong_way(teams: SafeTeams, from_tick: int) -> None:
+    """Each team's first robot executes its forward speed negated from ``from_tick`` on (the
+    layer's motors see −v): a fault the script's commands do not reveal by distance alone."""
+    if teams.reality is None:
+        raise ValueError("wrong_way_tick needs a reality layer (a level other than off)")
+    layer, first = teams.reality, teams.world.layout.offsets[:-1]
+    actuate, ticks = layer.actuate, [0]
+
+    def wrong_way(dxu: np.ndarray) -> np.ndarray:
+        if ticks[0] >= from_tick:
+            dxu = dxu.copy()
+            dxu[first, 0] *= -1.0
+        ticks[0] += 1
+        return actuate(dxu)
+
+    layer.actuate = wrong_way
+
+
 def _in_safe_set(teams: SafeTeams) -> np.ndarray:
     """(B,) every true projected point of the team inside the filter's safe set (the deployed
     loop's: the Robotarium barrier's own)."""
@@ -371,6 +389,8 @@ def run_scenario(
     filtered: bool = True,
     reality: RealityConfig | str | None = None,
     seed: int = 0,
+    filter_reality: RealityConfig | str | None = None,
+    wrong_way_tick: int | None = None,
 ) -> ScenarioResult:
     """Run every episode of ``scn`` as one batch for ``scn.ticks`` ticks.
 
@@ -379,12 +399,19 @@ def run_scenario(
     the reality layer between the world and the controller, its draws keyed by ``seed``; a fault
     scenario's fields (:attr:`Scenario.reality`) are set on top. ``safety.loop`` other than
     ``"comat"`` runs the exported script's loop (:meth:`SafeTeams.tick_deployed`) instead.
+
+    A mismatch ("built for X, run in Y"): ``filter_reality`` makes the filter for another reality
+    than the world's; ``wrong_way_tick`` negates what each team's first robot executes of its
+    forward speed from that tick on (a tracker heading off by π, swapped motor leads).
     """
     config = resolve_reality(reality)
     if scn.reality:
         config = dataclasses.replace(config, **scn.reality)
-    teams = SafeTeams(scn.team_sizes, sim, safety, reality=config, reality_seed=seed)
+    design = None if filter_reality is None else resolve_reality(filter_reality)
+    teams = SafeTeams(scn.team_sizes, sim, safety, reality=config, reality_seed=seed, filter_reality=design)
     teams.reset(scn.poses)
+    if wrong_way_tick is not None:
+        _drive_wrong_way(teams, wrong_way_tick)
     lay = teams.world.layout
     safe_start = _in_safe_set(teams)
     min_d = np.full(lay.n_teams, np.inf)

@@ -93,6 +93,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_safety(args: argparse.Namespace) -> int:
+    if args.mismatch:
+        from comat.bench.safety_bench import MISMATCH_SCENARIOS, run_mismatch
+
+        names = tuple(args.scenarios) if args.scenarios else MISMATCH_SCENARIOS
+        loops = tuple(args.loops) if args.loops != list(DEFAULT_LOOPS) else ("comat",)
+        run_mismatch(args.episodes, args.seed, args.out, names, loops, args.tiers[0])
+        return 0
     result = run_safety_bench(
         tuple(args.reality),
         tuple(args.tiers),
@@ -292,5 +299,12 @@ def _add_safety_bench_parser(bsub) -> None:
         help="loops, side by side (default: %(default)s)",
     )
     b.add_argument("--seed", type=int, default=0, help="seed of the episodes and the layer (default: %(default)s)")
+    b.add_argument(
+        "--mismatch",
+        action="store_true",
+        help="the mismatch battery instead: the filter built for one reality, run in another (nominal's in "
+        "stress, in a 2x slower plant, with a wrong-way robot, with a 25 %%-speed robot; stress's in nominal); "
+        "scenarios default to swap4 converge16 bangbang16 antipodal16 lanes12, loops to comat, the first tier",
+    )
     b.add_argument("--out", default="benchmarks/results/safety_reality.json", help="JSON output (default: %(default)s)")
     b.set_defaults(func=_cmd_safety)

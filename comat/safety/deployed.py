@@ -52,6 +52,7 @@ __all__ = [
     "RobotWatch",
     "ShippedFilter",
     "cvxopt_qp",
+    "keep_right",
     "robotarium_barrier",
     "robotarium_loop",
     "si_to_uni",
@@ -125,6 +126,37 @@ class DeadlockTieBreak:
         if start.any():
             self.detour[start] = DETOUR_TICKS
             self.held[start] = 0
+
+
+KEEP_RIGHT_REACH_M = 0.6
+"""Distance (m) between projected points within which a robot ahead turns a robot's nominal
+command to the right (:func:`keep_right`)."""
+KEEP_RIGHT_ANGLE_RAD = np.pi / 4
+"""Largest turn (rad) :func:`keep_right` gives a nominal command (a robot right ahead, touching)."""
+
+
+def keep_right(points: np.ndarray, nominal: np.ndarray, pair_i: np.ndarray, pair_j: np.ndarray) -> np.ndarray:
+    """Nominal point velocities (N, 2) turned clockwise where other robots are ahead: robot i's
+    command turns by ``KEEP_RIGHT_ANGLE_RAD · w_i``, w_i the largest over the robots j ahead of it
+    (pairs ``pair_i``, ``pair_j``, indices into ``points`` (N, 2)) of
+    ``(1 − r_ij / KEEP_RIGHT_REACH_M)⁺ · cos⁺(angle between i's command and the direction to j)``.
+
+    A crowd that crosses then circulates one way round (a roundabout) instead of meeting head-on
+    at the centre, where symmetric barrier rows hold everyone still. Only the NOMINAL command
+    changes: the barrier still filters every command, so every safety row holds as before (the
+    proof is untouched); a turn under 90° keeps a component toward the goal."""
+    n = nominal.shape[0]
+    speed = np.hypot(nominal[:, 0], nominal[:, 1])
+    d = nominal / np.maximum(speed, 1e-12)[:, None]
+    e = points[pair_j] - points[pair_i]
+    r = np.maximum(np.hypot(e[:, 0], e[:, 1]), 1e-12)
+    near = np.clip(1.0 - r / KEEP_RIGHT_REACH_M, 0.0, 1.0)
+    w = np.zeros(n)
+    np.maximum.at(w, pair_i, near * np.clip((e * d[pair_i]).sum(axis=1) / r, 0.0, 1.0))
+    np.maximum.at(w, pair_j, near * np.clip(-(e * d[pair_j]).sum(axis=1) / r, 0.0, 1.0))
+    a = -KEEP_RIGHT_ANGLE_RAD * w
+    c, s = np.cos(a), np.sin(a)
+    return np.column_stack([c * nominal[:, 0] - s * nominal[:, 1], s * nominal[:, 0] + c * nominal[:, 1]])
 
 
 # -- maps between points and unicycles (row 0 x / v, row 1 y / ω; one column per robot) ----------
@@ -590,13 +622,17 @@ class ShippedFilter:
         settings: :class:`PortableBarrier`'s (the robust filter's values for the reality level
             the export was made for).
         lag: ticks from a command to its effect on a measured pose, at most (:class:`RobotWatch`).
+        keep_right: turn nominal commands right near robots ahead (:func:`keep_right`).
     """
 
-    def __init__(self, n: int, settings: dict, lag: int, solve=cvxopt_qp) -> None:
+    def __init__(self, n: int, settings: dict, lag: int, solve=cvxopt_qp, keep_right: bool = True) -> None:
         self.projection = float(settings["projection_distance_m"])
         self.watch = RobotWatch(n, self.projection, lag)
         self.barrier = PortableBarrier(settings, solve)
         self.tie_break = DeadlockTieBreak(n)
+        self.keep_right = keep_right
+        """Turn nominal commands right near robots ahead (:func:`keep_right`; the filter is unchanged)."""
+        self._pairs = np.triu_indices(n, 1)
 
     @property
     def failures(self) -> int:
@@ -621,7 +657,12 @@ class ShippedFilter:
         watch.observe(x.T)
         poses, extra = watch.obstacles()
         nominal = nominal.T
-        u = self.barrier(poses, self.tie_break.steer(nominal), watch.probation, extra)
+        steered = self.tie_break.steer(nominal)
+        if self.keep_right:
+            c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+            points = np.column_stack([poses[:, 0] + d * c, poses[:, 1] + d * s])
+            steered = keep_right(points, steered, *self._pairs)
+        u = self.barrier(poses, steered, watch.probation, extra)
         self.tie_break.update(nominal, u)
         out = si_to_uni(u.T, poses.T, d)
         watch.sent(out.T)
