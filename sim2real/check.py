@@ -47,6 +47,29 @@ def _tail(stderr) -> str:
     return f"; its stderr ends: {lines[-1].strip()[:300]}" if lines else ""
 
 
+def _main_py_environment(show_figure: bool, rps_path, max_steps: int | None) -> dict[str, str]:
+    """The environment variables main.py runs with: figures, no bytecode, only the folder's modules
+    and the installed packages (or the rps checkout at ``rps_path``), ``max_steps`` if given."""
+    env = {
+        **os.environ,
+        "COMAT_SHOW_FIGURE": "1" if show_figure else "0",
+        "MPLBACKEND": "Agg",
+        "PYTHONDONTWRITEBYTECODE": "1",
+    }
+    env.pop("PYTHONPATH", None)  # only the folder's own modules and the installed packages
+    if rps_path is not None:
+        rps_path = Path(rps_path).resolve()
+        if not (rps_path / "rps" / "__init__.py").is_file():
+            raise FileNotFoundError(
+                f"rps_path {str(rps_path)!r} must be a folder holding the rps package "
+                f"(rps/__init__.py), e.g. a robotarium_python_simulator checkout"
+            )
+        env["PYTHONPATH"] = str(rps_path)
+    if max_steps is not None:
+        env["COMAT_MAX_STEPS"] = str(int(max_steps))
+    return env
+
+
 def run_rps(
     folder,
     timeout_s: float = 1800.0,
@@ -58,7 +81,6 @@ def run_rps(
     drive: str = "rps",
     python: str | None = None,
 ) -> dict:
-    # long: one subprocess run of main.py: its environment, argv, and the result read back from its output
     """Run ``folder/main.py`` under rps (figures off unless ``show_figure``, then on the Agg
     backend); its COMAT_RESULT dict + output.
 
@@ -78,23 +100,7 @@ def run_rps(
     folder = Path(folder)
     if python is not None and reality is not None:
         raise ValueError("run_rps: python runs main.py alone; the reality layer needs comat's own interpreter")
-    env = {
-        **os.environ,
-        "COMAT_SHOW_FIGURE": "1" if show_figure else "0",
-        "MPLBACKEND": "Agg",
-        "PYTHONDONTWRITEBYTECODE": "1",
-    }
-    env.pop("PYTHONPATH", None)  # only the folder's own modules and the installed packages
-    if rps_path is not None:
-        rps_path = Path(rps_path).resolve()
-        if not (rps_path / "rps" / "__init__.py").is_file():
-            raise FileNotFoundError(
-                f"rps_path {str(rps_path)!r} must be a folder holding the rps package "
-                f"(rps/__init__.py), e.g. a robotarium_python_simulator checkout"
-            )
-        env["PYTHONPATH"] = str(rps_path)
-    if max_steps is not None:
-        env["COMAT_MAX_STEPS"] = str(int(max_steps))
+    env = _main_py_environment(show_figure, rps_path, max_steps)
     # The run's log goes beside the folder, never into the folder a user uploads.
     log_dir = folder.parent / f"{folder.name}.rps-log" / f"run{int(seed)}"
     if (folder / "run_log.py").is_file():
