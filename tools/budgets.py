@@ -193,7 +193,7 @@ def check_duplicates(root: Path, budgets: dict) -> list[str]:
             )
         ]
     if count < budget:
-        print(f"budgets: comat/ has {budget - count} pairs fewer than its budget: lower duplicate_pairs to {count}")
+        print(f"budgets: comat/ is {budget - count} below its duplicates budget: lower duplicate_pairs to {count}")
     return []
 
 
