@@ -221,6 +221,63 @@ def play_episodes(
     return results
 
 
+def _checked_teams(task: str, teams, episodes: int | None, coalitions) -> tuple[list[TeamSpec] | None, int]:
+    """``(teams as a list or None, episodes)``: given teams are TeamSpecs of ``task``, at least one
+    per episode (``episodes`` defaults to one per given team, else 1); ``coalitions`` a set's name or teams."""
+    if teams is not None:
+        teams = list(teams)
+        if not teams or not all(isinstance(t, TeamSpec) for t in teams):
+            raise ValueError(f"teams must be a non-empty list of TeamSpec, got {teams!r:.200}")
+        wrong = [i for i, t in enumerate(teams) if t.task != task]
+        if wrong:
+            raise ValueError(f"teams[{wrong[0]}] is a {teams[wrong[0]].task!r} team, but the rollout runs {task!r}")
+    episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
+    if teams is not None and len(teams) < episodes:
+        raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
+    if isinstance(coalitions, str) and coalitions not in COALITION_SETS:
+        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)} or a list of teams, got {coalitions!r}")
+    return teams, episodes
+
+
+def _recording_stream(out: Path, task: str, name: str, policy, seed: int) -> rr.RecordingStream:
+    """The Rerun stream of a rollout to ``out`` by the policy ``name`` (``policy`` as given), its id
+    unique per file, task, policy file and seed, and its data free of wall-clock times."""
+    # Two runs' checkpoints share a file name (checkpoint.pt): the id names the file by its
+    # full path, so recordings of different runs never merge in the viewer.
+    source = name
+    if isinstance(policy, (str, Path)) and Path(policy).is_file():
+        source += "-" + hashlib.sha1(str(Path(policy).resolve()).encode()).hexdigest()[:10]
+    rec = rr.RecordingStream("comat", recording_id=f"{out.stem}-{task}-{source}-seed{seed}")
+    # Content, not wall-clock ticks: the same rollout gives the same data.
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    return rec
+
+
+def _rollout_env(task: str, spec: PolicySpec, pool, tier, max_robots, ticks_per_step, frames: bool, reality):
+    """The env a rollout plays: ``pool`` (teams or a set's name) at ``tier`` (default the policy's,
+    else the reference tier), with the policy's robot slots (``max_robots`` overrides them; the
+    largest team must fit), drawing RGB frames if ``frames``."""
+    tier = tier or spec.tier or REFERENCE_TIER
+    slots = max_robots if max_robots is not None else spec.max_robots
+    largest = max(t.size for t in resolve_coalitions(pool, task))
+    if slots is not None and largest > slots:
+        raise ValueError(
+            f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
+            f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)"
+        )
+    return make_env(
+        env_id(task),
+        coalitions=pool,
+        tier=tier,
+        ticks_per_step=ticks_per_step,
+        max_robots=slots,
+        state_robots=slots or 8,  # a baseline's centralized state covers all its slots
+        render_mode="rgb_array" if frames else None,
+        reality=reality,
+    )
+
+
 def record_episodes(
     path: str | Path | None,
     task: str,
@@ -239,7 +296,7 @@ def record_episodes(
     fps: int = 10,
     reality: Any = "off",
 ) -> RolloutResult:
-    # long: checks its options, then one loop whose writer, temp file and timers close in one try
+    # long: a 23-line docstring of its options, then one try closing writer, temp file and timers together
     """Run and record episodes of ``task`` (a registered task's name: ``comat tasks``) to the ``.rrd`` file ``path``.
 
     Args:
@@ -267,38 +324,10 @@ def record_episodes(
     if video is not None:
         video = check_video_path(video)
     spec = policy if isinstance(policy, PolicySpec) else resolve_policy(policy, task)
-    if teams is not None:
-        teams = list(teams)
-        if not teams or not all(isinstance(t, TeamSpec) for t in teams):
-            raise ValueError(f"teams must be a non-empty list of TeamSpec, got {teams!r:.200}")
-        wrong = [i for i, t in enumerate(teams) if t.task != task]
-        if wrong:
-            raise ValueError(f"teams[{wrong[0]}] is a {teams[wrong[0]].task!r} team, but the rollout runs {task!r}")
-    episodes = _check_count("episodes", episodes if episodes is not None else len(teams) if teams else 1)
-    if teams is not None and len(teams) < episodes:
-        raise ValueError(f"teams must list at least one team per episode ({episodes}), got {len(teams)}")
-    if isinstance(coalitions, str) and coalitions not in COALITION_SETS:
-        raise ValueError(f"coalitions must be one of {list(COALITION_SETS)} or a list of teams, got {coalitions!r}")
-    tier = tier or spec.tier or REFERENCE_TIER
-    slots = max_robots if max_robots is not None else spec.max_robots
+    teams, episodes = _checked_teams(task, teams, episodes, coalitions)
     # Given teams are the env's whole set: its robot slots fit the largest of them.
     pool = teams if teams is not None else coalitions
-    largest = max(t.size for t in resolve_coalitions(pool, task))
-    if slots is not None and largest > slots:
-        raise ValueError(
-            f"teams of up to {largest} robots do not fit the policy's {slots} robot slots (a fixed-size "
-            f"{spec.name}: train it with models.<algo>.max_robots={largest} or more)"
-        )
-    env = make_env(
-        env_id(task),
-        coalitions=pool,
-        tier=tier,
-        ticks_per_step=ticks_per_step,
-        max_robots=slots,
-        state_robots=slots or 8,  # a baseline's centralized state covers all its slots
-        render_mode=None if video is None else "rgb_array",
-        reality=reality,
-    )
+    env = _rollout_env(task, spec, pool, tier, max_robots, ticks_per_step, video is not None, reality)
     act = spec.bind(env, seed)
     meta = {
         "policy": policy_name or spec.name,
@@ -314,15 +343,7 @@ def record_episodes(
     t0, thread0, others0 = time.perf_counter(), time.thread_time(), time.process_time() - time.thread_time()
     if out is not None:
         tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
-        # Two runs' checkpoints share a file name (checkpoint.pt): the id names the file by its
-        # full path, so recordings of different runs never merge in the viewer.
-        source = spec.name
-        if isinstance(policy, (str, Path)) and Path(policy).is_file():
-            source += "-" + hashlib.sha1(str(Path(policy).resolve()).encode()).hexdigest()[:10]
-        rec = rr.RecordingStream("comat", recording_id=f"{out.stem}-{task}-{source}-seed{seed}")
-        # Content, not wall-clock ticks: the same rollout gives the same data.
-        rec.set_log_time_enabled(False)
-        rec.set_log_tick_enabled(False)
+        rec = _recording_stream(out, task, spec.name, policy, seed)
     try:
         if rec is not None:
             rec.save(tmp, default_blueprint=rollout_blueprint(range(episodes)))
