@@ -392,6 +392,7 @@ def run_scenario(
     filter_reality: RealityConfig | str | None = None,
     wrong_way_tick: int | None = None,
 ) -> ScenarioResult:
+    # long: one batch: the tick loop's safety and liveness records share its arrays, then one result
     """Run every episode of ``scn`` as one batch for ``scn.ticks`` ticks.
 
     With ``filtered=False`` the nominal commands go to the wheels unfiltered (only clipped to
