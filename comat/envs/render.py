@@ -50,6 +50,8 @@ _DPI = 100
 _HEADER_PX = 48
 _LEGEND_PX = 40
 """The strip under the arena that holds the legend, so that it hides no part of the arena."""
+_TITLE_GAP_PX = 12
+"""Least room between the header's title and the coordination metric at its right."""
 _VIEW_PAD_M = 0.1
 """Margin around the arena in the view (m), in x; y's is the same over 1.6 (room for the walls)."""
 
@@ -163,17 +165,29 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
     _draw_robots(ax, state)
     _draw_reality(ax, state)
     _draw_safety(ax, state)
-    fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
     fig.text(0.01, 1 - 26 / h, _status_line(state), ha="left", va="top", fontsize=8, family="monospace")
+    title_end = FRAME_SIZE[1]
     if state.coordination is not None:
         now, mean = state.coordination
         text = f"{state.coordination_name} {now:.2f} (episode {mean:.2f})"
-        fig.text(0.99, 1 - 6 / h, text, ha="right", va="top", fontsize=8, family="monospace")
+        metric = fig.text(0.99, 1 - 6 / h, text, ha="right", va="top", fontsize=8, family="monospace")
+        title_end = metric.get_window_extent(fig.canvas.get_renderer()).x0 - _TITLE_GAP_PX
+    title = fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
+    _shorten(title, title_end, fig.canvas.get_renderer())
     _draw_legend(fig, state)
     fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     assert rgba.shape[:2] == FRAME_SIZE, rgba.shape  # fixed figure size and dpi
     return np.ascontiguousarray(rgba[..., :3])
+
+
+def _shorten(text, end_px: float, renderer) -> None:
+    """Cut a header line (ending it with "…") until it ends left of ``end_px``: a long title (a
+    rollout's policy, episode and seed) never runs under the coordination metric at the header's right."""
+    full = text.get_text()
+    while full and text.get_window_extent(renderer).x1 > end_px:
+        full = full[:-1].rstrip()
+        text.set_text(full + "…")
 
 
 def _draw_legend(fig, s: FrameState) -> None:
