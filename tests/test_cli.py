@@ -107,6 +107,32 @@ def test_demo_tasks_part(tmp_path):
     assert len(heuristic) == 4 and all(r["finished"] == 1.0 for r in heuristic)
 
 
+def test_a_typo_in_a_choice_is_one_line_not_the_usage_block(capsys):
+    """argparse prints its 7-9-line usage before the error; comat's commands print the error and
+    where the help is, one line (issue 67)."""
+    for argv, where in ((["train", "--algo", "comatt", "--task", "pcp"], "comat train"),
+                        (["eval", "--task", "pcpp"], "comat eval"),
+                        (["bench", "sim", "--sizes", "x"], "comat bench sim"),
+                        ([], "comat")):  # fmt: skip
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and err.count("\n") == 1 and "usage:" not in err.split("(")[0], argv
+        assert err.startswith(f"{where}: error: ") and err.endswith(f"(usage: {where} --help)\n"), err
+
+
+@pytest.mark.parametrize("module", ["comat", "comat.cli", "comat.cli.main"])
+def test_python_m_runs_the_command_without_a_warning(module):
+    """``python -m comat.cli.main`` warned (the package imported its main module first, issue 67)."""
+    done = subprocess.run(
+        [sys.executable, "-W", "error", "-m", module, "--version"], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0 and done.stdout.startswith("comat ") and done.stderr == "", done.stderr
+    from comat.cli import main as entry
+
+    assert callable(entry) and entry.__module__ == "comat.cli"  # the function, whatever was imported before
+
+
 def test_bad_arguments_get_a_clear_error(capsys):
     assert main(["demo", "--robots", "40"]) == 2
     assert "--robots must be between 2 and 12" in capsys.readouterr().err
