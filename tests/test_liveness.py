@@ -193,3 +193,25 @@ def test_mismatch_battery_reports_every_case(tmp_path):
     assert cases == ["off", *MISMATCHES]
     assert all(r["liveness"]["2x"] >= 0 for r in res["rows"])
     assert mismatch_table(res).count("`swap4`") == len(MISMATCHES)
+
+
+def test_a_robot_on_probation_is_handled_by_re_solving_only_the_robots_it_concerns():
+    """comat's loop with a false alarm: the fast answer is kept where it meets the portable rows,
+    else only the robots in broken rows are re-solved; either way the team's command meets every
+    portable row, and a far-away part of the team keeps its fast answer bit for bit."""
+    from comat.control import _portable_qp, _resolve_subset
+    from comat.safety.deployed import PortableBarrier
+
+    settings = SafeTeams((1,), reality=RealityConfig(level="nominal"))._portable.s
+    barrier = PortableBarrier(settings)
+    # robots 0 and 1 head-on 0.3 m apart (1 on probation), robots 2 and 3 far away, driving apart
+    poses = np.array([[-0.15, 0.0, 0.0], [0.15, 0.0, np.pi], [-1.2, 0.6, 0.0], [1.2, -0.6, np.pi]])
+    probation = np.array([False, True, False, False])
+    u_fast = np.array([[0.1, 0.0], [-0.1, 0.0], [0.05, 0.0], [-0.05, 0.0]])  # cooperative: each closes in
+    A, b = barrier.problem(poses, probation, np.zeros(4))
+    broken = A @ u_fast.ravel() > b + 1e-4
+    assert broken.any()
+    out = _resolve_subset(_portable_qp, A, b, u_fast.ravel(), u_fast.ravel(), broken, 1e-4)
+    assert out is not None and np.all(A @ out <= b + 1e-4)
+    np.testing.assert_array_equal(out[4:], u_fast.ravel()[4:])  # robots 2 and 3 untouched
+    assert out[2] <= 1e-6  # the robot on probation may not close in

@@ -225,8 +225,17 @@ def run_safety_bench(
             stress = [r for r in live if r["reality"] == "stress"]
             suffix = "" if loop == "comat" else f"_{loop}"
             if nominal:
-                low = [r["scenario"] for r in nominal if (r["liveness"]["ratio_2x"] or 0.0) < 0.9]
-                targets["live_nominal_2x_at_least_90pct_of_off" + suffix] = {"below": low, "met": not low}
+                low = [
+                    r["scenario"]
+                    for r in nominal
+                    if r["liveness"]["ratio_2x"] is not None and r["liveness"]["ratio_2x"] < 0.9
+                ]
+                none = [r["scenario"] for r in nominal if r["liveness"]["ratio_2x"] is None]
+                targets["live_nominal_2x_at_least_90pct_of_off" + suffix] = {
+                    "below": low,
+                    "no_off_arrival": none,
+                    "met": not low,
+                }
             if stress:
                 frozen = [r["scenario"] for r in stress if r["freezes"]]
                 targets["no_team_freezes_stress" + suffix] = {"frozen": frozen, "met": not frozen}

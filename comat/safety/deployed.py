@@ -332,13 +332,15 @@ class RobotWatch:
       stale (a tracker hold or freeze): the estimate moves on by the unicycle command sent in the
       tick before, integrated over the tick. A fresh measurement replaces it.
     * **Probation.** A robot is on probation when it does not respond — over the last ``window``
-      ticks its fresh measurements moved its point less than ``ratio`` of the path its commands
-      asked for ``lag`` ticks earlier (at least ``min_path_m``: a dead motor, a robot braked after
-      a Wi-Fi loss) — or when its pose has been stale for ``stale_limit`` ticks while it was told
+      ticks its fresh measurements moved its point, ALONG the displacement its commands predicted
+      (sent up to ``lag`` ticks earlier, the best-fitting lag), less than ``ratio`` of that
+      prediction (at least ``min_path_m``: a dead motor, a robot braked after a Wi-Fi loss, one at
+      a fraction of its speed, one driving the wrong way or sideways: direction and magnitude, not
+      distance alone) — or when its pose has been stale for ``stale_limit`` ticks while it was told
       to move (a dead robot and a frozen tracker look alike then). A robot on probation is an
       obstacle to the others (:class:`PortableBarrier`), placed between its last fresh pose and its
       dead-reckoned one with the half-distance as extra radius. It leaves probation when fresh
-      measurements show it moving as commanded again.
+      measurements show it making good ``release_ratio`` of its predicted displacement again.
 
     Call :meth:`observe` with each tick's measured poses (N, 3) before deciding, :meth:`sent` with
     the unicycle commands (N, 2) sent after.
@@ -414,19 +416,25 @@ class RobotWatch:
         simulator runs a compiled twin of this (``comat.safety.kernels.watch_judgement``)."""
         then = (self.tick - self.window) % (self.window + 1)
         span = self._ask.shape[1]
-        # Net displacement asked for over the window, for every response lag 0..lag: the
-        # robot is judged against the alignment that asks least (a command that reversed
-        # asks for little at some lag), so only a robot that ignores its commands whatever
-        # the lag is put on probation.
+        # Net displacement asked for over the window, for every response lag 0..lag (the
+        # prediction from the commands sent), against the measured displacement: the share of
+        # each prediction made good ALONG it (the signed projection, so a robot driving the
+        # wrong way scores below 0, a slow one its speed fraction, a stopped one 0). The robot
+        # is judged by the lag that fits best, and only when every lag asks for min_path at
+        # least (a command that reversed asks for little at some lag): only a robot that does
+        # not follow its commands whatever the lag is put on probation.
         recent = self._ask[:, (self.tick - np.arange(self.window + self.lag)) % span]  # newest first
         sums = np.cumsum(recent, axis=1)
         before = np.concatenate([np.zeros((self.n, 1, 2)), sums[:, : -self.window]], axis=1)
-        windows = sums[:, self.window - 1 :] - before
+        windows = sums[:, self.window - 1 :] - before  # (N, lag + 1, 2)
         asked = np.hypot(windows[..., 0], windows[..., 1]).min(axis=1)
-        moved = np.hypot(*(self._points[:, k] - self._points[:, then]).T)
+        moved = self._points[:, k] - self._points[:, then]  # (N, 2)
+        along = windows[..., 0] * moved[:, None, 0] + windows[..., 1] * moved[:, None, 1]
+        square = windows[..., 0] * windows[..., 0] + windows[..., 1] * windows[..., 1]
+        made_good = (along / np.maximum(square, 1e-30)).max(axis=1)
         judged = old & ~stale & (asked >= self.min_path)
-        self.unresponsive |= judged & (moved < self.ratio * asked)
-        self.unresponsive &= ~(judged & (moved >= self.release_ratio * asked))
+        self.unresponsive |= judged & (made_good < self.ratio)
+        self.unresponsive &= ~(judged & (made_good >= self.release_ratio))
 
     def restart(self, rows: np.ndarray) -> None:
         """Robots ``rows`` begin a new episode: nothing is known about them yet."""

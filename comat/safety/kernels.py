@@ -325,7 +325,8 @@ def watch_judgement(ask, points, tick, born, window, lag, k, stale, min_path, ra
     """:meth:`comat.safety.deployed.RobotWatch._judge` (its numpy code is the reference), updating
     ``unresponsive`` (N,) in place: ask (N, window + lag + 1, 2), points (N, window + 1, 2), born
     (N,), stale (N,). The same sums in the same order (a running sum over the newest-first asks,
-    as ``np.cumsum``), so the same bits."""
+    as ``np.cumsum``; the share made good along each window as ``along / max(square, 1e-30)``),
+    so the same bits."""
     n, span = ask.shape[0], ask.shape[1]
     depth = window + lag
     then = (tick - window) % (window + 1)
@@ -339,6 +340,9 @@ def watch_judgement(ask, points, tick, born, window, lag, k, stale, min_path, ra
                 sums[t, c] = ask[r, slot, c] if t == 0 else sums[t - 1, c] + ask[r, slot, c]
         asked = np.inf
         nan = False
+        best = -np.inf
+        mx = points[r, k, 0] - points[r, then, 0]
+        my = points[r, k, 1] - points[r, then, 1]
         for t in range(lag + 1):  # the window ending t ticks back, as sums[w - 1 + t] - sums[t - 1]
             x = sums[window - 1 + t, 0] - (0.0 if t == 0 else sums[t - 1, 0])
             y = sums[window - 1 + t, 1] - (0.0 if t == 0 else sums[t - 1, 1])
@@ -347,10 +351,14 @@ def watch_judgement(ask, points, tick, born, window, lag, k, stale, min_path, ra
                 nan = True  # np.min propagates NaN
             elif h < asked:
                 asked = h
+            g = (x * mx + y * my) / max(x * x + y * y, 1e-30)
+            if math.isnan(g):
+                nan = True  # np.max propagates NaN: no comparison holds
+            elif g > best:
+                best = g
         if nan or not asked >= min_path:
             continue
-        moved = math.hypot(points[r, k, 0] - points[r, then, 0], points[r, k, 1] - points[r, then, 1])
-        if moved < ratio * asked:
+        if best < ratio:
             unresponsive[r] = True
-        if moved >= release_ratio * asked:
+        if best >= release_ratio:
             unresponsive[r] = False
