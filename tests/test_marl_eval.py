@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -92,6 +93,14 @@ def test_what_marl_eval_cannot_aggregate_is_refused_and_nothing_is_written(tmp_p
         marl_eval_data([pcp[0], pcp[0]])
     with pytest.raises(ValueError, match=r"the same number of seeds for every algorithm and task of comat_unicycle"):
         marl_eval_data(pcp[:-1])  # qmix with two seeds, the others with three
+    short = tmp_path / "comat_pcp_s0"  # a run with one evaluation fewer than the others
+    shutil.copytree(pcp[0], short)
+    lines = (short / "eval.csv").read_text().splitlines(keepends=True)
+    (short / "eval.csv").write_text("".join(lines[:-1]))
+    with pytest.raises(
+        ValueError, match=rf"evaluations in every run of comat_unicycle: 2 runs have 6, but 5 in '{short}'"
+    ):
+        marl_eval_data([short, pcp[3], pcp[6]])  # comat seed 0 (cut short), mappo and mat seed 0
     out = tmp_path / "out"
     assert (
         main(["report", str(pcp[0]), "--format", "marl-eval", "--out", str(out), "--absolute-set", "capability"]) == 2

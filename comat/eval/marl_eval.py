@@ -135,20 +135,16 @@ def _check_shape(data: dict) -> None:
     """What marl-eval's aggregation assumes (its ``DiagnoseData.check_data``): per environment, one
     number of steps in every run and one number of runs for every algorithm of every task."""
     for env, tasks in data.items():
-        steps = Counter()
-        for algos in tasks.values():
-            for runs in algos.values():
-                for run in runs.values():
-                    steps[len(run) - 2] += 1  # less _folder and absolute_metrics
+        runs = [run for algos in tasks.values() for seeds in algos.values() for run in seeds.values()]
+        steps = Counter(len(run) - 2 for run in runs)  # less _folder and absolute_metrics
         if len(steps) > 1:
-            where = "; ".join(
-                f"{len(run) - 2} in {run['_folder']!r}"
-                for algos in tasks.values()
-                for runs in algos.values()
-                for run in runs.values()
+            usual, count = steps.most_common(1)[0]
+            odd = "; ".join(f"{len(run) - 2} in {run['_folder']!r}" for run in runs if len(run) - 2 != usual)
+            raise ValueError(
+                f"marl-eval needs the same number of evaluations in every run of {env}: {count} runs have {usual}, "
+                f"but {odd}"
             )
-            raise ValueError(f"marl-eval needs the same number of evaluations in every run of {env}, got {where}")
-        counts = {f"{algo} {task}": len(runs) for task, algos in tasks.items() for algo, runs in algos.items()}
+        counts = {f"{algo} {task}": len(seeds) for task, algos in tasks.items() for algo, seeds in algos.items()}
         if len(set(counts.values())) > 1:
             raise ValueError(
                 f"marl-eval needs the same number of seeds for every algorithm and task of {env}, got {counts}"
