@@ -9,8 +9,8 @@ Shared flags, defined here once so their spelling, choices (in one order) and de
                      task state), ``type_only`` (the same planner knowing types, not capabilities),
                      ``blind`` (neither), ``constant`` (every robot always the task's best single
                      action), ``random``; ``probe`` needs a checkpoint
-``--task T``         ``pcp`` or ``hmt``; inferred from a checkpoint or policy file (a different
-                     ``--task`` is an error); needed with a reference policy
+``--task T``         a registered task (``comat tasks``); inferred from a checkpoint or policy
+                     file (a different ``--task`` is an error); needed with a reference policy
 ``--team TEAM``      one team: ``SET:K`` (coalition K of a set below, e.g. ``capability:3``)
                      or a JSON/YAML file ``{"robots": [...]}``
 ``--teams SET``      a set of teams: ``train``, ``val``, ``test``, ``scale``, ``size``, ``capability``,
