@@ -50,7 +50,7 @@ def reality_draws(keys, ticks, tick_mul, stream_mul, m1, m2, table, uniform, nor
 
 @_jit
 def _motor_wheel(wheel, r, i, dead_zone, gain, fault_scale, c, alpha, step, speed, noise, rho, kick, bound, noise_n):
-    target = (0.0 if abs(wheel) < dead_zone else wheel) * gain[r, i]
+    target = (0.0 if abs(wheel) < dead_zone[r] else wheel) * gain[r, i]
     if fault_scale is not None:
         target = target * fault_scale[r]
     target = min(max(target, -c), c)
@@ -89,7 +89,8 @@ def motors_step(
     """:func:`~comat.sim.kinematics.uni_to_diff`, :meth:`comat.reality.motors.Motors.update` and
     :func:`~comat.sim.kinematics.diff_to_uni` in one pass: unicycle commands (R, 2) in, executed
     ones into out (R, 2); wheel speeds ``speed`` and disturbance ``noise`` (R, 2) advanced in
-    place. ``fault_scale`` (R,) or None (no faults); ``noise_n`` (R, 2) or None (no disturbance)."""
+    place. ``dead_zone`` (R,); ``fault_scale`` (R,) or None (no faults); ``noise_n`` (R, 2) or None
+    (no disturbance)."""
     for r in range(dxu.shape[0]):
         v, w = dxu[r, 0], dxu[r, 1]
         c = cap[r]
@@ -195,9 +196,9 @@ def pose_step(
         else:
             x, y, th = true[r, 0], true[r, 1], true[r, 2]
         if noise is not None:
-            x = x + noise[r, 0] * scale[0]
-            y = y + noise[r, 1] * scale[1]
-            th = th + noise[r, 2] * scale[2]
+            x = x + noise[r, 0] * scale[r, 0]
+            y = y + noise[r, 1] * scale[r, 1]
+            th = th + noise[r, 2] * scale[r, 2]
         x += bias[r, 0]
         y += bias[r, 1]
         if noise is not None:  # Python's float modulo is numpy's remainder (fmod, then the sign fix)

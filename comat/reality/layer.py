@@ -11,7 +11,9 @@
 
 Randomness: each team gets a 64-bit key per episode (:func:`comat.reality.random.episode_key`,
 from the env's generator without advancing it), each robot a key derived from it, and every
-draw is a pure function of (robot key, robot tick, stream) (:mod:`comat.reality.random`).
+draw is a pure function of (robot key, robot tick, stream) (:mod:`comat.reality.random`). A
+calibrated config (:class:`~comat.reality.randomize.CalibratedReality`) also draws its identified
+parameters per episode and team from the team's key (:mod:`comat.reality.randomize`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from comat.reality.config import RealityConfig
 from comat.reality.margin import StalePoses
 from comat.reality.motors import Motors
 from comat.reality.paths import CommandPath, PosePath, run_lengths
+from comat.reality.randomize import DRAW_NAMES, EPISODE_STREAM, draw_values
 from comat.sim.kinematics import projected_points
 from comat.sim.layout import TeamLayout
 
@@ -104,6 +107,8 @@ class RealityLayer:
         """The pose message's delay, jitter and holds are common to each team (one message per tick)."""
         """Per-robot physics to vary (wheels tier; :meth:`physics` gives the values)."""
         self._episodes = np.zeros(0, np.int64)  # per team: episodes begun (for seed-derived keys)
+        self.intervals: dict[str, tuple[float, float]] = dict(getattr(config, "intervals", None) or {})
+        """Calibrated draws, name -> (lo, hi) (:mod:`comat.reality.randomize`); empty: the config's values."""
         self._build(layout)
         self._u: np.ndarray | None = None
 
@@ -128,6 +133,8 @@ class RealityLayer:
         self.stall_left = np.zeros(layout.n_teams, np.int64)
         """(B,) ticks of the team's script stall still to come."""
         self.missed = np.zeros(R, dtype=bool)
+        self.drawn = {name: np.zeros(R) for name in self.intervals}
+        """Name -> (R,) this episode's calibrated draw of each robot (its team's)."""
         """(R,) robots whose script sent nothing this tick (an overrun or a stall)."""
         self._team_u: np.ndarray | None = None  # this tick's team draws (B, _TEAM_DRAWS)
         self._est_cos_sin: tuple[np.ndarray, np.ndarray] | None = None
@@ -201,12 +208,13 @@ class RealityLayer:
         k = self.keys[rows]
         self.ticks[rows] = 0
         c = self.config
+        drawn = self._draw(keys, [r.size for r in rows_of], rows) if self.intervals else None
         spread = max(c.pose_delay_spread_ticks, 1)
         delay_u = rr.uniforms(k, rr.EPISODE, spread, _EP_POSE_DELAY)[:, : c.pose_delay_spread_ticks]
         if not c.pose_per_robot and rows.size:  # one message per tick: each team's first robot draws its age
             sizes = [r.size for r in rows_of]
             delay_u = delay_u[np.repeat(np.cumsum([0, *sizes[:-1]]), sizes)]
-        self.pose.begin(rows, poses[rows], delay_u, rr.normals(k, rr.EPISODE, 2, _EP_BIAS))
+        self.pose.begin(rows, poses[rows], delay_u, rr.normals(k, rr.EPISODE, 2, _EP_BIAS), drawn)
         self.stall_left[teams] = 0
         spread = max(c.command_delay_spread_ticks, 1)
         self.command.begin(rows, rr.uniforms(k, rr.EPISODE, spread, _EP_CMD_DELAY)[:, : c.command_delay_spread_ticks])
@@ -215,6 +223,7 @@ class RealityLayer:
             rr.uniforms(k, rr.EPISODE, 5, _EP_MOTOR),
             rr.normals(k, rr.EPISODE, 2, _EP_MOTOR_N),
             self._fault_ticks(rows_of),
+            drawn,
         )
         if self.physics_on:
             u = rr.uniforms(k, rr.EPISODE, 4, _EP_PHYSICS)
@@ -228,6 +237,21 @@ class RealityLayer:
             for rows_b in rows_of:
                 out[rows_b] = self._start_error(poses[rows_b], self.keys[rows_b])
         return out
+
+    def _draw(self, keys: Sequence[int], sizes: list[int], rows: np.ndarray) -> dict[str, np.ndarray]:
+        """The started teams' calibrated draws (one per team from its episode key, ``keys``), spread
+        to their robots: stored in :attr:`drawn` and returned for ``rows``, name -> (r,)."""
+        team_keys = np.array([np.uint64(key) for key in keys], np.uint64)
+        values = draw_values(self.intervals, rr.uniforms(team_keys, rr.EPISODE, len(DRAW_NAMES), EPISODE_STREAM))
+        out = {}
+        for name, v in values.items():
+            out[name] = np.repeat(v, sizes)
+            self.drawn[name][rows] = out[name]
+        return out
+
+    def _team_value(self, name: str) -> float | np.ndarray:
+        """The config's value of ``name``, or (B,) each team's calibrated draw of it (its first robot's)."""
+        return self.drawn[name][self._first] if name in self.drawn else getattr(self.config, name)
 
     def _fault_ticks(self, rows_of: list[np.ndarray]) -> np.ndarray:
         """Per robot of the reset teams: the tick its fault begins (int64 max: none)."""
@@ -333,17 +357,17 @@ class RealityLayer:
         u, normal = self._u
         self._u = None
         hold, jitter = None, None
-        if self.team_poses or self.script_on:
-            if self._team_u is None:  # observed without actuate
+        if self.team_poses or self.script_on or "pose_hold_prob" in self.drawn:
+            if self._team_u is None and (self.team_poses or self.script_on):  # observed without actuate
                 first = self._first
                 self._team_u = rr.uniforms(self.keys[first], self.ticks[first] - 1, _TEAM_DRAWS, _TEAM_STREAM)
             c, team, tu = self.config, self.layout.robot_team, self._team_u
             if self.team_poses:  # the message that did not come, or came late, did for every robot
-                hold = (tu[:, _T_HOLD] < c.pose_hold_prob)[team]
+                hold = (tu[:, _T_HOLD] < self._team_value("pose_hold_prob"))[team]
                 if c.pose_delay_jitter_prob > 0:
-                    jitter = (tu[:, _T_JITTER] < c.pose_delay_jitter_prob)[team].astype(np.int64)
+                    jitter = (tu[:, _T_JITTER] < self._team_value("pose_delay_jitter_prob"))[team].astype(np.int64)
             else:
-                hold = u[:, _POSE_U][:, 0] < c.pose_hold_prob
+                hold = u[:, _POSE_U][:, 0] < (self.drawn.get("pose_hold_prob", c.pose_hold_prob))
             hold = hold | self.missed  # a script that missed the tick reads a stale message next
         self._team_u = None
         self.pose.update(true, self.ticks, normal[:, _POSE_N] if self.pose.noisy else None, u[:, _POSE_U], hold, jitter)
@@ -355,6 +379,7 @@ class RealityLayer:
         poses); the others must be started again."""
         parts = {name: getattr(self, name) for name in ("pose", "command", "motors")}
         old_stale, old_sent, old_physics, old_stall = self.stale, self._sent, self._physics, self.stall_left
+        old_drawn = self.drawn
         keys, ticks, true = self.keys, self.ticks, self._true
         old_layout = self.layout
         self._build(layout)
@@ -373,6 +398,8 @@ class RealityLayer:
             self._sent[new_rows] = old_sent[old_rows]
             for new, old in zip(self._physics, old_physics):
                 new[new_rows] = old[old_rows]
+            for name, old in old_drawn.items():
+                self.drawn[name][new_rows] = old[old_rows]
             for name, old_part in parts.items():
                 new_part = getattr(self, name)
                 for attr in old_part.ROW_STATE:

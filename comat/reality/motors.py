@@ -30,7 +30,7 @@ __all__ = ["Motors"]
 class Motors:
     """Wheel-speed dynamics, calibration errors and faults of R robots."""
 
-    ROW_STATE = ("speed", "alpha", "gain", "cap", "noise", "fault_tick")
+    ROW_STATE = ("speed", "alpha", "gain", "cap", "noise", "fault_tick", "dead_zone")
 
     def __init__(self, config: RealityConfig, profile: C.RobotProfile, n_robots: int) -> None:
         self.c = config
@@ -47,21 +47,50 @@ class Motors:
         """(R, 2) the wheels' disturbance state (rad/s)."""
         self.fault_tick = np.full(n_robots, np.iinfo(np.int64).max)
         """(R,) tick from which the robot runs at ``fault_speed_fraction`` (int64 max: never)."""
+        self.dead_zone = np.full(n_robots, float(config.motor_dead_zone_radps))
+        """(R,) wheel speed below which this episode's wheels do not turn (rad/s): the config's,
+        or a calibrated draw (:mod:`comat.reality.randomize`)."""
         dt, tc = C.CONTROL_DT_S, config.wheel_disturbance_corr_s
         self._rho = float(np.exp(-dt / tc))
         self._kick = config.wheel_disturbance_radps * float(np.sqrt(1.0 - self._rho**2))
         self._step = config.motor_accel_limit_radps2 * dt
 
-    def begin(self, rows: np.ndarray, u: np.ndarray, n: np.ndarray, fault_ticks: np.ndarray) -> None:
+    def begin(
+        self,
+        rows: np.ndarray,
+        u: np.ndarray,
+        n: np.ndarray,
+        fault_ticks: np.ndarray,
+        drawn: dict[str, np.ndarray] | None = None,
+    ) -> None:
         """New episodes for robots ``rows``: per-episode uniforms (r, 5) (time constants 2, gains 2,
-        derate 1), normals (r, 2) (the disturbance's stationary start) and fault ticks (r,)."""
+        derate 1), normals (r, 2) (the disturbance's stationary start) and fault ticks (r,).
+        ``drawn``: this episode's calibrated draws per robot, name -> (r,) (:mod:`comat.reality.randomize`;
+        None or a name left out: the config's value)."""
         c = self.c
-        tau = c.motor_tau_min_s + (c.motor_tau_max_s - c.motor_tau_min_s) * u[:, 0:2]
-        self.alpha[rows] = np.exp(-C.CONTROL_DT_S / np.maximum(tau, 1e-300)) * (tau > 0)
-        self.gain[rows] = c.wheel_gain_mean + c.wheel_gain_spread * (2.0 * u[:, 2:4] - 1.0)
-        self.cap[rows] = self.profile.max_wheel_velocity_radps * (
-            c.top_speed_derate_min + (1.0 - c.top_speed_derate_min) * u[:, 4]
+        tau_min, tau_max, mean, spread, derate = (
+            c.motor_tau_min_s,
+            c.motor_tau_max_s,
+            c.wheel_gain_mean,
+            c.wheel_gain_spread,
+            c.top_speed_derate_min,
         )
+        if drawn:
+            point = c.point  # the profile's own values (the config's fields are the draws' envelope)
+            shift = drawn.get("motor_tau_shift_s")
+            if shift is not None:
+                tau_min = np.maximum(point.motor_tau_min_s + shift, 0.0)[:, None]
+                tau_max = np.maximum(point.motor_tau_max_s + shift, 0.0)[:, None]
+            else:
+                tau_min, tau_max = point.motor_tau_min_s, point.motor_tau_max_s
+            mean = drawn["wheel_gain_mean"][:, None] if "wheel_gain_mean" in drawn else point.wheel_gain_mean
+            spread = drawn["wheel_gain_spread"][:, None] if "wheel_gain_spread" in drawn else point.wheel_gain_spread
+            derate = drawn.get("top_speed_derate_min", point.top_speed_derate_min)
+            self.dead_zone[rows] = drawn.get("motor_dead_zone_radps", point.motor_dead_zone_radps)
+        tau = tau_min + (tau_max - tau_min) * u[:, 0:2]
+        self.alpha[rows] = np.exp(-C.CONTROL_DT_S / np.maximum(tau, 1e-300)) * (tau > 0)
+        self.gain[rows] = mean + spread * (2.0 * u[:, 2:4] - 1.0)
+        self.cap[rows] = self.profile.max_wheel_velocity_radps * (derate + (1.0 - derate) * u[:, 4])
         bound = c.wheel_disturbance_bound_radps
         self.noise[rows] = np.clip(c.wheel_disturbance_radps * n, -bound, bound)
         self.speed[rows] = 0.0
@@ -75,7 +104,7 @@ class Motors:
         """Wheel speeds (R, 2) this tick for requested ones (R, 2) at the robots' ticks (R,);
         ``noise_n`` (R, 2) standard normals for the disturbance (None when it is off)."""
         c = self.c
-        target = np.where(np.abs(wheels) < c.motor_dead_zone_radps, 0.0, wheels) * self.gain
+        target = np.where(np.abs(wheels) < self.dead_zone[:, None], 0.0, wheels) * self.gain
         if c.fault_prob > 0:
             target = target * np.where(self.faulty(ticks), c.fault_speed_fraction, 1.0)[:, None]
         cap = self.cap[:, None]
@@ -100,7 +129,7 @@ class Motors:
         fault = np.where(self.faulty(ticks), c.fault_speed_fraction, 1.0) if c.fault_prob > 0 else None
         out = np.empty_like(dxu)
         rk.motors_step(
-            dxu, p.wheel_radius_m, p.base_length_m / 2.0, p.base_length_m, c.motor_dead_zone_radps, self.gain, fault,
+            dxu, p.wheel_radius_m, p.base_length_m / 2.0, p.base_length_m, self.dead_zone, self.gain, fault,
             self.cap, self.alpha, self._step, self.speed, self.noise, self._rho, self._kick,
             c.wheel_disturbance_bound_radps, noise_n if c.wheel_disturbance_radps > 0 else None, out,
         )  # fmt: skip

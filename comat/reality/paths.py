@@ -40,7 +40,7 @@ class PosePath:
     measured pose repeats exactly, as the Robotarium's tracker repeats a lost marker's pose.
     """
 
-    ROW_STATE = ("history", "delay", "bias", "measured", "freeze_left")
+    ROW_STATE = ("history", "delay", "bias", "measured", "freeze_left", "scale")
 
     def __init__(self, config: RealityConfig, n_robots: int) -> None:
         self.c = config
@@ -57,12 +57,29 @@ class PosePath:
         """(R,) ticks of the current freeze still to come (0: tracking)."""
         self.rows = np.arange(n_robots)
         self.noisy = config.pose_noise_xy_m > 0 or config.pose_noise_theta_rad > 0
-        self._scale = np.array([config.pose_noise_xy_m, config.pose_noise_xy_m, config.pose_noise_theta_rad])
+        self.scale = np.tile(
+            [config.pose_noise_xy_m, config.pose_noise_xy_m, config.pose_noise_theta_rad], (n_robots, 1)
+        )
+        """(R, 3) this episode's noise SDs (x, y in m, θ in rad): the config's, or a calibrated draw
+        (:meth:`begin`, :mod:`comat.reality.randomize`)."""
 
-    def begin(self, rows: np.ndarray, true: np.ndarray, delay_u: np.ndarray, bias_n: np.ndarray) -> None:
+    def begin(
+        self,
+        rows: np.ndarray,
+        true: np.ndarray,
+        delay_u: np.ndarray,
+        bias_n: np.ndarray,
+        drawn: dict[str, np.ndarray] | None = None,
+    ) -> None:
         """New episodes for robots ``rows`` at true poses (r, 3); per-episode uniforms (r, spread)
-        for the delay and normals (r, 2) for the bias. The first measurement is fresh."""
+        for the delay and normals (r, 2) for the bias. The first measurement is fresh. ``drawn``:
+        this episode's calibrated noise SDs per robot, name -> (r,) (None or a name left out: the
+        profile's value)."""
         c = self.c
+        if drawn:
+            xy = drawn.get("pose_noise_xy_m", c.point.pose_noise_xy_m)
+            theta = drawn.get("pose_noise_theta_rad", c.point.pose_noise_theta_rad)
+            self.scale[rows, 0], self.scale[rows, 1], self.scale[rows, 2] = xy, xy, theta
         self.history[rows] = true[:, None, :]
         self.delay[rows] = c.pose_delay_ticks + binomial_half(delay_u)
         self.bias[rows] = c.pose_bias_xy_m * bias_n
@@ -70,10 +87,10 @@ class PosePath:
 
     def first(self, rows: np.ndarray, true: np.ndarray, noise: np.ndarray) -> None:
         """The episode's first measurement of robots ``rows`` (true (r, 3), normals (r, 3))."""
-        self.measured[rows] = self._corrupt(true, self.bias[rows], noise)
+        self.measured[rows] = self._corrupt(true, self.bias[rows], noise, self.scale[rows])
 
-    def _corrupt(self, poses: np.ndarray, bias: np.ndarray, noise: np.ndarray | None) -> np.ndarray:
-        out = poses + noise[:, :3] * self._scale if noise is not None else poses.copy()
+    def _corrupt(self, poses: np.ndarray, bias: np.ndarray, noise: np.ndarray | None, scale: np.ndarray) -> np.ndarray:
+        out = poses + noise[:, :3] * scale if noise is not None else poses.copy()
         out[:, :2] += bias
         if noise is not None:  # wrapped to (-π, π], as the tiers report
             out[:, 2] = np.pi - np.remainder(np.pi - out[:, 2], 2.0 * np.pi)
@@ -108,7 +125,7 @@ class PosePath:
                 self.history,
                 delay,
                 self.bias,
-                self._scale,
+                self.scale,
                 noise,
                 self.measured,
                 self.freeze_left,
@@ -127,7 +144,7 @@ class PosePath:
             delayed = np.take(self.history.reshape(-1, 3), self.rows * L + (slot - delay) % L, axis=0)
         else:
             delayed = true
-        fresh = self._corrupt(delayed, self.bias, noise)
+        fresh = self._corrupt(delayed, self.bias, noise, self.scale)
         frozen = self.freeze_left > 0
         self.freeze_left -= frozen
         if c.pose_freeze_prob > 0:

@@ -7,12 +7,16 @@ A preset holds values only, for every algorithm at once::
     checkpoint_every_steps, env_workers, torch_threads, ppo: {PPOConfig}, qmix: {QmixConfig},
     models: {LEARNER: {its model config}, ...}   (the registered learners: comat.learners)
     reality: off | nominal | stress | PROFILE.yaml | {RealityConfig fields}
+    reality_draw: point | intervals   (with reality=PROFILE.yaml: its values, or its intervals per episode)
     coalitions: train | SET | TEAMS.yaml   (what the run trains on; default train, U_train)
 
 ``reality`` is the reality layer the run trains at (:mod:`comat.reality`; default ``off``): a
 level name, or a mapping of fields (``{level: nominal, pose_delay_ticks: 2}``; without ``level``
 the fields change ``off``). The dotted overrides reach it as ``reality=nominal``,
-``reality.level=stress`` or ``reality.pose_delay_ticks=2``.
+``reality.level=stress`` or ``reality.pose_delay_ticks=2``. With a fitted profile
+(``reality=PROFILE.yaml``), ``reality_draw=intervals`` draws its identified parameters afresh every
+episode from their intervals (calibrated randomization, :mod:`comat.reality.randomize`); the default
+``point`` takes its values. The run records the profile's path and hash either way.
 
 :func:`resolve` picks the sections the algorithm uses and gives a :class:`RunConfig`, which is
 what a run writes next to its results (``config.yaml``) and stores in its checkpoints.
@@ -32,6 +36,7 @@ from comat.envs.outside import is_outside, make_outside_env
 from comat.learners import FAMILIES, learner_entry, learner_names
 from comat.reality import RealityConfig, resolve_reality
 from comat.reality.config import read_profile
+from comat.reality.randomize import DRAW_MODES, CalibratedReality, calibrated, profile_intervals, profile_sha256
 from comat.rl.ppo import PPOConfig
 from comat.rl.qmix import QmixConfig
 from comat.tasks import env_id as task_env_id
@@ -69,7 +74,9 @@ _RUN_KEYS = (
 _PRESET_KEYS = (
     *_RUN_KEYS,
     *("seeds", "tier", "loop", "coalitions", *FAMILIES, "models", "reality", "base", "by_task"),
+    *("reality_draw", "reality_profile"),
 )
+"""``reality_profile`` is set by ``reality=PROFILE.yaml`` (the file its fields came from)."""
 _TASK_KEYS = tuple(k for k in _PRESET_KEYS if k not in ("base", "by_task", "seeds"))
 """What ``by_task: {hmt: {...}}`` may change for one task (the budget, the trainer, the models ...)."""
 
@@ -123,10 +130,32 @@ class RunConfig:
     YAML/JSON file (``coalitions=team.yaml`` trains one fixed team) so that the run's config.yaml
     holds them. A run config stored before the option existed loads as ``train``."""
 
+    reality_draw: Any = "point"
+    """How the run takes a fitted profile (``reality=PROFILE.yaml``): ``"point"`` (its values, the
+    default; stored as ``{mode: point, profile, sha256}`` when the run has a profile) or
+    ``{mode: intervals, profile, sha256, intervals: {name: [lo, hi]}}``, its identified parameters
+    drawn every episode from their intervals (:mod:`comat.reality.randomize`; written by
+    ``reality_draw=intervals``). A run config stored before the option existed loads as ``point``."""
+
     def __post_init__(self) -> None:
         if not isinstance(self.reality, RealityConfig):
             object.__setattr__(self, "reality", run_reality(self.reality))
         _check_choice("loop", self.loop, LOOPS)
+        draw = self.reality_draw
+        if draw == "point":
+            return
+        if not isinstance(draw, Mapping) or draw.get("mode") not in DRAW_MODES:
+            raise ValueError(f"reality_draw must be one of {list(DRAW_MODES)} or a stored record of one, got {draw!r}")
+        if draw["mode"] == "intervals" and not isinstance(self.reality, CalibratedReality):
+            try:
+                intervals = {k: (lo, hi) for k, (lo, hi) in dict(draw["intervals"]).items()}
+                object.__setattr__(
+                    self, "reality", calibrated(self.reality, intervals, draw["profile"], draw["sha256"])
+                )
+            except (KeyError, TypeError) as err:
+                raise ValueError(
+                    f"reality_draw must record mode, profile, sha256 and intervals {{name: [lo, hi]}}, got {draw!r}"
+                ) from err
 
     @property
     def overlap(self) -> bool:
@@ -140,7 +169,13 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out["trainer"], out["model"] = dataclasses.asdict(self.trainer), dataclasses.asdict(self.model)
-        out["reality"] = dataclasses.asdict(self.reality)  # every field resolved: later level changes do not reach it
+        # every field resolved: later level changes do not reach it (a calibrated run: the profile's
+        # point values, its draws in reality_draw)
+        out["reality"] = dataclasses.asdict(getattr(self.reality, "point", self.reality))
+        if isinstance(self.reality, CalibratedReality):
+            out["reality_draw"] = self.reality.record()
+        elif out["reality_draw"] == "point":  # no profile: a run's config as before the option
+            del out["reality_draw"]
         return out
 
     @classmethod
@@ -164,6 +199,28 @@ def run_reality(value: Any) -> RealityConfig:
         if text.startswith("RealityConfig."):
             raise type(err)("reality." + text[len("RealityConfig.") :]) from err
         raise
+
+
+def run_draw(value: Any, profile: Any) -> str | dict[str, Any]:
+    """A run's ``reality_draw`` from a preset's or an override's ``point | intervals`` and the
+    profile ``reality=PROFILE.yaml`` named (None: none): ``"point"`` without a profile, else the
+    record of the profile's path, hash and (``intervals``) its intervals (:func:`profile_intervals`)."""
+    if value not in DRAW_MODES:
+        raise ValueError(f"reality_draw must be one of {list(DRAW_MODES)}, got {value!r}")
+    if profile is None:
+        if value == "intervals":
+            raise ValueError(
+                "reality_draw=intervals draws from a fitted profile's intervals: it needs reality=PROFILE.yaml "
+                "(comat calibrate --out), got no profile"
+            )
+        return "point"
+    record = {"mode": value, "profile": str(profile), "sha256": profile_sha256(profile)}
+    if value == "intervals":
+        intervals = profile_intervals(str(profile), "reality_draw")
+        if not intervals:
+            raise ValueError(f"reality_draw: profile {str(profile)!r} has no interval to draw from, got none")
+        record["intervals"] = {k: [lo, hi] for k, (lo, hi) in intervals.items()}
+    return record
 
 
 def run_coalitions(value: Any, task: str) -> str | list[dict[str, Any]]:
@@ -272,7 +329,7 @@ def _reality_as_mapping(data: dict[str, Any]) -> dict[str, Any]:
     if value is None or isinstance(value, Mapping):
         return data
     if isinstance(value, str) and value.endswith((".yaml", ".yml")):  # a calibrated profile: its fields
-        return {**data, "reality": read_profile(value)}
+        return {**data, "reality": read_profile(value), "reality_profile": value}
     return {**data, "reality": {"level": value}}
 
 
@@ -388,6 +445,7 @@ def resolve(
                 "trainer": preset.get(section),
                 "model": (preset.get("models") or {}).get(algo),
                 "reality": preset.get("reality"),
+                "reality_draw": run_draw(preset.get("reality_draw", "point"), preset.get("reality_profile")),
                 "loop": preset.get("loop", "comat"),
                 "coalitions": "own" if is_outside(task) else run_coalitions(preset.get("coalitions", "train"), task),
             }
