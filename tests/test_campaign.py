@@ -3,6 +3,7 @@ inside the ``nominal`` reality layer standing in for the Robotarium (``--stand-i
 analyzed; planted failures found; bad inputs refused in one line with nothing written."""
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -218,6 +219,10 @@ def test_a_size_no_set_has_and_bad_arguments_are_refused(tmp_path, capsys):
     _refused([*argv, "--sizes", "3,4"], capsys, out, "--sizes: task 'pcp' has no team of 3 robots in U_test, U_scale")
     _refused([*argv, "--sizes", "4,four"], capsys, out, "--sizes must be robot counts")
     _refused([*argv, "--sizes", "4", "--sets", "U_test,U_nope"], capsys, out, "--sets must be distinct")
+    profile = tmp_path / "bad.yaml"
+    profile.write_text(yaml.safe_dump({"reality": {"level": "nominal", "pose_delay_ticks": [2, 3]}}))
+    wrong_kind = "--filter-reality.pose_delay_ticks must be int or NoneType, got [2, 3]"
+    _refused([*argv, "--sizes", "4", "--filter-reality", str(profile)], capsys, out, wrong_kind)
     _refused(["campaign", "--policy", "heuristic", "--task", "pcp", "--sizes", "4", "--out", str(out)], capsys, out)
     assert main(["campaign", "--policy", "heuristic", "--task", "pcp", "--sizes", "4", "--runs", "1"]) == 2
     assert "needs --out" in capsys.readouterr().err
@@ -226,7 +231,7 @@ def test_a_size_no_set_has_and_bad_arguments_are_refused(tmp_path, capsys):
 @pytest.mark.slow
 def test_whole_episodes_of_the_shipped_policy_pair_without_false_failures(tmp_path, capsys):
     """The shipped COMAT PCP policy, sizes 4 and 8 x 3 runs of whole episodes inside the nominal layer
-    (about 3 min on two shared cores): every run returns, finishes its log and is paired, and the failure
+    (3-5 min on two shared cores): every run returns, finishes its log and is paired, and the failure
     list stays empty (the freeze rule's thresholds were set on these runs: docs/campaign.md)."""
     camp, returned, out = tmp_path / "camp", tmp_path / "returned", tmp_path / "analysis"
     argv = ["campaign", "--policy", "pretrained:comat-pcp", "--sizes", "4,8", "--runs", "3", "--out", str(camp)]
@@ -247,3 +252,23 @@ def test_whole_episodes_of_the_shipped_policy_pair_without_false_failures(tmp_pa
     assert set(progress) == {4, 8} and all(r["paired"] == "3" for r in progress.values())
     for r in progress.values():  # the twin at the stand-in's own layer: no gap the runs can tell
         assert float(r["gap_lo"]) <= 0.0 <= float(r["gap_hi"])
+
+
+@pytest.mark.skipif(
+    not os.environ.get("COMAT_RPS_V2"), reason="set COMAT_RPS_V2 to a robotarium_python_simulator (V2) checkout"
+)
+def test_a_v2_stand_in_is_analyzed_from_the_poses_after_the_start_up_drive(campaign, tmp_path, capsys):
+    """Under V2 the robots first drive from random chargers to the start poses; the log starts after
+    that drive, and each twin starts where the robots arrived."""
+    camp, _ = campaign
+    returned, out, manifest = tmp_path / "returned", tmp_path / "analysis", str(camp / "manifest.json")
+    stand_in = ["campaign", "--stand-in", manifest, "--out", str(returned), "--max-steps", "4"]
+    assert main([*stand_in, "--rps", os.environ["COMAT_RPS_V2"]]) == 0
+    assert {read_run_log(str(returned / n)).meta["rps"] for n in _names()} == {"v2"}
+    assert main(["campaign", "--analyze", str(returned), "--manifest", manifest, "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert list(csv_rows(out / "failures.csv")) == []
+    for r in csv_rows(out / "runs.csv"):
+        assert (
+            r["log"] == "complete" and float(r["divergence_m"]) < 0.03
+        )  # the same loop from the same poses: 1 cm here

@@ -39,6 +39,7 @@ def _make(args: argparse.Namespace) -> int:
     why = "an export ships a numpy forward pass, which sim2real/runtime.py has for these learners only"
     pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=shipped, why=why)
     plan_teams(pol.task, sizes, args.runs, sets, args.seed)  # a size no set has: one line, before the announcement
+    filter_reality = reality_arg(args.filter_reality, "--filter-reality")
     print(
         f"comat campaign: {pol.label} on {pol.task}, sizes {sizes} × {args.runs} runs, teams from {sets}, "
         f"seed {args.seed} ...",
@@ -55,7 +56,7 @@ def _make(args: argparse.Namespace) -> int:
         seed=args.seed,
         policy_label=pol.shipped or (pol.name if pol.checkpoint is None else str(pol.checkpoint)),
         filter_name=args.filter,
-        filter_reality=reality_arg(args.filter_reality, "--filter-reality"),
+        filter_reality=filter_reality,
     )
     for line in declarations(manifest):
         print(line)
