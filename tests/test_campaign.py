@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 from comat.cli import main
-from comat.eval.campaign import folder_name, make_campaign, plan_teams, read_manifest
-from comat.eval.campaign_returns import log_collisions, log_freezes, run_failures
+from comat.eval.campaign import folder_name, make_campaign, plan_teams, read_manifest, stand_in_returns
+from comat.eval.campaign_returns import check_returned, log_collisions, log_freezes, run_failures
 from comat.runlog import LOG_FILE, RunLog, read_run_log
 
 SIZES, RUNS, STEPS = (2, 4), 2, 8
@@ -272,3 +272,23 @@ def test_a_v2_stand_in_is_analyzed_from_the_poses_after_the_start_up_drive(campa
         assert (
             r["log"] == "complete" and float(r["divergence_m"]) < 0.03
         )  # the same loop from the same poses: 1 cm here
+
+
+def test_a_robot_whose_wheels_stop_is_found_in_every_run(campaign, tmp_path):
+    """Not planted: the stand-in runs inside a layer where one robot per run loses its wheels 2-4 s in
+    (a fault at speed fraction 0); the failure list names that robot, and only it, in every run."""
+    camp, _ = campaign
+    profile = tmp_path / "fault.yaml"
+    fault = {"level": "nominal", "fault_prob": 1.0, "fault_speed_fraction": 0.0}
+    profile.write_text(yaml.safe_dump({"reality": {**fault, "fault_start_min_s": 2.0, "fault_start_max_s": 4.0}}))
+    returned = tmp_path / "returned"
+    stand_in_returns(camp / "manifest.json", returned, reality=str(profile), max_steps=14)  # 13 s of loop
+    runs = check_returned(returned, read_manifest(camp / "manifest.json"), camp)
+    for run in runs:
+        fails = run_failures(run)
+        assert [f["kind"] for f in fails] == ["freeze (robot)"], fails
+        robot = int(fails[0]["detail"].split()[1])
+        first = int(fails[0]["detail"].split("from iteration ")[1].split()[0])
+        xy = run["log"].poses[first:, robot, :2]
+        # it never moved again (the first frozen window may open while its last 1-2 cm were driven)
+        assert np.linalg.norm(xy.max(axis=0) - xy.min(axis=0)) < 0.03

@@ -19,8 +19,8 @@ Per run                its failures (:func:`run_failures`): missing files, an un
                        collisions (the Robotarium's test on the logged poses: centres offset
                        0.025 m forward closer than 0.135 m; and rps's own count), boundary
                        errors, freezes (:func:`log_freezes`: a robot sent 0.15 m of motion
-                       in 3 s that stayed within 2 cm; a team whose robots that wanted to
-                       move all moved < 2 cm in 3 s);
+                       or 2 rad of turn in 3 s that stayed within 2 cm (and 0.1 rad); a team
+                       whose robots that wanted to move all moved < 2 cm in 3 s);
                        its replay beside its twin (:func:`comat.eval.replay.replay`, layer seed
                        = the run's index): ``OUT/runs/<folder>/replay.rrd`` and its tables
 Per team size          the paired sim/real table: for progress, return, steps and finished the
@@ -55,7 +55,9 @@ from sim2real.check import duration_warning
 
 __all__ = [
     "FREEZE_INTENT_M",
+    "FREEZE_INTENT_RAD",
     "FREEZE_MOVE_M",
+    "FREEZE_TURN_RAD",
     "FREEZE_WINDOW_S",
     "QUANTITIES",
     "RETURNED_MEDIA",
@@ -83,6 +85,13 @@ FREEZE_INTENT_M = 0.15
 """Commands worth this much motion over a window (0.05 m/s on average, above ``nominal``'s dead
 zone of 0.03 m/s) mean the robot was meant to move: measured on 10 stand-in runs under ``nominal``
 (PCP, 2-8 robots), commands sent over 3 s outran the logged motion by at most 0.11 m, at a reversal."""
+FREEZE_INTENT_RAD = 2.0
+"""Turn commands worth this much heading over a window (0.67 rad/s on average) mean the robot was
+meant to turn: in 28 clean stand-in runs, where the logged heading spanned < FREEZE_TURN_RAD over a
+window, the commands sent asked for at most 1.01 rad; a robot whose wheels stopped (a fault at
+speed fraction 0) kept being sent 3.3-8.2 rad."""
+FREEZE_TURN_RAD = 0.1
+"""A robot whose logged heading spanned less than this over a window did not turn."""
 COLLISION_DISTANCE_M = 0.135
 """The Robotarium's collision test: offset centres (COLLISION_OFFSET_M ahead) closer than this."""
 _CHUNK_ROWS = 2048
@@ -206,7 +215,9 @@ def log_freezes(log: RunLog) -> dict:
     * ``"robots"``: per robot sent commands that would move it at least FREEZE_INTENT_M (the sent
       speeds integrated along its logged heading) over a window in which its logged position stayed
       inside a box of diagonal FREEZE_MOVE_M (not a robot reversing in place, whose net motion is
-      small too): stuck, or not tracked; ``{"robot", "first_iteration", "seconds"}``;
+      small too), or sent turns worth FREEZE_INTENT_RAD over a window in which it also did not turn
+      (heading span < FREEZE_TURN_RAD): stuck, or not tracked; ``{"robot", "first_iteration",
+      "seconds"}``;
     * ``"team"``: windows in which at least one robot wanted to move (its commands before the
       filter worth FREEZE_INTENT_M) and every such robot moved less than FREEZE_MOVE_M (the filter
       held them: a deadlock, the bench's team freeze); ``{"first_iteration", "robots", "seconds"}``
@@ -224,7 +235,10 @@ def log_freezes(log: RunLog) -> dict:
     still = np.linalg.norm(xy[w - 1 :] - xy[: rows - w + 1], axis=-1) < FREEZE_MOVE_M  # net motion
     view = np.lib.stride_tricks.sliding_window_view(xy, w, axis=0)  # (K - w + 1, N, 2, w), no copy
     boxed = np.linalg.norm(view.max(axis=-1) - view.min(axis=-1), axis=-1) < FREEZE_MOVE_M
-    stuck = (sent >= FREEZE_INTENT_M) & boxed
+    heading_view = np.lib.stride_tricks.sliding_window_view(np.unwrap(heading, axis=0), w, axis=0)
+    turned = heading_view.max(axis=-1) - heading_view.min(axis=-1) >= FREEZE_TURN_RAD  # (K - w + 1, N)
+    turns = np.abs(_window_sums(log.sent[..., 1] * C.CONTROL_DT_S, w))  # rad asked for
+    stuck = boxed & ((sent >= FREEZE_INTENT_M) | ((turns >= FREEZE_INTENT_RAD) & ~turned))
     robot_s = _covered(stuck, w, rows).sum(axis=0) * C.CONTROL_DT_S
     robots = [
         {"robot": int(i), "first_iteration": int(np.flatnonzero(stuck[:, i])[0]), "seconds": float(robot_s[i])}
@@ -290,9 +304,9 @@ def run_failures(run: dict) -> list[dict]:
         fails.append(
             {
                 "kind": "freeze (robot)",
-                "detail": f"robot {f['robot']} was sent >= {FREEZE_INTENT_M} m of motion per {FREEZE_WINDOW_S:g} s "
-                f"but stayed within {FREEZE_MOVE_M} m, from iteration {f['first_iteration']} ({f['seconds']:.1f} s "
-                "in all): stuck, or not tracked",
+                "detail": f"robot {f['robot']} was sent >= {FREEZE_INTENT_M} m or {FREEZE_INTENT_RAD:g} rad of "
+                f"motion per {FREEZE_WINDOW_S:g} s but stayed within {FREEZE_MOVE_M} m, from iteration "
+                f"{f['first_iteration']} ({f['seconds']:.1f} s in all): stuck, or not tracked",
             }
         )
     if frozen["team"] is not None:
