@@ -108,6 +108,8 @@ def test_analyze_writes_the_paired_table_and_finds_the_planted_failures(campaign
     assert float(steps[2]["real_mean"]) == STEPS == float(steps[2]["twin_mean"])  # the twin stops where the run did
     failures = [(r["folder"], r["kind"]) for r in csv_rows(out / "failures.csv")]
     assert failures == [("pcp_n02_r00", "collision"), ("pcp_n04_r00", "missing files")]  # and no false alarm
+    log = read_run_log(str(bad / "pcp_n02_r00"))
+    assert log_collisions(log.poses)["pair_iterations"] == _main_py_collisions(log.poses) == 30
     detail = next(r["detail"] for r in csv_rows(out / "failures.csv") if r["kind"] == "collision")
     assert detail.startswith("30 pair-iterations") and "robots 0 and 1 at iteration 100" in detail
     runs = {r["folder"]: r for r in csv_rows(out / "runs.csv")}
@@ -119,6 +121,19 @@ def test_analyze_writes_the_paired_table_and_finds_the_planted_failures(campaign
     verify = subprocess.run([rerun, "rrd", "verify", str(out / "runs" / "pcp_n02_r01" / "replay.rrd")], check=False)
     assert verify.returncode == 0
     assert not list(tmp_path.glob(".analysis.tmp-*"))
+
+
+def _main_py_collisions(poses: np.ndarray) -> int:
+    """The exported main.py's own count (its ``offset_collisions``, run row by row): the reference."""
+    import ast
+
+    import sim2real
+
+    source = (Path(sim2real.__file__).parent / "templates" / "main.py").read_text()
+    node = next(n for n in ast.parse(source).body if getattr(n, "name", None) == "offset_collisions")
+    scope = {"np": np, "CONFIG": {"collision_offset_m": 0.025, "collision_distance_m": 0.135}}
+    exec(compile(ast.Module([node], []), "main.py", "exec"), scope)  # noqa: S102 - the shipped function itself
+    return sum(scope["offset_collisions"](row.T.astype(float)) for row in poses)
 
 
 def csv_rows(path: Path):

@@ -17,7 +17,7 @@ Per run                its failures (:func:`run_failures`): missing files, an un
                        a crash (a traceback in ``log.txt`` and no result), a timeout (a log
                        without result: interrupted), a run within 10 % of its declared time,
                        collisions (the Robotarium's test on the logged poses: centres offset
-                       0.025 m forward closer than 0.135 m; and rps's own count), boundary
+                       0.025 m forward <= 0.135 m apart; and rps's own count), boundary
                        errors, freezes (:func:`log_freezes`: a robot sent 0.15 m of motion
                        or 2 rad of turn in 3 s that stayed within 2 cm (and 0.1 rad); a team
                        whose robots that wanted to move all moved < 2 cm in 3 s);
@@ -93,7 +93,8 @@ speed fraction 0) kept being sent 3.3-8.2 rad."""
 FREEZE_TURN_RAD = 0.1
 """A robot whose logged heading spanned less than this over a window did not turn."""
 COLLISION_DISTANCE_M = 0.135
-"""The Robotarium's collision test: offset centres (COLLISION_OFFSET_M ahead) closer than this."""
+"""The Robotarium's collision test: offset centres (COLLISION_OFFSET_M ahead) this close or closer
+(the exported main.py's ``offset_collisions``, the 2025 rule)."""
 _CHUNK_ROWS = 2048
 """Log rows whose (rows, N, N) robot distances are held at once."""
 
@@ -185,7 +186,7 @@ def log_collisions(poses: np.ndarray) -> dict:
         c = p[..., :2] + C.COLLISION_OFFSET_M * np.stack([np.cos(p[..., 2]), np.sin(p[..., 2])], axis=-1)
         d = np.linalg.norm(c[:, :, None] - c[:, None], axis=-1)[:, upper]  # (rows, pairs)
         closest = min(closest, float(d.min()))
-        hit = d < COLLISION_DISTANCE_M
+        hit = d <= COLLISION_DISTANCE_M  # as main.py counts them (offset_collisions)
         out["pair_iterations"] += int(hit.sum())
         if out["first"] is None and hit.any():
             row, pair = np.argwhere(hit)[0]
@@ -295,7 +296,7 @@ def run_failures(run: dict) -> list[dict]:
         fails.append(
             {
                 "kind": "collision",
-                "detail": f"{hits['pair_iterations']} pair-iterations in the logged poses (offset centres < "
+                "detail": f"{hits['pair_iterations']} pair-iterations in the logged poses (offset centres <= "
                 f"{COLLISION_DISTANCE_M} m){where}; rps reported {rps_collisions}",
             }
         )
