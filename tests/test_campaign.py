@@ -96,7 +96,7 @@ def test_analyze_writes_the_paired_table_and_finds_the_planted_failures(campaign
     camp, returned = campaign
     bad, out = _plant(returned, tmp_path), tmp_path / "analysis"
     argv = ["campaign", "--analyze", str(bad), "--manifest", str(camp / "manifest.json"), "--out", str(out)]
-    assert main(argv) == 0
+    assert main([*argv, "--profiles", "nominal", "--draws", "2"]) == 0
     printed = capsys.readouterr().out
     assert "## Paired sim/real table per team size" in printed
     sizes = list(csv_rows(out / "sizes.csv"))
@@ -106,6 +106,10 @@ def test_analyze_writes_the_paired_table_and_finds_the_planted_failures(campaign
     assert progress[2]["gap_lo"] != "" and progress[4]["gap_lo"] == ""  # one run gives no interval
     steps = {int(r["size"]): r for r in sizes if r["quantity"] == "steps"}
     assert float(steps[2]["real_mean"]) == STEPS == float(steps[2]["twin_mean"])  # the twin stops where the run did
+    # the runs were made under nominal: its plant predicts them better than off's, at every size
+    score = {(int(r["size"]), r["quantity"]): float(r["gap_mean"]) for r in sizes if r["quantity"].startswith("plant")}
+    for size in SIZES:
+        assert score[size, "plant score nominal k = 30 (mm)"] < score[size, "plant score off k = 30 (mm)"]
     failures = [(r["folder"], r["kind"]) for r in csv_rows(out / "failures.csv")]
     assert failures == [("pcp_n02_r00", "collision"), ("pcp_n04_r00", "missing files")]  # and no false alarm
     log = read_run_log(str(bad / "pcp_n02_r00"))

@@ -76,6 +76,7 @@ def _analyze(args: argparse.Namespace) -> int:
     if args.manifest is None or args.out is None:
         raise ValueError("comat campaign --analyze RETURNED needs --manifest DIR/manifest.json and --out OUT")
     reality = reality_arg(args.reality)
+    profiles = [reality_arg(p, "--profiles") for p in args.profiles]
     result = analyze_campaign(
         args.analyze,
         args.manifest,
@@ -83,6 +84,7 @@ def _analyze(args: argparse.Namespace) -> int:
         reality=reality,
         tier=args.tier or "unicycle",
         draws=args.draws,
+        profiles=profiles,
         progress=lambda line: print(f"comat campaign: {line}", file=sys.stderr, flush=True),
     )
     print(result["markdown"])
@@ -176,6 +178,14 @@ def add_campaign_parser(subparsers) -> argparse.ArgumentParser:
         choices=TIERS,
         default=None,
         help="--analyze: the twins' dynamics tier (default: unicycle, as comat replay)",
+    )
+    p.add_argument(
+        "--profiles",
+        nargs="+",
+        default=[],
+        metavar="L|PROFILE.yaml",
+        help="--analyze: also score these levels' or profiles' plants on every run's log (k-step score per size, "
+        "beside --reality's: which predicts the robots best)",
     )
     p.add_argument(
         "--draws",

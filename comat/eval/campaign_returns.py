@@ -40,7 +40,7 @@ from __future__ import annotations
 import json
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -342,9 +342,10 @@ def _fmt(ci: dict, digits: int = 3) -> str:
     return f"{ci['mean']:.{digits}g} [{ci['lo']:.{digits}g}, {ci['hi']:.{digits}g}]"
 
 
-def size_rows(runs: list[dict]) -> list[dict]:
+def size_rows(runs: list[dict], profiles: Sequence[str] = (), k_steps: Sequence[int] = ()) -> list[dict]:
     """The paired table: per team size and quantity, real, twin and real − twin over the runs with a
-    result (t-intervals over runs), and the divergence (over every replayed run)."""
+    result (t-intervals over runs), the divergence (over every replayed run), and per profile and
+    horizon the plant's k-step score on the runs' logs (mm, over the runs long enough for it)."""
     rows = []
     for size in sorted({r["entry"]["size"] for r in runs}):
         mine = [r for r in runs if r["entry"]["size"] == size]
@@ -374,6 +375,12 @@ def size_rows(runs: list[dict]) -> list[dict]:
                 "gap": _interval(div),
             }
         )
+        for p in profiles:
+            for k in k_steps:
+                score = [1000 * r["kstep"][p][k] for r in mine if k in (r.get("kstep") or {}).get(p, {})]
+                name = f"plant score {_label(p)} k = {k} (mm)"
+                rows.append({"size": size, "quantity": name, "runs": len(mine), "real": none, "twin": none})
+                rows[-1]["gap"] = _interval(score)
     return rows
 
 
@@ -386,14 +393,16 @@ def analyze_campaign(
     k_steps: tuple[int, ...] = (1, 5, 30),
     draws: int = 8,
     progress: Callable[[str], None] | None = None,
+    profiles: Sequence[str] = (),
 ) -> dict:
     """Read a campaign's returned folder against its manifest and write the analysis in ``out``
     (module docstring). ``reality``, ``tier``, ``k_steps``, ``draws``: each run's twin and plant
-    score (:func:`comat.eval.replay.replay`); ``progress``: told a line per run once every check has
+    score (:func:`comat.eval.replay.replay`), ``profiles``: more levels or profiles whose plants are
+    scored on every run's log (the table ranks them per size); ``progress``: told a line per run once every check has
     passed (the command prints it). Returns ``{"sizes": rows, "runs": [...], "failures":
     [...], "markdown": campaign.md's text, "out": Path}``."""
     returned, manifest_path, out = Path(returned), Path(manifest_path), Path(out)
-    check_options(reality, (), k_steps, draws, 0)
+    check_options(reality, profiles, k_steps, draws, 0)
     manifest = read_manifest(manifest_path)
     if out.exists():
         raise CampaignError(f"--out {str(out)!r} already exists; choose a new folder")
@@ -423,13 +432,15 @@ def analyze_campaign(
                 seed=entry["run"],
                 k_steps=k_steps,
                 draws=draws,
+                profiles=profiles,
             )
+            run["kstep"] = {p: dict(zip(sc["ks"], sc["score_m"])) for p, sc in rep["kstep"].items()}
             by_name = {r["quantity"]: r for r in rep["rows"]}
             run["divergence_m"] = by_name["position divergence mean (m)"]["gap"]
             if run["log"].complete:
                 run["real"] = {q: by_name[q]["real"] for q in QUANTITIES}
                 run["twin"] = {q: by_name[q]["twin"] for q in QUANTITIES}
-        rows = size_rows(runs)
+        rows = size_rows(runs, list(dict.fromkeys([reality, *profiles])), k_steps)
         text = _markdown(manifest, rows, runs, failures, reality, tier)
         write_atomic(tmp / "campaign.md", text)
         write_atomic(tmp / "sizes.csv", csv_text([_flat(r) for r in rows], list(_flat(rows[0]))))
@@ -442,6 +453,10 @@ def analyze_campaign(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return {"sizes": rows, "runs": runs, "failures": failures, "markdown": text, "out": out}
+
+
+def _label(profile: str) -> str:
+    return Path(profile).name if profile.endswith((".yaml", ".yml")) else profile
 
 
 def _flat(row: dict) -> dict:
@@ -479,7 +494,9 @@ def _markdown(manifest: dict, rows: list[dict], runs: list[dict], failures: list
             "Means over the runs whose log holds a result, with 95 % t-intervals over runs (runs are the "
             "replicated unit; one run gives no interval). real − twin is the paired difference, run by run. The "
             "divergence is the mean distance between the real and the twin's poses at each env step's start, over "
-            "every replayed run."
+            "every replayed run. A plant score is the k-step score of a profile's plant on the runs' logs (`comat "
+            "replay`: from each logged pose, the logged commands k ticks ahead; lower predicts the robots better), "
+            "over the runs long enough for k."
         ),
         "",
         "| robots | quantity | runs (paired) | real | twin | real − twin |",
