@@ -311,3 +311,12 @@ def test_a_robot_whose_wheels_stop_is_found_in_every_run(campaign, tmp_path):
         xy = run["log"].poses[first:, robot, :2]
         # it never moved again (the first frozen window may open while its last 1-2 cm were driven)
         assert np.linalg.norm(xy.max(axis=0) - xy.min(axis=0)) < 0.03
+
+
+def test_a_folder_that_fails_under_rps_stops_the_stand_in_in_one_line(campaign, tmp_path, capsys):
+    camp = shutil.copytree(campaign[0], tmp_path / "camp")
+    with (camp / "pcp_n02_r00" / "main.py").open("a") as fh:
+        fh.write("raise RuntimeError('boom')\n")
+    out = tmp_path / "returned"
+    argv = ["campaign", "--stand-in", str(camp / "manifest.json"), "--out", str(out), "--max-steps", "2"]
+    _refused(argv, capsys, out, f"{camp / 'pcp_n02_r00' / 'main.py'} failed under rps", "RuntimeError: boom")

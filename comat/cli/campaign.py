@@ -98,20 +98,24 @@ def _analyze(args: argparse.Namespace) -> int:
 def _stand_in(args: argparse.Namespace) -> int:
     from comat.cli.args import reality_arg
     from comat.eval.campaign import stand_in_returns
+    from sim2real.check import CheckError
 
     if args.out is None:
         raise ValueError("comat campaign --stand-in MANIFEST needs --out RETURNED (the folder to create)")
     if args.max_steps is not None and args.max_steps < 1:
         raise ValueError(f"--max-steps must be an integer >= 1, got {args.max_steps}")
     reality = reality_arg(args.reality)
-    folders = stand_in_returns(
-        args.stand_in,
-        args.out,
-        reality=None if reality == "off" else reality,
-        drive=args.drive,
-        max_steps=args.max_steps,
-        rps_path=args.rps,
-    )
+    try:
+        folders = stand_in_returns(
+            args.stand_in,
+            args.out,
+            reality=None if reality == "off" else reality,
+            drive=args.drive,
+            max_steps=args.max_steps,
+            rps_path=args.rps,
+        )
+    except CheckError as err:  # a main.py that failed under rps: one line, as export --check says it
+        raise ValueError(str(err)) from err
     print(f"wrote {args.out}: what the Robotarium returns, for {len(folders)} experiments run under rps")
     return 0
 

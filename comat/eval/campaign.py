@@ -43,7 +43,7 @@ from comat.files import write_atomic
 from comat.rl.checkpoint import source_commit
 from comat.runlog import LOG_FILE, META_FILE
 from comat.team import COALITION_SETS, SET_LABELS
-from sim2real.check import run_rps
+from sim2real.check import CheckError, run_rps
 from sim2real.export import export_submission, load_config
 
 __all__ = [
@@ -324,9 +324,12 @@ def stand_in_returns(
         work = tmp / ".work"  # the folders run from a copy: their logs land beside the copy
         for e in manifest["folders"]:
             copy = shutil.copytree(manifest_path.parent / e["folder"], work / e["folder"])
-            result = run_rps(
-                copy, timeout_s, rps_path, max_steps=max_steps, reality=reality, seed=e["run"], drive=drive
-            )
+            try:
+                result = run_rps(
+                    copy, timeout_s, rps_path, max_steps=max_steps, reality=reality, seed=e["run"], drive=drive
+                )
+            except CheckError as err:  # named by the campaign's folder, not the copy that ran
+                raise CheckError(str(err).replace(str(copy), str(manifest_path.parent / e["folder"]))) from None
             dest = tmp / e["folder"]
             dest.mkdir()
             for name in (LOG_FILE, META_FILE):
