@@ -210,12 +210,14 @@ def add_seed(p: argparse.ArgumentParser, what: str = "seed of the episodes") -> 
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"{what} (default: %(default)s)")
 
 
-def add_reality(p: argparse.ArgumentParser) -> None:
+def add_reality(p: argparse.ArgumentParser, meaning: str | None = None) -> None:
+    """``--reality`` (default off); ``meaning``: its help where it is not the layer the episodes play at."""
     p.add_argument(
         "--reality",
         default="off",
         metavar="{" + ",".join(REALITY_LEVELS) + ",PROFILE.yaml}",
-        help="reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
+        help=meaning
+        or "reality layer the episodes play at (late, noisy poses, lost commands, lagging motors: "
         "docs/reality.md); default: off, the ideal world, NOT the level the policy trained at",
     )
 

@@ -20,8 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from comat.cli.args import TIERS, add_filter, add_policy, add_seed, add_task
-from comat.reality.config import REALITY_LEVELS
+from comat.cli.args import TIERS, add_filter, add_policy, add_reality, add_seed, add_task
 
 __all__ = ["add_campaign_parser"]
 
@@ -170,11 +169,9 @@ def add_campaign_parser(subparsers) -> argparse.ArgumentParser:
         help="instead: read the folder of what the Robotarium returned (a subfolder per manifest folder)",
     )
     p.add_argument("--manifest", default=None, metavar="FILE", help="--analyze: the campaign's manifest.json")
-    p.add_argument(
-        "--reality",
-        default="off",
-        metavar="{" + ",".join(REALITY_LEVELS) + ",PROFILE.yaml}",
-        help="--analyze: the level or calibrated profile the twins play at and whose plant is scored; "
+    add_reality(
+        p,
+        "--analyze: the level or calibrated profile the twins play at and whose plant is scored; "
         "--stand-in: the layer the runs play in (default: %(default)s)",
     )
     p.add_argument(
