@@ -192,7 +192,7 @@ def test_the_run_records_the_profile_path_hash_and_mode_and_loads_back(tmp_path)
         (("pose_hold_prob", 0.3, 0.4, 0.2, "block95"), "lo <= hi, got lo=0.4 > hi=0.2"),
         (("floor_wax", 0.3, 0.2, 0.4, "t95"), "must be a RealityConfig field or a fitted parameter"),
         (("command_loss_prob", 0.01, 0.0, 0.02, "t95"), "must be a field drawn per episode"),
-        (("pose_hold_prob", 0.3, 0.2, 0.4, "t95"), "its kind is 'block95'"),
+        (("pose_hold_prob", 0.3, 0.2, 0.4, "t95"), "kind must be 'block95', its parameter's, got 't95'"),
     ],
 )
 def test_a_profile_with_a_bad_interval_is_refused_in_one_line_exit_2_nothing_written(tmp_path, capsys, row, message):

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from comat.reality.config import PROFILE_FORMAT
+from comat.reality.config import KINDS, PARAMETER_KINDS, PROFILE_FORMAT
 
 __all__ = [
     "KINDS",
@@ -46,32 +46,6 @@ __all__ = [
     "spread_interval",
 ]
 
-KINDS = {
-    "t95": "95 % t, robots",
-    "t95_runs": "95 % t, runs",
-    "block95": "95 % block bootstrap, ticks",
-    "chi2_95": "95 % chi-square, robots",
-    "order95": "95 % smallest of robots",
-    "range": "robots' range",
-}
-"""Each kind of interval and how ``comat calibrate``'s table names it."""
-PARAMETER_KINDS = {
-    "pose_delay_ticks": "range",
-    "pose_delay_jitter_prob": "block95",
-    "motor_tau_s": "t95",
-    "speed_gain": "t95",
-    "turn_gain": "t95",
-    "tracked_ahead_m": "t95",
-    "top_speed_fraction": "range",
-    "top_speed_derate_min": "order95",
-    "wheel_gain_spread": "chi2_95",
-    "pose_noise_xy_m": "t95",
-    "pose_noise_theta_rad": "t95",
-    "pose_hold_prob": "block95",
-    "motor_dead_zone_radps": "t95",
-    "loop_tick_s": "t95_runs",
-}
-"""The kind each fitted parameter's interval must be (or none: too few robots or runs for one)."""
 CONFIDENCE = 0.95
 
 

@@ -34,8 +34,10 @@ from comat import constants as C
 from comat.config import load
 
 __all__ = [
+    "KINDS",
     "LEVELS",
     "MARKS",
+    "PARAMETER_KINDS",
     "PROFILE_FORMAT",
     "REALITY_LEVELS",
     "SOURCES",
@@ -434,6 +436,35 @@ PROFILE_FORMAT = 2
 of :mod:`comat.calibration.intervals` (team-wide quantities over blocks of ticks) and the pose jitter
 fitted, not kept at nominal's on top of a fitted delay. A fitted profile of another format is refused
 with the command that regenerates it."""
+
+KINDS = {
+    "t95": "95 % t, robots",
+    "t95_runs": "95 % t, runs",
+    "block95": "95 % block bootstrap, ticks",
+    "chi2_95": "95 % chi-square, robots",
+    "order95": "95 % smallest of robots",
+    "range": "robots' range",
+}
+"""Each kind of interval a fitted profile states (:mod:`comat.calibration.intervals`) and how
+``comat calibrate``'s table names it; part of the profile format (here, below the calibration that
+writes them, so the reality layer can read a profile's intervals: :mod:`comat.reality.randomize`)."""
+PARAMETER_KINDS = {
+    "pose_delay_ticks": "range",
+    "pose_delay_jitter_prob": "block95",
+    "motor_tau_s": "t95",
+    "speed_gain": "t95",
+    "turn_gain": "t95",
+    "tracked_ahead_m": "t95",
+    "top_speed_fraction": "range",
+    "top_speed_derate_min": "order95",
+    "wheel_gain_spread": "chi2_95",
+    "pose_noise_xy_m": "t95",
+    "pose_noise_theta_rad": "t95",
+    "pose_hold_prob": "block95",
+    "motor_dead_zone_radps": "t95",
+    "loop_tick_s": "t95_runs",
+}
+"""The kind each fitted parameter's interval must be (or none: too few robots or runs for one)."""
 
 
 def read_profile(path: str, name: str = "reality") -> dict[str, Any]:

@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from comat.reality.config import LEVELS, RealityConfig, read_profile
+from comat.reality.config import KINDS, LEVELS, PARAMETER_KINDS, RealityConfig, read_profile
 
 __all__ = [
     "DRAW_MODES",
@@ -105,12 +105,10 @@ def profile_intervals(path: str, name: str = "reality_draw") -> dict[str, tuple[
     """Draw name -> (lo, hi) from the ``fit`` rows of the profile ``path`` that have an interval,
     mapped and clipped as :data:`DRAWS` says. One-line ValueError naming ``name``, the profile, the
     row, the expectation and the value for: a profile without fit rows, an interval kind that is not
-    one of :data:`comat.calibration.intervals.KINDS` (or not its parameter's), lo > hi or an end not
+    one of :data:`~comat.reality.config.KINDS` (or not its parameter's), lo > hi or an end not
     finite, a row that names no RealityConfig field or fitted parameter, or a RealityConfig field the
     layer cannot draw per episode."""
     import yaml
-
-    from comat.calibration.intervals import KINDS, check_fit
 
     read_profile(path, name)  # a profile at all, of the present format
     data = yaml.safe_load(Path(path).read_text())
@@ -138,6 +136,10 @@ def profile_intervals(path: str, name: str = "reality_draw") -> dict[str, tuple[
                 f"{where}: fit row name must be a RealityConfig field or a fitted parameter "
                 f"({sorted({*DRAWS, *NOT_DRAWN})}), got {param!r}"
             )
+        if kind != PARAMETER_KINDS.get(param, kind):
+            raise ValueError(
+                f"{where}: {param}'s interval kind must be {PARAMETER_KINDS[param]!r}, its parameter's, got {kind!r}"
+            )
         lo, hi = row.get("lo"), row.get("hi")
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (lo, hi)):
             raise ValueError(f"{where}: {param}'s lo and hi must be finite numbers, got lo={lo!r}, hi={hi!r}")
@@ -152,10 +154,6 @@ def profile_intervals(path: str, name: str = "reality_draw") -> dict[str, tuple[
                 raise ValueError(f"{where}: {param}'s estimate must be a finite number, got {estimate!r}")
             lo, hi = lo - estimate, hi - estimate
         out[draw] = (float(min(max(lo, least), most)), float(min(max(hi, least), most)))
-    try:
-        check_fit(rows, path, data.get("logs"))  # a known kind, but not its parameter's
-    except ValueError as err:
-        raise ValueError(f"{name}: {err}") from None
     return {k: out[k] for k in DRAW_NAMES if k in out}
 
 

@@ -29,13 +29,15 @@ SETS = ("train", "test")
 
 
 def progress_of(path: Path) -> dict[str, float]:
-    """Set -> the learned policy's progress (%) in one evaluation file."""
+    """Set -> the learned policy's progress (%) in one evaluation file; ``collisions/<set>``: its
+    contacts per episode (the safety guard)."""
     data = json.loads(path.read_text())
     out = {}
     for row in data["rows"]:
         if row["policy"] in ("heuristic", "type_only", "blind", "constant", "random"):
             continue
         out[row["set"]] = 100.0 * float(row["metrics"]["progress"]["mean"])
+        out[f"collisions/{row['set']}"] = float(row["metrics"]["collisions"]["mean"])
     return out
 
 
@@ -79,6 +81,15 @@ def markdown(table: dict, arms: list[str], base: str = "nominal", test: str = "c
             cells = [_fmt(per[x].get(s, math.nan)) for x in LAYERS]
             gaps = [_fmt(off - per[x].get(s, math.nan)) for x in LAYERS]
             lines.append(f"| {arm} | {seed} | U_{s} | {_fmt(off)} | " + " | ".join(cells + gaps) + " |")
+    worst = {
+        x: max(per[x].get(f"collisions/{s}", 0.0) for per in table.values() for s in sets) for x in ("off", *LAYERS)
+    }
+    lines += [
+        "",
+        "Contacts per episode, the largest over runs and sets (the guard): "
+        + ", ".join(f"{x} {v:.2f}" for x, v in worst.items())
+        + ".",
+    ]
     if base not in arms or test not in arms:
         return "\n".join(lines) + "\n"
     lines += [
