@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import json
 import os
 import re
 import shutil
@@ -67,10 +68,17 @@ def tree_files(root: Path, under: str | None = None) -> list[str]:
     if inside is not None and inside.strip() == b"":  # root is a checkout's top folder
         spec = [under] if under else []
         out = _git(root, "ls-files", "-z", "--cached", "--others", "--exclude-standard", "--", *spec) or b""
-        names = sorted({n for n in out.decode().split("\0") if n})
+        names = sorted({n for n in out.decode().split("\0") if n} - _archived(root))
         return [n for n in names if (root / n).is_file()]
     base = root / under if under else root
     return sorted(p.relative_to(root).as_posix() for p in base.rglob("*") if p.is_file() and ".git" not in p.parts)
+
+
+def _archived(root: Path) -> set[str]:
+    """Policies ``tools/archive.py`` moved out of the tree (results/archive.json): a copy restored
+    from history to evaluate it again is untracked and does not count against the budget."""
+    record = root / "results" / "archive.json"
+    return {e["path"] for e in json.loads(record.read_text())["policies"]} if record.is_file() else set()
 
 
 def load_budgets(root: Path) -> dict:
