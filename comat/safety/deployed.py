@@ -354,7 +354,7 @@ class RobotWatch:
         window: int = 15,
         stale_limit: int = 8,
         min_path_m: float = 0.03,
-        ratio: float = 0.15,
+        ratio: float = 0.25,
         release_ratio: float = 0.5,
         dt: float = 0.033,
         dead_reckon: bool = True,
