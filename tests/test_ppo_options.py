@@ -261,3 +261,16 @@ def test_the_matched_arm_preset_sets_benchmarls_choices():
 def test_bad_option_values_are_named_in_one_line(field, value, error, message):
     with pytest.raises(error, match=message):
         PPOConfig(**{field: value})
+
+
+@pytest.mark.parametrize("preset", ["paper", "sweep", "quick"])
+def test_the_study_presets_end_the_episode_at_the_horizon_where_the_observation_shows_the_clock(preset):
+    """navigation and warehouse put the steps left in every observation: their runs take
+    ``time_limit: terminal``; the tasks without a clock keep the bootstrap (issue 65's diagnosis)."""
+    for task, expected in (
+        ("navigation", "terminal"),
+        ("warehouse", "terminal"),
+        ("hmt", "bootstrap"),
+        ("forage", "bootstrap"),
+    ):
+        assert resolve(load_preset(preset), "mat", task).trainer.time_limit == expected, (preset, task)

@@ -4,6 +4,7 @@ the end of U_val episodes (deterministic, 40 environments × ``--rounds`` episod
 the designed-on seed, fine for a diagnosis, not for a verdict). A markdown table on stdout.
 
     .venv/bin/python results/learnability/navigation.py [RUN_OR_CHECKPOINT ...] > navigation.md
+    .venv/bin/python results/learnability/navigation.py --noise     # the planners with ε random actions
 
 Columns: progress %; each lost goal (open at the end) as *chased* (a free robot ended within 0.3 m of it:
 it went for it and did not claim it in time or did not stop on it) or *abandoned* (no free robot near it);
@@ -98,6 +99,25 @@ def play(act, learned: bool, rounds: int) -> dict:
     return {k: float(np.mean(v)) for k, v in stats.items()}
 
 
+def noise_table(rounds: int = 2, levels=(0.0, 0.05, 0.1, 0.2)) -> None:
+    """How much each planner loses when a share of its actions is replaced by uniformly random ones
+    (each robot, each step, with probability ε; one generator, seed 0): how brittle the task is to
+    the imperfect execution a learned policy has."""
+    print("| planner | " + " | ".join(f"ε = {e:g}" for e in levels) + " |")
+    print("|---|" + "---:|" * len(levels))
+    for name in ("heuristic", "blind"):
+        cells = []
+        for eps in levels:
+            rng = np.random.default_rng(0)
+
+            def act(core, n=name, e=eps, rng=rng):
+                a = reference_policy(n, core, 0, SPLIT)(None, core.mask, None)
+                return np.where(rng.random(a.shape) < e, rng.integers(0, 5, a.shape), a)
+
+            cells.append(f"{100 * play(act, False, rounds)['progress']:.1f}")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+
+
 def main(folders: list[str], rounds: int = 2) -> None:
     rows = []
     for folder in folders:
@@ -121,4 +141,7 @@ def main(folders: list[str], rounds: int = 2) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    if sys.argv[1:] == ["--noise"]:
+        noise_table()
+    else:
+        main(sys.argv[1:])
