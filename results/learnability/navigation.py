@@ -5,6 +5,7 @@ the designed-on seed, fine for a diagnosis, not for a verdict). A markdown table
 
     .venv/bin/python results/learnability/navigation.py [RUN_OR_CHECKPOINT ...] > navigation.md
     .venv/bin/python results/learnability/navigation.py --noise     # the planners with ε random actions
+    .venv/bin/python results/learnability/navigation.py --slack     # a v2 design probe: other reach shares
 
 Columns: progress %; each lost goal (open at the end) as *chased* (a free robot ended within 0.3 m of it:
 it went for it and did not claim it in time or did not stop on it) or *abandoned* (no free robot near it);
@@ -118,6 +119,38 @@ def noise_table(rounds: int = 2, levels=(0.0, 0.05, 0.1, 0.2)) -> None:
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
+def slack_table(rounds: int = 2, fractions=((0.9, 1.0), (0.75, 0.9), (0.6, 0.75))) -> None:
+    """A design probe for a navigation_v2 (not a version): the ladder with goals at other shares of
+    their robot's reach (``Navigation.reach_fraction``, v1: 0.9–1.0), on U_val without and with 10 %
+    random actions and on U_cap. The question: does a planner that knows the speeds, executing with
+    10 % errors, still beat the blind planner executing perfectly?"""
+    from comat.tasks.navigation import Navigation
+
+    global SPLIT
+    kept = Navigation.reach_fraction, SPLIT
+    cols = [("val", "heuristic", 0.0), ("val", "heuristic", 0.1), ("val", "type_only", 0.0), ("val", "blind", 0.0)]
+    cols += [("val", "blind", 0.1), ("capability", "heuristic", 0.0), ("capability", "type_only", 0.0)]
+    cols += [("capability", "blind", 0.0)]
+    print("| reach share | " + " | ".join(f"{s} {n}{' ε 0.1' if e else ''}" for s, n, e in cols) + " |")
+    print("|---|" + "---:|" * len(cols))
+    try:
+        for frac in fractions:
+            Navigation.reach_fraction = frac
+            cells = []
+            for split, name, eps in cols:
+                SPLIT = split
+                rng = np.random.default_rng(0)
+
+                def act(core, n=name, e=eps, rng=rng, sp=split):
+                    a = reference_policy(n, core, 0, sp)(None, core.mask, None)
+                    return np.where(rng.random(a.shape) < e, rng.integers(0, 5, a.shape), a)
+
+                cells.append(f"{100 * play(act, False, rounds)['progress']:.1f}")
+            print(f"| {frac[0]:g}–{frac[1]:g} | " + " | ".join(cells) + " |")
+    finally:
+        Navigation.reach_fraction, SPLIT = kept
+
+
 def main(folders: list[str], rounds: int = 2) -> None:
     rows = []
     for folder in folders:
@@ -143,5 +176,7 @@ def main(folders: list[str], rounds: int = 2) -> None:
 if __name__ == "__main__":
     if sys.argv[1:] == ["--noise"]:
         noise_table()
+    elif sys.argv[1:] == ["--slack"]:
+        slack_table()
     else:
         main(sys.argv[1:])
