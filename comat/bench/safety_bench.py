@@ -421,7 +421,7 @@ def liveness_table(result: dict, loop: str = "comat", tier: str = "unicycle") ->
                 continue
             x = r["liveness"]
             t_off = f"{x['t_off_median_s']:.1f}"
-            cap = f" ({x['capped']} capped)" if x["capped"] else ""
+            cap = f" ({x['capped']} capped)" if x["capped"] and lv != "off" else ""
             cells.append(
                 f"{100 * x['1x']:.0f} % / {100 * x['2x']:.0f} %{cap}, {r['freeze_episodes']} / {r['freezes']}, "
                 f"{r['recovery_ticks']}"
