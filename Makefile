@@ -44,8 +44,8 @@ docs: $(STAMP)  ## the documentation site into build/site (MkDocs, strict: warni
 
 lint: $(STAMP)  ## ruff (lint + format check), the import-layering contracts of pyproject.toml (import-linter) and the budgets of tools/budgets.toml
 	$(BIN)/pip install --disable-pip-version-check -q -e ".[lint]"
-	$(BIN)/ruff check comat sim2real tests benchmarks results
-	$(BIN)/ruff format --check comat sim2real tests benchmarks results
+	$(BIN)/ruff check comat sim2real tests benchmarks results tools
+	$(BIN)/ruff format --check comat sim2real tests benchmarks results tools
 	$(BIN)/lint-imports
 	$(BIN)/python tools/budgets.py
 
