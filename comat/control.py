@@ -22,7 +22,7 @@ from comat import constants as C
 from comat import kernels
 from comat._validate import as_float_array
 from comat.config import LOOPS, SafetyConfig, SimConfig
-from comat.reality import RealityConfig, RealityLayer
+from comat.reality import IdentityReality, RealityConfig, RealityLayer
 from comat.reality.margin import response_lag_ticks, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.safety.deployed import (
@@ -38,12 +38,11 @@ from comat.safety.deployed import (
 )
 from comat.safety.kernels import watch_judgement
 from comat.safety.qp import dense_qp
-from comat.sim import BatchWorld, World
+from comat.sim import BatchWorld, World, points_to_wheels
 from comat.sim.kinematics import (
     WHEEL_LIMIT_TOLERANCE,
     limit_to_wheels,
     projected_points,
-    si_to_uni,
     threshold_wheels,
     wheel_rhombus,
 )
@@ -188,7 +187,7 @@ class SafeTeams:
         safety: barrier settings.
         batched: use :class:`BatchWorld` (default) or, for a single team, :class:`World`.
         reality: the reality layer's settings (None or a config that ``is_off``: the ideal world,
-            bit for bit).
+            bit for bit, through :class:`~comat.reality.IdentityReality`).
         reality_seed: keys of episodes reset without ``reality_keys`` (see :meth:`reset`).
         filter_reality: the reality the filter is made for, if not the world's (``reality``).
     """
@@ -213,8 +212,9 @@ class SafeTeams:
                 raise ValueError(f"batched=False takes exactly one team, got team_sizes={sizes}")
             self.world = World(sizes[0], self.sim_config)
         self._qp_cache: OrderedDict = OrderedDict()
-        self.reality: RealityLayer | None = None
-        """The reality layer between the world and the decisions (None: the ideal world)."""
+        self.reality: RealityLayer | IdentityReality = IdentityReality(self.world)
+        """The reality layer between the world and the decisions (at ``off`` the identity: every
+        tick takes the same path through it)."""
         self.filter_config = self.safety_config
         """The filter's settings: ``safety`` made robust to the reality layer's bounds
         (:func:`comat.reality.margin.robust_safety`; ``safety`` itself without a layer)."""
@@ -229,7 +229,7 @@ class SafeTeams:
         """What the script tells of each robot under a reality layer (comat's robust filter only):
         a team with a robot on probation (one that does not respond) is filtered by
         :class:`~comat.safety.deployed.PortableBarrier`, which treats it as an obstacle."""
-        self.keep_right = self.reality is not None and self.safety_config.robust
+        self.keep_right = not self.reality.is_off and self.safety_config.robust
         """Turn nominal commands right near robots ahead (:func:`~comat.safety.deployed.keep_right`)
         under a reality layer; without one (``off``) the loop is as before, bit for bit."""
         self._portable = PortableBarrier(portable_settings(self.filter_config, self.world.profile), _portable_qp)
@@ -251,7 +251,7 @@ class SafeTeams:
         :mod:`comat.viz` recorder. Empty by default (nothing to pay when not recording)."""
 
     def _new_watch(self) -> RobotWatch | None:
-        if self.reality is None or not self.safety_config.robust or self.safety_config.loop != "comat":
+        if self.reality.is_off or not self.safety_config.robust or self.safety_config.loop != "comat":
             return None
         return (CompiledRobotWatch if kernels.enabled() else RobotWatch)(
             self.world.layout.n_robots,
@@ -268,7 +268,7 @@ class SafeTeams:
         d = self.safety_config.projection_distance_m
         if kind == "robotarium":
             return [robotarium_loop(generation, projection=d) for _ in sizes]
-        reality = RealityConfig() if self.reality is None else self.design_reality
+        reality = self.reality.config if self.reality.is_off else self.design_reality
         lag = response_lag_ticks(reality, self.world.profile)
         settings = portable_settings(self.filter_config, self.world.profile)
         right = self.keep_right
@@ -290,7 +290,7 @@ class SafeTeams:
     @property
     def measured_poses(self) -> np.ndarray:
         """(R, 3) the poses the robots' script sees now (a copy; the true ones without a layer)."""
-        return self.world.poses if self.reality is None else self.reality.measured.copy()
+        return self.reality.measured.copy()
 
     @property
     def measured_points(self) -> np.ndarray:
@@ -299,17 +299,13 @@ class SafeTeams:
 
     def decision_poses(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """The (R, 3) poses that controllers and the filter read this tick, with their headings'
-        cosines and sines (read-only views: measured with a layer, else true)."""
-        if self.reality is None:
-            return self.world._poses, self.world.cos_sin()
+        cosines and sines (read-only views: measured, the true ones at ``off``)."""
         return self.reality.measured, self.reality.cos_sin()
 
     def filter_poses(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """The (R, 3) poses the filter and the wheel conversion read, with cosines and sines:
         :meth:`decision_poses`, with repeated measurements dead-reckoned under a layer
         (:class:`comat.reality.margin.StalePoses`)."""
-        if self.reality is None:
-            return self.world._poses, self.world.cos_sin()
         return self.reality.estimated, self.reality.estimated_cos_sin()
 
     def reset(
@@ -320,19 +316,16 @@ class SafeTeams:
         With a reality layer the robots start at the requested poses plus the start error, and
         ``reality_keys`` (one 64-bit key per reset team, e.g. :func:`comat.reality.episode_key`
         of each env's generator) seed their episodes; None: keys from ``reality_seed``."""
-        if self.reality is not None:
-            team_ids = np.arange(self.world.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
-            poses = self.reality.start(
-                as_float_array("poses", poses, (self.world.layout.n_robots, 3)), team_ids, reality_keys
-            )
-            if self.reality.physics_on and self.sim_config.tier == "wheels":
-                if isinstance(self.world, BatchWorld):
-                    self.world.set_robot_physics(*self.reality.physics(), teams=team_ids)
-                else:
-                    self.world.set_robot_physics(*self.reality.physics())
+        layer = self.reality
+        team_ids = np.arange(self.world.layout.n_teams) if teams is None else np.asarray(teams, dtype=np.int64)
+        poses = layer.start(as_float_array("poses", poses, (self.world.layout.n_robots, 3)), team_ids, reality_keys)
+        if layer.physics_on and self.sim_config.tier == "wheels":
+            if isinstance(self.world, BatchWorld):
+                self.world.set_robot_physics(*layer.physics(), teams=team_ids)
+            else:
+                self.world.set_robot_physics(*layer.physics())
         self.world.reset(poses, teams) if teams is not None else self.world.reset(poses)
-        if self.reality is not None:
-            self.reality.begin_measuring(self.world._poses, team_ids)
+        layer.begin_measuring(self.world.pose_view, team_ids)
         if self.watch is not None:
             self.watch.restart(np.flatnonzero(np.isin(self.world.layout.robot_team, team_ids)))
         sel = slice(None) if teams is None else np.asarray(teams, dtype=np.int64)
@@ -365,8 +358,7 @@ class SafeTeams:
         self.world.set_team_sizes(sizes)
         self.filter = SafetyFilter(sizes, self.filter_config, self.world.profile, self._qp_cache)
         self.deployed = self._deployed_loops(sizes)
-        if self.reality is not None:
-            self.reality.relayout(self.world.layout)
+        self.reality.relayout(self.world.layout)
         self.watch = self._new_watch()  # teams whose size changed start afresh; the others lose a window
         self.interventions = np.zeros(len(sizes), np.int64)
         self.fallbacks = np.zeros(len(sizes), np.int64)
@@ -409,20 +401,13 @@ class SafeTeams:
         if self.watch is not None:
             self._watch_teams(dxi, safe, info)
         self.tie_break.update(nominal, safe)
-        if self.reality is None:
-            events = self.world._step_points(safe, self.safety_config.projection_distance_m)
-        else:
-            events = self._step_real(safe, poses, cos_sin)
-            if self.watch is not None:
-                self.watch.sent(self.reality._sent)
-        self.interventions += info.intervention > 1e-9
-        self.fallbacks += info.fallback
-        self.recoveries += info.recovery
-        self.timing.total = time.perf_counter() - t0
-        self.timing.physics = self.world.last_physics_s
-        self.timing.solver = self.filter.last_solver_s
-        for observe in self.tick_observers:
-            observe(nominal, safe, events, info)
+        # The script converts the filtered point velocities to unicycle commands on the headings
+        # it reads and clips the wheels (an actuator error is judged on this request).
+        d = self.safety_config.projection_distance_m
+        events = self.execute(*points_to_wheels(safe, poses, cos_sin, d, self.world.profile))
+        if self.watch is not None:
+            self.watch.sent(self.reality._sent)
+        self._account(t0, self.filter.last_solver_s, nominal, safe, events, info)
         return events, info
 
     def _watch_teams(self, dxi: np.ndarray, safe: np.ndarray, info: SafetyInfo) -> None:
@@ -493,12 +478,7 @@ class SafeTeams:
             nominal[rows], sent[rows] = nom.T, out.T
             fallback[b] = loop.barrier.failures > failures
             recovery[b] = getattr(loop.barrier, "recoveries", 0) > recoveries
-        clipped, overrun = threshold_wheels(sent, self.world.profile)
-        if self.reality is None:
-            events = self.world._advance(clipped, overrun)
-        else:
-            events = self.world._advance(self.reality.actuate(clipped), overrun)
-            self.reality.observe(self.world._poses)
+        events = self.execute(*threshold_wheels(sent, self.world.profile))
         u_nom, u = uni_to_si(nominal.T, x.T, d).T, uni_to_si(sent.T, x.T, d).T
         change = np.linalg.norm(u - u_nom, axis=1)
         info = DeployedInfo(
@@ -507,32 +487,31 @@ class SafeTeams:
             fallback=fallback,
             recovery=recovery,
         )
+        self._account(t0, 0.0, u_nom, u, events, info)
+        return events, info
+
+    def execute(self, clipped: np.ndarray, overrun: np.ndarray) -> TickEvents:
+        """The world's edge, shared by both loops (and open-loop experiments, which skip the filter:
+        :mod:`comat.calibration.experiments`): the wheel-realizable commands the script sent
+        (R, 2) [v m/s, ω rad/s] pass the reality layer's command path and motors, the world steps
+        (``overrun`` (R,): requests the wheel limit clipped), and the layer measures the true poses.
+        At ``off`` (:class:`~comat.reality.IdentityReality`) this is the bare world's tick, bit for bit."""
+        events = self.world.advance(self.reality.actuate(clipped), overrun)
+        self.reality.observe(self.world.pose_view)
+        return events
+
+    def _account(
+        self, t0: float, solver_s: float, nominal: np.ndarray, sent: np.ndarray, events: TickEvents, info
+    ) -> None:
+        """A tick's bookkeeping, shared by both loops: the per-team counters from ``info``
+        (:class:`~comat.safety.SafetyInfo` or :class:`DeployedInfo`), the timing (``t0`` from
+        ``time.perf_counter()`` at the tick's start, ``solver_s`` its QP time) and the observers,
+        which get the point velocities before (R, 2) and after (R, 2) the filter."""
         self.interventions += info.intervention > 1e-9
         self.fallbacks += info.fallback
         self.recoveries += info.recovery
         self.timing.total = time.perf_counter() - t0
         self.timing.physics = self.world.last_physics_s
-        self.timing.solver = 0.0
+        self.timing.solver = solver_s
         for observe in self.tick_observers:
-            observe(u_nom, u, events, info)
-        return events, info
-
-    def _step_real(self, safe: np.ndarray, poses: np.ndarray, cos_sin: tuple[np.ndarray, np.ndarray]) -> TickEvents:
-        """The physics tick through the reality layer: the script converts the filtered point
-        velocities (R, 2) to unicycle commands on the *measured* headings and clips the wheels
-        (an actuator error is judged on this request); the layer's command path and motors give
-        what the robots execute; then the world steps and the layer measures the true poses."""
-        world, layer = self.world, self.reality
-        d = self.safety_config.projection_distance_m
-        if kernels.enabled():  # both conversions in one call, as World._step_points does
-            p, R = world.profile, safe.shape[0]
-            dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
-            kernels.si_to_wheels(
-                safe, cos_sin[0], cos_sin[1], d, p.wheel_radius_m, p.base_length_m / 2.0, p.base_length_m,
-                p.max_wheel_velocity_radps, WHEEL_LIMIT_TOLERANCE, dxu, clipped, overrun,
-            )  # fmt: skip
-        else:
-            clipped, overrun = threshold_wheels(si_to_uni(safe, poses, d, cos_sin), world.profile)
-        events = world._advance(layer.actuate(clipped), overrun)
-        layer.observe(world._poses)
-        return events
+            observe(nominal, sent, events, info)

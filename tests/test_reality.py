@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from comat import constants as C
-from comat.config import SimConfig
+from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams
 from comat.envs import core as env_core
 from comat.envs import make_env, make_vec_env
@@ -44,7 +44,7 @@ def _vec_digest(env_id: str, tier: str, reality=None, seed: int = 11, forced_lay
         obs, r, te, tr, info = env.step(a)
         for x in (obs, r, te, tr, env.state()):
             h.update(np.ascontiguousarray(x).tobytes())
-        h.update(env.core.safe.world._poses.tobytes())
+        h.update(env.core.safe.world.pose_view.tobytes())
         if "_episode" in info:
             for k in sorted(info["episode"]):
                 h.update(info["episode"][k].tobytes())
@@ -66,7 +66,7 @@ def _off_layer_forced(on: bool):
     class Forced(SafeTeams):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
-            assert self.reality is None
+            assert self.reality.is_off
             self.reality = RealityLayer(RealityConfig(), self.world.profile, self.world.layout, 0)
 
     real = env_core.SafeTeams
@@ -94,7 +94,7 @@ def _pz_digest(env_id: str, tier: str, reality=None, forced_layer: bool = False)
         h.update(np.float64(sum(rew.values())).tobytes())
         if not env.agents:
             break
-    h.update(env.core.safe.world._poses.tobytes())
+    h.update(env.core.safe.world.pose_view.tobytes())
     return h.hexdigest()[:16]
 
 
@@ -102,7 +102,7 @@ def _pz_digest(env_id: str, tier: str, reality=None, forced_layer: bool = False)
 def test_off_equals_the_world_before_the_layer_bit_for_bit(env_id, tier):
     """Both worlds run here, in one process: a digest recorded on one CPU does not hold on another
     (MuJoCo's and numba's floating point follow the CPU's instruction set; docs/contributing.md)."""
-    vec = _vec_digest(env_id, tier)  # no layer at all: the world before the layer
+    vec = _vec_digest(env_id, tier)  # the identity layer (IdentityReality): nothing between
     assert _vec_digest(env_id, tier, "off") == vec
     assert _vec_digest(env_id, tier, forced_layer=True) == vec  # the layer's every path, at zero
     pz = _pz_digest(env_id, tier)
@@ -110,6 +110,43 @@ def test_off_equals_the_world_before_the_layer_bit_for_bit(env_id, tier):
     assert _pz_digest(env_id, tier, forced_layer=True) == pz
     # all components at zero is the ideal world too, whatever the level's name says
     assert RealityConfig(level="nominal", **{k: v for k, v in LEVELS["off"].items()}).is_off
+
+
+@pytest.mark.parametrize("tier", ["unicycle", "wheels"])
+@pytest.mark.parametrize("loop", ["comat", "robotarium_legacy"])
+def test_identity_layer_ticks_as_the_bare_world_bit_for_bit(tier, loop):
+    """At ``off`` the layer is :class:`IdentityReality` and a tick through it is the bare world's:
+    the commands each tick's loop sent, replayed on a world with no layer, filter or loop around it,
+    give the same poses and events bit for bit (90 ticks of 3 teams swapping places on a circle,
+    the barrier intervening). The comat loop's filtered point velocities also replay
+    through :meth:`World.step_points` (the fused conversion) to the same poses."""
+    from comat.reality import IdentityReality
+    from comat.sim import BatchWorld
+
+    sizes = (3, 4, 2)
+    teams = SafeTeams(sizes, SimConfig(tier=tier), SafetyConfig(loop=loop), reality=RealityConfig())
+    assert isinstance(teams.reality, IdentityReality)
+    bare, by_points = BatchWorld(sizes, SimConfig(tier=tier)), BatchWorld(sizes, SimConfig(tier=tier))
+    angles = np.concatenate([np.arange(n) * 2 * np.pi / n for n in sizes])
+    start = np.column_stack([0.3 * np.cos(angles), 0.3 * np.sin(angles), angles + np.pi])  # on a circle, inward
+    for world in (teams, bare, by_points):
+        world.reset(start)
+    sent, filtered = [], []
+    actuate = teams.reality.actuate
+    teams.reality.actuate = lambda dxu: sent.append(dxu.copy()) or actuate(dxu)
+    teams.tick_observers.append(lambda nominal, out, events, info: filtered.append(out.copy()))
+    d = teams.safety_config.projection_distance_m
+    for _ in range(90):
+        dxi = 0.4 * (-start[:, :2] - teams.measured_points)  # to the antipode, through each other
+        events = teams.tick(dxi)[0] if loop == "comat" else teams.tick_deployed(dxi)[0]
+        bare_events = bare.advance(sent[-1], events.actuator)
+        for field in ("collision", "boundary", "robot_contact", "wall_contact"):
+            np.testing.assert_array_equal(getattr(events, field), getattr(bare_events, field))
+        np.testing.assert_array_equal(teams.world.pose_view, bare.pose_view)
+        if loop == "comat":
+            by_points.step_points(filtered[-1], d)
+            np.testing.assert_array_equal(teams.world.pose_view, by_points.pose_view)
+    assert teams.interventions.sum() > 0  # the crossing engages the barrier: its answers are what replays
 
 
 @pytest.mark.parametrize("tier", ["unicycle", "wheels"])
@@ -394,8 +431,8 @@ def test_gain_mismatch_curves_an_open_loop_straight_line():
         if turns:
             layer.motors.gain[0] = [1 - spread, 1 + spread]  # the widest mismatch the range allows
         for _ in range(60):
-            teams.world._advance(layer.actuate(np.array([[0.15, 0.0]])), np.zeros(1, bool))
-            layer.observe(teams.world._poses)
+            teams.world.advance(layer.actuate(np.array([[0.15, 0.0]])), np.zeros(1, bool))
+            layer.observe(teams.world.pose_view)
         g = layer.motors.gain[0]
         predicted = 60 * C.CONTROL_DT_S * 0.15 * (g[1] - g[0]) / PROFILE.base_length_m  # r·Δφ̇ / l
         if turns:
@@ -445,7 +482,7 @@ def test_the_filter_decides_on_measured_poses_and_collisions_are_judged_on_true_
         teams.reset(start)
         if reality is not None:  # a fixed bias instead of the drawn one: robot 0 seen 0.5 m up, robot 1 down
             teams.reality.pose.bias[:] = [[0.0, 0.5], [0.0, -0.5]]
-            teams.reality.begin_measuring(teams.world._poses, np.array([0]))
+            teams.reality.begin_measuring(teams.world.pose_view, np.array([0]))
         contact = pairs = 0
         for _ in range(120):
             ev, _ = teams.tick(dxi)
@@ -465,7 +502,7 @@ def test_env_observes_measured_and_judges_true_poses():
     for _ in range(3):
         obs, *_ = env.step(np.zeros((2, env.max_robots), np.int64))
     mask = core.mask
-    np.testing.assert_array_equal(core.poses()[mask], core.safe.world._poses[core._flat[mask]])
+    np.testing.assert_array_equal(core.poses()[mask], core.safe.world.pose_view[core._flat[mask]])
     seen = core.measured_poses()[mask]
     np.testing.assert_allclose(obs[..., :2][mask], seen[:, :2])  # observations: measured x, y
     off = np.abs(seen[:, :2] - core.poses()[mask][:, :2])

@@ -346,7 +346,7 @@ def _bangbang(rng: np.random.Generator, n: int):
 def _drive_wrong_way(teams: SafeTeams, from_tick: int) -> None:
     """Each team's first robot executes its forward speed negated from ``from_tick`` on (the
     layer's motors see −v): a fault the script's commands do not reveal by distance alone."""
-    if teams.reality is None:
+    if teams.reality.is_off:
         raise ValueError("wrong_way_tick needs a reality layer (a level other than off)")
     layer, first = teams.reality, teams.world.layout.offsets[:-1]
     actuate, ticks = layer.actuate, [0]
@@ -408,7 +408,7 @@ def run_scenario(
     config = resolve_reality(reality)
     if scn.reality:
         config = dataclasses.replace(config, **scn.reality)
-    design = None if filter_reality is None else resolve_reality(filter_reality)
+    design = resolve_reality(filter_reality) if filter_reality is not None else None
     teams = SafeTeams(scn.team_sizes, sim, safety, reality=config, reality_seed=seed, filter_reality=design)
     teams.reset(scn.poses)
     if wrong_way_tick is not None:

@@ -87,7 +87,7 @@ def bench_ours(
     for k in range(warmup + ticks):
         if k % _REDRAW == _REDRAW - 1:
             goals = _goals(rng, n * batch)
-        teams.tick(go_to_goal(teams.points if teams.reality is None else teams.measured_points, goals, max_speed=0.15))
+        teams.tick(go_to_goal(teams.measured_points, goals, max_speed=0.15))
         if k >= warmup:
             tot.append(teams.timing.total)
             phy.append(teams.timing.physics)

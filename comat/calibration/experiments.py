@@ -86,9 +86,7 @@ def _simulate_tier(experiment: str, config, n: int, seed: int, tier: str, log: n
         log[k, :, 0] = k * C.CONTROL_DT_S
         log[k, :, 1:3] = dxu
         log[k, :, 3:] = teams.measured_poses
-        teams.world._advance(dxu if teams.reality is None else teams.reality.actuate(dxu), overrun)
-        if teams.reality is not None:
-            teams.reality.observe(teams.world._poses)
+        teams.execute(dxu, overrun)  # open loop: the schedule's commands, no filter
     return log
 
 

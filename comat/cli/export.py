@@ -208,7 +208,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
         if args.timeout <= 0:
             raise ValueError(f"--timeout must be > 0 seconds, got {args.timeout}")
-        reality = None if args.reality is None else reality_arg(args.reality)
+        reality = reality_arg(args.reality) if args.reality is not None else None
         reports = []
         for k, folder in enumerate(args.check, 1):
             t0 = time.perf_counter()
@@ -356,7 +356,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
         help="--check with the reality layer around rps's get_poses and set_velocities (off, nominal, stress "
         "or a profile.yaml of comat calibrate): the exact main.py, its filter and wheel scaling, judged on "
         "true poses (closest robots, collisions named by robots and iteration) next to comat's own loop "
-        "at that level; run k has layer seed k; exit 1 on a collision (default: no layer)",
+        "at that level; run k has layer seed k; exit 1 on a collision (default: off, the ideal world)",
     )
     p.add_argument(
         "--drive",

@@ -156,7 +156,7 @@ class TaskCore:
 
     def poses(self) -> np.ndarray:
         """(B, N, 3) current true poses (padded slots 0): what the task logic and metrics judge."""
-        return self.padded(self.safe.world._poses)
+        return self.padded(self.safe.world.pose_view)
 
     def measured_poses(self) -> np.ndarray:
         """(B, N, 3) the poses the robots' script sees (padded slots 0): what observations are
@@ -191,7 +191,7 @@ class TaskCore:
             else:
                 self.task.reset_env(self.state, b, rng, self.caps[b, :n])
         self._relayout()
-        flat = self.safe.world._poses.copy()
+        flat = self.safe.world.poses
         for b, p in starts.items():
             flat[self._flat[b, : p.shape[0]]] = p
         self.safe.reset(flat, teams=envs, reality_keys=keys)
@@ -214,7 +214,7 @@ class TaskCore:
         )  # (B, N): a terrain task's depends on where
         steps = step_len[self.mask]
         points = safe.points
-        goals = waypoint_goals(points if safe.reality is None else safe.measured_points, flat_actions, steps)
+        goals = waypoint_goals(safe.measured_points, flat_actions, steps)
         starts = lay.offsets[:-1]
         d = self.safety_config.projection_distance_m
         violations = np.zeros(self.B)
@@ -349,7 +349,7 @@ class TaskCore:
         (no speed capability) report the team's vectors unchanged. Task logic and rewards always
         use the team's own vectors."""
         layer, k = self.safe.reality, self.task.speed_capability
-        if layer is None or k is None or not layer.config.fault_known or layer.config.fault_prob <= 0:
+        if k is None or not layer.config.fault_known or layer.config.fault_prob <= 0:
             return self.caps
         caps = self.caps.copy()
         caps[..., k] *= np.where(self.mask, self.padded(layer.speed_fraction), 1.0)

@@ -244,7 +244,7 @@ def _status_line(s: FrameState) -> str:
 def reality_view(core, b: int, n: int) -> dict[str, np.ndarray | None]:
     """``measured`` (n, 3) and ``faulty`` (n,) of env ``b``'s team under a reality layer, else None."""
     layer = core.safe.reality
-    if layer is None:
+    if layer.is_off:
         return {"measured": None, "faulty": None}
     return {"measured": core.measured_poses()[b, :n].copy(), "faulty": core.padded(layer.speed_fraction)[b, :n] < 1.0}
 

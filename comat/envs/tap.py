@@ -135,7 +135,7 @@ class TickTap:
             )
         if k == self._nominal.shape[0]:
             self._grow()
-        self._poses[k + 1] = self._world._poses[rows]  # read-only use of the world's own array
+        self._poses[k + 1] = self._world.pose_view[rows]  # read-only use of the world's own array
         self._nominal[k] = nominal[rows]
         self._filtered[k] = filtered[rows]
         self._intervened[k] = info.robot_intervened[rows]

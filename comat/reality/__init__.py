@@ -17,9 +17,9 @@ docs/reality-sources.md, which gives each fact with its public source):
 * **physics** (wheels tier) — per-robot wheel–floor friction, chassis mass and centre of mass,
   written into each simulation's own model fields (:meth:`comat.sim.BatchWorld.set_robot_physics`).
 
-Levels ``off`` (the ideal world, bit for bit: no layer runs), ``nominal`` and ``stress``
-(:data:`LEVELS`); every field overridable on its own (:class:`RealityConfig`). Everything that
-decides (policy observations, waypoint controller, safety filter) reads measured poses;
+Levels ``off`` (the ideal world, bit for bit: :class:`IdentityReality` passes everything through),
+``nominal`` and ``stress`` (:data:`LEVELS`); every field overridable on its own (:class:`RealityConfig`).
+Everything that decides (policy observations, waypoint controller, safety filter) reads measured poses;
 everything that judges (contacts, Robotarium checks, task progress, rewards) reads true ones
 (:class:`comat.control.SafeTeams`, :class:`comat.envs.core.TaskCore`); the filter is made robust
 to the layer's bounds (:mod:`comat.reality.margin`). Not modelled: tick stretch (a slow loop
@@ -28,7 +28,7 @@ stretches the 0.033 s iteration: the Robotarium user guide's section 2.8, docs/r
 """
 
 from comat.reality.config import LEVELS, REALITY_LEVELS, SOURCES, RealityConfig, resolve_reality
-from comat.reality.layer import RealityLayer
+from comat.reality.layer import IdentityReality, RealityLayer
 from comat.reality.motors import Motors
 from comat.reality.paths import CommandPath, PosePath
 from comat.reality.random import episode_key
@@ -38,6 +38,7 @@ __all__ = [
     "REALITY_LEVELS",
     "SOURCES",
     "CommandPath",
+    "IdentityReality",
     "Motors",
     "PosePath",
     "RealityConfig",

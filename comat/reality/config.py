@@ -260,7 +260,7 @@ class RealityConfig:
 
     @property
     def is_off(self) -> bool:
-        """True when every component is neutral: the world is the ideal one (no layer runs)."""
+        """True when every component is neutral: the world is the ideal one (the identity layer)."""
         off = LEVELS["off"]
         return all(getattr(self, k) == v for k, v in off.items() if k not in _INERT)
 

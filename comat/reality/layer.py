@@ -32,7 +32,7 @@ from comat.reality.randomize import DRAW_NAMES, EPISODE_STREAM, draw_values
 from comat.sim.kinematics import projected_points
 from comat.sim.layout import TeamLayout
 
-__all__ = ["RealityLayer"]
+__all__ = ["IdentityReality", "RealityLayer"]
 
 # Per-tick streams (one draw of 10 streams per robot and tick: 5 uniforms, then 5 normals).
 _UNIFORM = slice(0, 5)  # command: loss start, run length; pose: hold, freeze start, freeze length
@@ -62,6 +62,8 @@ _TEAM_DRAWS = 5
 
 class RealityLayer:
     """Measured poses and executed commands of the robots of ``layout`` under ``config``.
+
+    :class:`IdentityReality` is the layer at ``off``: the same interface, nothing between.
 
     Args:
         config: the components and their magnitudes (:class:`~comat.control.SafeTeams` builds no
@@ -100,6 +102,8 @@ class RealityLayer:
             or config.wheel_disturbance_radps
             or config.fault_prob
         )
+        self.is_off = False
+        """A layer runs (even one whose every component is zero: each of its paths runs)."""
         self.physics_on = bool(config.floor_friction_max or config.chassis_mass_spread or config.com_offset_m)
         self.script_on = bool(config.script_miss_prob or config.script_stall_prob)
         """The script's own timing: ticks it misses (overruns) and stalls, common to a team."""
@@ -404,3 +408,68 @@ class RealityLayer:
                 new_part = getattr(self, name)
                 for attr in old_part.ROW_STATE:
                     getattr(new_part, attr)[new_rows] = getattr(old_part, attr)[old_rows]
+
+
+class IdentityReality:
+    """The reality layer at ``off``: the world's own poses are the measured ones and commands pass
+    unchanged, so a tick through it is the ideal world's tick, bit for bit (tests/test_reality.py).
+
+    The same interface as :class:`RealityLayer`, so the tick pipeline has no second path:
+    :attr:`measured` and :attr:`estimated` are the world's current poses (read-only views, no
+    copy), :meth:`start` places robots where asked, :meth:`actuate` returns its input, and
+    :meth:`begin_measuring`, :meth:`observe` and :meth:`relayout` have nothing to do.
+
+    Args:
+        world: the world whose poses are read (:attr:`comat.sim.World.pose_view`,
+            :meth:`~comat.sim.World.cos_sin`).
+    """
+
+    is_off = True
+    physics_on = False
+
+    def __init__(self, world) -> None:
+        self.world = world
+        self.config = RealityConfig()
+        """The ``off`` config (every component zero)."""
+
+    @property
+    def layout(self) -> TeamLayout:
+        return self.world.layout
+
+    @property
+    def measured(self) -> np.ndarray:
+        """(R, 3) the true poses (read-only)."""
+        return self.world.pose_view
+
+    def cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R,) cosines and sines of the true headings (the world's, computed once per tick)."""
+        return self.world.cos_sin()
+
+    estimated = measured
+    estimated_cos_sin = cos_sin
+
+    def points(self, distance: float) -> np.ndarray:
+        """(R, 2) the true poses' points ``distance`` ahead of the axles."""
+        return projected_points(self.world.pose_view, distance)
+
+    @property
+    def speed_fraction(self) -> np.ndarray:
+        """(R,) ones: no robot runs slow."""
+        return np.ones(self.world.layout.n_robots)
+
+    def start(self, poses: np.ndarray, teams: np.ndarray, keys: Sequence[int] | None) -> np.ndarray:
+        """The requested (R, 3) poses: no start error."""
+        return poses
+
+    def begin_measuring(self, true: np.ndarray, teams: np.ndarray) -> None:
+        """Nothing to measure: :attr:`measured` reads the world."""
+
+    def actuate(self, dxu: np.ndarray) -> np.ndarray:
+        """The commands (R, 2) as sent (the same array)."""
+        return dxu
+
+    def observe(self, true: np.ndarray) -> None:
+        """Nothing to measure: :attr:`measured` reads the world."""
+
+    def relayout(self, layout: TeamLayout) -> None:
+        """Nothing kept per robot."""

@@ -21,7 +21,7 @@ its commands reach the ground late, through lagging motors. Three changes keep i
   seconds old. Without pose noise a repeat cannot be told from a robot standing still, so
   nothing is dead-reckoned (the gain and distance still apply).
 
-At ``off`` none of this runs (no layer is built): the filter is the ideal world's, bit for bit.
+At ``off`` none of this runs (the layer is the identity): the filter is the ideal world's, bit for bit.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def loop_delay_s(reality: RealityConfig, profile: C.RobotProfile) -> float:
 
 def response_lag_ticks(reality: RealityConfig, profile: C.RobotProfile) -> int:
     """Ticks from a command to its effect on a measured pose, at most: :func:`loop_delay_s` in
-    whole ticks (1 with no layer), the lags a robot watch tries before it calls a robot
+    whole ticks (1 at ``off``), the lags a robot watch tries before it calls a robot
     unresponsive (:class:`comat.safety.deployed.RobotWatch`)."""
     if reality.is_off:
         return 1

@@ -12,7 +12,7 @@ from comat.sim.kinematics import (
     wrap_angle,
 )
 from comat.sim.violations import TickEvents, Violations
-from comat.sim.world import World
+from comat.sim.world import World, points_to_wheels
 
 __all__ = [
     "BatchWorld",
@@ -21,6 +21,7 @@ __all__ = [
     "World",
     "diff_to_uni",
     "euler_unicycle_step",
+    "points_to_wheels",
     "projected_points",
     "si_to_uni",
     "threshold_wheels",

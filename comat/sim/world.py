@@ -30,7 +30,32 @@ from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE, si_to_uni, threshold_whe
 from comat.sim.layout import TeamLayout, team_layout
 from comat.sim.violations import TickEvents, Violations, check_tick
 
-__all__ = ["World", "validate_start_poses"]
+__all__ = ["World", "points_to_wheels", "validate_start_poses"]
+
+
+def points_to_wheels(
+    dxi: np.ndarray,
+    poses: np.ndarray,
+    cos_sin: tuple[np.ndarray, np.ndarray],
+    distance: float,
+    profile: C.RobotProfile,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities (R, 2) of the points ``distance`` ahead of the axles of robots at ``poses`` (R, 3),
+    whose headings' cosines and sines are ``cos_sin``, as the unicycle commands the wheels can do.
+
+    :func:`~comat.sim.kinematics.si_to_uni` then :func:`~comat.sim.kinematics.threshold_wheels`
+    (one fused call when the kernels are on). Returns the clipped commands (R, 2) [v m/s, ω rad/s]
+    and ``overrun`` (R,) bool, where a requested wheel speed was over the limit."""
+    if not kernels.enabled():
+        return threshold_wheels(si_to_uni(dxi, poses, distance, cos_sin), profile)
+    R = dxi.shape[0]
+    dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
+    length = profile.base_length_m
+    kernels.si_to_wheels(
+        dxi, cos_sin[0], cos_sin[1], distance, profile.wheel_radius_m, length / 2.0, length,
+        profile.max_wheel_velocity_radps, WHEEL_LIMIT_TOLERANCE, dxu, clipped, overrun,
+    )  # fmt: skip
+    return clipped, overrun
 
 
 def validate_start_poses(poses: np.ndarray, layout: TeamLayout, radius: float) -> None:
@@ -80,27 +105,18 @@ class _TickMixin:
 
     def _step(self, dxu: np.ndarray) -> TickEvents:
         """:meth:`step` without input checks, for commands made inside comat (the filter's)."""
-        return self._advance(*threshold_wheels(dxu, self.profile))
+        return self.advance(*threshold_wheels(dxu, self.profile))
 
-    def _step_points(self, dxi: np.ndarray, distance: float) -> TickEvents:
-        """:meth:`_step` for velocities (R, 2) of the points ``distance`` ahead of the axles,
-        converted with :func:`~comat.sim.kinematics.si_to_uni` (fused with the wheel limit when
-        the kernels are on)."""
-        c, s = self.cos_sin()
-        if not kernels.enabled():
-            return self._step(si_to_uni(dxi, self._poses, distance, (c, s)))
-        p = self.profile
-        R = dxi.shape[0]
-        dxu, clipped, overrun = np.empty((R, 2)), np.empty((R, 2)), np.empty(R, dtype=bool)
-        length = p.base_length_m
-        kernels.si_to_wheels(
-            dxi, c, s, distance, p.wheel_radius_m, length / 2.0, length, p.max_wheel_velocity_radps,
-            WHEEL_LIMIT_TOLERANCE, dxu, clipped, overrun,
-        )  # fmt: skip
-        return self._advance(clipped, overrun)
+    def step_points(self, dxi: np.ndarray, distance: float) -> TickEvents:
+        """A tick for velocities (R, 2) of the points ``distance`` ahead of the axles, made inside
+        comat (float64, no input checks: the filter's): :func:`points_to_wheels` on the current
+        poses, then :meth:`advance`."""
+        return self.advance(*points_to_wheels(dxi, self._poses, self.cos_sin(), distance, self.profile))
 
-    def _advance(self, clipped: np.ndarray, overrun: np.ndarray) -> TickEvents:
-        """Physics, poses, checks and counters of a tick with wheel-realizable commands (R, 2)."""
+    def advance(self, clipped: np.ndarray, overrun: np.ndarray) -> TickEvents:
+        """Physics, poses, checks and counters of a tick with wheel-realizable unicycle commands
+        (R, 2) [v m/s, ω rad/s] (no input checks: commands made inside comat, e.g. a reality
+        layer's executed ones) and ``overrun`` (R,) bool, the robots whose request was clipped."""
         poses, robot_contact, wall_contact = self._run_physics(clipped)
         self._set_poses(poses)
         t = self.layout
@@ -120,6 +136,14 @@ class _TickMixin:
     def poses(self) -> np.ndarray:
         """(R, 3) current poses [x, y, θ] (a copy)."""
         return self._poses.copy()
+
+    @property
+    def pose_view(self) -> np.ndarray:
+        """(R, 3) current poses [x, y, θ] without a copy, read-only: valid until the next tick or
+        reset replaces them (the per-tick readers' seam: the filter, the reality layer, the envs)."""
+        view = self._poses.view()
+        view.flags.writeable = False
+        return view
 
     def _set_poses(self, poses: np.ndarray) -> None:
         """Replace (or, with ``poses=self._poses``, mark as rewritten) the current poses."""

@@ -132,7 +132,7 @@ class EpisodeRecorder:
         core.safe.tick_observers.append(self._tap)
         log_static_scene(self.recording, self._prefix, core, b)
         self._poses = [core.poses()[b, : self._n].copy()]
-        self._reality = [reality_view(core, b, self._n)] if core.safe.reality is not None else None
+        self._reality = [reality_view(core, b, self._n)] if not core.safe.reality.is_off else None
         self._task = [_snapshot(core, b, self._n)]
         self._actions: list[np.ndarray] = []
         self._action_origin: list[np.ndarray] = []

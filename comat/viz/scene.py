@@ -231,7 +231,7 @@ def log_legend(rec: rr.RecordingStream, world: str, core, b: int) -> None:
     """The legend as labelled swatches in a row below the arena's bottom wall (``world/legend``)."""
     team = core.teams[b]
     marks = core.task.marks(core.state, b, core.caps[b, : team.size], core.type_ids[b, : team.size])
-    items = legend_items(core.task, [r.type for r in team.robots], core.safe.reality is not None, marks)
+    items = legend_items(core.task, [r.type for r in team.robots], not core.safe.reality.is_off, marks)
     X0, X1, Y0, _ = C.ARENA_BOUNDS_M
     x = np.linspace(X0 + 0.05, X1 - 0.3, len(items))
     rec.log(
