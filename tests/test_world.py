@@ -118,3 +118,29 @@ def test_bad_config():
     with pytest.raises(ValueError, match="n_robots must be a positive integer, got 0"):
         World(0)
     assert SimConfig(timestep_s=0.033 / 6).resolved_substeps == 6
+
+
+def test_the_world_is_reached_through_its_seams_only():
+    """Outside comat/sim/ the world's poses and ticks are read and driven through its public seams
+    (``pose_view``, ``poses``, ``advance``, ``step_points``), never its private ``_poses`` or
+    ``_advance`` (issue 67): a private attribute reached from elsewhere fails here with its place."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    private = re.compile(r"(?<!self)\.(_poses|_advance|_step_points|_set_poses|_run_physics)\b")
+    reached = [
+        f"{path.relative_to(root)}:{k}"
+        for top in ("comat", "sim2real")
+        for path in sorted((root / top).rglob("*.py"))
+        if "sim" not in path.relative_to(root / top).parts[:1]
+        for k, line in enumerate(path.read_text().splitlines(), 1)
+        if private.search(line)
+    ]
+    assert reached == []
+    w = World(2)
+    w.reset(_line(2))
+    view = w.pose_view
+    np.testing.assert_array_equal(view, w.poses)
+    with pytest.raises(ValueError, match="read-only"):
+        view[0, 0] = 1.0
