@@ -26,6 +26,7 @@ from comat.reality import IdentityReality, RealityConfig, RealityLayer
 from comat.reality.margin import response_lag_ticks, robust_safety
 from comat.safety import SafetyFilter, SafetyInfo
 from comat.safety.deployed import (
+    ARENA,
     DeadlockTieBreak,
     DeployedLoop,
     PortableBarrier,
@@ -36,7 +37,7 @@ from comat.safety.deployed import (
     robotarium_loop,
     uni_to_si,
 )
-from comat.safety.kernels import watch_judgement
+from comat.safety.kernels import portable_problem, watch_judgement
 from comat.safety.qp import dense_qp
 from comat.sim import BatchWorld, World, points_to_wheels
 from comat.sim.kinematics import (
@@ -86,11 +87,11 @@ def waypoint_controller(
 
 
 def _portable_qp(vhat: np.ndarray, A: np.ndarray, b: np.ndarray, weights: np.ndarray | None = None):
-    """:func:`~comat.safety.qp.dense_qp` (OSQP), and where it stops without an answer that is not
-    a proof of infeasibility (the iteration limit on a softened problem, weights 1 and 1e4, in
-    the crowds of ``stress``), the export's interior-point :func:`~comat.safety.deployed.cvxopt_qp`:
-    without it such a team braked (antipodal16 at ``stress``: 63 team-ticks in 4 × 900, each
-    solved optimally by cvxopt)."""
+    """:func:`~comat.safety.qp.dense_qp` (DAQP), and where it stops without an answer that is not
+    a proof of infeasibility, the export's interior-point :func:`~comat.safety.deployed.cvxopt_qp`
+    (with OSQP here before DAQP, the iteration limit on a softened problem, weights 1 and 1e4, in
+    the crowds of ``stress`` braked a team: antipodal16 at ``stress``, 63 team-ticks in 4 × 900,
+    each solved optimally by cvxopt)."""
     x, status = dense_qp(vhat, A, b, weights)
     if x is None and status != "primal infeasible":
         return cvxopt_qp(vhat, A, b, weights)
@@ -127,6 +128,28 @@ class CompiledRobotWatch(RobotWatch):
         watch_judgement(
             self._ask, self._points, self.tick, self._born, self.window, self.lag, k, stale,
             self.min_path, self.ratio, self.release_ratio, self.unresponsive,
+        )  # fmt: skip
+
+
+class CompiledPortableBarrier(PortableBarrier):
+    """:class:`PortableBarrier` with its rows built by a compiled twin
+    (``comat.safety.kernels.portable_problem``, the same bits; tests/test_deployed.py); the export
+    keeps the numpy original. Building the rows was 1.1 ms of a team's 1.6 ms on probation at
+    ``stress`` (16 robots) once DAQP solved the re-solves in 0.06 ms."""
+
+    def problem(
+        self, poses: np.ndarray, probation: np.ndarray | None = None, extra: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        s, n = self.s, poses.shape[0]
+        x0, x1, y0, y1 = ARENA
+        return portable_problem(
+            np.ascontiguousarray(poses, dtype=float),
+            np.zeros(n, dtype=bool) if probation is None else np.ascontiguousarray(probation, dtype=bool),
+            np.zeros(n) if extra is None else np.ascontiguousarray(extra, dtype=float),
+            float(s["projection_distance_m"]), float(s["safety_distance_m"]), float(s["boundary_margin_m"]),
+            float(s["barrier_gain"]), float(s["boundary_gain"]),
+            s["axle_m"] / (2 * s["projection_distance_m"]), s["wheel_radius_m"] * s["wheel_limit_radps"],
+            x0, x1, y0, y1,
         )  # fmt: skip
 
 
@@ -232,7 +255,8 @@ class SafeTeams:
         self.keep_right = not self.reality.is_off and self.safety_config.robust
         """Turn nominal commands right near robots ahead (:func:`~comat.safety.deployed.keep_right`)
         under a reality layer; without one (``off``) the loop is as before, bit for bit."""
-        self._portable = PortableBarrier(portable_settings(self.filter_config, self.world.profile), _portable_qp)
+        portable = CompiledPortableBarrier if kernels.enabled() else PortableBarrier
+        self._portable = portable(portable_settings(self.filter_config, self.world.profile), _portable_qp)
         self.deployed: list[DeployedLoop] | None = self._deployed_loops(sizes)
         """Per team, the exported script's loop (``safety.loop`` not ``"comat"``; else None):
         :meth:`tick_deployed` runs it."""

@@ -6,7 +6,13 @@ import pytest
 from comat import constants as C
 from comat import kernels
 from comat.config import SafetyConfig, SimConfig
-from comat.control import CompiledRobotWatch, waypoint_controller
+from comat.control import (
+    CompiledPortableBarrier,
+    CompiledRobotWatch,
+    _portable_qp,
+    portable_settings,
+    waypoint_controller,
+)
 from comat.envs.vector import VectorEnv
 from comat.mjcf.scene import compiled_scene
 from comat.reality import RealityConfig
@@ -14,9 +20,9 @@ from comat.reality import random as rr
 from comat.reality.motors import Motors
 from comat.reality.paths import CommandPath, PosePath
 from comat.safety.constraints import make_layout, row_values
-from comat.safety.deployed import RobotWatch
+from comat.safety.deployed import PortableBarrier, RobotWatch, cvxopt_qp
 from comat.safety.filter import SafetyFilter
-from comat.safety.qp import BarrierQP
+from comat.safety.qp import BarrierQP, dense_qp
 from comat.sim import BatchWorld
 from comat.sim.binding import Binding
 from comat.sim.kinematics import limit_to_wheels, si_to_uni, threshold_wheels
@@ -361,3 +367,49 @@ def test_robot_watch_twin(rng):
         for w in watches:
             w.sent(cmd)
     assert put_on >= 3 and released >= 3
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 16, 20])
+def test_portable_problem_twin(rng, n):
+    """The portable barrier's rows built by the compiled twin equal the shipped numpy original bit
+    for bit (bounds' signs included), with robots on probation (one, several, all, none) and
+    extra radii, and with neither given."""
+    settings = portable_settings(SafetyConfig(), C.DEFAULT_PROFILE)
+    slow, fast = PortableBarrier(settings), CompiledPortableBarrier(settings)
+    for trial in range(30):
+        poses = _poses(rng, max(n, 3))[:n]
+        probation = rng.random(n) < (0.0, 0.3, 1.0)[trial % 3]
+        extra = np.where(rng.random(n) < 0.5, rng.uniform(0, 0.1, n), 0.0)
+        (A, b), (A0, b0) = fast.problem(poses, probation, extra), slow.problem(poses, probation, extra)
+        _equal((A, b), (A0, b0))
+        assert np.array_equal(np.signbit(b), np.signbit(b0))
+    _equal(fast.problem(poses), slow.problem(poses))
+
+
+def test_dense_qp_matches_an_interior_point_solver(rng):
+    """DAQP's answers (comat's dense solves) against cvxopt's interior point (the export's) on the
+    portable barrier's problems of robots on probation: every row met, a cost no higher than the
+    interior point's (which stops at its gap tolerance, ~1e-6 m/s away) and the same point to
+    1e-5 m/s; infeasible problems reported as such (None, "primal infeasible"), not as an answer."""
+    settings = portable_settings(SafetyConfig(), C.DEFAULT_PROFILE)
+    barrier = PortableBarrier(settings)
+    solved = 0
+    for trial in range(40):
+        n = int(rng.integers(2, 10))
+        poses = _poses(rng, 10, spread=0.4)[:n]  # crowded: rows are active
+        probation = rng.random(n) < 0.3
+        A, b = barrier.problem(poses, probation)
+        vhat = rng.uniform(-0.3, 0.3, 2 * n)
+        x, status = dense_qp(vhat, A, b)
+        y, other = cvxopt_qp(vhat, A, b)
+        assert (x is None) == (y is None), (trial, status, other)
+        if x is not None:
+            solved += 1
+            assert status == "optimal" and np.all(A @ x <= b + 1e-9)
+            cost = lambda v: 0.5 * ((v - vhat) ** 2).sum()  # noqa: E731
+            assert cost(x) <= cost(y) + 1e-12
+            np.testing.assert_allclose(x, y, atol=1e-5)
+    assert solved >= 10
+    x, status = dense_qp(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([-1.0, -1.0]))  # x <= -1, x >= 1
+    assert x is None and status == "primal infeasible"
+    assert _portable_qp(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([-1.0, -1.0]))[0] is None

@@ -509,7 +509,7 @@ class PortableBarrier:
     ``settings``: safety_distance_m, projection_distance_m, boundary_margin_m, barrier_gain,
     boundary_gain, axle_m, wheel_radius_m, wheel_limit_radps (the comat filter's robust values,
     written into the export's config). ``solve``: :func:`cvxopt_qp` (the export) or
-    :func:`comat.safety.qp.dense_qp` (OSQP, comat's own runs).
+    :func:`comat.safety.qp.dense_qp` (DAQP, comat's own runs).
 
     A team outside the safe set (no command meets the hard rows, e.g. after a robot's extra radius
     grew) takes the answer of the softened problem — pair and wall rows relaxed by slacks of

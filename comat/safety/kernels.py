@@ -20,6 +20,7 @@ __all__ = [
     "csc_matvec",
     "filter_stages",
     "interventions",
+    "portable_problem",
     "qp_teams",
     "row_bounds_into",
     "row_data",
@@ -362,3 +363,71 @@ def watch_judgement(ask, points, tick, born, window, lag, k, stale, min_path, ra
             unresponsive[r] = True
         if best >= release_ratio:
             unresponsive[r] = False
+
+
+# -- the portable barrier's rows (a team with a robot on probation) -------------------------------
+@_jit
+def portable_problem(poses, probation, extra, d, safety, margin, gain, boundary_gain, k_w, v_w, x0, x1, y0, y1):
+    """:meth:`comat.safety.deployed.PortableBarrier.problem` (its numpy code is the reference):
+    the rows ``A u <= b`` for poses (N, 3), probation (N,) bool, extra radii (N,) — pair rows in its
+    five groups (trusted pairs, then pairs whose j / i alone is on probation, then every pair with i,
+    with j on probation), the 2N upper and 2N lower wall rows, the 4N wheel rows — with the same
+    arithmetic in the same order, so the same bits. Returns A (M, 2N), b (M,)."""
+    n = poses.shape[0]
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    px, py = poses[:, 0] + d * c, poses[:, 1] + d * s
+    n_pairs = n * (n - 1) // 2
+    pi, pj = np.empty(n_pairs, np.int64), np.empty(n_pairs, np.int64)
+    k = 0
+    for a in range(n):
+        for b in range(a + 1, n):
+            pi[k], pj[k] = a, b
+            k += 1
+    count = 0
+    for k in range(n_pairs):
+        on_i, on_j = probation[pi[k]], probation[pj[k]]
+        count += (1 if not on_i and not on_j else 0) + (1 if on_j and not on_i else 0)
+        count += (1 if on_i and not on_j else 0) + (1 if on_i else 0) + (1 if on_j else 0)
+    rows = count + 8 * n
+    A, bound = np.zeros((rows, 2 * n)), np.empty(rows)
+    r = 0
+    for group in range(5):
+        for k in range(n_pairs):
+            i, j = pi[k], pj[k]
+            on_i, on_j = probation[i], probation[j]
+            if group == 0:
+                take, use_i, use_j = not on_i and not on_j, True, True
+            elif group == 1:
+                take, use_i, use_j = on_j and not on_i, True, False
+            elif group == 2:
+                take, use_i, use_j = on_i and not on_j, False, True
+            elif group == 3:
+                take, use_i, use_j = on_i, True, False
+            else:
+                take, use_i, use_j = on_j, False, True
+            if not take:
+                continue
+            ex, ey = px[i] - px[j], py[i] - py[j]
+            rad = safety + extra[i] + extra[j]
+            h = (ex * ex + ey * ey) - rad * rad  # numpy's ** 2 is a square: the same bits
+            if use_i:
+                A[r, 2 * i], A[r, 2 * i + 1] = -2 * ex, -2 * ey
+            if use_j:
+                A[r, 2 * j], A[r, 2 * j + 1] = 2 * ex, 2 * ey
+            bound[r] = gain * h if group < 3 else 0.0 * h
+            r += 1
+    for q in range(2 * n):  # the upper walls, then the lower ones
+        m = margin + extra[q // 2]
+        A[r + q, q], A[r + 2 * n + q, q] = 1.0, -1.0
+        p, hi, lo = (px[q // 2], x1, x0) if q % 2 == 0 else (py[q // 2], y1, y0)
+        bound[r + q], bound[r + 2 * n + q] = boundary_gain * (hi - m - p), boundary_gain * (p - lo - m)
+    r += 4 * n
+    for t in range(n):
+        for q in range(2):
+            a = c[t] - k_w * s[t] if q == 0 else c[t] + k_w * s[t]
+            b = s[t] + k_w * c[t] if q == 0 else s[t] - k_w * c[t]
+            row = r + 4 * t + 2 * q
+            A[row, 2 * t], A[row, 2 * t + 1] = a, b
+            A[row + 1, 2 * t], A[row + 1, 2 * t + 1] = -1.0 * a, -1.0 * b
+    bound[r:] = v_w
+    return A, bound

@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from comat import constants as C
 from comat.config import SafetyConfig
 from comat.safety.constraints import OSQP_INFINITY, make_layout, row_values
+from comat.safety.qp import new_osqp
 from comat.sim.kinematics import WHEEL_LIMIT_TOLERANCE
 
 __all__ = ["SLACK_WEIGHT", "recovery_command"]
@@ -77,7 +78,7 @@ def recovery_command(
     lower = np.concatenate([np.full(P, -inf), lo[P : P + R2], np.full(R2, -inf), lo[P + R2 :], np.zeros(m)])
     upper = np.concatenate([up[:P], np.full(R2, inf), up[P : P + R2], up[P + R2 :], np.full(m, inf)])
     cost = sp.diags(np.concatenate([np.ones(R2), np.full(m, SLACK_WEIGHT)]), format="csc")
-    solver = osqp.OSQP()
+    solver = new_osqp()
     solver.setup(
         cost,
         np.concatenate([-u_nom, np.zeros(m)]),
