@@ -146,12 +146,13 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
     }
     print(
         f"\ntasks ({tier} tier): {episodes} coalitions per set, one episode each; heuristic = scripted with full task "
-        "state; finished = share of episodes finished (all prey captured / all material delivered; the paper's "
-        "completion), progress = fraction captured / delivered"
+        "state; finished = share of episodes done before the horizon (PCP: all prey captured; HMT: all material "
+        "delivered; the paper's completion), progress = the task's fraction done (docs/tasks.md)"
     )
+    width = max(len(task) for task in ("task", *task_names())) + 1  # navigation, warehouse: wider than 'task'
     head = (
-        f"{'task':<5}{'set':<7}{'policy':<11}{'finished':>11}{'progress':>9}{'steps':>7}{'return':>8}{'collisions':>11}"
-        f"{'violations':>11}{'interv.':>9}{'time s':>8}"
+        f"{'task':<{width}}{'set':<7}{'policy':<11}{'finished':>11}{'progress':>9}{'steps':>7}{'return':>8}"
+        f"{'collisions':>11}{'violations':>11}{'interv.':>9}{'time s':>8}"
     )
     print(head + "\n" + "-" * len(head))
     rows, ok = [], True
@@ -166,7 +167,8 @@ def _tasks(tier: str, episodes: int, seed: int) -> tuple[bool, dict]:
                 viol = mean["robotarium_collisions"] + mean["boundary_exits"]
                 ok &= mean["collisions"] == 0 and viol == 0
                 print(
-                    f"{task:<5}{split:<7}{name:<11}{mean['finished']:>11.2f}{mean['progress']:>9.2f}{mean['steps']:>7.1f}"
+                    f"{task:<{width}}{split:<7}{name:<11}{mean['finished']:>11.2f}{mean['progress']:>9.2f}"
+                    f"{mean['steps']:>7.1f}"
                     f"{mean['return']:>8.2f}{mean['collisions']:>11.1f}{viol:>11.1f}{mean['interventions']:>9.0f}"
                     f"{time.perf_counter() - t0:>8.1f}"
                 )

@@ -101,48 +101,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = CommandParser(
-        prog="comat",
-        description="MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium.",
-    )
-    parser.add_argument("--version", action=VersionAction, help="print the version (and source commit) and exit")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    add_rollout_parser(sub)
-    add_export_parser(sub)
-
-    p = sub.add_parser(
-        "mjcf",
-        help="write the generated MJCF files (robot, arena, scenes)",
-        description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).",
-    )
-    p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
-    p.set_defaults(func=_cmd_mjcf)
-
-    add_tasks_parsers(sub)
-
-    p = sub.add_parser(
-        "coalitions",
-        help="regenerate the team composition sets (" + ", ".join(COALITION_SETS) + ")",
-        description="Write every composition set (U_train, U_val, U_test, U_scale, U_size, U_cap; "
-        "20 coalitions each, per task; what each holds: comat.team) from a seed as YAML; the "
-        "environments use the same teams (seed 0).",
-    )
-    p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
-    p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
-    p.add_argument(
-        "--out",
-        default=str(COALITIONS_DIR),
-        help="output folder (default: the package's copies, train/coalitions/ in a checkout)",
-    )
-    p.set_defaults(func=_cmd_coalitions)
-
+def _add_demo_parser(sub) -> None:
     p = sub.add_parser(
         "demo",
         help="robots crossing paths under the safety filter; the tasks; a trained policy",
         description="1) Teams of robots swap places through the arena centre, every command passing "
         "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
-        "heuristic and a random policy on PCP and HMT, training and unseen coalitions. 3) The COMAT "
+        "heuristic and a random policy on every registered task, training and unseen coalitions. 3) The COMAT "
         "policy that ships with comat plays unseen PCP teams: a Rerun recording, a video and a checked "
         "Robotarium export in --folder. --part train: a quick COMAT trains on PCP (5-10 minutes) and plays "
         "the training and unseen coalitions next to a random policy.",
@@ -165,13 +130,56 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
     p.set_defaults(func=_cmd_demo)
 
-    add_train_parsers(sub)
-    add_evaluate_parsers(sub)
-    add_bench_parser(sub)
 
+def _add_coalitions_parser(sub) -> None:
+    p = sub.add_parser(
+        "coalitions",
+        help="regenerate the team composition sets (" + ", ".join(COALITION_SETS) + ")",
+        description="Write every composition set (U_train, U_val, U_test, U_scale, U_size, U_cap; "
+        "20 coalitions each, per task; what each holds: comat.team) from a seed as YAML; the "
+        "environments use the same teams (seed 0).",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s; the envs use 0)")
+    p.add_argument("--count", type=int, default=20, help="coalitions per set (default: %(default)s)")
+    p.add_argument(
+        "--out",
+        default=str(COALITIONS_DIR),
+        help="output folder (default: the package's copies, train/coalitions/ in a checkout)",
+    )
+    p.set_defaults(func=_cmd_coalitions)
+
+
+def _add_mjcf_parser(sub) -> None:
+    p = sub.add_parser(
+        "mjcf",
+        help="write the generated MJCF files (robot, arena, scenes)",
+        description="Regenerate the checked-in MJCF files from comat.mjcf (never edit them by hand).",
+    )
+    p.add_argument("--out", default="assets/mjcf", help="output folder (default: %(default)s)")
+    p.set_defaults(func=_cmd_mjcf)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = CommandParser(
+        prog="comat",
+        description="MuJoCo Sim2Real testbed for heterogeneous robot teams on the Robotarium.",
+    )
+    parser.add_argument("--version", action=VersionAction, help="print the version (and source commit) and exit")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    # In a newcomer's order, as docs/commands.md lists them: try, train, judge, watch, deploy and bring
+    # back, the sets and tasks, the tools.
+    _add_demo_parser(sub)
+    add_train_parsers(sub)  # train, policy
+    add_evaluate_parsers(sub)  # eval, probe, report, sweep
+    add_rollout_parser(sub)
+    add_export_parser(sub)
     add_replay_parser(sub)
     add_campaign_parser(sub)
     add_calibrate_parser(sub)
+    _add_coalitions_parser(sub)
+    add_tasks_parsers(sub)  # tasks, validity
+    _add_mjcf_parser(sub)
+    add_bench_parser(sub)
     return parser
 
 
