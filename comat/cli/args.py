@@ -173,14 +173,15 @@ def add_task(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_team(p: argparse.ArgumentParser, *, required: bool = False) -> None:
+def add_team(p: argparse.ArgumentParser, *, required: bool = False, note: str = "") -> None:
+    """``--team``; ``note`` ends its help (rollout's: that it replaces --teams, which export has not)."""
     p.add_argument(
         "--team",
         required=required,
         default=None,
         metavar="SET:K|FILE",
         help=f"one team: {', '.join(f'{s}:K' for s in COALITION_SETS)} (coalition K of that set) or a "
-        'JSON/YAML file {"robots": [...]} (instead of --teams)',
+        'JSON/YAML file {"robots": [...]}' + note,
     )
 
 

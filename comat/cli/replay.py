@@ -39,7 +39,7 @@ def _cmd(args: argparse.Namespace) -> int:
     video = None if args.video is None else check_video_path(args.video)
     print(
         f"comat replay: {args.log} ({log.n} robots, {len(log.t)} iterations, "
-        f"{'finished' if log.complete else 'cut short'}) beside its twin from {args.export} in MuJoCo "
+        f"{'ran to its end' if log.complete else 'cut short'}) beside its twin from {args.export} in MuJoCo "
         f"({args.tier} tier, reality {reality}); the plant of {', '.join(dict.fromkeys([reality, *profiles]))} "
         f"scored k = {', '.join(str(k) for k in sorted(set(args.k_steps)))} ticks ahead"
         + (f"; an envelope of {args.envelope} twins" if args.envelope else ""),

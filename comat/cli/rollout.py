@@ -127,7 +127,7 @@ def add_rollout_parser(subparsers) -> argparse.ArgumentParser:
     add_policy(p)
     add_task(p)
     add_teams(p)
-    add_team(p)
+    add_team(p, note=" (instead of --teams)")
     p.add_argument("--episodes", type=_positive_int, default=1, help="episodes to record (default: %(default)s)")
     add_tier(p)
     add_seed(p, "episode k resets with seed + k")

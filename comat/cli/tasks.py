@@ -114,9 +114,9 @@ def add_tasks_parsers(sub) -> None:
         help="the reference ladder on every set of every task, and which question each task can answer",
         description="Play the reference ladder (scripted, type_only, blind, constant, random) on all six "
         "composition sets of each task on a held-out evaluation seed, and write validity.md and validity.json "
-        "into --out: per task and set each rung's progress, scripted − type_only and scripted − blind with 95 %% "
+        "into --out: per task and set each rung's progress, scripted − type_only and scripted − blind with 95 % "
         "intervals over coalitions, and the families (capability: scripted − type_only >= 10 points on U_cap, "
-        "lower bound > 5; size: scripted >= 90 %% and scripted − blind >= 10 on U_size and U_scale). About 5 "
+        "lower bound > 5; size: scripted >= 90 % and scripted − blind >= 10 on U_size and U_scale). About 5 "
         "minutes a task on one core at 5 episodes per coalition.",
     )
     p.add_argument("--tasks", nargs="+", choices=TASKS, default=TASKS, help="tasks (default: every registered one)")

@@ -187,7 +187,7 @@ def print_policy_file(path) -> None:
 
     print(
         f"{path} ({format_size(path.stat().st_size)}): weights and config to act; evaluate with "
-        f"comat eval --policy {path} --teams capability --out DIR"
+        f"comat eval --policy {path} (U_train and U_test, the files beside it)"
     )
 
 

@@ -365,7 +365,7 @@ def replay(
 
     note = (
         f"Real run: {log.meta.get('task')} with {log.n} robots under rps {log.meta.get('rps')} "
-        f"({'finished' if log.complete else 'cut short: no result, compared as far as it logged'}), "
+        f"({'ran to its end' if log.complete else 'cut short: no result, compared as far as it logged'}), "
         f"{len(log.t)} iterations. Twin: the same team, policy and task in MuJoCo ({tier} tier, reality "
         f"{reality}, the run's loop {loop}), from the run's logged first poses"
         f"{'' if cap is None else f', for its {cap} env steps'}. Divergence: the poses the real script received "
