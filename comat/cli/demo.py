@@ -1,9 +1,9 @@
-"""``comat demo``: the robot world and the two tasks, in about a minute.
+"""``comat demo``: the robot world, every registered task and a shipped policy, in 2-4 minutes on 2 cores.
 
 1. Physics and safety: teams of robots start on a ring and swap to the opposite side through
    the arena centre. Every command passes the barrier filter before the wheels; the same
    episodes run once more unfiltered, to show what it prevents.
-2. Tasks: the scripted heuristic and a random policy play PCP and HMT on training (U_train) and
+2. Tasks: the scripted heuristic and a random policy play every registered task on training (U_train) and
    unseen (U_test) coalitions; the paper's metrics per row.
 3. A trained policy: the COMAT policy that ships with comat (``pretrained:comat-pcp``) plays
    unseen (U_test) PCP teams: a Rerun recording, a video, and a Robotarium export checked under
