@@ -36,6 +36,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, result_files, write_results
 
     reality = reality_arg(args.reality)
+    if args.episodes < 1:  # before the header line, so a bad value prints the error alone
+        raise ValueError(f"episodes must be an integer >= 1 (per coalition), got {args.episodes}")
     pol = resolve_policy_arg(args.policy, args.task)
     out = Path(args.out) if args.out else pol.default_out
     named = parse_teams(args.teams, pol.task)
@@ -232,7 +234,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         print(f"comat sweep: {os.path.basename(r['folder'])} did not finish: {r['error']:.300}", file=sys.stderr)
     print(
         f"comat sweep: {len(rows) - len(failed)} of {len(rows)} jobs finished; report with: comat report "
-        f"{record['root']}/*_s* --out results"
+        f"{record['root']}/*_s* --out {record['root']}/report"
     )
     return 1 if failed else 0
 
@@ -322,7 +324,11 @@ def add_evaluate_parsers(sub) -> None:
         "absolute_metrics from the final evaluation on --absolute-set; comat.eval.marl_eval).",
     )
     p.add_argument("runs", nargs="+", help="run folders (each with config.yaml, progress.csv, evaluation_<tier>.json)")
-    p.add_argument("--out", default="results", help="output folder, created if missing (default: %(default)s)")
+    p.add_argument(
+        "--out",
+        default="runs/report",
+        help="output folder, created if missing (default: %(default)s; not results/, the checkout's own)",
+    )
     p.add_argument(
         "--tier", choices=TIERS, default=None, help="which evaluation to read (default: each run's training tier)"
     )
