@@ -101,36 +101,6 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     )
 
 
-def _add_demo_parser(sub) -> None:
-    p = sub.add_parser(
-        "demo",
-        help="robots crossing paths under the safety filter; the tasks; a trained policy",
-        description="1) Teams of robots swap places through the arena centre, every command passing "
-        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
-        "heuristic and a random policy on every registered task, training and unseen coalitions. 3) The COMAT "
-        "policy that ships with comat plays unseen PCP teams: a Rerun recording, a video and a checked "
-        "Robotarium export in --folder. --part train: a quick COMAT trains on PCP (5-10 minutes) and plays "
-        "the training and unseen coalitions next to a random policy.",
-    )
-    p.add_argument("--tier", choices=TIERS, default="wheels", help="dynamics tier (default: %(default)s)")
-    p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
-    p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument(
-        "--part",
-        choices=["all", "physics", "tasks", "pretrained", "train"],
-        default="all",
-        help="which part to run (default: all = physics, tasks, pretrained)",
-    )
-    p.add_argument(
-        "--folder",
-        default="runs/demo",
-        help="where the pretrained part writes its recording, video and export (default: %(default)s)",
-    )
-    p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
-    p.set_defaults(func=_cmd_demo)
-
-
 def _add_coalitions_parser(sub) -> None:
     p = sub.add_parser(
         "coalitions",
@@ -168,7 +138,34 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     # In a newcomer's order, as docs/commands.md lists them: try, train, judge, watch, deploy and bring
     # back, the sets and tasks, the tools.
-    _add_demo_parser(sub)
+    p = sub.add_parser(
+        "demo",
+        help="robots crossing paths under the safety filter; the tasks; a trained policy",
+        description="1) Teams of robots swap places through the arena centre, every command passing "
+        "the barrier filter; the same episodes without the filter show what it prevents. 2) The scripted "
+        "heuristic and a random policy on every registered task, training and unseen coalitions. 3) The COMAT "
+        "policy that ships with comat plays unseen PCP teams: a Rerun recording, a video and a checked "
+        "Robotarium export in --folder. --part train: a quick COMAT trains on PCP (5-10 minutes) and plays "
+        "the training and unseen coalitions next to a random policy.",
+    )
+    p.add_argument("--tier", choices=TIERS, default="wheels", help="dynamics tier (default: %(default)s)")
+    p.add_argument("--robots", type=int, default=8, help="robots per team (default: %(default)s)")
+    p.add_argument("--episodes", type=int, default=3, help="teams / coalitions per row (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument(
+        "--part",
+        choices=["all", "physics", "tasks", "pretrained", "train"],
+        default="all",
+        help="which part to run (default: all = physics, tasks, pretrained)",
+    )
+    p.add_argument(
+        "--folder",
+        default="runs/demo",
+        help="where the pretrained part writes its recording, video and export (default: %(default)s)",
+    )
+    p.add_argument("--out", default=None, help="also write the summary as JSON to this file")
+    p.set_defaults(func=_cmd_demo)
+
     add_train_parsers(sub)  # train, policy
     add_evaluate_parsers(sub)  # eval, probe, report, sweep
     add_rollout_parser(sub)
