@@ -1,6 +1,6 @@
 """A package's face, loaded on first use (PEP 562): the names it exports and the module each lives in.
 
-``__all__, __getattr__, __dir__ = lazy_face(__name__, {"comat.rl.runner": ("train",), ...})`` in a
+``__all__, __getattr__, __dir__ = lazy_face(__name__, {"comat.rl.runner": "saved_config train", ...})`` in a
 package's ``__init__`` makes ``from comat.rl import train`` import :mod:`comat.rl.runner` only then.
 Why lazy: :mod:`comat.rl`, :mod:`comat.eval`, :mod:`comat.models` and :mod:`comat.bench` each mix
 torch-heavy modules with light ones that light callers import (the command line's parser, the
@@ -18,16 +18,19 @@ from typing import Any
 
 
 def lazy_face(
-    package: str, homes: dict[str, tuple[str, ...]], renamed: dict[str, str] | None = None
+    package: str, homes: dict[str, str], renamed: dict[str, str] | None = None
 ) -> tuple[list[str], Callable[[str], Any], Callable[[], list[str]]]:
-    """``(__all__, __getattr__, __dir__)`` of ``package`` exporting, per home module, its names.
+    """``(__all__, __getattr__, __dir__)`` of ``package`` exporting, per home module, its names
+    (separated by white space, as ``collections.namedtuple`` takes field names).
 
     ``renamed`` maps a face name to the name in its home module, for a name the package cannot
     export as is (one that is also a submodule's name: importing that submodule would overwrite it)."""
     renamed = renamed or {}
-    home_of = {name: module for module, names in homes.items() for name in names}
-    if len(home_of) != sum(len(names) for names in homes.values()):
-        raise ValueError(f"homes: expected each name of {package}'s face once, got {homes}")
+    home_of = {name: module for module, names in homes.items() for name in names.split()}
+    listed = [name for names in homes.values() for name in names.split()]
+    if len(listed) != len(home_of):
+        twice = sorted({name for name in listed if listed.count(name) > 1})
+        raise ValueError(f"homes: expected each name of {package}'s face once, got {twice} more than once")
 
     def __getattr__(name: str) -> Any:
         if name not in home_of:

@@ -107,3 +107,10 @@ def test_the_tree_keeps_the_face_contracts_and_a_planted_deep_import_breaks_them
     ):
         assert link in out, (link, out)
     assert "-> comat.rl (l." not in out  # the import through the face is not one of them
+
+
+def test_a_name_listed_twice_is_a_one_line_error():
+    from comat._face import lazy_face
+
+    with pytest.raises(ValueError, match=r"^homes: expected each name of pkg's face once, got \['g'\] more than once$"):
+        lazy_face("pkg", {"pkg.a": "f g", "pkg.b": "g"})

@@ -29,28 +29,15 @@ from comat._face import lazy_face
 __all__, __getattr__, __dir__ = lazy_face(
     __name__,
     {
-        "comat.bench.env_bench": ("run_env_bench", "run_rollout_bench"),
-        "comat.bench.fidelity_bench": ("run_fidelity_bench",),
-        "comat.bench.learn_bench": ("bench_train", "run_learn_bench"),
+        "comat.bench.env_bench": "run_env_bench run_rollout_bench",
+        "comat.bench.fidelity_bench": "run_fidelity_bench",
+        "comat.bench.learn_bench": "bench_train run_learn_bench",
         "comat.bench.safety_bench": (
-            "CROSSING_NAMES",
-            "DEFAULT_LOOPS",
-            "MISMATCH_SCENARIOS",
-            "SCENARIO_NAMES",
-            "run_mismatch",
-            "run_safety_bench",
+            "CROSSING_NAMES DEFAULT_LOOPS MISMATCH_SCENARIOS SCENARIO_NAMES run_mismatch run_safety_bench"
         ),
-        "comat.bench.scenarios": (
-            "CROSSINGS",
-            "FAULTS",
-            "SCENARIOS",
-            "UNSAFE_STARTS",
-            "make_scenario",
-            "run_scenario",
-            "swap_scenario",
-        ),
-        "comat.bench.sim_bench": ("run_sim_bench",),
-        "comat.bench.soak": ("run_soak",),
-        "comat.bench.variants": ("COMAT_VARIANTS", "OVERLAP_CHOICES", "WIDE_SLOTS", "learn_rows"),
+        "comat.bench.scenarios": "CROSSINGS FAULTS SCENARIOS UNSAFE_STARTS make_scenario run_scenario swap_scenario",
+        "comat.bench.sim_bench": "run_sim_bench",
+        "comat.bench.soak": "run_soak",
+        "comat.bench.variants": "COMAT_VARIANTS OVERLAP_CHOICES WIDE_SLOTS learn_rows",
     },
 )

@@ -29,10 +29,10 @@ from comat._face import lazy_face
 __all__, __getattr__, __dir__ = lazy_face(
     __name__,
     {
-        "comat.models.autoregressive": ("AutoregressivePolicy",),
-        "comat.models.comat": ("PAPER_FORM", "Comat", "ComatConfig"),
-        "comat.models.comat_schema": ("DECISIONS", "check_arrays", "parameter_shapes", "weights_config"),
-        "comat.models.features": ("ObsLayout",),
-        "comat.models.layers": ("choose_actions", "mlp", "score_actions"),
+        "comat.models.autoregressive": "AutoregressivePolicy",
+        "comat.models.comat": "PAPER_FORM Comat ComatConfig",
+        "comat.models.comat_schema": "DECISIONS check_arrays parameter_shapes weights_config",
+        "comat.models.features": "ObsLayout",
+        "comat.models.layers": "choose_actions mlp score_actions",
     },
 )
