@@ -14,7 +14,7 @@ import json
 
 from comat.files import write_atomic
 from comat.learners import learner_entry
-from comat.rl.policy import format_size, policy_weights
+from comat.rl import format_size, policy_weights
 
 
 def table(rows: list[dict]) -> str:

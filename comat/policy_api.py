@@ -25,9 +25,16 @@ import numpy as np
 import torch
 
 from comat.learners import learner_entry
-from comat.rl.algos import act_with, robot_slots
-from comat.rl.checkpoint import load_trained
-from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, policy_modules, pretrained_path
+from comat.rl import (
+    PREFIX,
+    PRETRAINED,
+    act_with,
+    load_trained,
+    policy_file_of,
+    policy_modules,
+    pretrained_path,
+    robot_slots,
+)
 
 __all__ = ["PRETRAINED", "Policy", "load_policy", "pretrained_path"]
 

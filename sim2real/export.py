@@ -69,12 +69,10 @@ from comat.config import SafetyConfig
 from comat.control import portable_settings
 from comat.envs import make_env
 from comat.envs.core import WAYPOINT_GAIN
-from comat.models import comat_schema
-from comat.models.comat import Comat
+from comat.models import Comat, comat_schema
 from comat.reality import resolve_reality
 from comat.reality.margin import response_lag_ticks, robust_safety
-from comat.rl.checkpoint import POLICY_FORMAT, load_trained
-from comat.rl.policy import policy_modules
+from comat.rl import POLICY_FORMAT, load_trained, policy_modules
 from comat.tasks import task_entry
 from comat.team import TeamSpec
 from sim2real.weights import export_weights

@@ -142,8 +142,7 @@ def ensure_venv(server: Server, root: Path) -> Path:
 def _exports(out: Path) -> list[tuple[str, str, Path]]:
     """(task, policy label, folder) of every export this check runs."""
     from comat.envs.base import resolve_coalitions
-    from comat.rl.checkpoint import load_trained
-    from comat.rl.policy import PRETRAINED, pretrained_path
+    from comat.rl import PRETRAINED, load_trained, pretrained_path
     from comat.tasks import task_names
     from sim2real.calibration import export_calibration
     from sim2real.export import export_submission

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from comat.models.comat_schema import check_arrays, parameter_shapes, weights_config
+from comat.models import check_arrays, parameter_shapes, weights_config
 from sim2real.runtime import save_weights
 
 __all__ = ["comat_arrays", "export_weights"]

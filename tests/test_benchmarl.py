@@ -100,7 +100,7 @@ def test_benchmarls_mappo_makes_the_choices_the_matched_arm_copies(tmp_path):
     clipped at 10: each is what the experiment ``outside.py`` builds has."""
     from torchrl.objectives.value import GAE
 
-    from comat.rl.config import load_preset, resolve
+    from comat.rl import load_preset, resolve
 
     experiment, _ = build_experiment(_matched_args(), tmp_path)
     assert experiment.config.clip_grad_norm and experiment.config.clip_grad_val == 10.0

@@ -18,7 +18,7 @@ from comat.envs import make_vec_env
 from comat.reality import resolve_reality
 from comat.reality.config import PROFILE_FORMAT
 from comat.reality.randomize import CalibratedReality, calibrated, profile_intervals, profile_sha256
-from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
+from comat.rl import RunConfig, apply_overrides, load_preset, resolve
 
 POINT = {
     "level": "nominal",

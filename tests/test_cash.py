@@ -9,8 +9,8 @@ import pytest
 import torch
 from torch import nn
 
+from comat.models import ObsLayout
 from comat.models.cash import Cash, CashConfig
-from comat.models.features import ObsLayout
 from comat.tasks.arctic import ArcticTransport
 from comat.tasks.pcp import PCP
 

@@ -272,7 +272,7 @@ def test_bench_update_times_each_ppo_learners_update_in_turns(tmp_path):
     import yaml
 
     from comat.bench.learn_bench import bench_update
-    from comat.rl.ppo import PPOTrainer
+    from comat.rl import PPOTrainer
 
     preset = tmp_path / "tiny.yaml"
     preset.write_text(
@@ -319,8 +319,7 @@ def test_bench_train_times_an_overlapped_learner_as_update_plus_wait(tmp_path):
 
     import yaml
 
-    from comat.bench import learn_bench
-    from comat.bench.learn_bench import bench_train
+    from comat.bench import bench_train, learn_bench
 
     preset = tmp_path / "tiny.yaml"
     preset.write_text(
@@ -355,9 +354,8 @@ def test_bench_train_comat_paper_trains_the_paper_form(tmp_path):
 
     import yaml
 
-    from comat.bench import learn_bench
-    from comat.bench.learn_bench import bench_train
-    from comat.models.comat import PAPER_FORM
+    from comat.bench import bench_train, learn_bench
+    from comat.models import PAPER_FORM
 
     preset = tmp_path / "tiny.yaml"
     preset.write_text(

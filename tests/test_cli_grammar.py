@@ -6,7 +6,7 @@ import pytest
 
 from comat.cli import build_parser
 from comat.cli.args import DEFAULT_SEED, DEFAULT_TEAMS, TASKS, TIERS
-from comat.eval.evaluate import EVAL_SEED
+from comat.eval import EVAL_SEED
 from comat.learners import learner_names
 from comat.team import COALITION_SETS
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from comat.models import Comat, ComatConfig, ObsLayout
 from comat.models import comat_schema as schema
 from comat.models.act_kernels import (
     COMAT_DECODE_MATS,
@@ -16,8 +17,6 @@ from comat.models.act_kernels import (
     comat_encode,
     comat_encode_args,
 )
-from comat.models.comat import Comat, ComatConfig
-from comat.models.features import ObsLayout
 from comat.models.layers import TypeHeads
 from sim2real.runtime import ComatRuntime
 from sim2real.weights import comat_arrays

@@ -130,7 +130,7 @@ def test_envs_and_runs_take_the_deployed_loop():
     from comat.config import SafetyConfig
     from comat.envs import make_env
     from comat.envs.heuristics import heuristic_actions
-    from comat.rl.config import apply_overrides, resolve
+    from comat.rl import apply_overrides, resolve
 
     for loop in ("robotarium_v2", "shipped_legacy"):
         env = make_env("pcp_v0", coalitions="test", tier="unicycle", ticks_per_step=10, safety=SafetyConfig(loop=loop))

@@ -8,11 +8,9 @@ from test_rl import assert_same, tiny
 
 from comat.cli import main
 from comat.learners import learner_entry
+from comat.rl import PPOTrainer, QmixTrainer, resolve_device
 from comat.rl.algos import Dims, Learner, build_modules, make_run_env
 from comat.rl.checkpoint import to_plain
-from comat.rl.device import resolve_device
-from comat.rl.ppo import PPOTrainer
-from comat.rl.qmix import QmixTrainer
 
 
 def _learner(config, device):

@@ -155,7 +155,7 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
 def test_eval_table_fits_a_terminal_and_names_the_privileged_rows():
     """Issue 67's newcomer: the table was ~190 characters wide, its footer one long paragraph, and
     the heuristic beat COMAT with no word that it reads the task's full state."""
-    from comat.eval.evaluate import print_table
+    from comat.eval import print_table
     from comat.measure.metrics import REPORTED
 
     metrics = {m: {"mean": 0.97, "ci95": 0.05, "n": 20} for m in REPORTED}
@@ -193,7 +193,7 @@ def test_eval_table_fits_a_terminal_and_names_the_privileged_rows():
 def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
     from test_rl import tiny
 
-    from comat.rl.runner import train
+    from comat.rl import train
 
     train(tiny("comat"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
@@ -271,8 +271,8 @@ def test_eval_cli_checkpoint_and_references(tmp_path, capsys):
 def test_probe_ppo_statistics_are_consistent(tmp_path, capsys):
     from test_rl import tiny
 
-    from comat.eval.probe import probe_checkpoint
-    from comat.rl.runner import train
+    from comat.eval import probe_checkpoint
+    from comat.rl import train
 
     train(tiny("mappo", "hmt"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
@@ -303,8 +303,8 @@ def test_probe_qmix_action_gap_and_mixer_gain(tmp_path):
     import torch
     from test_rl import tiny
 
-    from comat.eval.probe import probe_checkpoint
-    from comat.rl.runner import train
+    from comat.eval import probe_checkpoint
+    from comat.rl import train
 
     train(tiny("qmix", "pcp"), tmp_path / "run", quiet=True)
     ckpt = tmp_path / "run" / "checkpoint.pt"
@@ -332,7 +332,7 @@ def test_best_constant_action_is_the_best_of_the_five(task):
     from comat.envs import make_vec_env
     from comat.envs.base import resolve_coalitions
     from comat.envs.heuristics import BEST_CONSTANT_ACTION
-    from comat.eval.evaluate import EVAL_SEED
+    from comat.eval import EVAL_SEED
     from comat.measure.episodes import run_episodes
 
     teams = resolve_coalitions("train", task)

@@ -18,8 +18,7 @@ import pytest
 import torch
 
 from comat.cli.export import parse_team
-from comat.rl.config import resolve
-from comat.rl.runner import train
+from comat.rl import resolve, train
 from comat.tasks import task_names
 from comat.team import random_team
 from sim2real.check import check_submission, mujoco_twin, run_rps

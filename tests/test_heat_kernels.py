@@ -13,9 +13,8 @@ import torch
 import torch.nn.functional as F
 
 from comat import kernels
+from comat.models import PAPER_FORM, Comat, ComatConfig, ObsLayout
 from comat.models.autoregressive import size_buckets
-from comat.models.comat import PAPER_FORM, Comat, ComatConfig
-from comat.models.features import ObsLayout
 from comat.models.heat_kernels import edge_stage
 from comat.models.packing import pack
 from comat.tasks.hmt import HMT

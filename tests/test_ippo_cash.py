@@ -17,18 +17,14 @@ import torch
 import yaml
 from test_rl import tiny
 
-from comat.bench.learn_bench import bench_train
-from comat.eval.evaluate import evaluate_policies
+from comat.bench import bench_train
+from comat.eval import evaluate_policies
 from comat.eval.runs import evaluation_row, load_run
 from comat.measure.metrics import read_results
+from comat.models import ObsLayout
 from comat.models.cash_caps import CashCaps, CashCapsConfig, team_summary
-from comat.models.features import ObsLayout
 from comat.models.ippo import Ippo, IppoConfig
-from comat.rl.algos import robot_slots
-from comat.rl.checkpoint import CheckpointError, load_trained
-from comat.rl.config import load_preset, resolve
-from comat.rl.policy import policy_modules
-from comat.rl.runner import train
+from comat.rl import CheckpointError, load_preset, load_trained, policy_modules, resolve, robot_slots, train
 from comat.tasks.hmt import HMT
 from comat.team import random_team
 

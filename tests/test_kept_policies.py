@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from comat.rl.checkpoint import POLICY_FORMAT, load_trained
+from comat.rl import POLICY_FORMAT, load_trained
 from comat.rl.policy import PRETRAINED_DIR, policy_modules
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,9 +10,8 @@ import pytest
 import torch
 
 from comat.learners import LearnerEntry, learner_entry, learner_names, load_plugins, register_learner
-from comat.rl.algos import robot_slots
+from comat.rl import check_learner, robot_slots
 from comat.rl.config import load_preset, preset_names, resolve
-from comat.rl.contract import check_learner
 
 
 def test_the_registry_and_the_command_line_import_no_torch():

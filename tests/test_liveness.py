@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from comat.bench import CROSSINGS, make_scenario
 from comat.bench.liveness import (
     FREEZE_TICKS,
     GOAL_TOLERANCE_M,
@@ -15,7 +16,6 @@ from comat.bench.liveness import (
     row_liveness,
 )
 from comat.bench.safety_bench import CROSSING_NAMES, liveness_table, run_safety_bench
-from comat.bench.scenarios import CROSSINGS, make_scenario
 from comat.config import SafetyConfig
 from comat.control import SafeTeams
 from comat.reality import RealityConfig

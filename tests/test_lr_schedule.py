@@ -3,8 +3,7 @@
 import pytest
 import torch
 
-from comat.rl.checkpoint import load_checkpoint
-from comat.rl.runner import train
+from comat.rl import load_checkpoint, train
 from tests.test_rl import assert_same, tiny
 
 

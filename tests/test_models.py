@@ -10,7 +10,7 @@ import torch
 
 from comat import kernels
 from comat.envs import make_vec_env
-from comat.models.comat import PAPER_FORM, Comat, ComatConfig
+from comat.models import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout, edge_features
 from comat.models.mappo import Mappo
 from comat.models.mat import Mat, MatConfig

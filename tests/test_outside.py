@@ -13,7 +13,7 @@ from mpe2 import simple_spread_v3
 
 from comat.cli.args import resolve_policy_arg
 from comat.envs.outside import LAYOUT_PREFIX, OutsideVectorEnv, make_outside_env, play_outside
-from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
+from comat.rl import RunConfig, apply_overrides, load_preset, resolve
 from comat.rl.runner import evaluate, train
 
 TASK = "outside:mpe2.simple_spread_v3"

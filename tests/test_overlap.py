@@ -13,11 +13,9 @@ import torch
 from test_rl import TINY_MODELS, assert_same, tiny
 
 from comat.envs import make_vec_env
-from comat.models.comat import Comat, ComatConfig
-from comat.models.features import ObsLayout
-from comat.rl.checkpoint import load_checkpoint
+from comat.models import Comat, ComatConfig, ObsLayout
+from comat.rl import load_checkpoint, train
 from comat.rl.ppo import CollectionStopped, PPOConfig, PPOTrainer
-from comat.rl.runner import train
 
 TINY_PPO = {"num_envs": 2, "rollout_steps": 3, "epochs": 2, "minibatches": 2}
 

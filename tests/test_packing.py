@@ -8,7 +8,7 @@ import numpy as np
 import torch
 
 from comat import kernels
-from comat.models.comat import PAPER_FORM, Comat, ComatConfig
+from comat.models import PAPER_FORM, Comat, ComatConfig
 from comat.models.features import ObsLayout, edge_features, packed_edge_features
 from comat.models.packing import pack, split_teams
 from comat.tasks.pcp import PCP

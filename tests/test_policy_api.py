@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import comat
-from comat.rl.policy import PRETRAINED, pretrained_path
+from comat.rl import PRETRAINED, pretrained_path
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

@@ -20,10 +20,9 @@ from comat.cli import main
 from comat.envs import make_vec_env
 from comat.learners import learner_entry, learner_names
 from comat.measure.episodes import run_episodes
+from comat.rl import POLICY_FILE, load_policy, policy_file_of, train
 from comat.rl.algos import env_slots
 from comat.rl.checkpoint import CheckpointError, load_checkpoint, load_policy_file
-from comat.rl.policy import POLICY_FILE, load_policy, policy_file_of
-from comat.rl.runner import train
 from comat.team import random_team
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -271,7 +270,7 @@ def _readme_table() -> dict[tuple[str, str], tuple[float, int, int]]:
 def test_the_readme_says_what_one_policy_weighs_with_the_grids_models(tmp_path):
     """benchmarks/policy_sizes.py measured it: the grid's model config (the sweep preset) built for
     each task, its policy file written; the README's table must be that measurement."""
-    from comat.rl.policy import policy_weights
+    from comat.rl import policy_weights
 
     table = _readme_table()
     assert len(table) == 2 * len(learner_names()), table
@@ -286,7 +285,7 @@ def test_the_readme_says_what_one_policy_weighs_with_the_grids_models(tmp_path):
 def test_a_finished_sweep_keeps_a_policy_file_in_every_run_folder(comat_run, tmp_path, capsys):
     """`comat sweep` on a recorded grid whose runs are all finished starts nothing, but gives a run
     trained before policy files existed (checkpoint, no policy.pt) its policy.pt."""
-    from comat.eval.sweep import RECORD, prepare_sweep, run_sweep
+    from comat.eval import RECORD, prepare_sweep, run_sweep
 
     root = tmp_path / "sweep"
     run = root / "comat_pcp_s3"

@@ -11,12 +11,10 @@ from test_rl import tiny
 from torch import nn
 
 from comat.envs import make_vec_env
-from comat.models.comat import Comat, ComatConfig
-from comat.models.features import ObsLayout
+from comat.models import Comat, ComatConfig, ObsLayout
 from comat.models.mappo import Mappo
-from comat.rl.config import load_preset, resolve
+from comat.rl import load_preset, resolve, train
 from comat.rl.ppo import PPOConfig, PPOTrainer, Rollout
-from comat.rl.runner import train
 
 MATCHED = Path(__file__).resolve().parents[1] / "results" / "benchmarl" / "matched" / "matched.yaml"
 GAMMA, LAM = 0.9, 0.8

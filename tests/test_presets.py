@@ -5,7 +5,7 @@ import pytest
 
 def test_a_preset_may_set_a_task_of_its_own_and_an_override_beats_it(tmp_path):
     """quick gives HMT twice PCP's budget (by_task); ``total_env_steps=`` on the command line wins."""
-    from comat.rl.config import apply_overrides, load_preset, resolve
+    from comat.rl import apply_overrides, load_preset, resolve
 
     quick = load_preset("quick")
     assert resolve(quick, "comat", "hmt").total_env_steps == 2 * resolve(quick, "comat", "pcp").total_env_steps
@@ -27,8 +27,7 @@ def test_coalitions_trains_one_fixed_team_stored_in_the_config(tmp_path):
     import yaml
 
     from comat.envs.base import resolve_coalitions
-    from comat.rl.algos import make_run_env
-    from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
+    from comat.rl import RunConfig, apply_overrides, load_preset, make_run_env, resolve
 
     team = resolve_coalitions("train", "pcp")[3]
     path = tmp_path / "team.yaml"

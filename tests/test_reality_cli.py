@@ -15,8 +15,8 @@ from comat.cli import main
 from comat.envs.base import resolve_coalitions
 from comat.measure.metrics import read_results
 from comat.reality import RealityConfig
+from comat.rl import RunConfig, apply_overrides, load_preset, resolve
 from comat.rl.checkpoint import load_checkpoint, with_earlier_defaults
-from comat.rl.config import RunConfig, apply_overrides, load_preset, resolve
 
 
 def _resolved(overrides, preset=None):
@@ -101,7 +101,7 @@ def _tiny_preset(tmp_path):
 
 
 def test_training_at_nominal_records_the_level_and_resumes_exactly(tmp_path, capsys):
-    from comat.rl.algos import make_run_env
+    from comat.rl import make_run_env
 
     preset = _tiny_preset(tmp_path)
     train = ["train", "--algo", "comat", "--task", "pcp", "--preset", preset, "--quiet"]
@@ -148,7 +148,7 @@ def test_training_at_nominal_records_the_level_and_resumes_exactly(tmp_path, cap
 
 # -- evaluation at a level -------------------------------------------------------------------------
 def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, capsys):
-    from comat.rl.runner import train
+    from comat.rl import train
 
     train(tiny("comat", reality="nominal"), tmp_path / "run", quiet=True)
     teams = tmp_path / "teams.yaml"
@@ -204,7 +204,7 @@ def test_eval_at_a_level_writes_its_own_file_and_off_is_unchanged(tmp_path, caps
 
 
 def test_evaluate_policies_names_a_custom_layer():
-    from comat.eval.evaluate import evaluate_policies
+    from comat.eval import evaluate_policies
 
     own = resolve_coalitions("train", "pcp")[:1]
     result = evaluate_policies(
@@ -223,7 +223,7 @@ def test_evaluate_policies_names_a_custom_layer():
 
 # -- sweeps of one component and the report's robustness curves -----------------------------------------
 def test_reality_sweep_writes_its_file_and_the_report_draws_it(tmp_path, capsys):
-    from comat.rl.runner import train
+    from comat.rl import train
 
     teams = tmp_path / "teams.yaml"
     own = resolve_coalitions("train", "pcp")[:2]

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from comat import constants as C
-from comat.bench.safety_bench import SCENARIO_NAMES, run_safety_bench
-from comat.bench.scenarios import FAULTS, SCENARIOS, UNSAFE_STARTS, make_scenario, run_scenario
+from comat.bench import FAULTS, SCENARIO_NAMES, SCENARIOS, UNSAFE_STARTS, make_scenario, run_safety_bench, run_scenario
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams
 from comat.reality import RealityConfig

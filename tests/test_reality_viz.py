@@ -62,7 +62,7 @@ def test_video_frames_draw_the_ghost_only_under_the_layer():
 def test_training_recordings_play_at_the_runs_level(tmp_path):
     from test_rl import tiny
 
-    from comat.rl.runner import train
+    from comat.rl import train
     from comat.viz import record_training
 
     config = tiny("comat", steps=6, eval_every_steps=6, eval_episodes_per_team=1, reality="nominal")

@@ -74,7 +74,7 @@ def test_the_divergence_a_known_profile_adds_and_the_twin_at_that_profile_remove
     """A stand-in run under a known layer (3 ticks of pose delay, the robots moved by MuJoCo's
     unicycle tier): the twin in the ideal world diverges from it, the twin at the run's profile does
     not (the same poses to the log's float32 precision over the steps both take the same actions)."""
-    from comat.eval.replay import replay
+    from comat.eval import replay_log as replay
 
     folder = run[0]
     profile = tmp_path / "late.yaml"

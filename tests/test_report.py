@@ -14,8 +14,8 @@ import yaml
 from scipy import stats as sst
 
 from comat.cli import main
+from comat.eval import SET_NAMES, SETS
 from comat.eval.report import PAPER_TABLE1, REPORT_FILES, make_report
-from comat.eval.runs import SET_NAMES, SETS
 from comat.measure.metrics import summarize_ci
 from comat.measure.stats import holm
 

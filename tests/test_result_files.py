@@ -136,9 +136,7 @@ def test_a_missing_or_foreign_detail_file_is_an_error(tmp_path):
 
 # -- relative paths ----------------------------------------------------------------------------------
 def test_written_results_hold_no_absolute_path(tmp_path):
-    from comat.eval.evaluate import result_files, write_results
-    from comat.eval.probe import write_probe
-    from comat.eval.robustness import sweep_files, write_sweep
+    from comat.eval import result_files, sweep_files, write_probe, write_results, write_sweep
 
     run = tmp_path / "runs" / "mine"
     run.mkdir(parents=True)
@@ -174,7 +172,7 @@ def test_config_yaml_records_a_portable_command_and_the_commit(tmp_path, monkeyp
     import yaml
     from test_rl import tiny
 
-    from comat.rl.checkpoint import source_commit
+    from comat.rl import source_commit
     from comat.rl.runner import _write_config
 
     monkeypatch.chdir(tmp_path)

@@ -15,14 +15,11 @@ from comat.cli import main
 from comat.envs import make_vec_env
 from comat.learners import learner_names
 from comat.measure.episodes import run_episodes
-from comat.models.features import ObsLayout
+from comat.models import ObsLayout
 from comat.models.mappo import Mappo
-from comat.rl.checkpoint import CheckpointError, load_checkpoint
-from comat.rl.config import load_preset, resolve
+from comat.rl import CheckpointError, load_checkpoint, load_policy, load_preset, resolve, train
 from comat.rl.gae import gae
-from comat.rl.policy import load_policy
 from comat.rl.ppo import PPOConfig, PPOTrainer, Rollout
-from comat.rl.runner import train
 from comat.team import random_team
 
 TINY_MODELS = {
@@ -110,7 +107,7 @@ def _pad(ro: Rollout, extra: int) -> Rollout:
 
 @pytest.mark.parametrize("algo", ["comat", "mappo"])
 def test_ppo_update_ignores_padded_slots(algo):
-    from comat.models.comat import Comat, ComatConfig
+    from comat.models import Comat, ComatConfig
 
     env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
     env.reset()
@@ -134,7 +131,7 @@ def test_gae_value_target_is_the_td_target_at_lambda_zero():
     """value_target 'gae' regresses to each robot's GAE(λ) return: at λ = 0 that is r + γ·V(o')
     from the collecting critic, which is the 'td' target of a refresh every epoch (one epoch:
     identical updates); at λ = 0.95 the targets, and so the updates, differ."""
-    from comat.models.comat import Comat, ComatConfig
+    from comat.models import Comat, ComatConfig
 
     env = make_vec_env("pcp_v0", 2, seed=0, tier="unicycle")
     env.reset()
@@ -161,7 +158,7 @@ def test_gae_value_target_is_the_td_target_at_lambda_zero():
 # -- QMIX's TD target ------------------------------------------------------------------------------
 def test_qmix_learn_step_matches_a_per_step_reference():
     from comat.models.qmix import QmixAgents, QmixMixer, QmixNetConfig
-    from comat.rl.qmix import QmixConfig, QmixTrainer
+    from comat.rl import QmixConfig, QmixTrainer
 
     env = make_vec_env("pcp_v0", 2, seed=1, tier="unicycle", max_robots=8)
     env.reset()
@@ -205,7 +202,7 @@ def test_qmix_learn_step_matches_a_per_step_reference():
 @pytest.mark.parametrize("horizon_terminal", [False, True])
 def test_qmix_stores_the_time_limit_as_terminal_only_when_asked(horizon_terminal):
     from comat.models.qmix import QmixAgents, QmixMixer, QmixNetConfig
-    from comat.rl.qmix import QmixConfig, QmixTrainer
+    from comat.rl import QmixConfig, QmixTrainer
 
     env = make_vec_env("pcp_v0", 3, seed=2, tier="unicycle", max_robots=8)
     env.reset()
@@ -233,7 +230,7 @@ def test_qmix_stores_the_time_limit_as_terminal_only_when_asked(horizon_terminal
 def test_collect_over_env_workers_assembles_rollout_in_env_order():
     """Shards stepped in turn with the policy: the rollout equals the one-process rollout
     (MAPPO samples each robot independently, so drawing shard by shard takes the same stream)."""
-    from comat.rl.algos import Dims, make_learner, make_run_env
+    from comat.rl import Dims, make_learner, make_run_env
 
     rollouts = []
     for workers in (1, 2):
@@ -516,7 +513,7 @@ def test_overrides_and_base_presets(tmp_path, capsys):
     in config.yaml as given and as resolved; a preset may name a base preset and change keys."""
     import yaml
 
-    from comat.rl.config import apply_overrides, load_preset
+    from comat.rl import apply_overrides, load_preset
 
     base = load_preset("quick")
     changed = apply_overrides(base, ["ppo.lr=3e-4", "models.comat.heads=2", "ppo.rollout_steps=null", "tier=wheels"])

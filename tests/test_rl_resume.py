@@ -14,8 +14,7 @@ from test_rl import TINY_MODELS, assert_same, tiny
 
 from comat.cli import main
 from comat.learners import learner_entry, learner_names
-from comat.rl.checkpoint import load_checkpoint
-from comat.rl.runner import train
+from comat.rl import load_checkpoint, train
 
 
 @pytest.mark.parametrize(

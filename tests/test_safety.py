@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 
 from comat import constants as C
-from comat.bench.scenarios import SCENARIOS, make_scenario, run_scenario
+from comat.bench import SCENARIOS, make_scenario, run_scenario
 from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams
 from comat.safety import InfeasibleError, SafetyFilter
@@ -262,7 +262,7 @@ def test_head_on_deadlock_is_broken_by_keeping_right(tie_break):
 def test_soak_bench_one_round_is_clean(tmp_path):
     """``comat bench soak`` for one round (160 episodes, some in the wheels tier): every safety
     count zero, no NaN, the JSON written."""
-    from comat.bench.soak import run_soak
+    from comat.bench import run_soak
 
     result = run_soak(160, wheels_share=0.5, seed=1, out=str(tmp_path / "soak.json"), progress=lambda m: None)
     assert result["episodes"] == 160 and all(c["pass"] for c in result["checks"].values()), result["checks"]

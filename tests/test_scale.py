@@ -5,8 +5,8 @@ from test_rl import TINY_MODELS, tiny
 
 from comat.cli import main
 from comat.envs.base import resolve_coalitions
-from comat.eval.evaluate import evaluate_policies
-from comat.rl.runner import train
+from comat.eval import evaluate_policies
+from comat.rl import train
 from comat.team import CAPABILITY_RANGES, COALITION_SETS, SIZES, generate_coalitions
 
 

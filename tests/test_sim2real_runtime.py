@@ -10,8 +10,7 @@ import pytest
 import torch
 
 from comat import make_vec_env
-from comat.models.comat import PAPER_FORM, Comat, ComatConfig
-from comat.models.features import ObsLayout
+from comat.models import PAPER_FORM, Comat, ComatConfig, ObsLayout
 from comat.tasks.hmt import MaterialTransport
 from comat.tasks.pcp import PredatorCapturePrey
 from comat.team import random_team

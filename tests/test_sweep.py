@@ -23,9 +23,7 @@ from test_rl import TINY_MODELS, assert_same
 
 from comat.cli import main
 from comat.eval.sweep import RECORD, param_space, prepare_sweep, sweep_status
-from comat.rl.checkpoint import load_checkpoint
-from comat.rl.config import load_preset, resolve
-from comat.rl.runner import train
+from comat.rl import load_checkpoint, load_preset, resolve, train
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -149,7 +149,7 @@ def test_ladder_names_and_alias():
 
 
 def test_cli_summary_only_reads_the_written_evaluations(tmp_path, capsys):
-    from comat.eval.evaluate import evaluate_policies, write_results
+    from comat.eval import evaluate_policies, write_results
 
     result = evaluate_policies(
         None, "pcp", [("capability", _pcp_teams())], 1, "unicycle", 11, references=LADDER, progress=lambda m: None
@@ -175,7 +175,7 @@ def _pcp_teams():
 
 @pytest.mark.parametrize("rung", ["type_only", "blind", "random"])
 def test_rungs_are_deterministic_per_seed(rung):
-    from comat.eval.evaluate import evaluate_policies
+    from comat.eval import evaluate_policies
 
     def progress(seed: int) -> list[float]:
         result = evaluate_policies(

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from comat.rl.checkpoint import versions
+from comat.rl import versions
 
 
 def test_versions_record_the_source_commit():

@@ -423,8 +423,7 @@ def test_rollout_command_writes_the_file_and_says_how_to_open_it(tmp_path, capsy
 
 
 def test_checkpoint_policy_is_recorded(tmp_path):
-    from comat.rl.config import resolve
-    from comat.rl.runner import train
+    from comat.rl import resolve, train
 
     preset = {
         "total_env_steps": 6,
@@ -517,7 +516,7 @@ def test_a_shipped_policy_is_named_as_such_in_recordings_and_videos(tmp_path):
     file the name resolves to; a copy of that file elsewhere is just a checkpoint file."""
     import shutil
 
-    from comat.rl.policy import pretrained_path
+    from comat.rl import pretrained_path
     from comat.viz.rollout import resolve_policy
 
     shipped = pretrained_path("comat-pcp")

@@ -21,7 +21,7 @@ from test_rl import tiny
 import comat
 from comat import learners
 from comat.cli import main
-from comat.rl.runner import train
+from comat.rl import train
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "write-a-learner.md"
 

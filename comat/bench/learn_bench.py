@@ -37,11 +37,8 @@ import torch
 from comat.bench.sim_bench import finish
 from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES, WIDE_SLOTS
 from comat.learners import learner_entry, learner_names
-from comat.models.autoregressive import AutoregressivePolicy
-from comat.models.comat import PAPER_FORM
-from comat.models.features import ObsLayout
-from comat.rl.algos import Dims, build_modules, make_learner, make_run_env
-from comat.rl.config import load_preset, resolve
+from comat.models import PAPER_FORM, AutoregressivePolicy, ObsLayout
+from comat.rl import Dims, build_modules, load_preset, make_learner, make_run_env, resolve
 from comat.tasks import task_names
 from comat.tasks.pcp import PCP
 

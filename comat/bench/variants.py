@@ -5,7 +5,7 @@ offers the same names the benchmark runs."""
 from __future__ import annotations
 
 from comat.learners import learner_entry, learner_names
-from comat.models.comat_schema import DECISIONS
+from comat.models import DECISIONS
 
 __all__ = ["COMAT_VARIANTS", "OVERLAP_CHOICES", "WIDE_SLOTS", "learn_rows"]
 

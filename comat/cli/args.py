@@ -120,7 +120,7 @@ class _Deprecated(argparse.Action):
 def comat_version() -> str:
     """The package version and the source commit it runs from (when known)."""
     from comat._version import __version__
-    from comat.rl.checkpoint import source_commit
+    from comat.rl import source_commit
 
     commit = source_commit()
     return __version__ + (f" ({commit})" if commit and commit != "unknown" else "")
@@ -337,8 +337,7 @@ def resolve_policy_arg(
     ``need_checkpoint``: why the command needs the whole learner (e.g. "comat probe reads the
     learner's value estimates"); a policy file is then refused with that reason."""
     from comat.envs.outside import is_outside
-    from comat.rl.checkpoint import POLICY_FORMAT, load_checkpoint, load_trained
-    from comat.rl.policy import PREFIX, PRETRAINED, policy_file_of, shipped_name
+    from comat.rl import POLICY_FORMAT, PREFIX, PRETRAINED, load_checkpoint, load_trained, policy_file_of, shipped_name
 
     shipped = ", ".join(PREFIX + name for name in PRETRAINED)
     what = (

@@ -9,8 +9,16 @@ from __future__ import annotations
 import argparse
 import time
 
-from comat.bench.safety_bench import CROSSING_NAMES, DEFAULT_LOOPS, SCENARIO_NAMES, run_safety_bench
-from comat.bench.variants import COMAT_VARIANTS, OVERLAP_CHOICES, WIDE_SLOTS, learn_rows
+from comat.bench import (
+    COMAT_VARIANTS,
+    CROSSING_NAMES,
+    DEFAULT_LOOPS,
+    OVERLAP_CHOICES,
+    SCENARIO_NAMES,
+    WIDE_SLOTS,
+    learn_rows,
+    run_safety_bench,
+)
 from comat.cli.args import TASKS, TIERS, int_at_least
 from comat.cli.rollout import add_viz_bench_parser
 from comat.config import LOOPS
@@ -22,7 +30,7 @@ __all__ = ["add_bench_parser"]
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "sim":
-        from comat.bench.sim_bench import run_sim_bench
+        from comat.bench import run_sim_bench
 
         sizes = tuple(args.sizes)
         t0 = time.perf_counter()
@@ -33,7 +41,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "env" and args.rollout:
-        from comat.bench.env_bench import run_rollout_bench
+        from comat.bench import run_rollout_bench
 
         run_rollout_bench(
             args.tasks[0],
@@ -45,7 +53,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         )
         return 0
     if args.what == "env":
-        from comat.bench.env_bench import run_env_bench
+        from comat.bench import run_env_bench
 
         t0 = time.perf_counter()
         run_env_bench(
@@ -59,7 +67,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "learn":
-        from comat.bench.learn_bench import run_learn_bench
+        from comat.bench import run_learn_bench
 
         t0 = time.perf_counter()
         print(
@@ -80,12 +88,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         print(f"done in {time.perf_counter() - t0:.0f} s")
         return 0
     if args.what == "soak":
-        from comat.bench.soak import run_soak
+        from comat.bench import run_soak
 
         result = run_soak(args.episodes, args.wheels_share, args.seed, args.out, sets=args.sets)
         return 0 if all(c["pass"] for c in result["checks"].values()) else 1
     if args.what == "fidelity":
-        from comat.bench.fidelity_bench import run_fidelity_bench
+        from comat.bench import run_fidelity_bench
 
         run_fidelity_bench(seeds=args.seeds, out=args.out)
         return 0
@@ -94,7 +102,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 def _cmd_safety(args: argparse.Namespace) -> int:
     if args.mismatch:
-        from comat.bench.safety_bench import MISMATCH_SCENARIOS, run_mismatch
+        from comat.bench import MISMATCH_SCENARIOS, run_mismatch
 
         names = tuple(args.scenarios) if args.scenarios else MISMATCH_SCENARIOS
         loops = tuple(args.loops) if args.loops != list(DEFAULT_LOOPS) else ("comat",)

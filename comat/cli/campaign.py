@@ -27,7 +27,7 @@ __all__ = ["add_campaign_parser"]
 
 def _make(args: argparse.Namespace) -> int:
     from comat.cli.args import reality_arg, resolve_policy_arg
-    from comat.eval.campaign import declarations, make_campaign, parse_sets, parse_sizes, plan_teams
+    from comat.eval import declarations, make_campaign, parse_sets, parse_sizes, plan_teams
     from comat.learners import learner_entry, learner_names
 
     missing = [f"--{k}" for k in ("policy", "sizes", "runs", "out") if getattr(args, k) is None]
@@ -69,7 +69,7 @@ def _make(args: argparse.Namespace) -> int:
 
 def _analyze(args: argparse.Namespace) -> int:
     from comat.cli.args import reality_arg
-    from comat.eval.campaign_returns import analyze_campaign
+    from comat.eval import analyze_campaign
     from comat.viz.viewer import viewer_hint
 
     if args.manifest is None or args.out is None:
@@ -96,7 +96,7 @@ def _analyze(args: argparse.Namespace) -> int:
 
 def _stand_in(args: argparse.Namespace) -> int:
     from comat.cli.args import reality_arg
-    from comat.eval.campaign import stand_in_returns
+    from comat.eval import stand_in_returns
     from sim2real.check import CheckError
 
     if args.out is None:

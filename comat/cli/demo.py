@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from comat import constants as C
-from comat.bench.scenarios import run_scenario, swap_scenario
+from comat.bench import run_scenario, swap_scenario
 from comat.config import SimConfig
 from comat.tasks import env_id, task_names
 
@@ -182,7 +182,7 @@ def _pretrained(
     """The shipped COMAT PCP policy on unseen teams: .rrd, video and a checked Robotarium export."""
     import shutil
 
-    from comat.rl.policy import PRETRAINED
+    from comat.rl import PRETRAINED
 
     print(
         f"\npretrained policy: {PRETRAINED['comat-pcp']['what']}\n"
@@ -228,10 +228,7 @@ def _train(seed: int) -> dict:
     from comat.envs.base import resolve_coalitions
     from comat.envs.heuristics import random_actions
     from comat.measure.episodes import run_episodes, summarize
-    from comat.rl.algos import make_run_env
-    from comat.rl.config import load_preset, resolve
-    from comat.rl.policy import load_policy
-    from comat.rl.runner import EVAL_SEED_OFFSET, train
+    from comat.rl import EVAL_SEED_OFFSET, load_policy, load_preset, make_run_env, resolve, train
 
     config = resolve(load_preset("quick"), "comat", "pcp", seed=seed)
     out = Path("runs") / f"demo-comat-pcp-{time.strftime('%Y%m%d-%H%M%S')}"

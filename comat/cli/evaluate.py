@@ -33,7 +33,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.cli.args import parse_teams, reality_arg, resolve_policy_arg
-    from comat.eval.evaluate import REFERENCES, evaluate_policies, print_table, result_files, write_results
+    from comat.eval import REFERENCES, evaluate_policies, print_table, result_files, write_results
 
     reality = reality_arg(args.reality)
     if args.episodes < 1:  # before the header line, so a bad value prints the error alone
@@ -87,7 +87,7 @@ def _write_evaluation(args: argparse.Namespace, out, names: list[str], what: str
 
 def _eval_reality_sweep(args: argparse.Namespace, played: tuple, what: str, out, refs: tuple, base: str) -> int:
     """``comat eval --reality-sweep``: run, print, write ``evaluation_<tier>_sweep_<component>``."""
-    from comat.eval.robustness import print_sweep, run_reality_sweep, sweep_files, sweep_values, write_sweep
+    from comat.eval import print_sweep, run_reality_sweep, sweep_files, sweep_values, write_sweep
 
     component = args.reality_sweep
     values = sweep_values(component, args.sweep_values, base)  # every value checked before the first episode
@@ -107,7 +107,7 @@ def _cmd_probe(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.cli.args import resolve_policy_arg
-    from comat.eval.probe import print_probe, probe_checkpoint, write_probe
+    from comat.eval import print_probe, probe_checkpoint, write_probe
     from comat.files import new_outputs
 
     pol = resolve_policy_arg(
@@ -129,9 +129,7 @@ def _cmd_probe(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     if args.format == "marl-eval":
         return _report_marl_eval(args)
-    from comat.eval.report import REPORT_FILES, make_report
-    from comat.eval.robustness import ROBUSTNESS_FILES
-    from comat.eval.runs import SETS
+    from comat.eval import REPORT_FILES, ROBUSTNESS_FILES, SETS, make_report
     from comat.files import new_outputs
 
     with new_outputs(args.out, REPORT_FILES + ROBUSTNESS_FILES, force=args.force) as out:
@@ -156,7 +154,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _report_marl_eval(args: argparse.Namespace) -> int:
-    from comat.eval.marl_eval import marl_eval_name, write_marl_eval
+    from comat.eval import marl_eval_name, write_marl_eval
     from comat.files import new_outputs
 
     with new_outputs(args.out, [marl_eval_name(args.absolute_set)], force=args.force) as out:
@@ -189,7 +187,7 @@ def _sweep_given(args: argparse.Namespace) -> dict:
 def _print_sweep_status(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from comat.eval.sweep import RECORD, prepare_sweep, sweep_status
+    from comat.eval import RECORD, prepare_sweep, sweep_status
 
     if not Path(args.out).is_dir():
         raise FileNotFoundError(
@@ -219,7 +217,7 @@ def _print_sweep_status(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from comat.eval.sweep import prepare_sweep, run_sweep
+    from comat.eval import prepare_sweep, run_sweep
 
     if args.status:
         return _print_sweep_status(args)

@@ -17,7 +17,8 @@ __all__ = ["add_replay_parser"]
 
 def _cmd(args: argparse.Namespace) -> int:
     from comat.cli.args import reality_arg
-    from comat.eval.replay import check_options, check_twin, output_names, replay
+    from comat.eval import check_options, check_twin, output_names
+    from comat.eval import replay_log as replay
     from comat.files import new_outputs
     from comat.runlog import read_run_log
     from comat.viz.rollout import check_rrd_path

@@ -70,7 +70,7 @@ def _cmd_tasks(args: argparse.Namespace) -> int:
 
 
 def _cmd_validity(args: argparse.Namespace) -> int:
-    from comat.eval.validity import collect, run_validity, write_summary
+    from comat.eval import collect, run_validity, write_summary
     from comat.files import write_atomic
 
     out, tier = Path(args.out), args.tier or REFERENCE_TIER
@@ -97,7 +97,7 @@ def _cmd_validity(args: argparse.Namespace) -> int:
 
 def add_tasks_parsers(sub) -> None:
     """``comat tasks`` and ``comat validity`` on the top-level sub-parsers."""
-    from comat.eval.validity import VALIDITY_SEED
+    from comat.eval import VALIDITY_SEED
 
     p = sub.add_parser(
         "tasks",

@@ -70,8 +70,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.machine import usable_cpus
-    from comat.rl.config import RunConfig
-    from comat.rl.runner import train
+    from comat.rl import RunConfig, train
 
     if args.resume and args.overrides:
         raise ValueError(
@@ -134,10 +133,7 @@ def _resumed_config(args: argparse.Namespace):
     are refused."""
     from pathlib import Path
 
-    from comat.rl.checkpoint import load_checkpoint
-    from comat.rl.config import RunConfig
-    from comat.rl.device import resolve_device
-    from comat.rl.runner import saved_config
+    from comat.rl import RunConfig, load_checkpoint, resolve_device, saved_config
 
     if args.out is None:
         raise ValueError("--resume needs --out, the folder of the run to continue")
@@ -162,8 +158,7 @@ def _resumed_config(args: argparse.Namespace):
 
 def _new_config(args: argparse.Namespace):
     """A new run's config: the preset (default ``paper``, whose budget is noted) with the overrides and flags."""
-    from comat.rl.config import apply_overrides, load_preset, resolve
-    from comat.rl.device import resolve_device
+    from comat.rl import apply_overrides, load_preset, resolve, resolve_device
 
     if args.algo is None or args.task is None:
         raise ValueError("--algo and --task are required for a new run")
@@ -183,7 +178,7 @@ def _new_config(args: argparse.Namespace):
 
 
 def print_policy_file(path) -> None:
-    from comat.rl.policy import format_size
+    from comat.rl import format_size
 
     print(
         f"{path} ({format_size(path.stat().st_size)}): weights and config to act; evaluate with "
@@ -195,8 +190,14 @@ def cmd_policy(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from comat.files import new_outputs
-    from comat.rl.checkpoint import POLICY_FORMAT, load_trained
-    from comat.rl.policy import POLICY_FILE, describe_policy, policy_file_of, policy_from_checkpoint
+    from comat.rl import (
+        POLICY_FILE,
+        POLICY_FORMAT,
+        describe_policy,
+        load_trained,
+        policy_file_of,
+        policy_from_checkpoint,
+    )
 
     # a run folder: its checkpoint.pt, else its policy.pt
     source = policy_file_of(args.source, flag="RUN_FOLDER|CHECKPOINT|POLICY")

@@ -40,7 +40,7 @@ import numpy as np
 
 from comat.envs.base import resolve_coalitions
 from comat.files import write_atomic
-from comat.rl.checkpoint import source_commit
+from comat.rl import source_commit
 from comat.runlog import LOG_FILE, META_FILE
 from comat.team import COALITION_SETS, SET_LABELS
 from sim2real.check import CheckError, run_rps

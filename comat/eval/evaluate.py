@@ -38,8 +38,7 @@ from comat.files import detail_name, relative_path, write_atomic, write_json_det
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import REPORTED, SHARES, interval_text, summarize_ci
 from comat.reality import resolve_reality
-from comat.rl.algos import BASELINE_ROBOTS, robot_slots
-from comat.rl.policy import load_policy
+from comat.rl import BASELINE_ROBOTS, load_policy, robot_slots
 from comat.task_logic import TaskLogic
 from comat.tasks import env_id, task_entry, task_names
 from comat.team import COALITION_SETS

@@ -41,9 +41,7 @@ import numpy as np
 import torch
 
 from comat.files import relative_path, write_atomic
-from comat.rl.algos import Dims, make_learner, make_run_env
-from comat.rl.checkpoint import load_checkpoint
-from comat.rl.config import RunConfig
+from comat.rl import Dims, RunConfig, load_checkpoint, make_learner, make_run_env
 
 __all__ = ["print_probe", "probe_checkpoint", "write_probe"]
 

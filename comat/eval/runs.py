@@ -83,7 +83,7 @@ def load_run(folder: str | Path, tier: str | None = None) -> dict:
     # The summary with its per-episode detail; files written before issue 32: today's metric names.
     evaluation = read_results(eval_path) if eval_path.is_file() else None
     # Imported here: the rest of this module runs without torch.
-    from comat.rl.checkpoint import current_name
+    from comat.rl import current_name
 
     algo = current_name(config["algo"], config.get("model"))
     if algo != config["algo"] and evaluation is not None:  # a learner renamed since: its rows under today's name

@@ -43,11 +43,17 @@ import sim2real
 from comat.eval.evaluate import evaluate_policies, write_results
 from comat.files import portable_command, write_atomic
 from comat.learners import learner_names
-from comat.rl.checkpoint import versions
-from comat.rl.config import TASKS, apply_overrides, load_preset, resolve
-from comat.rl.device import DEVICES, resolve_device
-from comat.rl.policy import ensure_policy
-from comat.rl.runner import train
+from comat.rl import (
+    DEVICES,
+    TASKS,
+    apply_overrides,
+    ensure_policy,
+    load_preset,
+    resolve,
+    resolve_device,
+    train,
+    versions,
+)
 from comat.tasks import task_names
 
 __all__ = ["RECORD", "param_space", "plan", "prepare_sweep", "read_record", "run_job", "run_sweep", "sweep_status"]

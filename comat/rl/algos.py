@@ -18,7 +18,7 @@ from comat.config import SafetyConfig, SimConfig
 from comat.envs import make_vec_env
 from comat.envs.outside import OutsideVectorEnv, is_outside
 from comat.learners import learner_entry
-from comat.models.features import ObsLayout
+from comat.models import ObsLayout
 from comat.rl.config import RunConfig
 from comat.rl.ppo import PPOTrainer
 from comat.rl.qmix import QmixTrainer

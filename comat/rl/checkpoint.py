@@ -44,7 +44,7 @@ import torch
 from comat import learners
 from comat._version import __version__
 from comat.envs.outside import is_outside
-from comat.models.comat import PAPER_FORM
+from comat.models import PAPER_FORM
 from comat.tasks import TASKS, env_id, not_registered
 
 __all__ = [

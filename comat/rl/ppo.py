@@ -45,7 +45,7 @@ import torch
 import torch.nn.functional as F
 
 from comat.envs.sharded import ShardedVectorEnv
-from comat.models.features import ObsLayout
+from comat.models import ObsLayout
 from comat.rl.device import learner_copy, to_cpu
 from comat.rl.gae import gae, standardize
 from comat.rl.ppo_config import PPOConfig

@@ -33,10 +33,7 @@ from comat.config import REFERENCE_TIER
 from comat.envs import make_env
 from comat.envs.base import resolve_coalitions
 from comat.envs.heuristics import LADDER, RUNG_ALIASES, reference_policy
-from comat.rl.algos import policy_act, robot_slots
-from comat.rl.config import RunConfig
-from comat.rl.policy import load_policy, shipped_name
-from comat.rl.runner import EVAL_SEED_OFFSET
+from comat.rl import EVAL_SEED_OFFSET, RunConfig, load_policy, policy_act, robot_slots, shipped_name
 from comat.tasks import env_id, task_names
 from comat.team import COALITION_SETS, TeamSpec
 from comat.viz.blueprint import rollout_blueprint

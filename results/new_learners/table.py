@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from comat.eval.runs import SET_NAMES
+from comat.eval import SET_NAMES
 from comat.files import replace_block
 from comat.measure.metrics import read_results
 

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from comat.config import SafetyConfig
-from comat.eval.evaluate import evaluate_policies
+from comat.eval import evaluate_policies
 
 # progress: share of the task done; finished: share of episodes that finished it.
 ENDPOINTS = ("progress", "finished", "steps", "interventions", "collisions", "violations", "recoveries")

@@ -14,8 +14,7 @@ import sys
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
-from comat.rl.algos import Dims, make_learner, make_run_env
-from comat.rl.config import load_preset, resolve
+from comat.rl import Dims, load_preset, make_learner, make_run_env, resolve
 
 
 def minibatch_flops(algo: str, task: str) -> dict:

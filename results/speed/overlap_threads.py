@@ -13,7 +13,7 @@ import json
 import tempfile
 from pathlib import Path
 
-from comat.bench.learn_bench import bench_train
+from comat.bench import bench_train
 
 if __name__ == "__main__":  # env workers are spawned processes: they import this file
     with tempfile.TemporaryDirectory() as tmp:

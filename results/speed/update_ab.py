@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from update_time import timed_update  # beside this script
 
-from comat.rl.algos import make_run_env
+from comat.rl import make_run_env
 
 
 def load_before(worktree: Path):

@@ -17,8 +17,7 @@ import time
 import numpy as np
 import torch
 
-from comat.rl.algos import Dims, make_learner, make_run_env
-from comat.rl.config import load_preset, resolve
+from comat.rl import Dims, load_preset, make_learner, make_run_env, resolve
 
 
 def update_seconds(algo: str, task: str, threads: int, repeats: int) -> list[float]:

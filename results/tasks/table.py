@@ -5,7 +5,7 @@ are of the task's current version (navigation, sensors and arctic changed rules 
 
 from pathlib import Path
 
-from comat.eval.runs import SET_NAMES
+from comat.eval import SET_NAMES
 from comat.files import replace_block
 from comat.measure.metrics import read_results
 

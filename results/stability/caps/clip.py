@@ -15,11 +15,10 @@ import numpy as np
 
 from comat.envs import make_vec_env
 from comat.envs.base import resolve_coalitions
-from comat.eval.evaluate import EVAL_SEED
+from comat.eval import EVAL_SEED
 from comat.measure.episodes import run_episodes
 from comat.measure.metrics import mean_ci
-from comat.rl.algos import BASELINE_ROBOTS, robot_slots
-from comat.rl.policy import load_policy
+from comat.rl import BASELINE_ROBOTS, load_policy, robot_slots
 from comat.team import CAPABILITY_RANGES
 
 EPISODES = 5
