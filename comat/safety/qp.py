@@ -31,6 +31,8 @@ def new_osqp() -> osqp.OSQP:
     x 8 teams at ``stress``; results/safety_live/README.md). Naming it also keeps every machine on
     the same algebra, as determinism asks."""
     return osqp.OSQP(algebra="builtin")
+
+
 _REFINE_MAX_TEAMS = 8
 
 
