@@ -36,7 +36,11 @@ def parse_team(value: str, task: str):
 
 def _print_check(report: dict, tier: str) -> None:
     rps, mj = report["rps"], report["mujoco"]
-    print(rps.pop("stdout").rstrip())
+    # rps's own lines (its duration estimate, its verdict), without the runtime's result line, which
+    # is the table below
+    printed = [line for line in rps.pop("stdout").rstrip().splitlines() if not line.startswith("COMAT_RESULT")]
+    if any(line.strip() for line in printed):
+        print("main.py under rps printed:\n" + "\n".join("  " + line for line in printed))
     print(f"\n{'metric':<22}{'rps (' + rps['rps'] + ')':>16}{'MuJoCo (' + tier + ')':>18}")
     for key in ("return", "steps", "progress", "finished"):
         print(f"{key:<22}{rps[key]:>16.3f}{mj[key]:>18.3f}")
@@ -45,7 +49,10 @@ def _print_check(report: dict, tier: str) -> None:
     print(f"{'collision errors':<22}{errors.get('collision', float('nan')):>16}{mj['robotarium_collisions']:>18.0f}")
     print(f"{'actuator errors':<22}{errors.get('actuator', float('nan')):>16}{mj['actuator_errors']:>18.0f}")
     gap = report["gap"]
-    print(f"gap rps - MuJoCo: progress {gap['progress_points']:+.1f} points, return {gap['return']:+.3f}")
+    print(
+        f"gap rps - MuJoCo: progress {gap['progress_points']:+.1f} points, return {gap['return']:+.3f} "
+        "(the MuJoCo column is comat's own loop with the same policy and team, docs/export.md)"
+    )
     if "run_log" in rps:  # the run's own log, as the Robotarium returns it
         print(_log_line(rps["run_log"]))
 
