@@ -253,7 +253,11 @@ def test_collect_over_env_workers_assembles_rollout_in_env_order():
 
 
 def test_comat_trained_on_357_acts_on_other_sizes(tmp_path):
-    train(tiny("comat"), tmp_path / "run", quiet=True)
+    before = torch.get_num_threads()
+    config = tiny("comat")
+    assert config.torch_threads != before  # the run sets other threads than the test has
+    train(config, tmp_path / "run", quiet=True)
+    assert torch.get_num_threads() == before  # put back: later torch code here runs as before the run
     act, _config = load_policy(tmp_path / "run" / "checkpoint.pt", algo="comat", task="pcp")
     rng = np.random.default_rng(0)
     for n in (2, 8, 16, 32):

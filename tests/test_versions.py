@@ -15,6 +15,9 @@ def test_versions_record_the_source_commit():
     head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, check=False)
     if head.returncode != 0:
         pytest.skip("not a git checkout")
+    from comat.rl.checkpoint import source_commit
+
+    source_commit.cache_clear()  # cached once per process: a commit made since (another run's) moved HEAD
     commit = versions()["commit"]
     assert commit.removesuffix("-dirty") == head.stdout.strip()
 

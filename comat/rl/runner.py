@@ -215,7 +215,13 @@ def train(
         warning = busy_warning(others, usable_cpus())
         if warning and not quiet:
             print(warning, file=sys.stderr)
-        return _train_registered(config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update, record)
+        threads = torch.get_num_threads()
+        try:
+            return _train_registered(
+                config, out, data, quiet, rrd_every, overrides, command, ckpt_path, on_update, record
+            )
+        finally:  # the run's torch_threads stay the run's: an in-process caller (a test, a notebook)
+            torch.set_num_threads(threads)  # would otherwise run on them after it (a spinning thread)
 
 
 def _train_registered(
