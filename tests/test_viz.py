@@ -520,7 +520,7 @@ def test_a_shipped_policy_is_named_as_such_in_recordings_and_videos(tmp_path):
     from comat.viz.rollout import resolve_policy
 
     shipped = pretrained_path("comat-pcp")
-    assert resolve_policy(shipped, "pcp").name == "comat shipped policy pretrained:comat-pcp"
+    assert resolve_policy(shipped, "pcp").name == "pretrained:comat-pcp"
     copy = shutil.copyfile(shipped, tmp_path / "comat_pcp_s0.pt")
     assert resolve_policy(copy, "pcp").name == "comat checkpoint comat_pcp_s0.pt"
 

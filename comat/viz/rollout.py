@@ -131,7 +131,7 @@ def resolve_policy(policy: str | Path | Act, task: str) -> PolicySpec:
     shipped = shipped_name(policy)
     kind = "policy" if Path(policy).name.startswith("policy") else "checkpoint"
     return PolicySpec(
-        f"{config.algo} shipped policy {shipped}" if shipped else f"{config.algo} {kind} {Path(policy).name}",
+        shipped if shipped else f"{config.algo} {kind} {Path(policy).name}",  # the shipped name says the learner
         lambda env, seed: act,
         max_robots=robot_slots(config),
         tier=config.tier,
