@@ -133,24 +133,30 @@ class CompiledRobotWatch(RobotWatch):
 
 class CompiledPortableBarrier(PortableBarrier):
     """:class:`PortableBarrier` with its rows built by a compiled twin
-    (``comat.safety.kernels.portable_problem``, the same bits; tests/test_deployed.py); the export
+    (``comat.safety.kernels.portable_problem``, the same bits; tests/test_kernels.py); the export
     keeps the numpy original. Building the rows was 1.1 ms of a team's 1.6 ms on probation at
     ``stress`` (16 robots) once DAQP solved the re-solves in 0.06 ms."""
+
+    def __init__(self, settings: dict, solve=cvxopt_qp) -> None:
+        super().__init__(settings, solve)
+        s = self.s
+        self._constants = (  # the kernel's scalar arguments, read from the settings once
+            float(s["projection_distance_m"]), float(s["safety_distance_m"]), float(s["boundary_margin_m"]),
+            float(s["barrier_gain"]), float(s["boundary_gain"]),
+            s["axle_m"] / (2 * s["projection_distance_m"]), s["wheel_radius_m"] * s["wheel_limit_radps"],
+            *ARENA,
+        )  # fmt: skip
 
     def problem(
         self, poses: np.ndarray, probation: np.ndarray | None = None, extra: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        s, n = self.s, poses.shape[0]
-        x0, x1, y0, y1 = ARENA
+        n = poses.shape[0]
         return portable_problem(
             np.ascontiguousarray(poses, dtype=float),
             np.zeros(n, dtype=bool) if probation is None else np.ascontiguousarray(probation, dtype=bool),
             np.zeros(n) if extra is None else np.ascontiguousarray(extra, dtype=float),
-            float(s["projection_distance_m"]), float(s["safety_distance_m"]), float(s["boundary_margin_m"]),
-            float(s["barrier_gain"]), float(s["boundary_gain"]),
-            s["axle_m"] / (2 * s["projection_distance_m"]), s["wheel_radius_m"] * s["wheel_limit_radps"],
-            x0, x1, y0, y1,
-        )  # fmt: skip
+            *self._constants,
+        )
 
 
 @dataclass
