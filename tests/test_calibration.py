@@ -4,7 +4,6 @@ take and that round-trips through a run's config.yaml; bad logs get one-line err
 
 import json
 import os
-import runpy
 import sys
 import warnings
 
@@ -18,7 +17,6 @@ from comat.calibration.profile import fit_logs
 from comat.calibration.recovery import check, recover, setting, true_half_gain_diff
 from comat.cli import main
 from comat.reality import RealityConfig, resolve_reality
-from sim2real.calibration import STARTUP_DRIVE_S
 
 
 def test_known_truth_is_recovered_within_tolerance():
@@ -222,32 +220,6 @@ def test_truncated_and_foreign_logs_are_refused(tmp_path, capsys):
     (tmp_path / "x.yaml").write_text("a: 1\n")
     with pytest.raises(ValueError, match="is not a reality profile"):
         resolve_reality(str(tmp_path / "x.yaml"))
-
-
-def test_export_calibration_folders_run_under_rps_with_no_errors_and_no_gap(tmp_path, capsys):
-    out = tmp_path / "cal"
-    assert main(["export", "--calibration", str(out), "--robots", "2"]) == 0
-    for experiment in ("steps", "still", "ramp", "spin"):
-        files = sorted(p.name for p in (out / experiment).iterdir())
-        assert files == ["calibration_schedule.py", "main.py", "rps_compat.py", "submission_config.py"]
-        config = runpy.run_path(str(out / experiment / "submission_config.py"))["CONFIG"]
-        assert config["duration_s"] == round(config["loop_s"] + STARTUP_DRIVE_S)  # the start-up drive counted
-    assert capsys.readouterr().out.count(" s and 2 robots") == 4  # what to declare, said per folder
-    assert main(["export", "--check", *(str(out / e) for e in ("steps", "still", "ramp", "spin"))]) == 0
-    printed = capsys.readouterr().out
-    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4
-    assert "dead_zone_radps 0..0" in printed
-    assert "delay_ticks 0..0" in printed
-    from comat.calibration.experiments import load_log
-
-    for experiment in ("steps", "still", "ramp", "spin"):  # the uploaded folder stays as exported
-        assert sorted(p.name for p in (out / experiment).iterdir()) == files
-    _, log = load_log(out / "calib_steps.rps-steps.npy")  # the check's log, beside the folder
-    fit = fit_steps(log)
-    assert all(r["delay_ticks"] == 0 and r["tau_own_s"] <= 0.005 and r["accel_radps2"] == 0 for r in fit)
-    assert main(["export", "--calibration", str(out)]) == 2  # an existing folder is refused
-    assert main(["export", "--calibration", str(tmp_path / "x"), "--robots", "9"]) == 2
-    assert not (tmp_path / "x").exists()
 
 
 @pytest.mark.skipif(

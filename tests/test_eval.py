@@ -152,6 +152,34 @@ def test_eval_table_and_file_carry_the_endpoints(tmp_path):
     assert cells[re.split(r" {2,}", old_lines[0]).index("coord.")] == "n/a"
 
 
+def test_a_reference_rung_plays_once_per_process_and_its_rows_equal_a_fresh_play():
+    """The ladder's episodes are kept by everything they depend on: a second evaluation on the same
+    sets reuses them (and says so), equal to playing them afresh; another seed plays again; a
+    caller that changes its rows does not change what the next evaluation gets."""
+    from comat.envs.base import resolve_coalitions
+    from comat.eval import evaluate as ev
+
+    own = resolve_coalitions("train", "pcp")[:2]
+    said = []
+
+    def run(seed=5):
+        return ev.evaluate_policies(None, "pcp", [("two", own)], 1, "unicycle", seed, ("heuristic",), said.append)
+
+    ev._REFERENCE_EPISODES.clear()
+    first = run()
+    first["rows"][0]["per_episode"][0]["progress"] = -1.0  # the caller's copy, not the kept one
+    again = run()
+    assert "played earlier in this process" in said[-1] and "played earlier" not in said[0]
+    ev._REFERENCE_EPISODES.clear()
+    fresh = run()
+    assert "played earlier" not in said[-1]
+    assert json.dumps(again["rows"], sort_keys=True, default=str) == json.dumps(
+        fresh["rows"], sort_keys=True, default=str
+    )
+    run(seed=6)
+    assert "played earlier" not in said[-1]
+
+
 def test_eval_table_fits_a_terminal_and_names_the_privileged_rows():
     """Issue 67's newcomer: the table was ~190 characters wide, its footer one long paragraph, and
     the heuristic beat COMAT with no word that it reads the task's full state."""

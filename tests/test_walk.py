@@ -1,24 +1,49 @@
 """The whole Sim2Real loop of docs/export.md, end to end, with the Robotarium's simulator standing in
 for the robots (the 2026 V2 rps where COMAT_RPS_V2 names a checkout, else the installed one): export
-the calibration experiments, run them, fit a profile; export a policy, run it, replay the run beside
+the calibration experiments (what each declares, the folders left as exported, bad input refused), run
+them (0 simulator errors, no gap), fit a profile; export a policy, run it, replay the run beside
 its twin at that profile, calibrate from the run's own log; train at the profile."""
 
 import os
+import runpy
 
 import yaml
 from test_rl import TINY_MODELS
 
+from comat.calibration.experiments import load_log
+from comat.calibration.fit import fit_steps
 from comat.cli import main
 from comat.reality import resolve_reality
+from sim2real.calibration import STARTUP_DRIVE_S
 
 
 def test_export_run_replay_calibrate_and_train_at_the_profile(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     rps = ["--rps", os.environ["COMAT_RPS_V2"]] if os.environ.get("COMAT_RPS_V2") else []
-    # 1. the calibration experiments: export, run (upload, run, download), fit
+    # 1. the calibration experiments: export (each folder says what to declare), run (upload, run,
+    # download: 0 simulator errors, no gap), fit
+    experiments = ("steps", "still", "ramp", "spin")
     assert main(["export", "--calibration", "cal", "--robots", "2"]) == 0
-    assert main(["export", "--check", "cal/steps", "cal/still", "cal/ramp", "cal/spin", *rps]) == 0
-    logs = [f"cal/calib_{e}.rps-{e}.npy" for e in ("steps", "still", "ramp", "spin")]
+    for experiment in experiments:
+        files = sorted(p.name for p in (tmp_path / "cal" / experiment).iterdir())
+        assert files == ["calibration_schedule.py", "main.py", "rps_compat.py", "submission_config.py"]
+        config = runpy.run_path(f"cal/{experiment}/submission_config.py")["CONFIG"]
+        assert config["duration_s"] == round(config["loop_s"] + STARTUP_DRIVE_S)  # the start-up drive counted
+    assert capsys.readouterr().out.count(" s and 2 robots") == 4  # what to declare, said per folder
+    assert main(["export", "--check", *(f"cal/{e}" for e in experiments), *rps]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("rps errors {'boundary': 0, 'collision': 0, 'actuator': 0}") == 4
+    assert "delay_ticks 0..0" in printed
+    for experiment in experiments:  # the uploaded folder stays as exported
+        assert sorted(p.name for p in (tmp_path / "cal" / experiment).iterdir()) == files
+    logs = [f"cal/calib_{e}.rps-{e}.npy" for e in experiments]
+    if not rps:  # the installed rps steers nothing (V2's barrier steers a little: test_calibration.py)
+        assert "dead_zone_radps 0..0" in printed
+        _, log = load_log(logs[0])
+        assert all(r["delay_ticks"] == 0 and r["tau_own_s"] <= 0.005 and r["accel_radps2"] == 0 for r in fit_steps(log))
+    assert main(["export", "--calibration", "cal"]) == 2  # an existing folder is refused
+    assert main(["export", "--calibration", "x", "--robots", "9"]) == 2
+    assert not (tmp_path / "x").exists()
     assert main(["calibrate", *logs, "--out", "my_robots.yaml"]) == 0
     profile = resolve_reality("my_robots.yaml")
     assert profile.pose_delay_ticks == 0 and profile.pose_noise_xy_m < 1e-6  # the simulator: no gap

@@ -23,6 +23,7 @@ written atomically.
 
 from __future__ import annotations
 
+import copy
 import csv
 import io
 import re
@@ -74,6 +75,20 @@ def _policies(config, checkpoint_act, env, seed: int, split: str, teams) -> dict
 REFERENCES = LADDER
 """Reference rows, in table order: the ladder (:mod:`comat.envs.heuristics`): heuristic (the scripted
 rung), type_only, blind (where the task has one), constant, random."""
+
+
+_REFERENCE_EPISODES: dict[tuple, list[dict]] = {}
+"""A reference rung's episodes, by everything they depend on (task, set and its teams, episodes,
+tier, seed, reality layer, filter, the env's robot slots, rung): the ladder is deterministic, so a
+process that evaluates several policies on the same sets (a notebook, a report, ``comat eval`` of a
+run after the shipped policy) plays each rung once. At most :data:`REFERENCE_MEMORY` entries."""
+REFERENCE_MEMORY = 64
+
+
+def _remember_reference(key: tuple, episodes: list[dict]) -> None:
+    if len(_REFERENCE_EPISODES) >= REFERENCE_MEMORY:
+        _REFERENCE_EPISODES.pop(next(iter(_REFERENCE_EPISODES)))  # the oldest first
+    _REFERENCE_EPISODES[key] = episodes
 
 
 def evaluate_policies(
@@ -158,9 +173,16 @@ def evaluate_policies(
         )
         policies = _policies(config, act, env, seed, split, coalitions)
         policies = {k: v for k, v in policies.items() if k not in REFERENCES or k in refs}
+        played = (task, split, repr(coalitions), episodes, tier, seed, repr(layer), repr(safety), slots)
         for name, policy in policies.items():
             t0 = time.perf_counter()
-            eps = run_episodes(env, policy, teams, seed, n_coalitions=len(coalitions))
+            key = (*played, name) if name in REFERENCES else None
+            again = key in _REFERENCE_EPISODES
+            eps = copy.deepcopy(_REFERENCE_EPISODES[key]) if again else None
+            if eps is None:
+                eps = run_episodes(env, policy, teams, seed, n_coalitions=len(coalitions))
+                if key is not None:
+                    _remember_reference(key, copy.deepcopy(eps))
             rows.append(
                 {
                     "policy": name,
@@ -173,7 +195,8 @@ def evaluate_policies(
                     "per_episode": eps,
                 }
             )
-            progress(f"  {name:<10} {split:<5} {len(eps)} episodes in {time.perf_counter() - t0:.0f} s")
+            took = "played earlier in this process" if again else f"in {time.perf_counter() - t0:.0f} s"
+            progress(f"  {name:<10} {split:<5} {len(eps)} episodes {took}")
     return {
         "checkpoint": None if checkpoint is None else str(checkpoint),
         "algo": None if config is None else config.algo,
