@@ -136,6 +136,11 @@ def test_python_m_runs_the_command_without_a_warning(module):
 def test_bad_arguments_get_a_clear_error(capsys):
     assert main(["demo", "--robots", "40"]) == 2
     assert "--robots must be between 2 and 12" in capsys.readouterr().err
+    # export: a wrong --policy is named before the flags left out, which come all in one line
+    assert main(["export", "--policy", "runs/no_such_run", "--out", "x"]) == 2
+    assert "--policy must be" in capsys.readouterr().err
+    assert main(["export", "--policy", "pretrained:comat-pcp"]) == 2
+    assert "comat export needs --team, --out (or --check DIR)" in capsys.readouterr().err
 
 
 def test_bench_sim_small_grid_writes_json(tmp_path):

@@ -258,15 +258,18 @@ def _cmd_export(args: argparse.Namespace) -> int:
             bad += _print_reality(args.check, reports, args.tier)
         return 1 if bad else 0
     from comat.cli.args import reality_arg, resolve_policy_arg
-
-    missing = [f"--{k}" for k in ("policy", "team", "out") if getattr(args, k) is None]
-    if missing:
-        raise ValueError(f"comat export needs {', '.join(missing)} (or --check DIR)")
     from comat.learners import learner_entry, learner_names
 
     shipped = tuple(n for n in learner_names() if learner_entry(n).exports)
     why = "an export ships a numpy forward pass, which sim2real/runtime.py has for these learners only"
-    pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=shipped, why=why)
+    # a --policy given is checked before the flags left out are named: a wrong path is said at once,
+    # not after the user has added --team and --out
+    pol = None
+    if args.policy is not None:
+        pol = resolve_policy_arg(args.policy, args.task, references=("heuristic",), algos=shipped, why=why)
+    missing = [f"--{k}" for k in ("policy", "team", "out") if getattr(args, k) is None]
+    if missing:
+        raise ValueError(f"comat export needs {', '.join(missing)} (or --check DIR)")
     team = parse_team(args.team, pol.task)
     poses = None if args.start_poses is None else load_start_poses(args.start_poses)
     from comat.files import new_outputs
