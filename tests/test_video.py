@@ -65,3 +65,27 @@ def test_bad_videos_are_refused_and_leave_nothing(tmp_path, capsys):
         w.append(np.zeros((*FRAME_SIZE, 3), np.uint8))
         raise RuntimeError("boom")
     assert list(tmp_path.iterdir()) == []  # neither the videos nor their temporary files
+
+
+def test_a_shipped_policys_caption_fits_beside_the_coordination_metric(monkeypatch):
+    """The header's first line of `comat rollout --policy pretrained:comat-pcp` (one episode, a
+    4-robot team, the default seed) is drawn whole, not cut with "…" (newcomer minor)."""
+    import comat
+    from comat.envs import render
+    from comat.viz.rollout import frame_caption
+
+    drawn = []
+    real = render._shorten
+
+    def shorten(text, end_px, renderer):
+        real(text, end_px, renderer)
+        drawn.append(text.get_text())
+
+    monkeypatch.setattr(render, "_shorten", shorten)
+    env = comat.make_env("pcp_v0", coalitions="test", tier="unicycle", render_mode="rgb_array")
+    env.reset(seed=2_000_003)
+    env.step({a: 0 for a in env.agents})  # the coordination metric shows from the first step on
+    env.render_caption = caption = frame_caption("pretrained:comat-pcp", 4, 2_000_003, 0, 1)
+    env.render()
+    assert drawn == [caption] and "episode" not in caption
+    assert frame_caption("p", 4, 7, 1, 2) == "p · 4 robots · seed 7 · episode 1"

@@ -172,7 +172,7 @@ def draw_frame(state: FrameState, fig=None) -> np.ndarray:
         text = f"{state.coordination_name} {now:.2f} (episode {mean:.2f})"
         metric = fig.text(0.99, 1 - 6 / h, text, ha="right", va="top", fontsize=8, family="monospace")
         title_end = metric.get_window_extent(fig.canvas.get_renderer()).x0 - _TITLE_GAP_PX
-    title = fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=9, family="monospace")
+    title = fig.text(0.01, 1 - 6 / h, state.title, ha="left", va="top", fontsize=8, family="monospace")
     _shorten(title, title_end, fig.canvas.get_renderer())
     _draw_legend(fig, state)
     fig.canvas.draw()

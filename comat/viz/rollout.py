@@ -176,6 +176,13 @@ def _check_count(name: str, value: Any) -> int:
     return int(value)
 
 
+def frame_caption(policy: str, n_robots: int, seed: int, episode: int, episodes: int) -> str:
+    """A video frame's first header line: the most telling first, as a caption too long for the room
+    left of the coordination metric is cut at its end (the policy, the team's size, the episode's
+    seed; the episode's index only when there are several)."""
+    return f"{policy} · {n_robots} robots · seed {seed}" + (f" · episode {episode}" if episodes > 1 else "")
+
+
 def play_episodes(
     env,
     act: Act,
@@ -201,7 +208,7 @@ def play_episodes(
         recorder.begin(core, 0, episode=k, metadata={**(metadata or {}), "seed": seed + k, "team_size": env.team.size})
         n = env.team.size
         if on_frame is not None:
-            env.render_caption = f"{(metadata or {}).get('policy', '')} · episode {k}: {n} robots, seed {seed + k}"
+            env.render_caption = frame_caption((metadata or {}).get("policy", ""), n, seed + k, k, episodes)
             on_frame(env.render())
         metrics: dict[str, float] = {}
         while env.agents:
