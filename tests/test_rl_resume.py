@@ -153,3 +153,47 @@ def test_kill_9_at_random_moments_then_resume_equals_an_uninterrupted_run(tmp_pa
     a, b = load_checkpoint(tmp_path / "straight" / "checkpoint.pt"), load_checkpoint(run / "checkpoint.pt")
     assert a["progress"]["env_steps"] == b["progress"]["env_steps"] == 96
     assert_same(a["trainer"], b["trainer"], "trainer")
+
+
+def _budget_config(steps, every=6, **extra):  # navigation: 22-step episodes, so evaluations are quick
+    return tiny("mappo", "navigation", steps, eval_every_steps=every, eval_episodes_per_team=1, **extra)
+
+
+def test_budget_curves_on_other_sets_and_kept_policies(tmp_path):
+    """``eval_sets`` adds eval_<set>.csv beside eval.csv at every evaluation, ``keep_policies_at``
+    keeps policy_<steps>.pt (the last one the final policy); bad values are one-line errors; a resumed
+    run's eval_<set>.csv is cut back to its checkpoint like eval.csv."""
+    from comat.rl.checkpoint import load_policy_file
+    from comat.rl.logger import RunLogger
+
+    run = tmp_path / "run"
+    train(_budget_config(12, every=12, eval_sets=["val"], keep_policies_at=[6, 12]), run, quiet=True)
+    rows = [(run / f).read_text().splitlines() for f in ("eval.csv", "eval_val.csv")]
+    assert rows[0][0] == rows[1][0] and [r[1].split(",")[0] for r in rows] == ["12", "12"] and rows[0] != rows[1]
+    assert load_policy_file(run / "policy_6.pt")["env_steps"] == 6
+    assert_same(load_policy_file(run / "policy_12.pt")["weights"], load_policy_file(run / "policy.pt")["weights"])
+    with pytest.raises(ValueError, match=r"eval_sets must be a list of distinct names from \['train'"):
+        _budget_config(12, eval_sets=["nope"])
+    with pytest.raises(ValueError, match=r"keep_policies_at must be a list of distinct env steps between 1 and"):
+        _budget_config(12, keep_policies_at=[13])
+    (run / "eval_val.csv").write_text("env_steps,progress\n6,0.5\n12,0.7\n")
+    RunLogger(run, resume_step=6, tensorboard=False).close()
+    assert (run / "eval_val.csv").read_text().splitlines() == ["env_steps,progress", "6,0.5"]
+
+
+@pytest.mark.slow
+def test_budget_curves_and_kept_policies_resume_exactly(tmp_path):
+    """Stopped half way and resumed with a longer budget (and one more policy to keep), the run writes
+    the same eval rows on every set and the same kept weights as the uninterrupted run."""
+    from comat.rl.checkpoint import load_policy_file
+
+    train(_budget_config(12, eval_sets=["val"], keep_policies_at=[6, 12]), tmp_path / "straight", quiet=True)
+    train(_budget_config(6, eval_sets=["val"], keep_policies_at=[6]), tmp_path / "split", quiet=True)
+    train(_budget_config(12, eval_sets=["val"], keep_policies_at=[6, 12]), tmp_path / "split", resume=True, quiet=True)
+    for name in ("eval.csv", "eval_val.csv"):
+        straight = (tmp_path / "straight" / name).read_text()
+        assert straight == (tmp_path / "split" / name).read_text(), name
+        assert [r.split(",")[0] for r in straight.splitlines()[1:]] == ["6", "12"]
+    for n in (6, 12):
+        a, b = (load_policy_file(tmp_path / f / f"policy_{n}.pt")["weights"] for f in ("straight", "split"))
+        assert_same(a, b, f"policy_{n}")

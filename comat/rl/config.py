@@ -70,6 +70,8 @@ _RUN_KEYS = (
     "env_workers",
     "torch_threads",
     "physics_threads",
+    "eval_sets",
+    "keep_policies_at",
 )
 _PRESET_KEYS = (
     *_RUN_KEYS,
@@ -130,6 +132,14 @@ class RunConfig:
     YAML/JSON file (``coalitions=team.yaml`` trains one fixed team) so that the run's config.yaml
     holds them. A run config stored before the option existed loads as ``train``."""
 
+    eval_sets: tuple[str, ...] = ()
+    """Composition sets (:data:`comat.team.COALITION_SETS`) each periodic evaluation also plays, beside
+    the training coalitions, into ``eval_<set>.csv`` (the same episodes per coalition): budget curves
+    on the validation and unseen sets. Default none; a run config stored before the option loads so."""
+    keep_policies_at: tuple[int, ...] = ()
+    """Env steps at which the run also keeps its policy as ``policy_<steps>.pt`` (at the first update
+    that reaches each), e.g. the candidates of a checkpoint rule chosen on the validation set.
+    Default none; a run config stored before the option loads so."""
     reality_draw: Any = "point"
     """How the run takes a fitted profile (``reality=PROFILE.yaml``): ``"point"`` (its values, the
     default; stored as ``{mode: point, profile, sha256}`` when the run has a profile) or
@@ -140,6 +150,8 @@ class RunConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.reality, RealityConfig):
             object.__setattr__(self, "reality", run_reality(self.reality))
+        object.__setattr__(self, "eval_sets", _eval_sets(self.eval_sets))
+        object.__setattr__(self, "keep_policies_at", _keep_at(self.keep_policies_at, self.total_env_steps))
         _check_choice("loop", self.loop, LOOPS)
         draw = self.reality_draw
         if draw == "point":
@@ -172,6 +184,11 @@ class RunConfig:
         # every field resolved: later level changes do not reach it (a calibrated run: the profile's
         # point values, its draws in reality_draw)
         out["reality"] = dataclasses.asdict(getattr(self.reality, "point", self.reality))
+        for key in ("eval_sets", "keep_policies_at"):  # unset: a run's config as before the options
+            if out[key]:
+                out[key] = list(out[key])
+            else:
+                del out[key]
         if isinstance(self.reality, CalibratedReality):
             out["reality_draw"] = self.reality.record()
         elif out["reality_draw"] == "point":  # no profile: a run's config as before the option
@@ -186,6 +203,33 @@ class RunConfig:
         data["model"] = load(entry.config_class(), data.get("model"), prefix="model")
         data["reality"] = run_reality(data.get("reality"))  # absent (a run from before the layer): off
         return cls(**data)
+
+
+def _eval_sets(value: Any) -> tuple[str, ...]:
+    """``eval_sets`` as a tuple of distinct set names (ValueError naming the key otherwise)."""
+    names = (value,) if isinstance(value, str) else value
+    if (
+        not isinstance(names, (list, tuple))
+        or any(n not in COALITION_SETS for n in names)
+        or len(set(names)) != len(names)
+    ):
+        raise ValueError(f"eval_sets must be a list of distinct names from {list(COALITION_SETS)}, got {value!r}")
+    return tuple(names)
+
+
+def _keep_at(value: Any, total: int) -> tuple[int, ...]:
+    """``keep_policies_at`` as sorted distinct env steps in [1, ``total``] (ValueError otherwise)."""
+    steps = (value,) if isinstance(value, int) and not isinstance(value, bool) else value
+    if (
+        not isinstance(steps, (list, tuple))
+        or any(isinstance(t, bool) or not isinstance(t, int) or not 1 <= t <= total for t in steps)
+        or len(set(steps)) != len(steps)
+    ):
+        raise ValueError(
+            f"keep_policies_at must be a list of distinct env steps between 1 and total_env_steps ({total:,}), "
+            f"got {value!r}"
+        )
+    return tuple(sorted(steps))
 
 
 def run_reality(value: Any) -> RealityConfig:

@@ -45,10 +45,11 @@ class RunLogger:
     def __init__(self, out: Path, resume_step: int | None = None, tensorboard: bool = True) -> None:
         self.out = Path(out)
         self._headers: dict[str, list[str]] = {}
+        tables = ("progress", "eval", *(p.stem for p in sorted(self.out.glob("eval_*.csv"))))
         if resume_step is not None:
-            for table in ("progress", "eval"):
+            for table in tables:
                 _truncate_csv(self.out / f"{table}.csv", resume_step)
-        for table in ("progress", "eval"):
+        for table in tables:
             path = self.out / f"{table}.csv"
             if path.exists() and path.stat().st_size:
                 with open(path, newline="") as fh:
@@ -66,7 +67,7 @@ class RunLogger:
             self._tb = SummaryWriter(str(self.out / "tb"), purge_step=purge)
 
     def log(self, table: str, env_steps: int, values: dict[str, float]) -> None:
-        """One row of ``table`` ("progress" or "eval") at ``env_steps``."""
+        """One row of ``table`` ("progress", "eval" or "eval_SET") at ``env_steps``."""
         row = {"env_steps": env_steps, **values}
         path = self.out / f"{table}.csv"
         header = self._headers.get(table)

@@ -9,6 +9,8 @@ Run folder (``--out``)::
                      (:mod:`comat.rl.policy`; small enough to commit), written when the run finishes
     progress.csv     one row per update: env steps, wall time, env-steps/s, episode metrics, losses
     eval.csv         one row per evaluation on the training coalitions (deterministic actions)
+    eval_SET.csv     the same evaluations on each set of ``eval_sets`` (none by default)
+    policy_N.pt      the policy at the first update reaching each of ``keep_policies_at`` (none by default)
     tb/              TensorBoard events of both tables
     rrd/             Rerun recordings of evaluation episodes (``rrd_every``), ``eval_<env steps>.rrd``
     summary.json     the final evaluation, written when the run finishes
@@ -122,6 +124,11 @@ def _restarting(out: Path, config: RunConfig) -> bool:
     return saved is not None and saved.to_dict() == config.to_dict()
 
 
+def _weights(learner) -> dict:
+    """The learner's networks' state dicts, by name (what a policy file keeps)."""
+    return {name: m.state_dict() for name, m in learner.modules.items()}
+
+
 def _next_multiple(steps: int, every: int) -> int:
     return (steps // every + 1) * every
 
@@ -184,9 +191,12 @@ def train(
     elif resume:
         data = load_checkpoint(ckpt_path, algo=config.algo, task=config.task)
         saved = RunConfig.from_dict(data["config"])
-        # Neither the step budget nor MuJoCo's thread count changes what the run computes.
-        same = {**config.to_dict(), "total_env_steps": saved.total_env_steps, "physics_threads": saved.physics_threads}
-        if saved.to_dict() != same:
+        # Neither the step budget, the policies kept along it nor MuJoCo's thread count changes what
+        # the run computes.
+        free = ("total_env_steps", "physics_threads", "keep_policies_at")
+        if {k: v for k, v in saved.to_dict().items() if k not in free} != {
+            k: v for k, v in config.to_dict().items() if k not in free
+        }:
             raise CheckpointError(
                 f"checkpoint {str(ckpt_path)!r} was written with another configuration; "
                 "resume it with its own (see config.yaml), or start a new run in another --out"
@@ -287,6 +297,7 @@ def _train_registered(
 
     recent: list[dict] = []
     saved_at = progress["env_steps"] if data is not None else None
+    kept = {t for t in config.keep_policies_at if t <= progress["env_steps"]}  # written before that checkpoint
     try:
         while progress["env_steps"] < config.total_env_steps:
             t0 = time.perf_counter()
@@ -318,6 +329,8 @@ def _train_registered(
             if config.eval_episodes_per_team and (steps >= next_eval or finished):
                 last_eval = evaluate(config, learner.modules)
                 logger.log("eval", steps, last_eval)
+                for name in config.eval_sets:  # budget curves on other sets: eval_<set>.csv
+                    logger.log(f"eval_{name}", steps, evaluate(config, learner.modules, coalitions=name))
                 next_eval = _next_multiple(steps, config.eval_every_steps)
                 evals = steps // config.eval_every_steps
                 if rrd_every and (evals % rrd_every == 0 or finished):
@@ -332,6 +345,10 @@ def _train_registered(
                         f"{last_eval['collisions']:.2f}",
                         file=sys.stderr,
                     )
+            for target in [t for t in config.keep_policies_at if t <= steps and t not in kept]:
+                # before the checkpoint of this update: a resumed run has every file its checkpoint passed
+                save_policy(out / f"policy_{target}.pt", config, dims, _weights(learner), progress)
+                kept.add(target)
             if steps >= next_ckpt or finished:
                 checkpoint()
                 saved_at = steps
@@ -345,9 +362,7 @@ def _train_registered(
         last_eval = evaluate(config, learner.modules)
     # The policy to keep, from the weights the final checkpoint holds (before summary.json, which
     # marks the run finished).
-    save_policy(
-        out / POLICY_FILE, config, dims, {name: m.state_dict() for name, m in learner.modules.items()}, progress
-    )
+    save_policy(out / POLICY_FILE, config, dims, _weights(learner), progress)
     summary = {
         "algo": config.algo,
         "task": config.task,
