@@ -318,7 +318,8 @@ def _min_spacing(poses: np.ndarray) -> float:
 def filter_config(filter_name: str, filter_reality: Any) -> dict:
     """The CONFIG entries of an export's filter: ``filter``, and for comat's its settings, robust
     to the reality level (or profile) ``filter_reality`` as comat's own filter is (the simulator's
-    wheel constants replace the profile's at run time), and its response lag (ticks)."""
+    wheel constants replace the profile's at run time), its response lag (ticks) and whether it keeps
+    right (as comat's own loop does: under a reality layer, not at ``off``)."""
     if filter_name not in FILTERS:
         raise ValueError(f"--filter must be one of {list(FILTERS)}, got {filter_name!r}")
     if filter_name == "robotarium":
@@ -333,6 +334,7 @@ def filter_config(filter_name: str, filter_reality: Any) -> dict:
         "filter": "comat",
         "filter_reality": level,
         "filter_lag_ticks": lag,
+        "filter_keep_right": not reality.is_off,
         "filter_settings": {k: float(v) for k, v in portable_settings(cfg, profile).items()},
     }
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -215,3 +216,32 @@ def test_a_robot_on_probation_is_handled_by_re_solving_only_the_robots_it_concer
     assert out is not None and np.all(A @ out <= b + 1e-4)
     np.testing.assert_array_equal(out[4:], u_fast.ravel()[4:])  # robots 2 and 3 untouched
     assert out[2] <= 1e-6  # the robot on probation may not close in
+
+
+def test_the_exported_filter_keeps_right_as_comats_own_loop_does(tmp_path, monkeypatch):
+    """An export's filter keeps right only where comat's loop does, under a reality layer: made for
+    ``off`` it does not (issue 66: the 20-robot HMT export made for ``off`` then plays as comat's
+    loop at ``off``, results/deployed/README.md); a folder from before the key keeps right."""
+    import runpy
+    from types import SimpleNamespace
+
+    from comat.cli.args import parse_team
+    from sim2real.export import export_submission
+
+    for level, right in (("off", False), ("nominal", True), (None, True)):
+        folder = tmp_path / str(level)
+        team = parse_team("test:3", "pcp")
+        export_submission(
+            "heuristic", "pcp", team, folder, seed=1, filter_name="comat", filter_reality=level or "stress"
+        )
+        if level is None:  # a folder exported before filter_keep_right existed
+            config = folder / "submission_config.py"
+            config.write_text(config.read_text().replace("'filter_keep_right': True,", ""))
+            assert "filter_keep_right" not in config.read_text()
+        monkeypatch.syspath_prepend(str(folder))
+        main = runpy.run_path(str(folder / "main.py"), run_name="exported_main")
+        assert main["CONFIG"].get("filter_keep_right", True) is right
+        loop = main["make_loop"](SimpleNamespace(si_to_uni=None, barrier=None, generation="legacy"), 4, (0.016, 0.105))
+        assert loop.barrier.keep_right is right, level
+        for name in ("submission_config", "deployed_loop", "main"):
+            sys.modules.pop(name, None)

@@ -182,7 +182,8 @@ def make_loop(adapter, n, wheel):
     radius, axle = wheel
     if CONFIG.get("filter", "robotarium") == "comat":
         settings = dict(CONFIG["filter_settings"], axle_m=axle, wheel_radius_m=radius)
-        barrier = deployed_loop.ShippedFilter(n, settings, int(CONFIG["filter_lag_ticks"]))
+        right = bool(CONFIG.get("filter_keep_right", True))  # a folder from before the key kept right
+        barrier = deployed_loop.ShippedFilter(n, settings, int(CONFIG["filter_lag_ticks"]), keep_right=right)
     elif CONFIG.get("filter", "robotarium") == "robotarium":
         barrier = adapter.barrier
     else:
