@@ -17,8 +17,9 @@ holds, within V2's 0.05 m / 0.2 rad of the requested ones), and once from the re
     python results/deployed/hmt20_gap.py --rps <V2 checkout> [--runs 6] [--teams size:19 ...]
         [--filter-reality nominal] [--keep-right on|off] [--label NAME] [--out hmt20_gap.csv]
 
-``--keep-right off`` is a diagnosis, not an export option: it edits the exported main.py's one
-line that builds comat's filter (``keep_right=False``).
+``--keep-right on|off`` is a diagnosis, not an export option: it turns the exported CONFIG's
+``filter_keep_right`` (an export keeps right when its filter is made for a reality layer, as comat's
+loop does; rows before that rule, 2026-12-08 morning, edited main.py's filter line to the same effect).
 
 writes a row per team and run to ``--out`` (beside this file; rows already there with the same
 label, team and run are kept, so an interrupted sitting resumes) and prints the means.
@@ -70,8 +71,6 @@ SEEDED_MAIN = (
     "runpy.run_path('main.py', run_name='__main__')\n"
 )
 """main.py under rps with the start-up drive's two random generators seeded (run k: seed k)."""
-FILTER_LINE = 'deployed_loop.ShippedFilter(n, settings, int(CONFIG["filter_lag_ticks"])'
-"""How main.py builds comat's filter; ``--keep-right off`` adds ``keep_right=False`` there (a diagnosis)."""
 
 
 def run_seeded(folder: Path, rps: str, seed: int, log_dir: Path) -> dict:
@@ -103,14 +102,13 @@ def measure_team(
         seed=seed,
         filter_reality=filter_reality,
     )
-    if keep == "off":
-        main_py = folder / "main.py"
-        text = main_py.read_text()
-        if FILTER_LINE not in text:
-            raise RuntimeError(
-                f"{main_py} builds its filter otherwise than {FILTER_LINE!r}: --keep-right off cannot edit it"
-            )
-        main_py.write_text(text.replace(FILTER_LINE, FILTER_LINE + ", keep_right=False"))
+    config_py = folder / "submission_config.py"
+    exported = "on" if load_config(folder).get("filter_keep_right", True) else "off"
+    if keep not in (None, exported):  # a diagnosis: the exported CONFIG's keep right turned over
+        text = config_py.read_text()
+        config_py.write_text(text.replace(*(f"'filter_keep_right': {v}," for v in ((keep == "off"), (keep == "on")))))
+        assert load_config(folder)["filter_keep_right"] is (keep == "on"), config_py
+    keep = keep or exported
     requested = mujoco_twin(folder, tier="unicycle")["metrics"]
     wanted = np.array(load_config(folder)["start_poses"], dtype=float).T  # (N, 3)
     for run in runs:
@@ -162,7 +160,12 @@ def main() -> None:
     p.add_argument("--runs", type=int, default=6, help="V2 runs per team, seeds 0..runs-1")
     p.add_argument("--teams", nargs="+", default=["size:19"], help="teams: size:K (U_size), scale:K (U_scale)")
     p.add_argument("--filter-reality", default="nominal", help="the level comat's exported filter is made for")
-    p.add_argument("--keep-right", choices=("on", "off"), default="on", help="off: main.py's filter without keep_right")
+    p.add_argument(
+        "--keep-right",
+        choices=("on", "off"),
+        default=None,
+        help="turn the export's filter_keep_right (default: as exported)",
+    )
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help="the export's seed: start poses, layout")
     p.add_argument("--label", default="shipped", help="names this sitting's code in the CSV")
     p.add_argument("--out", default="hmt20_gap.csv", help="the CSV, beside this file")

@@ -151,17 +151,24 @@ def slack_table(rounds: int = 2, fractions=((0.9, 1.0), (0.75, 0.9), (0.6, 0.75)
         Navigation.reach_fraction, SPLIT = kept
 
 
-def main(folders: list[str], rounds: int = 2) -> None:
+def ladder_rows(folders: list[str], play, split: str, rules: dict, rounds: int) -> list[tuple[str, dict]]:
+    """(name, ``play``'s statistics) for each kept policy (deterministic), the planners of the
+    reference ladder on ``split`` and each own-observation rule of ``rules`` (name -> ``act(core)``);
+    also sensors.py's."""
     rows = []
     for folder in folders:
         policy = comat.load_policy(folder, deterministic=True)
         rows.append((folder.rstrip("/").split("/")[-1], play(policy.act, True, rounds)))
     for name in ("heuristic", "type_only", "blind"):
         rows.append(
-            (name, play(lambda core, n=name: reference_policy(n, core, 0, SPLIT)(None, core.mask, None), False, rounds))
+            (name, play(lambda core, n=name: reference_policy(n, core, 0, split)(None, core.mask, None), False, rounds))
         )
-    rows.append(("own view: nearest", play(own_view_rule(10), False, rounds)))
-    rows.append(("own view: farthest", play(own_view_rule(16), False, rounds)))
+    return rows + [(name, play(rule, False, rounds)) for name, rule in rules.items()]
+
+
+def main(folders: list[str], rounds: int = 2) -> None:
+    rules = {"own view: nearest": own_view_rule(10), "own view: farthest": own_view_rule(16)}
+    rows = ladder_rows(folders, play, SPLIT, rules, rounds)
     print(
         "| policy | progress | lost goals chased | lost goals abandoned | free robots doubled | free robots wandering | stranded per step | stay in first 3 steps |"
     )

@@ -22,9 +22,9 @@ Descriptive: one policy per row; episodes are not independent seeds.
 import sys
 
 import numpy as np
+from navigation import ladder_rows  # this folder's (run as a script, the folder is on the path)
 
 import comat
-from comat.envs.heuristics import reference_policy
 
 TASK, SPLIT, SEED, ENVS = "sensors_v2", "val", 2_000_003, 40
 NEAR_M = 0.1
@@ -131,29 +131,29 @@ def play(act, learned: bool, rounds: int) -> dict:
     return {k: float(np.mean(v)) for k, v in stats.items()}
 
 
+COLUMNS = (
+    ("progress", "progress", "{:.1f}", 100),
+    ("wide", "wide robots that ever covered", "{:.0f} %", 100),
+    ("narrow", "narrow", "{:.0f} %", 100),
+    ("tried", "lost: tried", "{:.0f} %", 100),
+    ("unable", "of which unable", "{:.0f} %", 100),
+    ("abandoned", "lost: abandoned", "{:.0f} %", 100),
+    ("covering", "robots covering", "{:.0f} %", 100),
+    ("parked", "parked", "{:.0f} %", 100),
+    ("moving", "moving", "{:.0f} %", 100),
+    ("idle", "idle-able per step", "{:.3f}", 1),
+    ("stay", "stay", "{:.0f} %", 100),
+    ("steps", "steps", "{:.1f}", 1),
+)
+"""The table's columns: statistic, header, format, scale."""
+
+
 def main(folders: list[str], rounds: int = 2) -> None:
-    rows = []
-    for folder in folders:
-        policy = comat.load_policy(folder, deterministic=True)
-        rows.append((folder.rstrip("/").split("/")[-1], play(policy.act, True, rounds)))
-    for name in ("heuristic", "type_only", "blind"):
-        rows.append(
-            (name, play(lambda core, n=name: reference_policy(n, core, 0, SPLIT)(None, core.mask, None), False, rounds))
-        )
-    rows.append(("own view: able", play(own_view_rule(10), False, rounds)))
-    rows.append(("own view: nearest", play(own_view_rule(7), False, rounds)))
-    print(
-        "| policy | progress | wide robots that ever covered | narrow | lost: tried | of which unable | lost: abandoned | robots covering | parked | "
-        "moving | idle-able per step | stay | steps |"
-    )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for name, s in rows:
-        print(
-            f"| {name} | {100 * s['progress']:.1f} | {100 * s['wide']:.0f} % | {100 * s['narrow']:.0f} % | "
-            f"{100 * s['tried']:.0f} % | {100 * s['unable']:.0f} % | "
-            f"{100 * s['abandoned']:.0f} % | {100 * s['covering']:.0f} % | {100 * s['parked']:.0f} % | "
-            f"{100 * s['moving']:.0f} % | {s['idle']:.3f} | {100 * s['stay']:.0f} % | {s['steps']:.1f} |"
-        )
+    rules = {"own view: able": own_view_rule(10), "own view: nearest": own_view_rule(7)}
+    print("| policy | " + " | ".join(head for _, head, _, _ in COLUMNS) + " |")
+    print("|---|" + "---:|" * len(COLUMNS))
+    for name, s in ladder_rows(folders, play, SPLIT, rules, rounds):
+        print(f"| {name} | " + " | ".join(fmt.format(scale * s[key]) for key, _, fmt, scale in COLUMNS) + " |")
 
 
 if __name__ == "__main__":
