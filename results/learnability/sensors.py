@@ -131,16 +131,12 @@ def play(act, learned: bool, rounds: int) -> dict:
     return {k: float(np.mean(v)) for k, v in stats.items()}
 
 
+PERCENT = {"wide": "wide robots that ever covered", "narrow": "narrow", "tried": "lost: tried"}
+PERCENT |= {"unable": "of which unable", "abandoned": "lost: abandoned", "covering": "robots covering"}
+PERCENT |= {"parked": "parked", "moving": "moving"}
 COLUMNS = (
     ("progress", "progress", "{:.1f}", 100),
-    ("wide", "wide robots that ever covered", "{:.0f} %", 100),
-    ("narrow", "narrow", "{:.0f} %", 100),
-    ("tried", "lost: tried", "{:.0f} %", 100),
-    ("unable", "of which unable", "{:.0f} %", 100),
-    ("abandoned", "lost: abandoned", "{:.0f} %", 100),
-    ("covering", "robots covering", "{:.0f} %", 100),
-    ("parked", "parked", "{:.0f} %", 100),
-    ("moving", "moving", "{:.0f} %", 100),
+    *((key, head, "{:.0f} %", 100) for key, head in PERCENT.items()),
     ("idle", "idle-able per step", "{:.3f}", 1),
     ("stay", "stay", "{:.0f} %", 100),
     ("steps", "steps", "{:.1f}", 1),
