@@ -19,6 +19,7 @@ here="$root/results/budget_v1"
 stage1="$root/runs/budget_v1/stage1"
 pilot="$root/runs/budget_v1/forage_pilot"
 refs="$root/runs/budget_v1/references"
+logs="$root/runs/budget_v1/logs"  # outside the sweep folders, whose run globs (comat report ROOT/*_s*) it would join
 jobs=${JOBS:-$(nproc)}
 cd "$root"
 
@@ -49,22 +50,23 @@ PILOT=(--algos comat mat mappo cash --tasks forage --seeds 200 201 --preset swee
   eval_every_steps=100000 "eval_sets=[val,capability]")
 
 evaluate_run() {  # RUN_FOLDER COMMIT: Stage 1's evaluation of one trained run (PLAN.md, "Evaluation")
-  local run=$1 commit=$2 t sel
+  local run=$1 commit=$2 t sel log
+  log="$logs/$(basename "$run").eval.log"
   check_commit "$run" "$commit"
   for t in 3250000 3500000 3750000 4000000; do  # the checkpoint rule: each candidate on U_val
     [[ -f $run/select/$t/evaluation_unicycle.json ]] || comat eval --policy "$run/policy_$t.pt" --teams val \
-      --episodes 10 --no-references --out "$run/select/$t" >> "$run.eval.log" 2>&1
+      --episodes 10 --no-references --out "$run/select/$t" >> "$log" 2>&1
   done
   sel=$(py "$here/pick_checkpoint.py" "$run")
   # the selected policy: every set at off (U_cap the primary), U_cap at nominal
   [[ -f $run/final/evaluation_unicycle.json ]] || comat eval --policy "$run/policy_$sel.pt" --teams all \
-    --episodes 10 --no-references --out "$run/final" >> "$run.eval.log" 2>&1
+    --episodes 10 --no-references --out "$run/final" >> "$log" 2>&1
   [[ -f $run/final/evaluation_unicycle_nominal.json ]] || comat eval --policy "$run/policy_$sel.pt" \
-    --teams capability --episodes 10 --reality nominal --no-references --out "$run/final" >> "$run.eval.log" 2>&1
+    --teams capability --episodes 10 --reality nominal --no-references --out "$run/final" >> "$log" 2>&1
   # the final checkpoint on U_cap (secondary read), where the rule chose another
   if [[ $sel != 4000000 && ! -f $run/last/evaluation_unicycle.json ]]; then
     comat eval --policy "$run/policy_4000000.pt" --teams capability --episodes 10 --no-references \
-      --out "$run/last" >> "$run.eval.log" 2>&1
+      --out "$run/last" >> "$log" 2>&1
   fi
   echo "evaluated: $(basename "$run") (selected $sel) $(date -u +%FT%TZ)"
 }
@@ -82,8 +84,9 @@ case ${1:-} in
     [[ ${#runs[@]} == 16 ]] || { echo "expected 16 run folders in $stage1, found ${#runs[@]}" >&2; exit 3; }
     for run in "${runs[@]}"; do [[ -f $run/summary.json ]] || { echo "$run: not finished" >&2; exit 3; }; done
     export -f evaluate_run check_commit comat py
-    export root here COMAT_CODE
-    printf '%s\n' "${runs[@]}" | xargs -P "$jobs" -I{} bash -c 'evaluate_run "$1" "$2"' _ {} "$commit"
+    mkdir -p "$logs"
+    export root here logs COMAT_CODE
+    printf '%s\n' "${runs[@]}" | xargs -P "$jobs" -I{} bash -c 'set -euo pipefail; evaluate_run "$1" "$2"' _ {} "$commit"
     ;;
   pilot)
     commit=$(code_commit)
