@@ -1,0 +1,267 @@
+"""Compiled pass over the teams with a robot on probation (:class:`comat.safety.deployed.RobotWatch`):
+the cheap cases of :meth:`comat.control.SafeTeams._watch_teams` for every team in one call.
+
+Per team with a robot on probation, as the reference loop in ``_watch_teams`` does:
+
+1. the portable filter's rows ``A u <= b`` (:func:`comat.safety.kernels.portable_problem`, the
+   same bits as :meth:`~comat.safety.deployed.PortableBarrier.problem`);
+2. the fast answer meets every row within ``tol``: kept;
+3. else only the robots in the rows it breaks are re-solved, the others held at the fast
+   answer, by :func:`nearest_in_polytope` (below), and the result is taken if it meets every row
+   of the team within ``tol``;
+4. else (the held robots left the subset no room) the whole team's hard problem, from the
+   nominal commands: the portable filter's own answer (:meth:`PortableBarrier.__call__` returns
+   the nominal commands where they meet every row, else this optimum);
+5. else (no command meets the hard rows) the team is left to the reference loop, which ends in
+   the portable filter's softened problem or its brake.
+
+Why: at ``stress`` 36 of 64 teams of 8 robots had a robot on probation every tick, and each broke a
+row (a robot on probation may not close in on any teammate), so the Python loop re-solved ~36
+sub-problems a tick at ~80 µs each, most of it numpy calls around a 10 µs DAQP solve (issue 66:
+stress/nominal 1.73× where ≤ 1.3× must hold).
+
+:func:`nearest_in_polytope` is the dual active-set method of Goldfarb & Idnani (1983) for a unit
+Hessian, ``min ½‖x − v‖² s.t. A x <= b``: exact up to rounding, as DAQP (a dual active-set method
+too) is. The optimum is unique (strictly convex), so both land on the same point up to rounding:
+``tests/test_kernels.py`` checks it against DAQP to 1e-9 m/s, and this pass against the reference
+loop to the same tolerance (not bit for bit: the solver and the order of the sums differ).
+
+Shapes: R robots, B teams, M rows, n variables.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from comat.safety.kernels import portable_problem
+
+__all__ = ["KEPT", "NO_PROBATION", "REFERENCE", "SUBSET", "TEAM", "nearest_in_polytope", "probation_pass"]
+
+_jit = njit(cache=True, nogil=True)
+
+SOLVED, INFEASIBLE, GAVE_UP = 0, 1, 2
+""":func:`nearest_in_polytope`'s results."""
+NO_PROBATION, KEPT, SUBSET, TEAM, REFERENCE = 0, 1, 2, 3, 4
+""":func:`probation_pass`'s verdict per team: no robot on probation; the fast answer meets every
+row; the re-solved subset does; the whole team's hard problem was solved (the portable filter's
+answer); left to the reference loop."""
+
+_VIOLATION_TOL = 1e-12  # m/s·(row scale): rows met to this count as met (DAQP's answers land at ~1e-15)
+_DEPENDENT = 1e-18  # ‖z‖² / ‖a‖² below this: the row lies in the span of the active ones (sin ~1e-9)
+_MAX_STEPS_PER_ROW = 10  # active-set changes allowed per row and variable before giving up
+
+
+@_jit
+def _orthogonalize(A, row, Q, q, z, w):
+    """z = A[row] less its part in span(Q[:, :q]) (Gram–Schmidt twice, so z ⟂ Q to rounding),
+    w (q,) = Qᵀ A[row]; returns ‖z‖²."""
+    n = z.size
+    for j in range(n):
+        z[j] = A[row, j]
+    for i in range(q):
+        w[i] = 0.0
+    for _ in range(2):
+        for i in range(q):
+            d = 0.0
+            for j in range(n):
+                d += Q[j, i] * z[j]
+            w[i] += d
+            for j in range(n):
+                z[j] -= d * Q[j, i]
+    zz = 0.0
+    for j in range(n):
+        zz += z[j] * z[j]
+    return zz
+
+
+@_jit
+def nearest_in_polytope(v, A, b, x):
+    """The point x (n,) of ``{x : A x <= b}`` (A (M, n), b (M,)) nearest to v (n,): Goldfarb &
+    Idnani's dual active-set method with a unit Hessian. Starts at v with no row active; adds the
+    most violated row (by distance) with a step along its normal projected off the active rows'
+    span, dropping an active row whose multiplier reaches 0 on the way. Returns :data:`SOLVED`
+    (every row met within 1e-12), :data:`INFEASIBLE` (a violated row no step can mend: the
+    rows have no common point) or :data:`GAVE_UP` (step limit; the caller falls back)."""
+    m, n = A.shape
+    for j in range(n):
+        x[j] = v[j]
+    # The rows' nonzeros (CSR): a barrier row has at most 4 of a team's 2N columns, so the scan for
+    # the most violated row, once per added row, costs the nonzeros, not M·n (20 robots: 387 × 40).
+    start, cols, vals = np.zeros(m + 1, np.int64), np.empty(m * n, np.int64), np.empty(m * n)
+    norm2 = np.empty(m)
+    for k in range(m):
+        s, e = 0.0, start[k]
+        for j in range(n):
+            if A[k, j] != 0.0:
+                cols[e], vals[e] = j, A[k, j]
+                s += A[k, j] * A[k, j]
+                e += 1
+        start[k + 1], norm2[k] = e, s
+    Q, R = np.zeros((n, n)), np.zeros((n, n))  # active rows' normals N (n, q) = Q R
+    active = np.empty(n, np.int64)
+    u = np.zeros(n)  # active rows' multipliers
+    z, w, r = np.empty(n), np.empty(n), np.empty(n)
+    q = 0
+    steps = 0
+    while True:
+        p, worst = -1, 0.0
+        for k in range(m):
+            s = -b[k]
+            for e in range(start[k], start[k + 1]):
+                s += vals[e] * x[cols[e]]
+            if s > _VIOLATION_TOL and norm2[k] > 0.0 and s * s / norm2[k] > worst:
+                p, worst = k, s * s / norm2[k]
+            elif s > _VIOLATION_TOL and norm2[k] == 0.0:
+                return INFEASIBLE  # 0 <= b < 0
+        if p < 0:
+            return SOLVED
+        up = 0.0  # multiplier of row p
+        while True:
+            steps += 1
+            if steps > _MAX_STEPS_PER_ROW * (m + n):
+                return GAVE_UP
+            zz = _orthogonalize(A, p, Q, q, z, w)
+            for i in range(q - 1, -1, -1):  # r = R⁻¹ w: how the active multipliers trade for row p's
+                acc = w[i]
+                for k in range(i + 1, q):
+                    acc -= R[i, k] * r[k]
+                r[i] = acc / R[i, i]
+            full = math.inf
+            if q < n and zz > _DEPENDENT * norm2[p]:  # n active rows span everything: z is rounding
+                s = -b[p]
+                for e in range(start[p], start[p + 1]):
+                    s += vals[e] * x[cols[e]]
+                full = s / zz  # the step that meets row p exactly
+            partial, drop = math.inf, -1
+            for i in range(q):
+                if r[i] > 0.0 and u[i] / r[i] < partial:
+                    partial, drop = u[i] / r[i], i
+            if full == math.inf and partial == math.inf:
+                return INFEASIBLE  # row p's normal is a non-negative mix of the active ones
+            t = min(full, partial)
+            if full < math.inf:
+                for j in range(n):
+                    x[j] -= t * z[j]
+            for i in range(q):
+                u[i] -= t * r[i]
+            up += t
+            if full <= partial:  # row p joins the active set
+                nz = math.sqrt(zz)
+                for j in range(n):
+                    Q[j, q] = z[j] / nz
+                for i in range(q):
+                    R[i, q] = w[i]
+                R[q, q] = nz
+                active[q], u[q] = p, up
+                q += 1
+                break
+            for i in range(drop, q - 1):  # row `drop`'s multiplier reached 0: it leaves
+                active[i], u[i] = active[i + 1], u[i + 1]
+            q -= 1
+            for i in range(drop, q):  # the factors anew from the dropped row on (the columns before it stay)
+                zi = _orthogonalize(A, active[i], Q, i, z, w)
+                nz = math.sqrt(zi)
+                for j in range(n):
+                    Q[j, i] = z[j] / nz
+                for k in range(i):
+                    R[k, i] = w[k]
+                R[i, i] = nz
+
+
+@_jit
+def _products(A, u, out):
+    """out (M,) = A (M, n) @ u (n,)."""
+    for k in range(A.shape[0]):
+        s = 0.0
+        for j in range(A.shape[1]):
+            s += A[k, j] * u[j]
+        out[k] = s
+
+
+@_jit
+def _subset(A, bound, u, u_nom, broken, tol, out):
+    """:func:`comat.control._resolve_subset` with :func:`nearest_in_polytope`: the robots in the
+    ``broken`` rows re-solved, the others held at ``u`` (2N,); True with ``out`` (2N,) when the
+    result meets every row within ``tol``."""
+    M, n2 = A.shape
+    free = np.zeros(n2, np.bool_)
+    for k in range(M):
+        if broken[k]:
+            for j in range(n2):
+                if A[k, j] != 0.0:
+                    free[2 * (j // 2)] = True
+                    free[2 * (j // 2) + 1] = True
+    cols = np.flatnonzero(free)
+    involved = np.zeros(M, np.bool_)
+    for k in range(M):
+        for j in cols:
+            if A[k, j] != 0.0:
+                involved[k] = True
+                break
+    rows = np.flatnonzero(involved)
+    A_free = np.empty((rows.size, cols.size))
+    b_free = np.empty(rows.size)
+    for i in range(rows.size):
+        k = rows[i]
+        held = 0.0  # what the held robots contribute to the row
+        for j in range(n2):
+            if not free[j]:
+                held += A[k, j] * u[j]
+        b_free[i] = bound[k] - held
+        for c in range(cols.size):
+            A_free[i, c] = A[k, cols[c]]
+    x = np.empty(cols.size)
+    if nearest_in_polytope(u_nom[cols], A_free, b_free, x) != SOLVED:
+        return False
+    out[:] = u
+    for c in range(cols.size):
+        out[cols[c]] = x[c]
+    Au = np.empty(M)
+    _products(A, out, Au)
+    for k in range(M):
+        if Au[k] > bound[k] + tol:
+            return False
+    return True
+
+
+@_jit
+def probation_pass(poses, probation, extra, offsets, safe, dxi, tol, constants, verdict, intervention):
+    """Steps 1–4 of the module docstring for every team: poses (R, 3) and extra radii (R,) as
+    :meth:`RobotWatch.obstacles` places them, probation (R,) bool, team offsets (B + 1,),
+    ``safe`` (R, 2) the fast filter's answer (changed in place for :data:`SUBSET` and
+    :data:`TEAM` teams), ``dxi`` (R, 2) the nominal commands, ``constants`` the portable rows'
+    scalars as :attr:`comat.control.CompiledPortableBarrier.constants` holds them. Fills
+    ``verdict`` (B,) and, for :data:`SUBSET` and :data:`TEAM` teams, ``intervention`` (B,)
+    ‖safe − dxi‖ over the team."""
+    B = offsets.size - 1
+    for b in range(B):
+        lo, hi = offsets[b], offsets[b + 1]
+        verdict[b] = NO_PROBATION
+        if not probation[lo:hi].any():
+            continue
+        A, bound = portable_problem(poses[lo:hi], probation[lo:hi], extra[lo:hi], *constants)
+        u = safe[lo:hi].copy().reshape(-1)
+        Au = np.empty(bound.size)
+        _products(A, u, Au)
+        broken = Au > bound + tol
+        if not broken.any():
+            verdict[b] = KEPT
+            continue
+        out = np.empty(u.size)
+        u_nom = dxi[lo:hi].copy().reshape(-1)
+        if _subset(A, bound, u, u_nom, broken, tol, out):
+            verdict[b] = SUBSET
+        elif nearest_in_polytope(u_nom, A, bound, out) == SOLVED:  # the held robots left no room
+            verdict[b] = TEAM
+        else:
+            verdict[b] = REFERENCE
+            continue
+        square = 0.0
+        for r in range(hi - lo):
+            for c in range(2):
+                safe[lo + r, c] = out[2 * r + c]
+                square += (out[2 * r + c] - dxi[lo + r, c]) ** 2
+        intervention[b] = math.sqrt(square)
