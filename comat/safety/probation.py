@@ -78,6 +78,18 @@ def _orthogonalize(A, row, Q, q, z, w):
 
 
 @_jit
+def _set_column(Q, R, i, z, w, zz):
+    """Column i of the active rows' factors N = Q R: Q[:, i] = z / ‖z‖, R[:i, i] = w, R[i, i] = ‖z‖
+    (z, w and ‖z‖² = zz from :func:`_orthogonalize`)."""
+    nz = math.sqrt(zz)
+    for j in range(z.size):
+        Q[j, i] = z[j] / nz
+    for k in range(i):
+        R[k, i] = w[k]
+    R[i, i] = nz
+
+
+@_jit
 def nearest_in_polytope(v, A, b, x):
     """The point x (n,) of ``{x : A x <= b}`` (A (M, n), b (M,)) nearest to v (n,): Goldfarb &
     Idnani's dual active-set method with a unit Hessian. Starts at v with no row active; adds the
@@ -149,12 +161,7 @@ def nearest_in_polytope(v, A, b, x):
                 u[i] -= t * r[i]
             up += t
             if full <= partial:  # row p joins the active set
-                nz = math.sqrt(zz)
-                for j in range(n):
-                    Q[j, q] = z[j] / nz
-                for i in range(q):
-                    R[i, q] = w[i]
-                R[q, q] = nz
+                _set_column(Q, R, q, z, w, zz)
                 active[q], u[q] = p, up
                 q += 1
                 break
@@ -162,13 +169,7 @@ def nearest_in_polytope(v, A, b, x):
                 active[i], u[i] = active[i + 1], u[i + 1]
             q -= 1
             for i in range(drop, q):  # the factors anew from the dropped row on (the columns before it stay)
-                zi = _orthogonalize(A, active[i], Q, i, z, w)
-                nz = math.sqrt(zi)
-                for j in range(n):
-                    Q[j, i] = z[j] / nz
-                for k in range(i):
-                    R[k, i] = w[k]
-                R[i, i] = nz
+                _set_column(Q, R, i, z, w, _orthogonalize(A, active[i], Q, i, z, w))
 
 
 @_jit
