@@ -55,12 +55,41 @@ _MAX_STEPS_PER_ROW = 10  # active-set changes allowed per row and variable befor
 
 
 @_jit
-def _orthogonalize(A, row, Q, q, z, w):
-    """z = A[row] less its part in span(Q[:, :q]) (Gram–Schmidt twice, so z ⟂ Q to rounding),
-    w (q,) = Qᵀ A[row]; returns ‖z‖²."""
+def _sparse(A):
+    """A (M, n)'s nonzeros by row (CSR: row k's are ``cols[start[k]:start[k + 1]]`` and ``vals``
+    there) and its rows' squared norms (M,). A barrier row has at most 4 of a team's 2N columns,
+    so every later pass over the rows costs their nonzeros, not M·n (20 robots: 387 × 40)."""
+    m, n = A.shape
+    start, cols, vals, norm2 = np.zeros(m + 1, np.int64), np.empty(m * n, np.int64), np.empty(m * n), np.empty(m)
+    e = 0
+    for k in range(m):
+        s = 0.0
+        for j in range(n):
+            if A[k, j] != 0.0:
+                cols[e], vals[e] = j, A[k, j]
+                s += A[k, j] * A[k, j]
+                e += 1
+        start[k + 1], norm2[k] = e, s
+    return start, cols, vals, norm2
+
+
+@njit(cache=True, nogil=True, inline="always")  # a call per row cost as much as the solve (2x at 20 robots)
+def _row_times(start, cols, vals, k, x):
+    """Row k of a CSR matrix times x."""
+    s = 0.0
+    for e in range(start[k], start[k + 1]):
+        s += vals[e] * x[cols[e]]
+    return s
+
+
+@_jit
+def _orthogonalize(start, cols, vals, row, Q, q, z, w):
+    """z = row ``row`` of a CSR matrix less its part in span(Q[:, :q]) (Gram–Schmidt twice, so
+    z ⟂ Q to rounding), w (q,) = Qᵀ (the row); returns ‖z‖²."""
     n = z.size
-    for j in range(n):
-        z[j] = A[row, j]
+    z[:] = 0.0
+    for e in range(start[row], start[row + 1]):
+        z[cols[e]] = vals[e]
     for i in range(q):
         w[i] = 0.0
     for _ in range(2):
@@ -97,21 +126,15 @@ def nearest_in_polytope(v, A, b, x):
     span, dropping an active row whose multiplier reaches 0 on the way. Returns :data:`SOLVED`
     (every row met within 1e-12), :data:`INFEASIBLE` (a violated row no step can mend: the
     rows have no common point) or :data:`GAVE_UP` (step limit; the caller falls back)."""
-    m, n = A.shape
-    for j in range(n):
-        x[j] = v[j]
-    # The rows' nonzeros (CSR): a barrier row has at most 4 of a team's 2N columns, so the scan for
-    # the most violated row, once per added row, costs the nonzeros, not M·n (20 robots: 387 × 40).
-    start, cols, vals = np.zeros(m + 1, np.int64), np.empty(m * n, np.int64), np.empty(m * n)
-    norm2 = np.empty(m)
-    for k in range(m):
-        s, e = 0.0, start[k]
-        for j in range(n):
-            if A[k, j] != 0.0:
-                cols[e], vals[e] = j, A[k, j]
-                s += A[k, j] * A[k, j]
-                e += 1
-        start[k + 1], norm2[k] = e, s
+    start, cols, vals, norm2 = _sparse(A)
+    return _nearest(v, start, cols, vals, norm2, b, x)
+
+
+@_jit
+def _nearest(v, start, cols, vals, norm2, b, x):
+    """:func:`nearest_in_polytope` on the rows in CSR (:func:`_sparse`)."""
+    m, n = b.size, v.size
+    x[:] = v
     Q, R = np.zeros((n, n)), np.zeros((n, n))  # active rows' normals N (n, q) = Q R
     active = np.empty(n, np.int64)
     u = np.zeros(n)  # active rows' multipliers
@@ -121,13 +144,11 @@ def nearest_in_polytope(v, A, b, x):
     while True:
         p, worst = -1, 0.0
         for k in range(m):
-            s = -b[k]
-            for e in range(start[k], start[k + 1]):
-                s += vals[e] * x[cols[e]]
-            if s > _VIOLATION_TOL and norm2[k] > 0.0 and s * s / norm2[k] > worst:
-                p, worst = k, s * s / norm2[k]
-            elif s > _VIOLATION_TOL and norm2[k] == 0.0:
+            s = _row_times(start, cols, vals, k, x) - b[k]
+            if s > _VIOLATION_TOL and norm2[k] == 0.0:
                 return INFEASIBLE  # 0 <= b < 0
+            if s > _VIOLATION_TOL and s * s / norm2[k] > worst:
+                p, worst = k, s * s / norm2[k]
         if p < 0:
             return SOLVED
         up = 0.0  # multiplier of row p
@@ -135,7 +156,7 @@ def nearest_in_polytope(v, A, b, x):
             steps += 1
             if steps > _MAX_STEPS_PER_ROW * (m + n):
                 return GAVE_UP
-            zz = _orthogonalize(A, p, Q, q, z, w)
+            zz = _orthogonalize(start, cols, vals, p, Q, q, z, w)
             for i in range(q - 1, -1, -1):  # r = R⁻¹ w: how the active multipliers trade for row p's
                 acc = w[i]
                 for k in range(i + 1, q):
@@ -143,10 +164,7 @@ def nearest_in_polytope(v, A, b, x):
                 r[i] = acc / R[i, i]
             full = math.inf
             if q < n and zz > _DEPENDENT * norm2[p]:  # n active rows span everything: z is rounding
-                s = -b[p]
-                for e in range(start[p], start[p + 1]):
-                    s += vals[e] * x[cols[e]]
-                full = s / zz  # the step that meets row p exactly
+                full = (_row_times(start, cols, vals, p, x) - b[p]) / zz  # the step that meets row p exactly
             partial, drop = math.inf, -1
             for i in range(q):
                 if r[i] > 0.0 and u[i] / r[i] < partial:
@@ -169,63 +187,61 @@ def nearest_in_polytope(v, A, b, x):
                 active[i], u[i] = active[i + 1], u[i + 1]
             q -= 1
             for i in range(drop, q):  # the factors anew from the dropped row on (the columns before it stay)
-                _set_column(Q, R, i, z, w, _orthogonalize(A, active[i], Q, i, z, w))
+                _set_column(Q, R, i, z, w, _orthogonalize(start, cols, vals, active[i], Q, i, z, w))
 
 
 @_jit
-def _products(A, u, out):
-    """out (M,) = A (M, n) @ u (n,)."""
-    for k in range(A.shape[0]):
-        s = 0.0
-        for j in range(A.shape[1]):
-            s += A[k, j] * u[j]
-        out[k] = s
+def _meets(start, cols, vals, bound, u, tol):
+    """Every row of a CSR matrix times u (n,) within ``bound`` + tol."""
+    for k in range(bound.size):
+        if _row_times(start, cols, vals, k, u) > bound[k] + tol:
+            return False
+    return True
 
 
 @_jit
-def _subset(A, bound, u, u_nom, broken, tol, out):
-    """:func:`comat.control._resolve_subset` with :func:`nearest_in_polytope`: the robots in the
-    ``broken`` rows re-solved, the others held at ``u`` (2N,); True with ``out`` (2N,) when the
-    result meets every row within ``tol``."""
-    M, n2 = A.shape
+def _subset(start, cols, vals, bound, u, u_nom, broken, tol, out):
+    """:func:`comat.control._resolve_subset` with :func:`nearest_in_polytope` on a team's rows in
+    CSR: the robots in the ``broken`` (M,) rows re-solved, the others held at ``u`` (2N,); True
+    with ``out`` (2N,) when the result meets every row within ``tol``."""
+    M, n2 = bound.size, u.size
     free = np.zeros(n2, np.bool_)
     for k in range(M):
         if broken[k]:
-            for j in range(n2):
-                if A[k, j] != 0.0:
-                    free[2 * (j // 2)] = True
-                    free[2 * (j // 2) + 1] = True
-    cols = np.flatnonzero(free)
-    involved = np.zeros(M, np.bool_)
+            for e in range(start[k], start[k + 1]):
+                free[2 * (cols[e] // 2)] = True
+                free[2 * (cols[e] // 2) + 1] = True
+    index = np.cumsum(free) - 1  # column of each free velocity in the sub-problem
+    n_free = index[-1] + 1
+    # The rows that involve a free robot, on the free columns; the held robots' part moves to the bound.
+    sub_start, sub_cols, sub_vals = np.zeros(M + 1, np.int64), np.empty(start[M], np.int64), np.empty(start[M])
+    sub_bound, sub_norm2 = np.empty(M), np.empty(M)
+    m = 0
+    e_sub = 0
     for k in range(M):
-        for j in cols:
-            if A[k, j] != 0.0:
-                involved[k] = True
-                break
-    rows = np.flatnonzero(involved)
-    A_free = np.empty((rows.size, cols.size))
-    b_free = np.empty(rows.size)
-    for i in range(rows.size):
-        k = rows[i]
-        held = 0.0  # what the held robots contribute to the row
-        for j in range(n2):
-            if not free[j]:
-                held += A[k, j] * u[j]
-        b_free[i] = bound[k] - held
-        for c in range(cols.size):
-            A_free[i, c] = A[k, cols[c]]
-    x = np.empty(cols.size)
-    if nearest_in_polytope(u_nom[cols], A_free, b_free, x) != SOLVED:
+        involved = False
+        for e in range(start[k], start[k + 1]):
+            involved |= free[cols[e]]
+        if not involved:
+            continue
+        held, norm2 = 0.0, 0.0
+        for e in range(start[k], start[k + 1]):
+            j = cols[e]
+            if free[j]:
+                sub_cols[e_sub], sub_vals[e_sub] = index[j], vals[e]
+                norm2 += vals[e] * vals[e]
+                e_sub += 1
+            else:
+                held += vals[e] * u[j]
+        sub_bound[m], sub_norm2[m] = bound[k] - held, norm2
+        m += 1
+        sub_start[m] = e_sub
+    x = np.empty(n_free)
+    if _nearest(u_nom[free], sub_start[: m + 1], sub_cols, sub_vals, sub_norm2[:m], sub_bound[:m], x) != SOLVED:
         return False
     out[:] = u
-    for c in range(cols.size):
-        out[cols[c]] = x[c]
-    Au = np.empty(M)
-    _products(A, out, Au)
-    for k in range(M):
-        if Au[k] > bound[k] + tol:
-            return False
-    return True
+    out[free] = x
+    return _meets(start, cols, vals, bound, out, tol)
 
 
 @_jit
@@ -244,18 +260,19 @@ def probation_pass(poses, probation, extra, offsets, safe, dxi, tol, constants, 
         if not probation[lo:hi].any():
             continue
         A, bound = portable_problem(poses[lo:hi], probation[lo:hi], extra[lo:hi], *constants)
+        start, cols, vals, norm2 = _sparse(A)
         u = safe[lo:hi].copy().reshape(-1)
-        Au = np.empty(bound.size)
-        _products(A, u, Au)
-        broken = Au > bound + tol
+        broken = np.empty(bound.size, np.bool_)
+        for k in range(bound.size):
+            broken[k] = _row_times(start, cols, vals, k, u) > bound[k] + tol
         if not broken.any():
             verdict[b] = KEPT
             continue
         out = np.empty(u.size)
         u_nom = dxi[lo:hi].copy().reshape(-1)
-        if _subset(A, bound, u, u_nom, broken, tol, out):
+        if _subset(start, cols, vals, bound, u, u_nom, broken, tol, out):
             verdict[b] = SUBSET
-        elif nearest_in_polytope(u_nom, A, bound, out) == SOLVED:  # the held robots left no room
+        elif _nearest(u_nom, start, cols, vals, norm2, bound, out) == SOLVED:  # the held robots left no room
             verdict[b] = TEAM
         else:
             verdict[b] = REFERENCE
