@@ -84,35 +84,48 @@ def _row_times(start, cols, vals, k, x):
 
 @_jit
 def _orthogonalize(start, cols, vals, row, Q, q, z, w):
-    """z = row ``row`` of a CSR matrix less its part in span(Q[:, :q]) (Gram–Schmidt twice, so
-    z ⟂ Q to rounding), w (q,) = Qᵀ (the row); returns ‖z‖²."""
+    """z = row ``row`` of a CSR matrix less its part in the span of Q[:q] (orthonormal rows),
+    w (q,) = Q[:q] · (the row); returns ‖z‖². Classical Gram–Schmidt, the first products on the
+    row's few nonzeros, repeated once where it cancelled more than half the row (‖z‖² < ½‖a‖²:
+    the 1/√2 test of Daniel, Gragg, Kaufman & Stewart 1976), so z ⟂ Q to rounding."""
     n = z.size
     z[:] = 0.0
     for e in range(start[row], start[row + 1]):
         z[cols[e]] = vals[e]
     for i in range(q):
-        w[i] = 0.0
-    for _ in range(2):
+        d = 0.0
+        for e in range(start[row], start[row + 1]):
+            d += Q[i, cols[e]] * vals[e]
+        w[i] = d
+    for i in range(q):
+        for j in range(n):
+            z[j] -= w[i] * Q[i, j]
+    aa, zz = 0.0, 0.0
+    for e in range(start[row], start[row + 1]):
+        aa += vals[e] * vals[e]
+    for j in range(n):
+        zz += z[j] * z[j]
+    if q > 0 and zz < 0.5 * aa:
         for i in range(q):
             d = 0.0
             for j in range(n):
-                d += Q[j, i] * z[j]
+                d += Q[i, j] * z[j]
             w[i] += d
             for j in range(n):
-                z[j] -= d * Q[j, i]
-    zz = 0.0
-    for j in range(n):
-        zz += z[j] * z[j]
+                z[j] -= d * Q[i, j]
+        zz = 0.0
+        for j in range(n):
+            zz += z[j] * z[j]
     return zz
 
 
 @_jit
 def _set_column(Q, R, i, z, w, zz):
-    """Column i of the active rows' factors N = Q R: Q[:, i] = z / ‖z‖, R[:i, i] = w, R[i, i] = ‖z‖
-    (z, w and ‖z‖² = zz from :func:`_orthogonalize`)."""
+    """Column i of the active rows' factors N = Qᵀ R (Q's rows orthonormal): Q[i] = z / ‖z‖,
+    R[:i, i] = w, R[i, i] = ‖z‖ (z, w and ‖z‖² = zz from :func:`_orthogonalize`)."""
     nz = math.sqrt(zz)
     for j in range(z.size):
-        Q[j, i] = z[j] / nz
+        Q[i, j] = z[j] / nz
     for k in range(i):
         R[k, i] = w[k]
     R[i, i] = nz
@@ -135,7 +148,7 @@ def _nearest(v, start, cols, vals, norm2, b, x):
     """:func:`nearest_in_polytope` on the rows in CSR (:func:`_sparse`)."""
     m, n = b.size, v.size
     x[:] = v
-    Q, R = np.zeros((n, n)), np.zeros((n, n))  # active rows' normals N (n, q) = Q R
+    Q, R = np.zeros((n, n)), np.zeros((n, n))  # active rows' normals N (n, q) = Q[:q]ᵀ R
     active = np.empty(n, np.int64)
     u = np.zeros(n)  # active rows' multipliers
     z, w, r = np.empty(n), np.empty(n), np.empty(n)
