@@ -13,7 +13,7 @@ from comat.config import SafetyConfig, SimConfig
 from comat.control import SafeTeams, _portable_qp, _probation_teams, go_to_goal, portable_settings
 from comat.reality import resolve_reality
 from comat.safety.deployed import PortableBarrier
-from comat.safety.probation import GAVE_UP, REFERENCE, SOLVED, SUBSET, TEAM, nearest_in_polytope
+from comat.safety.probation import GAVE_UP, INFEASIBLE, REFERENCE, SOLVED, SUBSET, TEAM, nearest_in_polytope
 from comat.safety.qp import dense_qp
 
 
@@ -55,7 +55,9 @@ def test_nearest_in_polytope_matches_daqp(rng):
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * max(1.0, np.linalg.norm(v - y)))
     assert solved >= 100 and infeasible >= 100
     x = np.empty(2)
-    assert nearest_in_polytope(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([-1.0, -1.0]), x) == 1
+    assert (
+        nearest_in_polytope(np.zeros(2), np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([-1.0, -1.0]), x) == INFEASIBLE
+    )
     assert nearest_in_polytope(np.array([0.3, -0.2]), np.zeros((1, 2)), np.zeros(1), x) == SOLVED
     assert np.array_equal(x, [0.3, -0.2])  # a nominal command that meets every row comes back as it is
 

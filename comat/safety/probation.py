@@ -23,8 +23,10 @@ stress/nominal 1.73× where ≤ 1.3× must hold).
 :func:`nearest_in_polytope` is the dual active-set method of Goldfarb & Idnani (1983) for a unit
 Hessian, ``min ½‖x − v‖² s.t. A x <= b``: exact up to rounding, as DAQP (a dual active-set method
 too) is. The optimum is unique (strictly convex), so both land on the same point up to rounding:
-``tests/test_kernels.py`` checks it against DAQP to 1e-9 m/s, and this pass against the reference
-loop to the same tolerance (not bit for bit: the solver and the order of the sums differ).
+``tests/test_probation.py`` checks it against DAQP to 1e-9 m/s, and this pass against the
+reference loop to the same tolerance (not bit for bit: the solver and the order of the sums
+differ). The pass then cost 0.16–0.25 ms a tick at ``stress`` for 8 × 64, 16 × 8 and 20 × 4
+(CPU time on captured ticks, busy machine) where the loop had cost 3.2 ms at 8 × 64 (quiet).
 
 Shapes: R robots, B teams, M rows, n variables.
 """
@@ -38,7 +40,10 @@ from numba import njit
 
 from comat.safety.kernels import portable_problem
 
-__all__ = ["KEPT", "NO_PROBATION", "REFERENCE", "SUBSET", "TEAM", "nearest_in_polytope", "probation_pass"]
+__all__ = [
+    "GAVE_UP", "INFEASIBLE", "KEPT", "NO_PROBATION", "REFERENCE", "SOLVED", "SUBSET", "TEAM",
+    "nearest_in_polytope", "probation_pass",
+]  # fmt: skip
 
 _jit = njit(cache=True, nogil=True)
 
