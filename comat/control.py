@@ -504,9 +504,10 @@ class SafeTeams:
             info.intervention[solved] = change[solved]
             self.subset_solves += int((verdict == SUBSET).sum())
             teams = np.flatnonzero(verdict == REFERENCE)
-        self.subset_solves += _probation_teams(
-            self._portable, teams, lay.offsets, watch.probation, poses, extra, dxi, safe, info, tol
-        )
+        if teams.size:
+            self.subset_solves += _probation_teams(
+                self._portable, teams, lay.offsets, watch.probation, poses, extra, dxi, safe, info, tol
+            )
 
     def tick_deployed(self, dxi: np.ndarray) -> tuple[TickEvents, DeployedInfo]:
         """One tick of the exported script's loop (``safety.loop`` not ``"comat"``).
