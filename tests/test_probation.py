@@ -139,3 +139,27 @@ def test_probation_pass_keeps_the_runs_deterministic():
 
     (a, n), (b, m) = run(), run()
     assert np.array_equal(a, b) and n == m and n > 0
+
+
+def test_portable_rows_twin(rng):
+    """The pass's rows built straight into CSR equal the compiled dense rows (themselves the
+    shipped numpy original's, tests/test_kernels.py) bit for bit, nonzeros, norms and bounds, with
+    robots on probation (none, some, all) and extra radii."""
+    from comat.safety.kernels import portable_problem
+    from comat.safety.probation import _sparse, portable_rows
+
+    constants = control.CompiledPortableBarrier(portable_settings(SafetyConfig(), C.DEFAULT_PROFILE)).constants
+    for trial in range(60):
+        n = int(rng.integers(1, 21))
+        poses = np.column_stack([rng.uniform(-1.5, 1.5, (n, 2)), rng.uniform(-4 * np.pi, 4 * np.pi, n)])
+        if n >= 2:  # robots 0 and 1 abreast, same heading: their pair rows have exact zeros
+            poses[1, 0], poses[1, 2] = poses[0, 0], poses[0, 2]
+        probation = rng.random(n) < (0.0, 0.3, 1.0)[trial % 3]
+        extra = np.where(rng.random(n) < 0.5, rng.uniform(0, 0.1, n), 0.0)
+        A, b = portable_problem(poses, probation, extra, *constants)
+        start, cols, vals, norm2 = _sparse(A)
+        got = portable_rows(poses, probation, extra, *constants)
+        nnz = start[-1]
+        for x, y in zip(got, (start, cols[:nnz], vals[:nnz], norm2, b), strict=True):
+            np.testing.assert_array_equal(x[: y.size], y)
+        assert got[0].size == start.size and got[4].size == b.size and got[0][-1] == nnz

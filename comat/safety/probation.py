@@ -3,8 +3,8 @@ the cheap cases of :meth:`comat.control.SafeTeams._watch_teams` for every team i
 
 Per team with a robot on probation, as the reference loop in ``_watch_teams`` does:
 
-1. the portable filter's rows ``A u <= b`` (:func:`comat.safety.kernels.portable_problem`, the
-   same bits as :meth:`~comat.safety.deployed.PortableBarrier.problem`);
+1. the portable filter's rows ``A u <= b`` (:func:`portable_rows`, the same bits as
+   :meth:`~comat.safety.deployed.PortableBarrier.problem`, in CSR);
 2. the fast answer meets every row within ``tol``: kept;
 3. else only the robots in the rows it breaks are re-solved, the others held at the fast
    answer, by :func:`nearest_in_polytope` (below), and the result is taken if it meets every row
@@ -38,11 +38,9 @@ import math
 import numpy as np
 from numba import njit
 
-from comat.safety.kernels import portable_problem
-
 __all__ = [
     "GAVE_UP", "INFEASIBLE", "KEPT", "NO_PROBATION", "REFERENCE", "SOLVED", "SUBSET", "TEAM",
-    "nearest_in_polytope", "probation_pass",
+    "nearest_in_polytope", "portable_rows", "probation_pass",
 ]  # fmt: skip
 
 _jit = njit(cache=True, nogil=True)
@@ -263,6 +261,96 @@ def _subset(start, cols, vals, bound, u, u_nom, broken, tol, out):
 
 
 @_jit
+def _put(cols, vals, e, j, value, norm2):
+    """Store a nonzero (column j) at slot e as :func:`_sparse` would; returns the next slot and the
+    row's squared norm so far."""
+    if value != 0.0:
+        cols[e], vals[e] = j, value
+        return e + 1, norm2 + value * value
+    return e, norm2
+
+
+@_jit
+def portable_rows(poses, probation, extra, d, safety, margin, gain, boundary_gain, k_w, v_w, x0, x1, y0, y1):
+    """:func:`comat.safety.kernels.portable_problem`'s rows straight into CSR, as :func:`_sparse`
+    stores them (start, cols, vals, norm2) with the bounds (M,): the same arithmetic in the same
+    order, so the same bits (``tests/test_probation.py``), without the dense (M, 2N) matrix whose
+    zeros cost more than the rows (a barrier row has at most 4 nonzeros)."""
+    n = poses.shape[0]
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    px, py = poses[:, 0] + d * c, poses[:, 1] + d * s
+    n_pairs = n * (n - 1) // 2
+    pi, pj = np.empty(n_pairs, np.int64), np.empty(n_pairs, np.int64)
+    k = 0
+    for a in range(n):
+        for b in range(a + 1, n):
+            pi[k], pj[k] = a, b
+            k += 1
+    count = 0
+    for k in range(n_pairs):
+        on_i, on_j = probation[pi[k]], probation[pj[k]]
+        count += (1 if not on_i and not on_j else 0) + (1 if on_j and not on_i else 0)
+        count += (1 if on_i and not on_j else 0) + (1 if on_i else 0) + (1 if on_j else 0)
+    rows = count + 8 * n
+    start, cols, vals = (
+        np.zeros(rows + 1, np.int64),
+        np.empty(4 * count + 12 * n, np.int64),
+        np.empty(4 * count + 12 * n),
+    )
+    norm2, bound = np.empty(rows), np.empty(rows)
+    r, e = 0, 0
+    for group in range(5):  # portable_problem's five groups of pair rows, in its order
+        for k in range(n_pairs):
+            i, j = pi[k], pj[k]
+            on_i, on_j = probation[i], probation[j]
+            if group == 0:
+                take, use_i, use_j = not on_i and not on_j, True, True
+            elif group == 1:
+                take, use_i, use_j = on_j and not on_i, True, False
+            elif group == 2:
+                take, use_i, use_j = on_i and not on_j, False, True
+            elif group == 3:
+                take, use_i, use_j = on_i, True, False
+            else:
+                take, use_i, use_j = on_j, False, True
+            if not take:
+                continue
+            ex, ey = px[i] - px[j], py[i] - py[j]
+            rad = safety + extra[i] + extra[j]
+            h = (ex * ex + ey * ey) - rad * rad
+            sq = 0.0
+            if use_i:
+                e, sq = _put(cols, vals, e, 2 * i, -2 * ex, sq)
+                e, sq = _put(cols, vals, e, 2 * i + 1, -2 * ey, sq)
+            if use_j:
+                e, sq = _put(cols, vals, e, 2 * j, 2 * ex, sq)
+                e, sq = _put(cols, vals, e, 2 * j + 1, 2 * ey, sq)
+            bound[r], norm2[r] = (gain * h if group < 3 else 0.0 * h), sq
+            r += 1
+            start[r] = e
+    for side in range(2):  # the upper walls, then the lower ones
+        for q in range(2 * n):
+            m = margin + extra[q // 2]
+            p, hi, lo = (px[q // 2], x1, x0) if q % 2 == 0 else (py[q // 2], y1, y0)
+            e, sq = _put(cols, vals, e, q, 1.0 if side == 0 else -1.0, 0.0)
+            bound[r] = boundary_gain * (hi - m - p) if side == 0 else boundary_gain * (p - lo - m)
+            norm2[r] = sq
+            r += 1
+            start[r] = e
+    for t in range(n):
+        for q in range(2):
+            a = c[t] - k_w * s[t] if q == 0 else c[t] + k_w * s[t]
+            b = s[t] + k_w * c[t] if q == 0 else s[t] - k_w * c[t]
+            for sign in (1.0, -1.0):
+                e, sq = _put(cols, vals, e, 2 * t, a if sign > 0 else -1.0 * a, 0.0)
+                e, sq = _put(cols, vals, e, 2 * t + 1, b if sign > 0 else -1.0 * b, sq)
+                bound[r], norm2[r] = v_w, sq
+                r += 1
+                start[r] = e
+    return start, cols, vals, norm2, bound
+
+
+@_jit
 def probation_pass(poses, probation, extra, offsets, safe, dxi, tol, constants, verdict, intervention):
     """Steps 1–4 of the module docstring for every team: poses (R, 3) and extra radii (R,) as
     :meth:`RobotWatch.obstacles` places them, probation (R,) bool, team offsets (B + 1,),
@@ -277,8 +365,7 @@ def probation_pass(poses, probation, extra, offsets, safe, dxi, tol, constants, 
         verdict[b] = NO_PROBATION
         if not probation[lo:hi].any():
             continue
-        A, bound = portable_problem(poses[lo:hi], probation[lo:hi], extra[lo:hi], *constants)
-        start, cols, vals, norm2 = _sparse(A)
+        start, cols, vals, norm2, bound = portable_rows(poses[lo:hi], probation[lo:hi], extra[lo:hi], *constants)
         u = safe[lo:hi].copy().reshape(-1)
         broken = np.empty(bound.size, np.bool_)
         for k in range(bound.size):
