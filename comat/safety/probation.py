@@ -25,7 +25,7 @@ Hessian, ``min ½‖x − v‖² s.t. A x <= b``: exact up to rounding, as DAQP 
 too) is. The optimum is unique (strictly convex), so both land on the same point up to rounding:
 ``tests/test_probation.py`` checks it against DAQP to 1e-9 m/s, and this pass against the
 reference loop to the same tolerance (not bit for bit: the solver and the order of the sums
-differ). The pass then cost 0.16–0.25 ms a tick at ``stress`` for 8 × 64, 16 × 8 and 20 × 4
+differ). The pass then cost 0.13–0.22 ms a tick at ``stress`` for 20 × 4, 16 × 8 and 8 × 64
 (CPU time on captured ticks, busy machine) where the loop had cost 3.2 ms at 8 × 64 (quiet).
 
 Shapes: R robots, B teams, M rows, n variables.
@@ -37,6 +37,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from comat.safety.kernels import portable_pair_rows
 
 __all__ = [
     "GAVE_UP", "INFEASIBLE", "KEPT", "NO_PROBATION", "REFERENCE", "SOLVED", "SUBSET", "TEAM",
@@ -277,57 +279,25 @@ def portable_rows(poses, probation, extra, d, safety, margin, gain, boundary_gai
     order, so the same bits (``tests/test_probation.py``), without the dense (M, 2N) matrix whose
     zeros cost more than the rows (a barrier row has at most 4 nonzeros)."""
     n = poses.shape[0]
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    px, py = poses[:, 0] + d * c, poses[:, 1] + d * s
-    n_pairs = n * (n - 1) // 2
-    pi, pj = np.empty(n_pairs, np.int64), np.empty(n_pairs, np.int64)
-    k = 0
-    for a in range(n):
-        for b in range(a + 1, n):
-            pi[k], pj[k] = a, b
-            k += 1
-    count = 0
-    for k in range(n_pairs):
-        on_i, on_j = probation[pi[k]], probation[pj[k]]
-        count += (1 if not on_i and not on_j else 0) + (1 if on_j and not on_i else 0)
-        count += (1 if on_i and not on_j else 0) + (1 if on_i else 0) + (1 if on_j else 0)
-    rows = count + 8 * n
-    start, cols, vals = (
-        np.zeros(rows + 1, np.int64),
-        np.empty(4 * count + 12 * n, np.int64),
-        np.empty(4 * count + 12 * n),
-    )
+    pairs = portable_pair_rows(poses, probation, extra, d, safety, gain)
+    c, s, px, py, ri, rj, use_i, use_j, ex, ey, pair_bound = pairs
+    count = ri.size
+    rows, nnz = count + 8 * n, 4 * count + 12 * n  # nnz: at most
+    start, cols, vals = np.zeros(rows + 1, np.int64), np.empty(nnz, np.int64), np.empty(nnz)
     norm2, bound = np.empty(rows), np.empty(rows)
-    r, e = 0, 0
-    for group in range(5):  # portable_problem's five groups of pair rows, in its order
-        for k in range(n_pairs):
-            i, j = pi[k], pj[k]
-            on_i, on_j = probation[i], probation[j]
-            if group == 0:
-                take, use_i, use_j = not on_i and not on_j, True, True
-            elif group == 1:
-                take, use_i, use_j = on_j and not on_i, True, False
-            elif group == 2:
-                take, use_i, use_j = on_i and not on_j, False, True
-            elif group == 3:
-                take, use_i, use_j = on_i, True, False
-            else:
-                take, use_i, use_j = on_j, False, True
-            if not take:
-                continue
-            ex, ey = px[i] - px[j], py[i] - py[j]
-            rad = safety + extra[i] + extra[j]
-            h = (ex * ex + ey * ey) - rad * rad
-            sq = 0.0
-            if use_i:
-                e, sq = _put(cols, vals, e, 2 * i, -2 * ex, sq)
-                e, sq = _put(cols, vals, e, 2 * i + 1, -2 * ey, sq)
-            if use_j:
-                e, sq = _put(cols, vals, e, 2 * j, 2 * ex, sq)
-                e, sq = _put(cols, vals, e, 2 * j + 1, 2 * ey, sq)
-            bound[r], norm2[r] = (gain * h if group < 3 else 0.0 * h), sq
-            r += 1
-            start[r] = e
+    e = 0
+    for r in range(count):
+        i, j = ri[r], rj[r]
+        sq = 0.0
+        if use_i[r]:
+            e, sq = _put(cols, vals, e, 2 * i, -2 * ex[r], sq)
+            e, sq = _put(cols, vals, e, 2 * i + 1, -2 * ey[r], sq)
+        if use_j[r]:
+            e, sq = _put(cols, vals, e, 2 * j, 2 * ex[r], sq)
+            e, sq = _put(cols, vals, e, 2 * j + 1, 2 * ey[r], sq)
+        bound[r], norm2[r] = pair_bound[r], sq
+        start[r + 1] = e
+    r = count
     for side in range(2):  # the upper walls, then the lower ones
         for q in range(2 * n):
             m = margin + extra[q // 2]
