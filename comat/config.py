@@ -108,6 +108,9 @@ class SafetyConfig:
     unpolished answer is repaired or re-solved 1000x tighter (comat.safety.filter)."""
     max_iter: int = 4000
     """OSQP iteration limit; reaching it triggers the fallback."""
+    admm_rho: float = 0.1
+    """OSQP's initial ADMM step size ρ (OSQP's own default). Under a reality layer the robust
+    filter takes :data:`comat.reality.margin.ROBUST_ADMM_RHO` instead, unless this is set."""
     feasibility_tol: float = 1e-4
     """A solution violating any row by more than this (m/s, or m²/s for pair rows) is rejected."""
     strict: bool = False
@@ -126,7 +129,7 @@ class SafetyConfig:
     own is). The Robotarium loops ignore every other field here."""
 
     def __post_init__(self) -> None:
-        for name in ("safety_distance_m", "projection_distance_m", "barrier_gain", "boundary_gain", "eps"):
+        for name in ("safety_distance_m", "projection_distance_m", "barrier_gain", "boundary_gain", "eps", "admm_rho"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"SafetyConfig.{name} must be a positive finite number, got {value!r}")

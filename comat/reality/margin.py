@@ -36,7 +36,14 @@ from comat.config import SafetyConfig
 from comat.reality.config import RealityConfig
 from comat.reality.random import NORMAL_BOUND
 
-__all__ = ["StalePoses", "loop_delay_s", "measurement_bound_m", "response_lag_ticks", "robust_safety"]
+__all__ = [
+    "ROBUST_ADMM_RHO",
+    "StalePoses",
+    "loop_delay_s",
+    "measurement_bound_m",
+    "response_lag_ticks",
+    "robust_safety",
+]
 
 
 def loop_delay_s(reality: RealityConfig, profile: C.RobotProfile) -> float:
@@ -79,9 +86,21 @@ def measurement_bound_m(reality: RealityConfig, projection_m: float) -> float:
     return xy + projection_m * NORMAL_BOUND * reality.pose_noise_theta_rad
 
 
+ROBUST_ADMM_RHO = 0.3
+"""OSQP's initial ADMM step size for the robust filter (:attr:`SafetyConfig.admm_rho`). Its gains
+are ~10× lower than ``off``'s (0.98 at ``nominal``, 0.60 at ``stress``, from 10) and its distances
+wider, so more rows are active: with OSQP's default 0.1 the batched QP took 28 ADMM iterations a
+solve at ``nominal`` and 53–60 at ``stress`` (teams driven at random goals, 16 × 8 and 20 × 4,
+``results/safety_live/tick_cost.py``'s streams), with 0.3 20 and 26–29; 0.2 took 19–20 and 30–33,
+0.5 27–28 and 34–38, 1.0 34 and 53 (16 × 8). Polished answers are the same optimum; no brake
+appeared with either (issue 66: the stress tick within 1.3× nominal's). ``off`` keeps OSQP's
+default, bit for bit (there 0.3 cut 29 iterations to 14–20 too)."""
+
+
 def robust_safety(safety: SafetyConfig, reality: RealityConfig, profile: C.RobotProfile) -> SafetyConfig:
     """The filter's settings under ``reality``: gains at most 1/(e·T), safety distance + 2e,
-    boundary margin + e (module docstring). ``safety.robust=False`` returns ``safety`` as is."""
+    boundary margin + e (module docstring), OSQP's step size :data:`ROBUST_ADMM_RHO` (unless
+    ``safety.admm_rho`` was set). ``safety.robust=False`` returns ``safety`` as is."""
     if not safety.robust or reality.is_off:
         return safety
     gain_max = 1.0 / (math.e * loop_delay_s(reality, profile))
@@ -92,6 +111,7 @@ def robust_safety(safety: SafetyConfig, reality: RealityConfig, profile: C.Robot
         boundary_gain=min(safety.boundary_gain, gain_max),
         safety_distance_m=safety.safety_distance_m + 2.0 * e,
         boundary_margin_m=min(safety.boundary_margin_m + e, 0.89),
+        admm_rho=ROBUST_ADMM_RHO if safety.admm_rho == SafetyConfig.admm_rho else safety.admm_rho,
     )
 
 

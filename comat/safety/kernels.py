@@ -20,6 +20,7 @@ __all__ = [
     "csc_matvec",
     "filter_stages",
     "interventions",
+    "portable_pair_rows",
     "portable_problem",
     "qp_teams",
     "row_bounds_into",
@@ -367,12 +368,10 @@ def watch_judgement(ask, points, tick, born, window, lag, k, stale, min_path, ra
 
 # -- the portable barrier's rows (a team with a robot on probation) -------------------------------
 @_jit
-def portable_problem(poses, probation, extra, d, safety, margin, gain, boundary_gain, k_w, v_w, x0, x1, y0, y1):
-    """:meth:`comat.safety.deployed.PortableBarrier.problem` (its numpy code is the reference):
-    the rows ``A u <= b`` for poses (N, 3), probation (N,) bool, extra radii (N,) — pair rows in its
-    five groups (trusted pairs, then pairs whose j / i alone is on probation, then every pair with i,
-    with j on probation), the 2N upper and 2N lower wall rows, the 4N wheel rows — with the same
-    arithmetic in the same order, so the same bits. Returns A (M, 2N), b (M,)."""
+def portable_pair_rows(poses, probation, extra, d, safety, gain):
+    """The pair rows of :func:`portable_problem`, in its order, and what its other rows need:
+    cosines, sines and projected points of poses (N, 3) (each (N,)); per pair row (P_rows,) the
+    robots i < j, whether each has a part in it, e = p_i − p_j and the bound."""
     n = poses.shape[0]
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
     px, py = poses[:, 0] + d * c, poses[:, 1] + d * s
@@ -388,34 +387,55 @@ def portable_problem(poses, probation, extra, d, safety, margin, gain, boundary_
         on_i, on_j = probation[pi[k]], probation[pj[k]]
         count += (1 if not on_i and not on_j else 0) + (1 if on_j and not on_i else 0)
         count += (1 if on_i and not on_j else 0) + (1 if on_i else 0) + (1 if on_j else 0)
-    rows = count + 8 * n
-    A, bound = np.zeros((rows, 2 * n)), np.empty(rows)
+    ri, rj = np.empty(count, np.int64), np.empty(count, np.int64)
+    use_i, use_j = np.empty(count, np.bool_), np.empty(count, np.bool_)
+    ex, ey, bound = np.empty(count), np.empty(count), np.empty(count)
     r = 0
     for group in range(5):
         for k in range(n_pairs):
             i, j = pi[k], pj[k]
             on_i, on_j = probation[i], probation[j]
             if group == 0:
-                take, use_i, use_j = not on_i and not on_j, True, True
+                take, with_i, with_j = not on_i and not on_j, True, True
             elif group == 1:
-                take, use_i, use_j = on_j and not on_i, True, False
+                take, with_i, with_j = on_j and not on_i, True, False
             elif group == 2:
-                take, use_i, use_j = on_i and not on_j, False, True
+                take, with_i, with_j = on_i and not on_j, False, True
             elif group == 3:
-                take, use_i, use_j = on_i, True, False
+                take, with_i, with_j = on_i, True, False
             else:
-                take, use_i, use_j = on_j, False, True
+                take, with_i, with_j = on_j, False, True
             if not take:
                 continue
-            ex, ey = px[i] - px[j], py[i] - py[j]
+            ri[r], rj[r], use_i[r], use_j[r] = i, j, with_i, with_j
+            ex[r], ey[r] = px[i] - px[j], py[i] - py[j]
             rad = safety + extra[i] + extra[j]
-            h = (ex * ex + ey * ey) - rad * rad  # numpy's ** 2 is a square: the same bits
-            if use_i:
-                A[r, 2 * i], A[r, 2 * i + 1] = -2 * ex, -2 * ey
-            if use_j:
-                A[r, 2 * j], A[r, 2 * j + 1] = 2 * ex, 2 * ey
+            h = (ex[r] * ex[r] + ey[r] * ey[r]) - rad * rad  # numpy's ** 2 is a square: the same bits
             bound[r] = gain * h if group < 3 else 0.0 * h
             r += 1
+    return c, s, px, py, ri, rj, use_i, use_j, ex, ey, bound
+
+
+@_jit
+def portable_problem(poses, probation, extra, d, safety, margin, gain, boundary_gain, k_w, v_w, x0, x1, y0, y1):
+    """:meth:`comat.safety.deployed.PortableBarrier.problem` (its numpy code is the reference):
+    the rows ``A u <= b`` for poses (N, 3), probation (N,) bool, extra radii (N,) — pair rows in its
+    five groups (trusted pairs, then pairs whose j / i alone is on probation, then every pair with i,
+    with j on probation), the 2N upper and 2N lower wall rows, the 4N wheel rows — with the same
+    arithmetic in the same order, so the same bits. Returns A (M, 2N), b (M,)."""
+    n = poses.shape[0]
+    pairs = portable_pair_rows(poses, probation, extra, d, safety, gain)
+    c, s, px, py, ri, rj, use_i, use_j, ex, ey, pair_bound = pairs
+    rows = ri.size + 8 * n
+    A, bound = np.zeros((rows, 2 * n)), np.empty(rows)
+    for r in range(ri.size):
+        i, j = ri[r], rj[r]
+        if use_i[r]:
+            A[r, 2 * i], A[r, 2 * i + 1] = -2 * ex[r], -2 * ey[r]
+        if use_j[r]:
+            A[r, 2 * j], A[r, 2 * j + 1] = 2 * ex[r], 2 * ey[r]
+        bound[r] = pair_bound[r]
+    r = ri.size
     for q in range(2 * n):  # the upper walls, then the lower ones
         m = margin + extra[q // 2]
         A[r + q, q], A[r + 2 * n + q, q] = 1.0, -1.0

@@ -143,6 +143,7 @@ class BarrierQP:
                 verbose=False,
                 eps_abs=cfg.eps,
                 eps_rel=cfg.eps,
+                rho=cfg.admm_rho,
                 max_iter=cfg.max_iter,
                 polishing=True,
                 warm_starting=True,
