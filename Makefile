@@ -24,7 +24,7 @@ setup: $(STAMP)
 demo: $(STAMP)  ## safety filter, the tasks, then the shipped COMAT policy: .rrd, video, checked export in runs/demo (4 min 24 s on a fresh 2-core machine, install included; about 2 min once installed)
 	$(BIN)/comat demo
 
-test: $(STAMP)  ## the fast suite on every core (about 8 minutes on 2 cores: 1,672 passed and 20 skipped in 7 min 55 s by pytest, 8 min 7 s by `time make test`, 2026-12-07 at da882ac, nothing else running; was 9 min 30 s before tests stopped leaking torch threads)
+test: $(STAMP)  ## the fast suite on every core (about 7 minutes on 2 cores: 1,679 passed and 20 skipped in 6 min 58 s by `time make test`, 2026-12-08 at b32f6b2, nothing else running; 8 min 7 s the day before, 9 min 30 s before tests stopped leaking torch threads)
 	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
 test-slow: $(STAMP)  ## long tests: 200 randomized episodes per safety scenario and tier, fidelity spread
