@@ -101,6 +101,7 @@ def run_rps(
     if python is not None and reality is not None:
         raise ValueError("run_rps: python runs main.py alone; the reality layer needs comat's own interpreter")
     env = _main_py_environment(show_figure, rps_path, max_steps)
+    env["COMAT_RPS_SEED"] = str(int(seed))  # V2's chargers and start-up drive: run k the same every time
     # The run's log goes beside the folder, never into the folder a user uploads.
     log_dir = folder.parent / f"{folder.name}.rps-log" / f"run{int(seed)}"
     if (folder / "run_log.py").is_file():

@@ -504,3 +504,13 @@ def test_check_under_v2_says_one_run_is_one_sample(scripted, capsys):
 
     assert main(["export", "--check", str(scripted["pcp"][0]), "--tier", "unicycle", "--rps", V2]) == 0
     assert "it is one random sample; --repeats K" in capsys.readouterr().out
+
+
+@needs_v2
+def test_v2_runs_are_seeded_by_their_index(scripted):
+    """V2 draws its chargers and start-up drive from Python's and numpy's generators: run k of a check
+    seeds them with k (COMAT_RPS_SEED), so it repeats itself and run k+1 is another sample."""
+    from sim2real.check import run_rps
+
+    drives = [run_rps(scripted["pcp"][0], 600, V2, seed=s, max_steps=1)["startup_iterations"] for s in (0, 0, 1)]
+    assert drives[0] == drives[1] != drives[2], drives

@@ -47,7 +47,9 @@ Figures: on by default (the Robotarium wants them; the task draws itself on the 
 rings and bar — PCP's prey and radii, HMT's zones, material left and loads); off with the
 argument ``--no-figure`` or the environment variable ``COMAT_SHOW_FIGURE=0`` (then the simulator
 also stops pacing to real time).
-``COMAT_MAX_STEPS=K`` stops after K env steps (a quick look at the figure);
+``COMAT_MAX_STEPS=K`` stops after K env steps (a quick look at the figure); ``COMAT_RPS_SEED=K`` seeds
+Python's and numpy's generators before the Robotarium is made (V2 draws its chargers and start-up
+drive from them; ``comat export --check`` sets it to the run's index, so run k is reproducible);
 ``COMAT_SAVE_FIGURE=file.png`` saves the last frame. Works with the legacy ``rps`` (PyPI 0.0.0 / 2020-2025:
 ``call_at_scripts_end``, ``create_unicycle_barrier_certificate_with_boundary``) and with V2 (2026: ``debug``,
 ``create_uni_barrier_certificate_with_boundary``), chosen by what the installed ``rps`` has.
@@ -326,6 +328,11 @@ def main(argv):
 
     d, ticks = CONFIG["projection_distance_m"], CONFIG["ticks_per_step"]
     adapter = RpsAdapter(d)
+    if os.environ.get("COMAT_RPS_SEED"):  # comat export --check's run k: V2's start-up drive reproducible
+        import random
+
+        random.seed(int(os.environ["COMAT_RPS_SEED"]))
+        np.random.seed(int(os.environ["COMAT_RPS_SEED"]))
     r = adapter.make_robotarium(n, poses0.copy(), show)
     startup_iterations = int(getattr(r, "_iteration", 0) or 0)  # V2's drive from the chargers; legacy none
     wheel = adapter.wheel_constants(r)
