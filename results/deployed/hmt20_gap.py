@@ -105,8 +105,9 @@ def measure_team(
     config_py = folder / "submission_config.py"
     exported = "on" if load_config(folder).get("filter_keep_right", True) else "off"
     if keep not in (None, exported):  # a diagnosis: the exported CONFIG's keep right turned over
+        want = keep == "on"
         text = config_py.read_text()
-        config_py.write_text(text.replace(*(f"'filter_keep_right': {v}," for v in ((keep == "off"), (keep == "on")))))
+        config_py.write_text(text.replace(f"'filter_keep_right': {not want},", f"'filter_keep_right': {want},"))
         assert load_config(folder)["filter_keep_right"] is (keep == "on"), config_py
     keep = keep or exported
     requested = mujoco_twin(folder, tier="unicycle")["metrics"]
